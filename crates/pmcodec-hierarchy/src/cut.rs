@@ -1,0 +1,223 @@
+//! Cuts through the hierarchy and the triangle meshes they show.
+//!
+//! A cut is stored as the set of *expanded* nodes: nodes whose children are shown instead of
+//! themselves. It is closed upward (a node's parent is expanded whenever it is), and the cut
+//! nodes are the unexpanded nodes whose parent is expanded, plus the unexpanded top-level
+//! nodes. By the degenerate-set rule (see [`crate::degenerate`]) the shown triangles are the
+//! never-degenerating ones plus D_a of every expanded node a.
+
+use crate::degenerate::DegenerateSets;
+use crate::hierarchy::NONE;
+use crate::nodes::NodeState;
+use crate::Hierarchy;
+use glam::Vec3;
+use pmcodec_mesh::TriMesh;
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
+
+/// What a cut should satisfy.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CutTarget {
+    /// The largest cut with at most this many triangles, refined greedily by node error.
+    Triangles(u32),
+    /// The largest cut with at most this many vertices (cut nodes), refined greedily.
+    Vertices(u32),
+    /// Every node of this level (0 = the input mesh).
+    Level(usize),
+    /// Refine every node whose error distance (see [`NodeState::error_distance`]) exceeds this.
+    MaxError(f64),
+}
+
+/// A cut: the expanded flags of all nodes (global ids) and the counts they give.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Cut {
+    pub expanded: Vec<bool>,
+    pub triangles: u32,
+    pub vertices: u32,
+}
+
+/// Children of every node (global ids) in compressed rows.
+#[derive(Clone, Debug, Default)]
+pub struct ChildIndex {
+    pub offsets: Vec<u32>,
+    pub children: Vec<u32>,
+}
+
+impl ChildIndex {
+    pub fn new(h: &Hierarchy) -> Self {
+        let total = h.node_count();
+        let mut offsets = vec![0u32; total + 1];
+        for k in 0..h.levels() - 1 {
+            for &p in &h.parent[k] {
+                offsets[(h.offsets[k + 1] + p) as usize + 1] += 1;
+            }
+        }
+        for i in 0..total {
+            offsets[i + 1] += offsets[i];
+        }
+        let mut fill = offsets.clone();
+        let mut children = vec![0u32; offsets[total] as usize];
+        for k in 0..h.levels() - 1 {
+            for (v, &p) in h.parent[k].iter().enumerate() {
+                let g = (h.offsets[k + 1] + p) as usize;
+                children[fill[g] as usize] = h.offsets[k] + v as u32;
+                fill[g] += 1;
+            }
+        }
+        ChildIndex { offsets, children }
+    }
+
+    #[inline]
+    pub fn of(&self, g: u32) -> &[u32] {
+        &self.children[self.offsets[g as usize] as usize..self.offsets[g as usize + 1] as usize]
+    }
+}
+
+#[derive(PartialEq)]
+struct ByError(f64, u32);
+impl Eq for ByError {}
+impl PartialOrd for ByError {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for ByError {
+    fn cmp(&self, o: &Self) -> Ordering {
+        self.0.total_cmp(&o.0).then_with(|| o.1.cmp(&self.1))
+    }
+}
+
+/// The coarsest cut: nothing expanded.
+pub fn coarsest(h: &Hierarchy, d: &DegenerateSets) -> Cut {
+    Cut { expanded: vec![false; h.node_count()], triangles: d.never.len() as u32, vertices: h.level_sizes[h.top()] }
+}
+
+/// Chooses a cut for `target` using this frame's node errors.
+pub fn select(h: &Hierarchy, d: &DegenerateSets, children: &ChildIndex, nodes: &NodeState, target: CutTarget) -> Cut {
+    let mut cut = coarsest(h, d);
+    let top = h.top();
+    let n0 = h.level_sizes[0];
+    match target {
+        CutTarget::Level(level) => {
+            let level = level.min(top);
+            for g in h.offsets[level + 1]..h.offsets[top + 1] {
+                cut.expanded[g as usize] = true;
+                cut.triangles += d.size(g);
+            }
+            cut.vertices = h.level_sizes[level];
+        }
+        CutTarget::MaxError(tol) => {
+            let mut stack: Vec<u32> = (h.offsets[top]..h.offsets[top + 1]).collect();
+            while let Some(g) = stack.pop() {
+                if g >= n0 && nodes.error_distance(g) > tol {
+                    expand(&mut cut, d, children, g);
+                    stack.extend_from_slice(children.of(g));
+                }
+            }
+        }
+        CutTarget::Triangles(budget) => {
+            greedy(&mut cut, h, d, children, nodes, |c, g| c.triangles + d.size(g) <= budget)
+        }
+        CutTarget::Vertices(budget) => {
+            greedy(&mut cut, h, d, children, nodes, |c, g| c.vertices + children.of(g).len() as u32 - 1 <= budget)
+        }
+    }
+    cut
+}
+
+#[inline]
+fn expand(cut: &mut Cut, d: &DegenerateSets, children: &ChildIndex, g: u32) {
+    cut.expanded[g as usize] = true;
+    cut.triangles += d.size(g);
+    cut.vertices += children.of(g).len() as u32 - 1;
+}
+
+/// Expands the highest-error cut node that still fits, until none does.
+fn greedy(
+    cut: &mut Cut,
+    h: &Hierarchy,
+    d: &DegenerateSets,
+    children: &ChildIndex,
+    nodes: &NodeState,
+    fits: impl Fn(&Cut, u32) -> bool,
+) {
+    let top = h.top();
+    let n0 = h.level_sizes[0];
+    let mut heap: BinaryHeap<ByError> =
+        (h.offsets[top]..h.offsets[top + 1]).filter(|&g| g >= n0).map(|g| ByError(nodes.error(g), g)).collect();
+    while let Some(ByError(_, g)) = heap.pop() {
+        if !fits(cut, g) {
+            continue;
+        }
+        expand(cut, d, children, g);
+        for &c in children.of(g) {
+            if c >= n0 {
+                heap.push(ByError(nodes.error(c), c));
+            }
+        }
+    }
+}
+
+/// For every node, the cut node that stands for it (itself, or its cut ancestor), or [`NONE`]
+/// for expanded nodes.
+pub fn cut_nodes(h: &Hierarchy, cut: &Cut) -> Vec<u32> {
+    let mut rep = vec![NONE; h.node_count()];
+    for k in (0..h.levels()).rev() {
+        for v in 0..h.level_sizes[k] {
+            let g = h.offsets[k] + v;
+            let above = if k == h.top() { NONE } else { rep[(h.offsets[k + 1] + h.parent[k][v as usize]) as usize] };
+            rep[g as usize] = if above != NONE {
+                above
+            } else if cut.expanded[g as usize] {
+                NONE
+            } else {
+                g
+            };
+        }
+    }
+    rep
+}
+
+/// Fine triangles a cut shows, ascending.
+pub fn shown_triangles(d: &DegenerateSets, cut: &Cut) -> Vec<u32> {
+    let mut out: Vec<u32> = d
+        .node_of
+        .iter()
+        .enumerate()
+        .filter(|&(_, &g)| g == NONE || cut.expanded[g as usize])
+        .map(|(t, _)| t as u32)
+        .collect();
+    out.sort_unstable();
+    out
+}
+
+/// The indexed triangle mesh a cut shows, with node positions from `positions` (global ids).
+/// Also returns, for each output vertex, the global id of its node.
+pub fn extract(
+    h: &Hierarchy,
+    d: &DegenerateSets,
+    fine_triangles: &[[u32; 3]],
+    cut: &Cut,
+    positions: &[Vec3],
+) -> (TriMesh, Vec<u32>) {
+    let rep = cut_nodes(h, cut);
+    let mut index_of = vec![NONE; h.node_count()];
+    let mut nodes = Vec::new();
+    let mut mesh = TriMesh::default();
+    for (t, &g) in d.node_of.iter().enumerate() {
+        if g != NONE && !cut.expanded[g as usize] {
+            continue;
+        }
+        let tri = fine_triangles[t].map(|v| {
+            let c = rep[v as usize];
+            if index_of[c as usize] == NONE {
+                index_of[c as usize] = nodes.len() as u32;
+                nodes.push(c);
+                mesh.positions.push(positions[c as usize]);
+            }
+            index_of[c as usize]
+        });
+        mesh.triangles.push(tri);
+    }
+    (mesh, nodes)
+}

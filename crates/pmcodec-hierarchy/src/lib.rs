@@ -1,0 +1,23 @@
+//! The multilevel hierarchy of Kircher & Garland, *Progressive Multiresolution Meshes for
+//! Deforming Surfaces*: built by QEM edge collapse (section 3, [`build`]), with degenerate sets
+//! ([`degenerate`]) that make triangle budgets exact, and cuts ([`cut`]) that extract a mesh for
+//! any frame.
+//!
+//! Data is flat arrays indexed by `u32`; nodes have a global id (see [`Hierarchy`]).
+
+pub mod base;
+pub mod build;
+pub mod cut;
+pub mod degenerate;
+pub mod hierarchy;
+pub mod nodes;
+pub mod quadric;
+pub mod topology;
+
+pub use build::{BuildError, BuildOptions, build};
+pub use cut::{ChildIndex, Cut, CutTarget};
+pub use degenerate::DegenerateSets;
+pub use hierarchy::{Hierarchy, NONE};
+pub use nodes::NodeState;
+pub use quadric::{Quadric, QuadricOptions};
+pub use topology::FineTopology;

@@ -1,0 +1,33 @@
+use std::path::PathBuf;
+
+/// Everything that can be wrong with an input sequence. Messages name the file, frame, face or
+/// vertex at fault so that a user can find it.
+#[derive(Debug, thiserror::Error)]
+pub enum MeshError {
+    #[error("reading {path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}:{line}: {message}")]
+    Parse { path: PathBuf, line: usize, message: String },
+    #[error("no frames: {0}")]
+    NoInput(String),
+    #[error("the sequence has no frames")]
+    NoFrames,
+    #[error("the mesh is empty: {what}")]
+    Empty { what: String },
+    #[error("the mesh is too large: {what}")]
+    TooLarge { what: String },
+    #[error("frame {frame} does not match frame 0: {detail}")]
+    FrameMismatch { frame: String, detail: String },
+    #[error("frame {frame}: vertex {vertex} has a NaN or infinite coordinate")]
+    NonFinite { frame: String, vertex: u32 },
+    #[error("face {face} uses vertex {index}, but there are only {vertex_count} vertices")]
+    IndexOutOfRange { face: u32, index: u32, vertex_count: u32 },
+    #[error("face {face} repeats a corner: {corners:?}")]
+    DegenerateFace { face: u32, corners: [u32; 3] },
+    #[error("glTF: {0}")]
+    Gltf(String),
+    #[error("unsupported glTF feature: {0}")]
+    Unsupported(String),
+    #[error("{0}")]
+    Invalid(String),
+}

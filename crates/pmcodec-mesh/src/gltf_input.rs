@@ -1,0 +1,1 @@
+//! glTF input: see the module below.
