@@ -1,0 +1,67 @@
+//! Shared helpers for the hierarchy's integration tests.
+#![allow(dead_code)]
+
+use pmcodec_mesh::Sequence;
+use std::path::PathBuf;
+
+/// `../shared/data` beside the repository, or None (with a message) where it is absent.
+pub fn data_dir() -> Option<PathBuf> {
+    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data"));
+    if dir.is_dir() {
+        Some(dir)
+    } else {
+        eprintln!("SKIP: {} is absent; real-mesh tests need ../shared/data beside the repository", dir.display());
+        None
+    }
+}
+
+/// The first `frames` frames of a real OBJ sequence.
+pub fn load(name: &str, frames: usize) -> Option<Sequence> {
+    let dir = data_dir()?.join(name);
+    let mut paths = pmcodec_mesh::obj::frame_paths(&dir).expect("frames");
+    paths.truncate(frames);
+    Some(pmcodec_mesh::obj::load_obj_files(&paths, 30.0).expect("load"))
+}
+
+/// A deterministic generator for tests (splitmix64).
+pub struct Rng(pub u64);
+impl Rng {
+    pub fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    pub fn below(&mut self, n: u64) -> u64 {
+        self.next() % n.max(1)
+    }
+    pub fn unit(&mut self) -> f32 {
+        (self.next() >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+/// A wavy grid of `w x h` vertices: a small generated fixture with a boundary.
+pub fn grid(w: u32, h: u32, frames: usize) -> Sequence {
+    let mut seq = Sequence { frame_rate: 30.0, ..Default::default() };
+    for y in 0..h - 1 {
+        for x in 0..w - 1 {
+            let i = y * w + x;
+            seq.triangles.push([i, i + 1, i + w + 1]);
+            seq.triangles.push([i, i + w + 1, i + w]);
+        }
+    }
+    for f in 0..frames {
+        let t = f as f32 * 0.2;
+        seq.frames.push(
+            (0..h)
+                .flat_map(|y| (0..w).map(move |x| (x, y)))
+                .map(|(x, y)| {
+                    let (u, v) = (x as f32 / (w - 1) as f32, y as f32 / (h - 1) as f32);
+                    glam::Vec3::new(u, v, 0.2 * (6.0 * u + t).sin() * (4.0 * v).cos())
+                })
+                .collect(),
+        );
+    }
+    seq
+}

@@ -1,0 +1,136 @@
+//! The multilevel mesh on real and generated meshes: structure, connected clusters, degenerate
+//! sets against brute force, and cuts.
+
+mod common;
+use common::*;
+use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
+use pmcodec_hierarchy::cut::{self, ChildIndex, Cut, CutTarget};
+use pmcodec_hierarchy::*;
+
+struct Built {
+    seq: pmcodec_mesh::Sequence,
+    topo: FineTopology,
+    h: Hierarchy,
+    d: DegenerateSets,
+}
+
+fn build_seq(seq: pmcodec_mesh::Sequence, opts: &BuildOptions) -> Built {
+    let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
+    let q = base_quadrics(&seq, &topo, &BaseOptions::default());
+    let h = build(&topo, &q, opts).expect("build");
+    let d = DegenerateSets::new(&h, &seq.triangles);
+    Built { seq, topo, h, d }
+}
+
+/// A random cut: expand each node with probability p, keeping the set closed upward.
+fn random_cut(h: &Hierarchy, rng: &mut Rng, p: f32) -> Cut {
+    let mut expanded = vec![false; h.node_count()];
+    for k in (1..h.levels()).rev() {
+        for v in 0..h.level_sizes[k] {
+            let g = h.offsets[k] + v;
+            let parent_ok = k == h.top() || expanded[(h.offsets[k + 1] + h.parent[k][v as usize]) as usize];
+            expanded[g as usize] = parent_ok && rng.unit() < p;
+        }
+    }
+    Cut { expanded, triangles: 0, vertices: 0 }
+}
+
+/// The degenerate-set rule against brute force: t is shown iff its corners map to three
+/// distinct cut nodes.
+fn check_degenerate_sets(b: &Built, seed: u64, cuts: usize) {
+    let mut rng = Rng(seed);
+    for i in 0..cuts {
+        let p = [0.0, 0.3, 0.7, 0.95, 1.0][i % 5];
+        let c = random_cut(&b.h, &mut rng, p);
+        let rep = cut::cut_nodes(&b.h, &c);
+        let brute: Vec<u32> = b
+            .seq
+            .triangles
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| {
+                let [x, y, z] = t.map(|v| rep[v as usize]);
+                x != y && y != z && x != z
+            })
+            .map(|(t, _)| t as u32)
+            .collect();
+        assert_eq!(cut::shown_triangles(&b.d, &c), brute, "cut {i} (p = {p})");
+    }
+}
+
+#[test]
+fn horse_hierarchy_is_valid() {
+    let Some(seq) = load("horse-gallop", 1) else { return };
+    let b = build_seq(seq, &BuildOptions::default());
+    assert_eq!(b.h.level_sizes, vec![8431, 2108, 527, 132, 33, 8]);
+    b.h.check(&b.topo).expect("every cluster connected");
+    check_degenerate_sets(&b, 1, 10);
+    // Every triangle degenerates somewhere or is shown at the top; D sets partition them.
+    let in_sets: usize = (0..b.h.node_count() as u32).map(|g| b.d.size(g) as usize).sum();
+    assert_eq!(in_sets + b.d.never.len(), b.seq.triangles.len());
+}
+
+#[test]
+fn samba_and_cat_hierarchies_are_valid() {
+    for name in ["samba-60", "cat-poses"] {
+        let Some(seq) = load(name, 1) else { return };
+        for branching in [2, 8] {
+            let b = build_seq(seq.clone(), &BuildOptions { branching, ..Default::default() });
+            b.h.check(&b.topo).unwrap_or_else(|e| panic!("{name} b={branching}: {e}"));
+            for w in b.h.level_sizes.windows(2) {
+                let ratio = w[0] as f64 / w[1] as f64;
+                assert!((ratio - branching as f64).abs() < 0.1 * branching as f64, "{name}: {:?}", b.h.level_sizes);
+            }
+            check_degenerate_sets(&b, 2, 5);
+        }
+    }
+}
+
+#[test]
+fn budget_cuts_are_exact_and_full() {
+    let Some(seq) = load("horse-gallop", 1) else { return };
+    let b = build_seq(seq, &BuildOptions::default());
+    let children = ChildIndex::new(&b.h);
+    let nodes = NodeState::compute(
+        &b.h,
+        &base_quadrics(&b.seq, &b.topo, &BaseOptions::default()),
+        &b.seq.frames[0],
+    );
+    let max_d = (0..b.h.node_count() as u32).map(|g| b.d.size(g)).max().unwrap_or(0);
+    for budget in [100, 1600, 2000, 5000, 16000] {
+        let c = cut::select(&b.h, &b.d, &children, &nodes, CutTarget::Triangles(budget));
+        let (mesh, _) = cut::extract(&b.h, &b.d, &b.seq.triangles, &c, &nodes.positions);
+        assert_eq!(mesh.triangles.len() as u32, c.triangles, "counted = extracted");
+        assert!(c.triangles <= budget, "{} > {budget}", c.triangles);
+        assert!(c.triangles + max_d > budget || c.triangles == b.seq.triangles.len() as u32, "budget {budget}: only {}", c.triangles);
+        assert!(mesh.positions.len() as u32 <= c.vertices, "a cut node may carry no shown triangle, never the reverse");
+    }
+    for level in 0..b.h.levels() {
+        let c = cut::select(&b.h, &b.d, &children, &nodes, CutTarget::Level(level));
+        let (mesh, _) = cut::extract(&b.h, &b.d, &b.seq.triangles, &c, &nodes.positions);
+        assert!(mesh.positions.len() as u32 <= b.h.level_sizes[level]);
+        if level == 0 {
+            assert_eq!(mesh.triangles.len(), b.seq.triangles.len());
+        }
+    }
+    let c = cut::select(&b.h, &b.d, &children, &nodes, CutTarget::Vertices(800));
+    assert!(c.vertices <= 800 && c.vertices > 780, "{}", c.vertices);
+    // Max error: a looser tolerance never gives more triangles.
+    let diag = b.seq.frame_mesh(0).unwrap().diagonal() as f64;
+    let mut last = u32::MAX;
+    for tol in [0.0001, 0.001, 0.01, 0.1] {
+        let c = cut::select(&b.h, &b.d, &children, &nodes, CutTarget::MaxError(tol * diag));
+        assert!(c.triangles <= last);
+        last = c.triangles;
+    }
+}
+
+#[test]
+fn grid_fixture_hierarchies() {
+    for (w, h) in [(3, 3), (10, 7), (40, 40)] {
+        let b = build_seq(grid(w, h, 1), &BuildOptions { min_coarsest: 1, ..Default::default() });
+        b.h.check(&b.topo).expect("connected");
+        check_degenerate_sets(&b, 3, 10);
+        assert!(b.h.level_sizes.len() >= 2);
+    }
+}
