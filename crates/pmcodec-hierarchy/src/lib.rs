@@ -5,13 +5,17 @@
 //!
 //! Data is flat arrays indexed by `u32`; nodes have a global id (see [`Hierarchy`]).
 
+pub mod approx;
 pub mod base;
 pub mod build;
 pub mod cut;
 pub mod degenerate;
 pub mod hierarchy;
 pub mod nodes;
+pub mod progressive;
+pub mod levels;
 pub mod quadric;
+pub mod recluster;
 pub mod topology;
 
 pub use build::{BuildError, BuildOptions, build};

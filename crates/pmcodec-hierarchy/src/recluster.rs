@@ -1,0 +1,395 @@
+//! Per-frame reclustering (Kircher & Garland section 4 and 5): as the surface deforms, swaps
+//! move level-k nodes between neighbouring clusters of level k+1 so that the hierarchy H_f fits
+//! frame f. The swaps of one frame turn H_{f-1} into H_f and are what the stream carries.
+//!
+//! Per frame: fine quadrics from the frame's positions, node quadrics summed up the hierarchy,
+//! positions re-solved; then, coarse to fine, passes of valid beneficial swaps, best first, an
+//! independent set per pass, until none is left or a cap is reached.
+
+use crate::Hierarchy;
+use crate::levels::{LevelAdjacency, level_adjacency};
+use crate::nodes::NodeState;
+use crate::quadric::{Quadric, QuadricOptions, vertex_quadrics};
+use crate::topology::FineTopology;
+use glam::Vec3;
+
+/// One swap (section 4.1): level-`level` node `v` moves from cluster `from` to cluster `to`
+/// (both level `level + 1` nodes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Swap {
+    pub level: u32,
+    pub v: u32,
+    pub from: u32,
+    pub to: u32,
+}
+
+/// Options for reclustering.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReclusterOptions {
+    /// Growth exponent of the QEM across levels in the hierarchical weights (equation 2).
+    pub beta: f64,
+    /// At most this many swaps per frame (over all levels).
+    pub max_swaps_per_frame: u32,
+    /// At most this many independent-set passes per level per frame.
+    pub max_passes: u32,
+    /// A swap must improve the estimate by at least this fraction of the node's current error,
+    /// so that rounding noise never drives swaps back and forth.
+    pub min_relative_benefit: f64,
+    /// Also require the homeomorphism rule of section 4.2 (conservatively: see `homeomorphic`).
+    pub homeomorphism: bool,
+    /// Quadrics of each frame (boundary weight).
+    pub quadric: QuadricOptions,
+}
+
+impl Default for ReclusterOptions {
+    fn default() -> Self {
+        ReclusterOptions {
+            beta: 1.9127,
+            max_swaps_per_frame: u32::MAX,
+            max_passes: 16,
+            min_relative_benefit: 1e-6,
+            homeomorphism: false,
+            quadric: QuadricOptions::default(),
+        }
+    }
+}
+
+/// Counters of one frame's reclustering.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameStats {
+    pub swaps: u32,
+    pub passes: u32,
+    pub candidates: u64,
+    pub rejected_invalid: u64,
+}
+
+/// The reclustering state: the current hierarchy and its node quadrics and positions.
+pub struct Reclusterer {
+    pub h: Hierarchy,
+    pub nodes: NodeState,
+    pub opts: ReclusterOptions,
+    topo: FineTopology,
+    triangles: Vec<[u32; 3]>,
+    /// (|M_{j+1}| / |M_j|)^beta for each level j: the factor between consecutive weights.
+    weight_step: Vec<f64>,
+    fine_q: Vec<Quadric>,
+    adjacency: Vec<LevelAdjacency>,
+    // Scratch, kept to avoid allocation per frame.
+    locked: Vec<bool>,
+    dirty: Vec<bool>,
+    dirty_list: Vec<u32>,
+    candidates: Vec<(f64, u32, u32)>,
+    anc: Vec<u32>,
+    set: Vec<u32>,
+    stack: Vec<u32>,
+    seen: Vec<bool>,
+}
+
+impl Reclusterer {
+    /// Starts from H_0 (`h`, built for the sequence's first frame or poses).
+    pub fn new(h: Hierarchy, topo: FineTopology, triangles: Vec<[u32; 3]>, opts: ReclusterOptions) -> Self {
+        let weight_step = (0..h.levels())
+            .map(|j| {
+                if j + 1 < h.levels() {
+                    (h.level_sizes[j + 1] as f64 / h.level_sizes[j] as f64).powf(opts.beta)
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        Reclusterer {
+            h,
+            nodes: NodeState::default(),
+            opts,
+            topo,
+            triangles,
+            weight_step,
+            fine_q: Vec::new(),
+            adjacency: Vec::new(),
+            locked: Vec::new(),
+            dirty: Vec::new(),
+            dirty_list: Vec::new(),
+            candidates: Vec::new(),
+            anc: Vec::new(),
+            set: Vec::new(),
+            stack: Vec::new(),
+            seen: Vec::new(),
+        }
+    }
+
+    pub fn topology(&self) -> &FineTopology {
+        &self.topo
+    }
+
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
+    /// Computes this frame's quadrics and node positions on the current hierarchy without
+    /// changing it (what "first-frame static" uses, and the state before reclustering).
+    pub fn fit(&mut self, positions: &[Vec3]) {
+        vertex_quadrics(positions, &self.triangles, &self.topo.boundary, &self.opts.quadric, &mut self.fine_q);
+        self.nodes.recompute(&self.h, &self.fine_q, positions);
+    }
+
+    /// Adapts the hierarchy to a new frame; appends the swaps performed, in order, to `swaps`.
+    pub fn frame(&mut self, positions: &[Vec3], swaps: &mut Vec<Swap>) -> FrameStats {
+        self.fit(positions);
+        let mut stats = FrameStats::default();
+        let mut adjacency = std::mem::take(&mut self.adjacency);
+        level_adjacency(&self.h, &self.topo, &mut adjacency);
+        let mut budget = self.opts.max_swaps_per_frame;
+        for k in (0..self.h.levels() - 1).rev() {
+            if budget == 0 {
+                break;
+            }
+            self.improve_level(k, &adjacency[k], swaps, &mut stats, &mut budget);
+        }
+        self.adjacency = adjacency;
+        debug_assert!(self.h.check(&self.topo).is_ok(), "reclustering broke a cluster: {:?}", self.h.check(&self.topo));
+        stats
+    }
+
+    /// Passes of best-first independent sets of valid beneficial swaps at level k.
+    fn improve_level(
+        &mut self,
+        k: usize,
+        adj: &LevelAdjacency,
+        swaps: &mut Vec<Swap>,
+        stats: &mut FrameStats,
+        budget: &mut u32,
+    ) {
+        let n = self.h.level_sizes[k] as usize;
+        self.locked.clear();
+        self.locked.resize(n, false);
+        self.dirty.clear();
+        self.dirty.resize(n, true);
+        self.dirty_list.clear();
+        self.dirty_list.extend(0..n as u32);
+        for _pass in 0..self.opts.max_passes {
+            stats.passes += 1;
+            // 1. Candidates: for each dirty node, its best beneficial move to a neighbouring cluster.
+            self.candidates.clear();
+            for i in 0..self.dirty_list.len() {
+                let v = self.dirty_list[i];
+                self.dirty[v as usize] = false;
+                let a = self.h.parent[k][v as usize];
+                let mut best = (0.0, a);
+                for &w in adj.row(v) {
+                    let b = self.h.parent[k][w as usize];
+                    if b == a || b == best.1 {
+                        continue;
+                    }
+                    stats.candidates += 1;
+                    let gain = self.benefit(k, v, a, b);
+                    if gain > best.0 {
+                        best = (gain, b);
+                    }
+                }
+                if best.1 != a && best.0 > self.threshold(k, v, a) {
+                    self.candidates.push((best.0, v, best.1));
+                }
+            }
+            if self.candidates.is_empty() {
+                break;
+            }
+            self.candidates.sort_unstable_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+            // 2. An independent set, best first: a swap locks its node and its neighbours, so
+            // no validity test in this pass reads a neighbourhood another swap has changed.
+            self.dirty_list.clear();
+            let mut done = 0u32;
+            let cands = std::mem::take(&mut self.candidates);
+            for &(_, v, b) in &cands {
+                if *budget == 0 {
+                    break;
+                }
+                if self.locked[v as usize] {
+                    continue;
+                }
+                let a = self.h.parent[k][v as usize];
+                // Earlier swaps in this pass moved node positions: re-estimate.
+                if self.benefit(k, v, a, b) <= self.threshold(k, v, a) {
+                    continue;
+                }
+                if !self.valid(k, adj, v, a, b) {
+                    stats.rejected_invalid += 1;
+                    continue;
+                }
+                self.apply(k, v, a, b);
+                swaps.push(Swap { level: k as u32, v, from: a, to: b });
+                done += 1;
+                *budget -= 1;
+                self.locked[v as usize] = true;
+                self.mark_dirty(v);
+                for &w in adj.row(v) {
+                    self.locked[w as usize] = true;
+                    self.mark_dirty(w);
+                    // Neighbours of neighbours see moved cluster positions too.
+                    for &x in adj.row(w) {
+                        self.mark_dirty(x);
+                    }
+                }
+            }
+            self.candidates = cands;
+            stats.swaps += done;
+            if done == 0 || *budget == 0 {
+                break;
+            }
+            for l in self.locked.iter_mut() {
+                *l = false;
+            }
+        }
+    }
+
+    #[inline]
+    fn mark_dirty(&mut self, v: u32) {
+        if !self.dirty[v as usize] {
+            self.dirty[v as usize] = true;
+            self.dirty_list.push(v);
+        }
+    }
+
+    /// The smallest benefit worth a swap.
+    #[inline]
+    fn threshold(&self, k: usize, v: u32, a: u32) -> f64 {
+        let qv = &self.nodes.quadrics[(self.h.offsets[k] + v) as usize];
+        let xa = self.nodes.positions[(self.h.offsets[k + 1] + a) as usize];
+        self.opts.min_relative_benefit * qv.eval_f32(xa).max(0.0)
+    }
+
+    /// Hierarchical benefit of moving level-k node v from a to b: equation 1 at each coarser
+    /// level where the ancestors differ, weighted by equation 2 (w_{k+1} = 1).
+    #[inline]
+    pub fn benefit(&self, k: usize, v: u32, a: u32, b: u32) -> f64 {
+        let h = &self.h;
+        let qv = &self.nodes.quadrics[(h.offsets[k] + v) as usize];
+        let (mut x, mut y) = (a, b);
+        let mut w = 1.0;
+        let mut sum = 0.0;
+        let mut j = k + 1;
+        while x != y {
+            let pa = self.nodes.positions[(h.offsets[j] + x) as usize];
+            let pb = self.nodes.positions[(h.offsets[j] + y) as usize];
+            sum += w * (qv.eval_f32(pa) - qv.eval_f32(pb));
+            if j == h.top() {
+                break;
+            }
+            w *= self.weight_step[j];
+            x = h.parent[j][x as usize];
+            y = h.parent[j][y as usize];
+            j += 1;
+        }
+        sum
+    }
+
+    /// Validity (section 4.2, at level k and every coarser level where the ancestors of a and b
+    /// differ): after v leaves, the ancestor A_j of a must keep some of v's neighbours, and those
+    /// neighbours must be connected to one another without passing through v. Checking the
+    /// neighbours' connection through edges among themselves is local and conservative: it
+    /// never accepts a swap that disconnects a cluster (any path through v can be rerouted
+    /// through them), though it may reject one that would not.
+    pub fn valid(&mut self, k: usize, adj: &LevelAdjacency, v: u32, a: u32, b: u32) -> bool {
+        let h = &self.h;
+        let nbrs = adj.row(v);
+        self.anc.clear();
+        self.anc.extend(nbrs.iter().map(|&w| h.parent[k][w as usize]));
+        let (mut x, mut y) = (a, b);
+        let mut j = k + 1;
+        while x != y {
+            // S_j: v's neighbours whose level-j ancestor is A_j = x.
+            self.set.clear();
+            for (i, &c) in self.anc.iter().enumerate() {
+                if c == x {
+                    self.set.push(i as u32);
+                }
+            }
+            if self.set.is_empty() || !connected_among(nbrs, &self.set, adj, &mut self.stack, &mut self.seen) {
+                return false;
+            }
+            if j == h.top() {
+                break;
+            }
+            x = h.parent[j][x as usize];
+            y = h.parent[j][y as usize];
+            for c in self.anc.iter_mut() {
+                *c = h.parent[j][*c as usize];
+            }
+            j += 1;
+        }
+        if self.opts.homeomorphism && !self.homeomorphic(k, adj, v, b) {
+            return false;
+        }
+        true
+    }
+
+    /// Section 4.2's optional rule, applied conservatively: for every cluster c that v touches
+    /// (other than b), v's contact with c must continue an existing contact between C_b and c,
+    /// i.e. some neighbour of v in C_b is adjacent to some neighbour of v in C_c. Otherwise the
+    /// swap could open a second, separate boundary between C_b and c, and the approximation
+    /// would stop being homeomorphic to the one before.
+    fn homeomorphic(&self, k: usize, adj: &LevelAdjacency, v: u32, b: u32) -> bool {
+        let parent = &self.h.parent[k];
+        let nbrs = adj.row(v);
+        for &w in nbrs {
+            let c = parent[w as usize];
+            if c == b {
+                continue;
+            }
+            let touches = nbrs.iter().any(|&u| {
+                parent[u as usize] == b && nbrs.iter().any(|&z| parent[z as usize] == c && adj.adjacent(u, z))
+            });
+            if !touches {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Performs swap (v, a, b) at level k: reparents v and moves its quadric from every
+    /// ancestor of a to the matching ancestor of b (Q_a -= Q_v, Q_b += Q_v), re-solving them.
+    pub fn apply(&mut self, k: usize, v: u32, a: u32, b: u32) {
+        let h = &mut self.h;
+        h.parent[k][v as usize] = b;
+        let qv = self.nodes.quadrics[(h.offsets[k] + v) as usize];
+        let (mut x, mut y) = (a, b);
+        let mut j = k + 1;
+        while x != y {
+            let (gx, gy) = (h.offsets[j] + x, h.offsets[j] + y);
+            self.nodes.quadrics[gx as usize] -= &qv;
+            self.nodes.quadrics[gy as usize] += &qv;
+            self.nodes.resolve(gx);
+            self.nodes.resolve(gy);
+            if j == h.top() {
+                break;
+            }
+            x = h.parent[j][x as usize];
+            y = h.parent[j][y as usize];
+            j += 1;
+        }
+    }
+}
+
+/// Whether the neighbours `nbrs[set[..]]` form one connected group using edges among
+/// themselves.
+fn connected_among(nbrs: &[u32], set: &[u32], adj: &LevelAdjacency, stack: &mut Vec<u32>, seen: &mut Vec<bool>) -> bool {
+    if set.len() <= 1 {
+        return true;
+    }
+    seen.clear();
+    seen.resize(set.len(), false);
+    stack.clear();
+    stack.push(0);
+    seen[0] = true;
+    let mut reached = 1;
+    while let Some(i) = stack.pop() {
+        let u = nbrs[set[i as usize] as usize];
+        for (j, &s) in set.iter().enumerate() {
+            if !seen[j] && adj.adjacent(u, nbrs[s as usize]) {
+                seen[j] = true;
+                reached += 1;
+                stack.push(j as u32);
+            }
+        }
+    }
+    reached == set.len()
+}
