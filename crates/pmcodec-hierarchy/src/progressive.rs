@@ -1,10 +1,22 @@
-//! The progressive representation (section 5): the base hierarchy, then per frame the swaps and
-//! degenerate-set deltas that turn H_{f-1} into H_f. [`Encoder`] produces it; [`Replay`]
-//! plays it back and keeps a cut's shown triangles up to date from the deltas alone (section
-//! 5.1), without re-deriving them.
+//! The progressive representation (section 5): a keyframe holding a whole hierarchy H_f, then
+//! per frame the swaps and degenerate-set deltas that turn H_{f-1} into H_f. [`Encoder`]
+//! produces it; [`Replay`] plays it back and keeps a cut's shown triangles up to date from the
+//! deltas alone (section 5.1), without re-deriving them.
+//!
+//! Everything is organised by *band*: band j is what a client needs to refine down to level j.
+//! A client that stops at level L reads bands top..=L only, so what it reads grows with |M_L|:
+//! - swaps of level-j nodes are in band j;
+//! - a degenerate-set delta of triangle t from node `old` to node `new` is in band
+//!   `max(level(old), level(new)) - 1` (level(NONE) = top + 1): exactly the clients for which t
+//!   is, or was, alive see it;
+//! - corner updates: a triangle *alive at level j* (its corners have three distinct level-j
+//!   ancestors) is drawn by a level-j client through its level-j corners; when those change
+//!   (swaps at finer levels, invisible to that client) or the triangle becomes alive at j, band
+//!   j carries the new corners. Level 0 corners are the input triangles and never change.
 //!
 //! Convention: frame 0 has a delta too (reclustering the built base to fit frame 0), so the
-//! hierarchy of frame f is always the base plus the deltas of frames 0..=f.
+//! hierarchy of frame f is the base plus the deltas of frames 0..=f; the keyframe of frame f is
+//! the state after frame f's delta.
 
 use crate::Hierarchy;
 use crate::degenerate::degeneration_nodes;
@@ -13,20 +25,89 @@ use crate::recluster::{FrameStats, ReclusterOptions, Reclusterer, Swap};
 use crate::topology::FineTopology;
 use glam::Vec3;
 
+/// Sentinel degeneration node of a triangle that is not alive at a replay's finest level (its
+/// node lies at or below that level, which such a replay does not track).
+pub const BELOW: u32 = u32::MAX - 1;
+
+/// A degenerate-set delta: triangle `t` moves from D_old to D_new (global ids or [`NONE`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DegenerateDelta {
+    pub t: u32,
+    pub old: u32,
+    pub new: u32,
+}
+
+/// New level-`level` corners of triangle `t`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CornerUpdate {
+    pub level: u32,
+    pub t: u32,
+    pub corners: [u32; 3],
+}
+
 /// What turns H_{f-1} into H_f.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct FrameDelta {
     /// Swaps in the order they were made (coarse levels first).
     pub swaps: Vec<Swap>,
-    /// `(triangle, node)`: the triangle's degeneration node in H_f (global id, or [`NONE`]),
-    /// for every triangle whose node changed, ascending by triangle.
-    pub degenerate: Vec<(u32, u32)>,
+    /// Triangles whose degeneration node changed, ascending by triangle.
+    pub degenerate: Vec<DegenerateDelta>,
+    /// Corner updates, by level then triangle.
+    pub corners: Vec<CornerUpdate>,
 }
 
-/// Produces frame deltas by reclustering.
+/// Level of a global node id, with level(NONE) = top + 1.
+#[inline]
+pub fn node_level(h: &Hierarchy, g: u32) -> usize {
+    if g == NONE { h.levels() } else { h.local(g).0 }
+}
+
+/// Band of a degenerate-set delta (see the module docs).
+#[inline]
+pub fn degenerate_band(h: &Hierarchy, d: &DegenerateDelta) -> usize {
+    node_level(h, d.old).max(node_level(h, d.new)) - 1
+}
+
+impl FrameDelta {
+    /// The part of this delta in band j.
+    pub fn band(&self, h: &Hierarchy, j: usize) -> FrameDelta {
+        FrameDelta {
+            swaps: self.swaps.iter().filter(|s| s.level as usize == j).copied().collect(),
+            degenerate: self.degenerate.iter().filter(|d| degenerate_band(h, d) == j).copied().collect(),
+            corners: self.corners.iter().filter(|c| c.level as usize == j).copied().collect(),
+        }
+    }
+
+    /// The parts of this delta in bands `min_level..`.
+    pub fn from_level(&self, h: &Hierarchy, min_level: usize) -> FrameDelta {
+        FrameDelta {
+            swaps: self.swaps.iter().filter(|s| s.level as usize >= min_level).copied().collect(),
+            degenerate: self.degenerate.iter().filter(|d| degenerate_band(h, d) >= min_level).copied().collect(),
+            corners: self.corners.iter().filter(|c| c.level as usize >= min_level).copied().collect(),
+        }
+    }
+}
+
+/// One band of a keyframe: level j's parent map and the triangles alive at level j with their
+/// level-j corners (empty for band 0, whose corners are the input triangles).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct KeyBand {
+    pub parent: Vec<u32>,
+    pub faces: Vec<(u32, [u32; 3])>,
+}
+
+/// A whole hierarchy, by band (index = level).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Keyframe {
+    pub bands: Vec<KeyBand>,
+}
+
+/// Produces frame deltas and keyframes by reclustering.
 pub struct Encoder {
     pub recluster: Reclusterer,
     node_of: Vec<u32>,
+    /// Level-j corners of every triangle alive at j, for j >= 1 (`[NONE; 3]` if not alive).
+    corners: Vec<Vec<[u32; 3]>>,
     scratch: Vec<u32>,
 }
 
@@ -34,7 +115,14 @@ impl Encoder {
     pub fn new(base: Hierarchy, topo: FineTopology, triangles: Vec<[u32; 3]>, opts: ReclusterOptions) -> Self {
         let mut node_of = Vec::new();
         degeneration_nodes(&base, &triangles, &mut node_of);
-        Encoder { recluster: Reclusterer::new(base, topo, triangles, opts), node_of, scratch: Vec::new() }
+        let mut enc = Encoder {
+            recluster: Reclusterer::new(base, topo, triangles, opts),
+            node_of,
+            corners: Vec::new(),
+            scratch: Vec::new(),
+        };
+        enc.corners = enc.current_corners();
+        enc
     }
 
     /// The current hierarchy H_f.
@@ -47,6 +135,27 @@ impl Encoder {
         &self.node_of
     }
 
+    /// Level-j corners of every triangle (`[NONE; 3]` where not alive at j), j >= 1.
+    pub fn corners_at(&self, j: usize) -> &[[u32; 3]] {
+        &self.corners[j]
+    }
+
+    fn current_corners(&self) -> Vec<Vec<[u32; 3]>> {
+        let h = &self.recluster.h;
+        let anc = h.all_ancestors();
+        let tris = self.recluster.triangles();
+        let mut out = vec![Vec::new()];
+        for (j, anc_j) in anc.iter().enumerate().skip(1) {
+            out.push(
+                tris.iter()
+                    .zip(&self.node_of)
+                    .map(|(t, &g)| if node_level(h, g) > j { t.map(|v| anc_j[v as usize]) } else { [NONE; 3] })
+                    .collect(),
+            );
+        }
+        out
+    }
+
     /// Reclusters for the next frame and returns its delta.
     pub fn encode_frame(&mut self, positions: &[Vec3]) -> (FrameDelta, FrameStats) {
         let mut delta = FrameDelta::default();
@@ -54,15 +163,40 @@ impl Encoder {
         degeneration_nodes(&self.recluster.h, self.recluster.triangles(), &mut self.scratch);
         for (t, (old, new)) in self.node_of.iter_mut().zip(&self.scratch).enumerate() {
             if old != new {
-                delta.degenerate.push((t as u32, *new));
+                delta.degenerate.push(DegenerateDelta { t: t as u32, old: *old, new: *new });
                 *old = *new;
             }
         }
+        let corners = self.current_corners();
+        for (j, (now, before)) in corners.iter().zip(&self.corners).enumerate().skip(1) {
+            for (t, (c, b)) in now.iter().zip(before).enumerate() {
+                if c != b && c[0] != NONE {
+                    delta.corners.push(CornerUpdate { level: j as u32, t: t as u32, corners: *c });
+                }
+            }
+        }
+        self.corners = corners;
         (delta, stats)
+    }
+
+    /// The current state as a keyframe.
+    pub fn keyframe(&self) -> Keyframe {
+        let h = &self.recluster.h;
+        let bands = (0..h.levels())
+            .map(|j| KeyBand {
+                parent: h.parent.get(j).cloned().unwrap_or_default(),
+                faces: if j == 0 {
+                    Vec::new()
+                } else {
+                    self.corners[j].iter().enumerate().filter(|(_, c)| c[0] != NONE).map(|(t, c)| (t as u32, *c)).collect()
+                },
+            })
+            .collect();
+        Keyframe { bands }
     }
 }
 
-/// A delta that does not fit the hierarchy it is applied to.
+/// Data that does not fit the hierarchy it is applied to.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 pub enum DeltaError {
     #[error("swap {index}: level {level} has no node {v} or no cluster {to} above it")]
@@ -73,19 +207,27 @@ pub enum DeltaError {
     EmptyCluster { index: usize, level: u32, from: u32 },
     #[error("degenerate-set delta {index}: triangle {triangle} or node {node} out of range")]
     DegenerateOutOfRange { index: usize, triangle: u32, node: u32 },
+    #[error("corner update {index}: triangle {triangle} or a corner out of range at level {level}")]
+    CornerOutOfRange { index: usize, level: u32, triangle: u32 },
+    #[error("keyframe: {0}")]
+    Keyframe(String),
 }
 
-/// Plays back a progressive representation and maintains one cut through it.
+/// Plays back a progressive representation down to a finest level `L` and maintains one cut.
 ///
-/// The cut is the set of expanded nodes, closed upward. The shown triangles are kept as a dense
-/// list (ready to become an index buffer) with each triangle's slot, so showing and hiding are
-/// O(1). A degenerate-set delta `(t, node)` shows or hides t according to whether its new node
-/// is expanded; a swap that hangs an expanded node under an unexpanded one collapses that node's
-/// subtree so the cut stays closed (section 5.1 leaves the policy open; collapsing never raises
-/// the triangle count).
+/// The cut is the set of expanded nodes (levels L+1 and up), closed upward. The shown triangles
+/// are kept as a dense list (ready to become an index buffer) with each triangle's slot, so
+/// showing and hiding are O(1). A degenerate-set delta `(t, new)` shows or hides t according to
+/// whether its new node is expanded; a swap that hangs an expanded node under an unexpanded one
+/// collapses that node's subtree so the cut stays closed (section 5.1 leaves the policy open;
+/// collapsing never raises the triangle count).
 #[derive(Clone, Debug)]
 pub struct Replay {
     pub h: Hierarchy,
+    /// Finest level this replay tracks.
+    pub min_level: usize,
+    /// Level-L corners of every triangle alive at L (`[NONE; 3]` for others).
+    corners: Vec<[u32; 3]>,
     node_of: Vec<u32>,
     /// D sets per node (global id), unordered, and each triangle's slot in its set.
     sets: Vec<Vec<u32>>,
@@ -97,49 +239,149 @@ pub struct Replay {
 }
 
 impl Replay {
-    /// Starts at the base hierarchy with the coarsest cut.
-    pub fn new(base: Hierarchy, triangles: &[[u32; 3]]) -> Self {
-        let mut node_of = Vec::new();
-        degeneration_nodes(&base, triangles, &mut node_of);
-        let total = base.node_count();
-        let mut sets = vec![Vec::new(); total];
-        let mut slot_in_set = vec![NONE; triangles.len()];
-        for (t, &g) in node_of.iter().enumerate() {
-            if g != NONE {
-                slot_in_set[t] = sets[g as usize].len() as u32;
-                sets[g as usize].push(t as u32);
-            }
-        }
-        let mut children = vec![Vec::new(); total];
-        for k in 0..base.levels() - 1 {
-            for (v, &p) in base.parent[k].iter().enumerate() {
-                children[(base.offsets[k + 1] + p) as usize].push(base.offsets[k] + v as u32);
-            }
-        }
-        let mut r = Replay {
-            h: base,
-            node_of,
-            sets,
-            slot_in_set,
-            children,
-            expanded: vec![false; total],
-            shown: Vec::new(),
-            slot_in_shown: vec![NONE; triangles.len()],
-        };
-        for t in 0..triangles.len() {
-            if r.node_of[t] == NONE {
-                r.show(t as u32);
-            }
-        }
+    /// A full-resolution replay (L = 0) starting at hierarchy `h`.
+    pub fn new(h: Hierarchy, triangles: &[[u32; 3]]) -> Self {
+        let mut r = Self::empty(h, 0, triangles.len());
+        r.corners = triangles.to_vec();
+        r.rebuild();
         r
     }
 
-    /// Degeneration node of every triangle in the current hierarchy.
+    /// A replay down to level `min_level` from a keyframe. `level_sizes` comes from the
+    /// container header; `triangles` (the input triangles) is needed only when `min_level` is 0.
+    pub fn from_keyframe(
+        level_sizes: &[u32],
+        branching: u32,
+        key: &Keyframe,
+        min_level: usize,
+        triangle_count: usize,
+        triangles: Option<&[[u32; 3]]>,
+    ) -> Result<Self, DeltaError> {
+        let levels = level_sizes.len();
+        if levels == 0 || min_level >= levels || key.bands.len() != levels {
+            return Err(DeltaError::Keyframe(format!("{} bands for {levels} levels, finest level {min_level}", key.bands.len())));
+        }
+        // Parent maps below min_level are unknown to this replay: map every node to 0 there so
+        // the structure stays well formed; nothing reads them.
+        let mut parent = Vec::with_capacity(levels - 1);
+        for j in 0..levels - 1 {
+            let p = if j >= min_level {
+                let p = &key.bands[j].parent;
+                if p.len() != level_sizes[j] as usize || p.iter().any(|&x| x >= level_sizes[j + 1]) {
+                    return Err(DeltaError::Keyframe(format!("band {j}: parent map does not fit the level sizes")));
+                }
+                p.clone()
+            } else {
+                vec![0; level_sizes[j] as usize]
+            };
+            parent.push(p);
+        }
+        let mut h = Hierarchy::from_parents(branching, level_sizes[0], parent);
+        h.level_sizes = level_sizes.to_vec();
+        h.offsets = std::iter::once(0)
+            .chain(level_sizes.iter().scan(0u32, |acc, &s| {
+                *acc = acc.saturating_add(s);
+                Some(*acc)
+            }))
+            .collect();
+        let mut r = Self::empty(h, min_level, triangle_count);
+        if min_level == 0 {
+            let tris = triangles.ok_or_else(|| DeltaError::Keyframe("level 0 needs the input triangles".into()))?;
+            if tris.len() != triangle_count || tris.iter().flatten().any(|&v| v >= level_sizes[0]) {
+                return Err(DeltaError::Keyframe("input triangles do not fit the header".into()));
+            }
+            r.corners = tris.to_vec();
+        } else {
+            let size = level_sizes[min_level];
+            for &(t, c) in &key.bands[min_level].faces {
+                if t as usize >= triangle_count || c.iter().any(|&x| x >= size) {
+                    return Err(DeltaError::Keyframe(format!("band {min_level}: face of triangle {t} out of range")));
+                }
+                r.corners[t as usize] = c;
+            }
+        }
+        r.rebuild();
+        Ok(r)
+    }
+
+    fn empty(h: Hierarchy, min_level: usize, triangle_count: usize) -> Self {
+        let total = h.node_count();
+        Replay {
+            h,
+            min_level,
+            corners: vec![[NONE; 3]; triangle_count],
+            node_of: vec![BELOW; triangle_count],
+            sets: vec![Vec::new(); total],
+            slot_in_set: vec![NONE; triangle_count],
+            children: vec![Vec::new(); total],
+            expanded: vec![false; total],
+            shown: Vec::new(),
+            slot_in_shown: vec![NONE; triangle_count],
+        }
+    }
+
+    /// Derives degeneration nodes, D sets and children from corners and parent maps, with the
+    /// coarsest cut.
+    fn rebuild(&mut self) {
+        let h = &self.h;
+        let l = self.min_level;
+        for t in 0..self.corners.len() {
+            let [mut x, mut y, mut z] = self.corners[t];
+            let mut node = if x == NONE || x == y || y == z || x == z { BELOW } else { NONE };
+            if node == NONE {
+                for k in l..h.levels() - 1 {
+                    let p = &h.parent[k];
+                    (x, y, z) = (p[x as usize], p[y as usize], p[z as usize]);
+                    if x == y || x == z {
+                        node = h.offsets[k + 1] + x;
+                        break;
+                    }
+                    if y == z {
+                        node = h.offsets[k + 1] + y;
+                        break;
+                    }
+                }
+            }
+            self.node_of[t] = node;
+        }
+        for s in &mut self.sets {
+            s.clear();
+        }
+        for (t, &g) in self.node_of.iter().enumerate() {
+            if g != NONE && g != BELOW {
+                self.slot_in_set[t] = self.sets[g as usize].len() as u32;
+                self.sets[g as usize].push(t as u32);
+            }
+        }
+        for c in &mut self.children {
+            c.clear();
+        }
+        for k in l..h.levels() - 1 {
+            for (v, &p) in h.parent[k].iter().enumerate() {
+                self.children[(h.offsets[k + 1] + p) as usize].push(h.offsets[k] + v as u32);
+            }
+        }
+        self.expanded.iter_mut().for_each(|e| *e = false);
+        self.shown.clear();
+        self.slot_in_shown.iter_mut().for_each(|s| *s = NONE);
+        for t in 0..self.node_of.len() {
+            if self.node_of[t] == NONE {
+                self.show(t as u32);
+            }
+        }
+    }
+
+    /// Degeneration node of every triangle ([`BELOW`] for triangles not alive at `min_level`).
     pub fn degeneration(&self) -> &[u32] {
         &self.node_of
     }
 
-    /// The shown fine triangles (unordered).
+    /// Level-`min_level` corners of every triangle alive there.
+    pub fn corners(&self) -> &[[u32; 3]] {
+        &self.corners
+    }
+
+    /// The shown triangles (unordered).
     pub fn shown(&self) -> &[u32] {
         &self.shown
     }
@@ -154,6 +396,12 @@ impl Replay {
 
     pub fn children_of(&self, g: u32) -> &[u32] {
         &self.children[g as usize]
+    }
+
+    /// Whether node g can be expanded here (its children are at `min_level` or above).
+    #[inline]
+    pub fn expandable(&self, g: u32) -> bool {
+        g >= self.h.offsets[self.min_level + 1]
     }
 
     #[inline]
@@ -179,7 +427,7 @@ impl Replay {
     /// Expands node g (and, to keep the cut closed, its unexpanded ancestors).
     pub fn expand(&mut self, g: u32) {
         let mut x = g;
-        while x != NONE && !self.expanded[x as usize] && x >= self.h.level_sizes[0] {
+        while x != NONE && self.expandable(x) && !self.expanded[x as usize] {
             self.expanded[x as usize] = true;
             for i in 0..self.sets[x as usize].len() {
                 let t = self.sets[x as usize][i];
@@ -205,26 +453,50 @@ impl Replay {
         }
     }
 
-    /// Replaces the cut by `expanded` (must be closed upward).
+    /// Replaces the cut by `expanded` (closed upward; entries at or below `min_level` ignored).
     pub fn set_cut(&mut self, expanded: &[bool]) {
         for g in 0..self.expanded.len().min(expanded.len()) {
-            if self.expanded[g] != expanded[g] {
-                self.expanded[g] = expanded[g];
+            let want = expanded[g] && self.expandable(g as u32);
+            if self.expanded[g] != want {
+                self.expanded[g] = want;
                 for i in 0..self.sets[g].len() {
                     let t = self.sets[g][i];
-                    if expanded[g] { self.show(t) } else { self.hide(t) }
+                    if want { self.show(t) } else { self.hide(t) }
                 }
             }
         }
     }
 
-    /// Applies one frame's delta, updating the hierarchy, the degenerate sets and the shown
-    /// triangles. On error nothing after the failing element is applied; the replay should then
-    /// be discarded (the stream is corrupt).
+    /// For every node at `min_level` and above, the cut node standing for it (NONE if expanded).
+    pub fn cut_nodes(&self) -> Vec<u32> {
+        let h = &self.h;
+        let mut rep = vec![NONE; h.node_count()];
+        for k in (self.min_level..h.levels()).rev() {
+            for v in 0..h.level_sizes[k] {
+                let g = h.offsets[k] + v;
+                let above = if k == h.top() { NONE } else { rep[(h.offsets[k + 1] + h.parent[k][v as usize]) as usize] };
+                rep[g as usize] = if above != NONE {
+                    above
+                } else if self.expanded[g as usize] {
+                    NONE
+                } else {
+                    g
+                };
+            }
+        }
+        rep
+    }
+
+    /// Applies one frame's delta (the bands from `min_level` up; other parts are ignored),
+    /// updating the hierarchy, the degenerate sets, the corners and the shown triangles. On
+    /// error the replay is left partly updated and should be discarded (the stream is corrupt).
     pub fn apply(&mut self, delta: &FrameDelta) -> Result<(), DeltaError> {
         let levels = self.h.levels();
         for (index, s) in delta.swaps.iter().enumerate() {
             let k = s.level as usize;
+            if k < self.min_level {
+                continue;
+            }
             if k + 1 >= levels
                 || s.v >= self.h.level_sizes[k]
                 || s.to >= self.h.level_sizes[k + 1]
@@ -237,7 +509,10 @@ impl Replay {
                 return Err(DeltaError::SwapMismatch { index, level: s.level, v: s.v, from: s.from, actual });
             }
             let (gv, ga, gb) = (self.h.offsets[k] + s.v, self.h.offsets[k + 1] + s.from, self.h.offsets[k + 1] + s.to);
-            if self.children[ga as usize].len() <= 1 && ga != gb {
+            if ga == gb {
+                continue;
+            }
+            if self.children[ga as usize].len() <= 1 {
                 return Err(DeltaError::EmptyCluster { index, level: s.level, from: s.from });
             }
             self.h.parent[k][s.v as usize] = s.to;
@@ -250,30 +525,48 @@ impl Replay {
             }
         }
         let total = self.expanded.len() as u32;
-        for (index, &(t, g)) in delta.degenerate.iter().enumerate() {
+        let below_limit = self.h.offsets[self.min_level + 1];
+        for (index, d) in delta.degenerate.iter().enumerate() {
+            let (t, g) = (d.t, d.new);
             if t as usize >= self.node_of.len() || (g != NONE && g >= total) {
                 return Err(DeltaError::DegenerateOutOfRange { index, triangle: t, node: g });
             }
+            // Nodes at or below min_level are not tracked here.
+            let g = if g != NONE && g < below_limit { BELOW } else { g };
             let old = self.node_of[t as usize];
             if old == g {
                 continue;
             }
-            if old != NONE {
+            if old != NONE && old != BELOW {
                 let set = &mut self.sets[old as usize];
                 let slot = self.slot_in_set[t as usize] as usize;
-                set.swap_remove(slot);
-                if let Some(&moved) = set.get(slot) {
-                    self.slot_in_set[moved as usize] = slot as u32;
+                if slot < set.len() {
+                    set.swap_remove(slot);
+                    if let Some(&moved) = set.get(slot) {
+                        self.slot_in_set[moved as usize] = slot as u32;
+                    }
                 }
             }
-            if g != NONE {
+            if g != NONE && g != BELOW {
                 self.slot_in_set[t as usize] = self.sets[g as usize].len() as u32;
                 self.sets[g as usize].push(t);
             } else {
                 self.slot_in_set[t as usize] = NONE;
             }
             self.node_of[t as usize] = g;
-            if g == NONE || self.expanded[g as usize] { self.show(t) } else { self.hide(t) }
+            if g == NONE || (g != BELOW && self.expanded[g as usize]) { self.show(t) } else { self.hide(t) }
+        }
+        if self.min_level > 0 {
+            let size = self.h.level_sizes[self.min_level];
+            for (index, c) in delta.corners.iter().enumerate() {
+                if c.level as usize != self.min_level {
+                    continue;
+                }
+                if c.t as usize >= self.corners.len() || c.corners.iter().any(|&x| x >= size) {
+                    return Err(DeltaError::CornerOutOfRange { index, level: c.level, triangle: c.t });
+                }
+                self.corners[c.t as usize] = c.corners;
+            }
         }
         Ok(())
     }

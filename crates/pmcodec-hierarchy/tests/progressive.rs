@@ -6,7 +6,7 @@ mod common;
 use common::*;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
 use pmcodec_hierarchy::cut::{self, ChildIndex, Cut, CutTarget};
-use pmcodec_hierarchy::progressive::{DeltaError, Encoder, FrameDelta, Replay};
+use pmcodec_hierarchy::progressive::{BELOW, DegenerateDelta, DeltaError, Encoder, FrameDelta, Replay, node_level};
 use pmcodec_hierarchy::recluster::{ReclusterOptions, Swap};
 use pmcodec_hierarchy::*;
 
@@ -115,7 +115,11 @@ fn corrupt_deltas_are_rejected() {
     let seq = grid(10, 10, 1);
     let (_, base) = encoder_for(&seq, ReclusterOptions::default());
     let mut r = Replay::new(base.clone(), &seq.triangles);
-    let bad = |swaps: Vec<Swap>, degenerate: Vec<(u32, u32)>| FrameDelta { swaps, degenerate };
+    let bad = |swaps: Vec<Swap>, degenerate: Vec<(u32, u32)>| FrameDelta {
+        swaps,
+        degenerate: degenerate.into_iter().map(|(t, new)| DegenerateDelta { t, old: NONE, new }).collect(),
+        corners: vec![],
+    };
     let e = r.apply(&bad(vec![Swap { level: 99, v: 0, from: 0, to: 0 }], vec![])).unwrap_err();
     assert!(matches!(e, DeltaError::SwapOutOfRange { .. }));
     let actual = base.parent[0][0];
@@ -125,4 +129,59 @@ fn corrupt_deltas_are_rejected() {
     assert!(matches!(e, DeltaError::DegenerateOutOfRange { .. }));
     let e = r.apply(&bad(vec![], vec![(0, u32::MAX - 1)])).unwrap_err();
     assert!(matches!(e, DeltaError::DegenerateOutOfRange { .. }));
+}
+
+/// A client that stops at level L: it starts from a keyframe's bands L.. and reads only the
+/// bands L.. of each later delta, and must agree with the encoder on everything at and above L.
+fn level_limited_replay_matches(seq: &pmcodec_mesh::Sequence, key_frame: usize, min_level: usize) {
+    let (mut enc, _) = encoder_for(seq, ReclusterOptions::default());
+    let mut replay: Option<Replay> = None;
+    for (f, frame) in seq.frames.iter().enumerate() {
+        let (delta, _) = enc.encode_frame(frame);
+        let h = enc.hierarchy().clone();
+        match replay.as_mut() {
+            None if f == key_frame => {
+                let key = enc.keyframe();
+                let tris = (min_level == 0).then_some(&seq.triangles[..]);
+                let mut r = Replay::from_keyframe(&h.level_sizes, h.branching, &key, min_level, seq.triangles.len(), tris)
+                    .expect("keyframe");
+                // Expand everything above min_level: the finest cut this client can show.
+                let all: Vec<bool> = (0..h.node_count()).map(|g| g as u32 >= h.offsets[min_level + 1]).collect();
+                r.set_cut(&all);
+                replay = Some(r);
+            }
+            None => continue,
+            Some(r) => {
+                let part = delta.from_level(&h, min_level);
+                r.apply(&part).unwrap_or_else(|e| panic!("frame {f}: {e}"));
+            }
+        }
+        let r = replay.as_ref().expect("started");
+        assert_eq!(&r.h.parent[min_level..], &h.parent[min_level..], "frame {f} L={min_level}: parent maps");
+        for (t, (&mine, &theirs)) in r.degeneration().iter().zip(enc.degeneration()).enumerate() {
+            let alive = node_level(&h, theirs) > min_level;
+            if alive {
+                assert_eq!(mine, theirs, "frame {f} L={min_level}: triangle {t}");
+                if min_level > 0 {
+                    assert_eq!(r.corners()[t], enc.corners_at(min_level)[t], "frame {f}: corners of {t}");
+                }
+            } else {
+                assert_eq!(mine, BELOW, "frame {f} L={min_level}: triangle {t} should not be alive");
+            }
+        }
+        // Shown = re-derived from the encoder's hierarchy with the same cut.
+        let d = DegenerateSets::from_nodes(h.node_count(), enc.degeneration().to_vec());
+        let derived = cut::shown_triangles(&d, &Cut { expanded: r.expanded().to_vec(), triangles: 0, vertices: 0 });
+        let mut shown = r.shown().to_vec();
+        shown.sort_unstable();
+        assert_eq!(shown, derived, "frame {f} L={min_level}: shown triangles");
+    }
+}
+
+#[test]
+fn level_limited_clients_agree_with_encoder() {
+    let Some(seq) = load("horse-gallop", 20) else { return };
+    for (key, level) in [(0, 1), (0, 2), (5, 3), (9, 0), (0, 4)] {
+        level_limited_replay_matches(&seq, key, level);
+    }
 }
