@@ -44,13 +44,6 @@ pub struct ApproxOptions {
     pub recluster: ReclusterOptions,
 }
 
-fn level_mesh(h: &Hierarchy, triangles: &[[u32; 3]], nodes: &NodeState, level: usize) -> TriMesh {
-    let d = DegenerateSets::new(h, triangles);
-    let children = cut::ChildIndex::new(h);
-    let c = cut::select(h, &d, &children, nodes, CutTarget::Level(level));
-    cut::extract(h, &d, triangles, &c, &nodes.positions).0
-}
-
 /// Builds the hierarchy with one level at exactly `vertices` nodes; returns it and that level.
 pub fn anchored_build(
     topo: &FineTopology,
@@ -65,15 +58,85 @@ pub fn anchored_build(
     Ok((h, level))
 }
 
-/// Approximations of every frame of `seq` at `vertices` vertices by `method`; calls
-/// `progress(f)` after each frame.
+/// What each frame's approximation is held to.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ApproxTarget {
+    /// Exactly this many vertices: the hierarchy gets a level of that size (see
+    /// [`anchored_sizes`]) and every method shows that level.
+    Vertices(u32),
+    /// At most this many triangles: a greedy budget cut (by this frame's node errors) on the
+    /// default hierarchy. First-frame static keeps frame 0's cut.
+    Triangles(u32),
+}
+
+/// One frame's approximation, and the identity of each of its triangles for coherence: the
+/// three corner clusters' fingerprints (an order-free hash of their input vertices), sorted.
+#[derive(Clone, Debug, Default)]
+pub struct Approximation {
+    pub mesh: TriMesh,
+    pub keys: Vec<[u64; 3]>,
+}
+
+fn vertex_hash(v: u32) -> u64 {
+    let mut z = (v as u64).wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+fn approximation(h: &Hierarchy, triangles: &[[u32; 3]], nodes: &NodeState, c: &cut::Cut) -> Approximation {
+    let d = DegenerateSets::new(h, triangles);
+    let (mesh, _) = cut::extract(h, &d, triangles, c, &nodes.positions);
+    let rep = cut::cut_nodes(h, c);
+    let mut sig = vec![0u64; h.node_count()];
+    for v in 0..h.level_sizes[0] {
+        sig[rep[v as usize] as usize] ^= vertex_hash(v);
+    }
+    let keys = triangles
+        .iter()
+        .zip(&d.node_of)
+        .filter(|&(_, &g)| g == crate::NONE || c.expanded[g as usize])
+        .map(|(t, _)| {
+            let mut k = t.map(|v| sig[rep[v as usize] as usize]);
+            k.sort_unstable();
+            k
+        })
+        .collect();
+    Approximation { mesh, keys }
+}
+
+fn select(h: &Hierarchy, triangles: &[[u32; 3]], nodes: &NodeState, target: CutTarget) -> cut::Cut {
+    let d = DegenerateSets::new(h, triangles);
+    cut::select(h, &d, &cut::ChildIndex::new(h), nodes, target)
+}
+
+fn hierarchy_for(
+    topo: &FineTopology,
+    q: &[crate::Quadric],
+    target: ApproxTarget,
+    branching: u32,
+) -> Result<(Hierarchy, CutTarget), BuildError> {
+    match target {
+        ApproxTarget::Vertices(n) => {
+            let (h, level) = anchored_build(topo, q, n, branching)?;
+            Ok((h, CutTarget::Level(level)))
+        }
+        ApproxTarget::Triangles(n) => {
+            let b = if branching == 0 { 4 } else { branching };
+            let h = build(topo, q, &BuildOptions { branching: b, ..Default::default() })?;
+            Ok((h, CutTarget::Triangles(n)))
+        }
+    }
+}
+
+/// Approximations of every frame of `seq` by `method`; calls `progress(f)` after each frame.
 pub fn approximate(
     seq: &Sequence,
-    vertices: u32,
+    target: ApproxTarget,
     method: Method,
     opts: &ApproxOptions,
     mut progress: impl FnMut(usize),
-) -> Result<Vec<TriMesh>, BuildError> {
+) -> Result<Vec<Approximation>, BuildError> {
     let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
     let mut out = Vec::with_capacity(seq.frame_count());
     match method {
@@ -81,27 +144,46 @@ pub fn approximate(
             let mut q = Vec::new();
             for (f, frame) in seq.frames.iter().enumerate() {
                 vertex_quadrics(frame, &seq.triangles, &topo.boundary, &opts.base.quadric, &mut q);
-                let (h, level) = anchored_build(&topo, &q, vertices, opts.branching)?;
+                let (h, cut_target) = hierarchy_for(&topo, &q, target, opts.branching)?;
                 let nodes = NodeState::compute(&h, &q, frame);
-                out.push(level_mesh(&h, &seq.triangles, &nodes, level));
+                let c = select(&h, &seq.triangles, &nodes, cut_target);
+                out.push(approximation(&h, &seq.triangles, &nodes, &c));
                 progress(f);
             }
         }
         Method::FirstFrameStatic | Method::Reclustered => {
             let q = base_quadrics(seq, &topo, &opts.base);
-            let (h, level) = anchored_build(&topo, &q, vertices, opts.branching)?;
+            let (h, cut_target) = hierarchy_for(&topo, &q, target, opts.branching)?;
             let mut rc = Reclusterer::new(h, topo, seq.triangles.clone(), opts.recluster.clone());
             let mut swaps = Vec::new();
+            let mut first_cut: Option<cut::Cut> = None;
             for (f, frame) in seq.frames.iter().enumerate() {
                 if method == Method::Reclustered {
                     rc.frame(frame, &mut swaps);
                 } else {
                     rc.fit(frame);
                 }
-                out.push(level_mesh(&rc.h, &seq.triangles, &rc.nodes, level));
+                let c = match (&first_cut, method) {
+                    (Some(c), Method::FirstFrameStatic) => c.clone(),
+                    _ => select(&rc.h, &seq.triangles, &rc.nodes, cut_target),
+                };
+                out.push(approximation(&rc.h, &seq.triangles, &rc.nodes, &c));
+                first_cut.get_or_insert(c);
                 progress(f);
             }
         }
     }
     Ok(out)
+}
+
+/// Share of frame f's triangles that frame f-1 did not show (by corner-cluster identity), for
+/// f >= 1 (0 for frame 0).
+pub fn changed_share(frames: &[Approximation]) -> Vec<f64> {
+    let mut out = vec![0.0];
+    for w in frames.windows(2) {
+        let prev: std::collections::HashSet<[u64; 3]> = w[0].keys.iter().copied().collect();
+        let changed = w[1].keys.iter().filter(|k| !prev.contains(*k)).count();
+        out.push(if w[1].keys.is_empty() { 0.0 } else { changed as f64 / w[1].keys.len() as f64 });
+    }
+    out
 }

@@ -512,9 +512,6 @@ impl Replay {
             if ga == gb {
                 continue;
             }
-            if self.children[ga as usize].len() <= 1 {
-                return Err(DeltaError::EmptyCluster { index, level: s.level, from: s.from });
-            }
             self.h.parent[k][s.v as usize] = s.to;
             if let Some(i) = self.children[ga as usize].iter().position(|&c| c == gv) {
                 self.children[ga as usize].swap_remove(i);
@@ -522,6 +519,14 @@ impl Replay {
             self.children[gb as usize].push(gv);
             if self.expanded[gv as usize] && !self.expanded[gb as usize] {
                 self.collapse(gv);
+            }
+        }
+        // A cluster may empty transiently when net parent changes are applied in node order;
+        // only the state after all swaps must leave no cluster empty.
+        for (index, s) in delta.swaps.iter().enumerate() {
+            let k = s.level as usize;
+            if k >= self.min_level && self.children[(self.h.offsets[k + 1] + s.from) as usize].is_empty() {
+                return Err(DeltaError::EmptyCluster { index, level: s.level, from: s.from });
             }
         }
         let total = self.expanded.len() as u32;

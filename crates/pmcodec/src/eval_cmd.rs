@@ -1,0 +1,183 @@
+//! `pmcodec eval`: per-frame symmetric surface distance (RMS and max, % of the frame's bounding
+//! box diagonal) between approximations and the original frames, for this method and the two
+//! baselines of Kircher & Garland figure 11, plus temporal coherence at a triangle budget.
+
+use crate::input::{self, InputArgs};
+use crate::{Exit, progress};
+use anyhow::Context;
+use clap::{Args, ValueEnum};
+use pmcodec_hierarchy::approx::{self, ApproxOptions, ApproxTarget, Approximation, Method};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::path::PathBuf;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum MethodArg {
+    /// Frame 0's clusters for every frame, positions re-solved per frame.
+    Static,
+    /// Every frame simplified on its own.
+    Direct,
+    /// This project: the hierarchy reclustered frame by frame.
+    Pmcodec,
+}
+
+impl MethodArg {
+    fn method(self) -> Method {
+        match self {
+            MethodArg::Static => Method::FirstFrameStatic,
+            MethodArg::Direct => Method::Direct,
+            MethodArg::Pmcodec => Method::Reclustered,
+        }
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    /// The original sequence: an OBJ folder or glob, or a glTF/GLB file.
+    pub input: PathBuf,
+    #[command(flatten)]
+    pub input_args: InputArgs,
+    /// Vertex count of every approximation (a hierarchy level is placed at exactly this size).
+    #[arg(long, default_value_t = 800)]
+    pub vertices: u32,
+    /// Methods to compare.
+    #[arg(long, value_delimiter = ',', default_values = ["static", "direct", "pmcodec"])]
+    pub methods: Vec<MethodArg>,
+    /// Also measure temporal coherence: the share of shown triangles that change per frame at
+    /// this triangle budget.
+    #[arg(long)]
+    pub coherence_triangles: Option<u32>,
+    /// Surface samples per mesh and direction.
+    #[arg(long, default_value_t = 20_000)]
+    pub samples: usize,
+    /// Branching factor of the hierarchies.
+    #[arg(long, default_value_t = 4)]
+    pub branching: u32,
+    /// Only the first N frames.
+    #[arg(long)]
+    pub frames: Option<usize>,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Serialize)]
+struct MethodReport {
+    method: &'static str,
+    rms: Vec<f64>,
+    max: Vec<f64>,
+    mean_rms: f64,
+    first_quarter_rms: f64,
+    last_quarter_rms: f64,
+    changed_share: Option<Vec<f64>>,
+    mean_changed_share: Option<f64>,
+}
+
+#[derive(Serialize)]
+struct Report {
+    input: String,
+    frames: usize,
+    vertices: u32,
+    coherence_triangles: Option<u32>,
+    methods: Vec<MethodReport>,
+}
+
+fn mean(x: &[f64]) -> f64 {
+    if x.is_empty() { 0.0 } else { x.iter().sum::<f64>() / x.len() as f64 }
+}
+
+pub fn run(args: EvalArgs, quiet: bool) -> Result<(), Exit> {
+    let mut seq = input::load(&args.input, &args.input_args)?;
+    if let Some(n) = args.frames {
+        seq.frames.truncate(n.max(1));
+    }
+    let frames = seq.frame_count();
+    let opts = ApproxOptions { branching: args.branching, ..Default::default() };
+    let sample = pmcodec_eval::SampleOptions { samples: args.samples, ..Default::default() };
+    let originals: Vec<_> = (0..frames).filter_map(|f| seq.frame_mesh(f)).collect();
+    let mut reports = Vec::new();
+    for m in &args.methods {
+        let method = m.method();
+        let bar = progress(frames as u64, method.name(), quiet);
+        let approximations = approx::approximate(&seq, ApproxTarget::Vertices(args.vertices), method, &opts, |_| bar.inc(1))
+            .with_context(|| format!("building the {} approximations", method.name()))?;
+        bar.finish_and_clear();
+        let distances: Vec<pmcodec_eval::Distance> = originals
+            .par_iter()
+            .zip(&approximations)
+            .map(|(orig, a)| pmcodec_eval::symmetric_relative(orig, &a.mesh, &sample))
+            .collect::<Result<_, _>>()
+            .with_context(|| format!("measuring the {} approximations", method.name()))?;
+        let rms: Vec<f64> = distances.iter().map(|d| d.rms).collect();
+        let max: Vec<f64> = distances.iter().map(|d| d.max).collect();
+        let q = (frames / 4).max(1);
+        let changed = match args.coherence_triangles {
+            Some(budget) => {
+                let bar = progress(frames as u64, "coherence", quiet);
+                let cut_frames: Vec<Approximation> =
+                    approx::approximate(&seq, ApproxTarget::Triangles(budget), method, &opts, |_| bar.inc(1))
+                        .context("building budget cuts")?;
+                bar.finish_and_clear();
+                Some(approx::changed_share(&cut_frames))
+            }
+            None => None,
+        };
+        reports.push(MethodReport {
+            method: method.name(),
+            mean_rms: mean(&rms),
+            first_quarter_rms: mean(&rms[..q.min(rms.len())]),
+            last_quarter_rms: mean(&rms[rms.len().saturating_sub(q)..]),
+            mean_changed_share: changed.as_ref().map(|c| mean(&c[1.min(c.len())..])),
+            changed_share: changed,
+            rms,
+            max,
+        });
+    }
+    let report = Report {
+        input: args.input.display().to_string(),
+        frames,
+        vertices: args.vertices,
+        coherence_triangles: args.coherence_triangles,
+        methods: reports,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report).context("writing JSON")?);
+    } else {
+        print_table(&report);
+    }
+    Ok(())
+}
+
+fn print_table(r: &Report) {
+    println!("{}: {} frames, {} vertices; distances in % of the bounding-box diagonal", r.input, r.frames, r.vertices);
+    print!("{:>6}", "frame");
+    for m in &r.methods {
+        print!(" {:>10} {:>10}", format!("{}_rms", m.method), format!("{}_max", m.method));
+    }
+    println!();
+    for f in 0..r.frames {
+        print!("{f:>6}");
+        for m in &r.methods {
+            print!(" {:>10.4} {:>10.4}", m.rms[f], m.max[f]);
+        }
+        println!();
+    }
+    println!();
+    for m in &r.methods {
+        print!(
+            "{:>8}: mean RMS {:.4}%  first quarter {:.4}%  last quarter {:.4}%",
+            m.method, m.mean_rms, m.first_quarter_rms, m.last_quarter_rms
+        );
+        if let Some(c) = m.mean_changed_share {
+            print!("  changed triangles per frame at {} triangles: {:.2}%", r.coherence_triangles.unwrap_or(0), 100.0 * c);
+        }
+        println!();
+    }
+    let find = |name: &str| r.methods.iter().find(|m| m.method == name);
+    if let (Some(p), Some(d)) = (find("pmcodec"), find("direct")) {
+        println!("pmcodec / direct mean RMS: {:.3}", p.mean_rms / d.mean_rms);
+    }
+    if let (Some(p), Some(s)) = (find("pmcodec"), find("static")) {
+        println!("pmcodec below static: {:.1}%", 100.0 * (1.0 - p.mean_rms / s.mean_rms));
+    }
+}

@@ -1,0 +1,36 @@
+//! Loading a deforming sequence from whatever the user names: an OBJ folder, an OBJ glob, a
+//! single OBJ, or a glTF/GLB file.
+
+use crate::{EXIT_BAD_INPUT, Exit};
+use anyhow::Context;
+use clap::Args;
+use pmcodec_mesh::Sequence;
+use pmcodec_mesh::gltf_input::{AnimationSelector, GltfOptions};
+use std::path::Path;
+
+/// Options that say how to read the input.
+#[derive(Args, Clone, Debug)]
+pub struct InputArgs {
+    /// Frame rate: of the OBJ sequence, or at which a glTF animation is sampled.
+    #[arg(long, default_value_t = 30.0)]
+    pub fps: f32,
+    /// glTF animation to sample, by index or name (default: the first).
+    #[arg(long)]
+    pub animation: Option<String>,
+}
+
+/// Reads and validates the input sequence.
+pub fn load(path: &Path, args: &InputArgs) -> Result<Sequence, Exit> {
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let seq = if ext == "glb" || ext == "gltf" {
+        let animation = args.animation.as_ref().map(|a| match a.parse::<usize>() {
+            Ok(i) => AnimationSelector::Index(i),
+            Err(_) => AnimationSelector::Name(a.clone()),
+        });
+        let opts = GltfOptions { animation, frame_rate: args.fps, ..Default::default() };
+        pmcodec_mesh::gltf_input::load_gltf(path, &opts)
+    } else {
+        pmcodec_mesh::obj::load_obj_sequence(path, args.fps)
+    };
+    seq.with_context(|| format!("reading {}", path.display())).map_err(|e| Exit(EXIT_BAD_INPUT, e))
+}
