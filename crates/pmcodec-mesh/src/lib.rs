@@ -8,6 +8,7 @@
 pub mod error;
 pub mod gltf_input;
 pub mod obj;
+pub mod samples;
 pub mod write;
 
 pub use error::MeshError;
