@@ -84,13 +84,33 @@ fn vertex_hash(v: u32) -> u64 {
     z ^ (z >> 31)
 }
 
-fn approximation(h: &Hierarchy, triangles: &[[u32; 3]], nodes: &NodeState, c: &cut::Cut) -> Approximation {
+/// How triangles are identified from frame to frame for coherence.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Identity {
+    /// By the ids of their corner nodes: nodes of one evolving hierarchy persist across frames
+    /// (a client keeps their vertex slots and only moves them).
+    NodeIds,
+    /// By the exact input-vertex sets of their corner clusters: for hierarchies rebuilt per
+    /// frame, which share no node identity.
+    Clusters,
+}
+
+fn approximation(h: &Hierarchy, triangles: &[[u32; 3]], nodes: &NodeState, c: &cut::Cut, identity: Identity) -> Approximation {
     let d = DegenerateSets::new(h, triangles);
     let (mesh, _) = cut::extract(h, &d, triangles, c, &nodes.positions);
     let rep = cut::cut_nodes(h, c);
     let mut sig = vec![0u64; h.node_count()];
-    for v in 0..h.level_sizes[0] {
-        sig[rep[v as usize] as usize] ^= vertex_hash(v);
+    match identity {
+        Identity::Clusters => {
+            for v in 0..h.level_sizes[0] {
+                sig[rep[v as usize] as usize] ^= vertex_hash(v);
+            }
+        }
+        Identity::NodeIds => {
+            for (g, s) in sig.iter_mut().enumerate() {
+                *s = vertex_hash(g as u32);
+            }
+        }
     }
     let keys = triangles
         .iter()
@@ -147,7 +167,7 @@ pub fn approximate(
                 let (h, cut_target) = hierarchy_for(&topo, &q, target, opts.branching)?;
                 let nodes = NodeState::compute(&h, &q, frame);
                 let c = select(&h, &seq.triangles, &nodes, cut_target);
-                out.push(approximation(&h, &seq.triangles, &nodes, &c));
+                out.push(approximation(&h, &seq.triangles, &nodes, &c, Identity::Clusters));
                 progress(f);
             }
         }
@@ -156,19 +176,37 @@ pub fn approximate(
             let (h, cut_target) = hierarchy_for(&topo, &q, target, opts.branching)?;
             let mut rc = Reclusterer::new(h, topo, seq.triangles.clone(), opts.recluster.clone());
             let mut swaps = Vec::new();
-            let mut first_cut: Option<cut::Cut> = None;
+            let mut previous: Option<cut::Cut> = None;
             for (f, frame) in seq.frames.iter().enumerate() {
                 if method == Method::Reclustered {
                     rc.frame(frame, &mut swaps);
                 } else {
                     rc.fit(frame);
                 }
-                let c = match (&first_cut, method) {
-                    (Some(c), Method::FirstFrameStatic) => c.clone(),
+                // Static keeps frame 0's cut; reclustered carries its cut from frame to frame
+                // and rebalances it to the budget (a player does the same), so the shown
+                // triangles change only where the hierarchy or the errors require it.
+                let c = match (previous.take(), method) {
+                    (Some(c), Method::FirstFrameStatic) => c,
+                    (Some(mut c), Method::Reclustered) => {
+                        let d = DegenerateSets::new(&rc.h, &seq.triangles);
+                        let children = cut::ChildIndex::new(&rc.h);
+                        cut::repair(&rc.h, &d, &children, &mut c);
+                        // Hysteresis: leave a cut that is within 2% under its budget alone.
+                        let (used, budget) = match cut_target {
+                            CutTarget::Triangles(n) => (c.triangles, n),
+                            CutTarget::Vertices(n) => (c.vertices, n),
+                            _ => (0, 0),
+                        };
+                        if used > budget || (used as f64) < 0.98 * budget as f64 {
+                            cut::rebalance(&rc.h, &d, &children, &rc.nodes, &mut c, cut_target);
+                        }
+                        c
+                    }
                     _ => select(&rc.h, &seq.triangles, &rc.nodes, cut_target),
                 };
-                out.push(approximation(&rc.h, &seq.triangles, &rc.nodes, &c));
-                first_cut.get_or_insert(c);
+                out.push(approximation(&rc.h, &seq.triangles, &rc.nodes, &c, Identity::NodeIds));
+                previous = Some(c);
                 progress(f);
             }
         }
