@@ -10,6 +10,12 @@ fn main() {
     if let Some(x) = std::env::var("MINREL").ok().and_then(|s| s.parse().ok()) {
         opts.recluster.min_relative_benefit = x;
     }
+    if let Some(x) = std::env::var("CAP").ok().and_then(|s| s.parse().ok()) {
+        opts.recluster.max_swaps_per_frame = x;
+    }
+    if let Some(x) = std::env::var("PASSES").ok().and_then(|s| s.parse().ok()) {
+        opts.recluster.max_passes = x;
+    }
     if std::env::var("BASE").is_ok() {
         opts.base.poses = pmcodec_hierarchy::base::PoseSet::Sampled(8);
     }

@@ -20,7 +20,12 @@ fn main() {
     let (h, level) = anchored_build(&topo, &q, vertices, 4).expect("build");
     println!("levels {:?}, level {level}", h.level_sizes);
     let mut stat = Reclusterer::new(h.clone(), topo.clone(), seq.triangles.clone(), ReclusterOptions::default());
-    let mut rc = Reclusterer::new(h, topo, seq.triangles.clone(), ReclusterOptions::default());
+    let mut ro = ReclusterOptions::default();
+    if let Some(x) = std::env::var("MINREL").ok().and_then(|s| s.parse().ok()) {
+        ro.min_relative_benefit = x;
+    }
+    let mut rc = Reclusterer::new(h, topo, seq.triangles.clone(), ro);
+    let mut ratio_sum = 0.0;
     let mut swaps = Vec::new();
     let mut total = 0.0;
     for (f, frame) in seq.frames.iter().enumerate() {
@@ -31,10 +36,11 @@ fn main() {
         let dt = t.elapsed().as_secs_f64() * 1e3;
         total += dt;
         let (es, er) = (level_error(&stat, level), level_error(&rc, level));
+        ratio_sum += er / es;
         println!(
             "frame {f:3}: {:5} swaps {:3} passes {:7} cands {:6} invalid {dt:7.2} ms  static {es:.3e} recluster {er:.3e} ratio {:.3}",
             s.swaps, s.passes, s.candidates, s.rejected_invalid, er / es
         );
     }
-    println!("mean {:.2} ms/frame", total / seq.frame_count() as f64);
+    println!("mean {:.2} ms/frame, mean QEM ratio {:.3}", total / seq.frame_count() as f64, ratio_sum / seq.frame_count() as f64);
 }

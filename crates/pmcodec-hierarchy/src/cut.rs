@@ -227,11 +227,46 @@ pub fn extract(
 /// never raises the triangle count; expanding the new parent instead changed about twice as
 /// many shown triangles per frame on the horse gallop). Then recounts triangles and vertices.
 pub fn repair(h: &Hierarchy, d: &DegenerateSets, children: &ChildIndex, cut: &mut Cut) {
+    // Coarse to fine: an expanded node under an unexpanded parent either pulls its unexpanded
+    // ancestors open or is collapsed with its subtree, whichever changes fewer triangles.
+    let mut stack = Vec::new();
     for k in (0..h.top()).rev() {
         for v in 0..h.level_sizes[k] {
-            let g = (h.offsets[k] + v) as usize;
-            if cut.expanded[g] && !cut.expanded[(h.offsets[k + 1] + h.parent[k][v as usize]) as usize] {
-                cut.expanded[g] = false;
+            let g = h.offsets[k] + v;
+            let p = h.offsets[k + 1] + h.parent[k][v as usize];
+            if !cut.expanded[g as usize] || cut.expanded[p as usize] {
+                continue;
+            }
+            let mut open_cost = 0;
+            let mut x = p;
+            while x != NONE && !cut.expanded[x as usize] {
+                open_cost += d.size(x);
+                x = h.parent_global(x);
+            }
+            let mut collapse_cost = 0;
+            stack.clear();
+            stack.push(g);
+            while let Some(y) = stack.pop() {
+                if cut.expanded[y as usize] {
+                    collapse_cost += d.size(y);
+                    stack.extend_from_slice(children.of(y));
+                }
+            }
+            if open_cost < collapse_cost {
+                let mut x = p;
+                while x != NONE && !cut.expanded[x as usize] {
+                    cut.expanded[x as usize] = true;
+                    x = h.parent_global(x);
+                }
+            } else {
+                stack.clear();
+                stack.push(g);
+                while let Some(y) = stack.pop() {
+                    if cut.expanded[y as usize] {
+                        cut.expanded[y as usize] = false;
+                        stack.extend_from_slice(children.of(y));
+                    }
+                }
             }
         }
     }
