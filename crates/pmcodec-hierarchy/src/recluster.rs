@@ -35,6 +35,10 @@ pub struct ReclusterOptions {
     /// A swap must improve the estimate by at least this fraction of the node's current error,
     /// so that rounding noise never drives swaps back and forth.
     pub min_relative_benefit: f64,
+    /// Rank swaps by the exact change of error (both clusters re-solved) instead of the
+    /// conservative estimate of equation 1, which never sees a swap whose gain comes only from
+    /// the re-solved positions.
+    pub exact_benefit: bool,
     /// Also require the homeomorphism rule of section 4.2 (conservatively: see `homeomorphic`).
     pub homeomorphism: bool,
     /// Quadrics of each frame (boundary weight).
@@ -43,12 +47,20 @@ pub struct ReclusterOptions {
 
 impl Default for ReclusterOptions {
     fn default() -> Self {
+        // Defaults measured on horse-gallop (800 vertices, 1,600-triangle coherence budget; see
+        // the README's figures): the paper's beta = 1.9127 (our own regression of the QEM growth
+        // gives 1.87 on the horse) spreads each swap's benefit over all coarser levels; beta = 4
+        // weighs the next level most and gave lower RMS at every level we measured (200, 800 and
+        // 3,200 vertices). Exact benefits find swaps equation 1 misses. The hysteresis of 1.0
+        // (a swap must gain at least the moving node's current error) keeps playback coherent
+        // (3% of shown triangles change per frame instead of 22%) for about 7% more RMS.
         ReclusterOptions {
-            beta: 1.9127,
+            beta: 4.0,
             max_swaps_per_frame: u32::MAX,
             max_passes: 16,
-            min_relative_benefit: 1e-6,
+            min_relative_benefit: 1.0,
             homeomorphism: false,
+            exact_benefit: true,
             quadric: QuadricOptions::default(),
         }
     }
@@ -270,7 +282,17 @@ impl Reclusterer {
         while x != y {
             let pa = self.nodes.positions[(h.offsets[j] + x) as usize];
             let pb = self.nodes.positions[(h.offsets[j] + y) as usize];
-            sum += w * (qv.eval_f32(pa) - qv.eval_f32(pb));
+            sum += w * if self.opts.exact_benefit {
+                // Re-solve both clusters as they would be after the swap.
+                let (qa, qb) = (&self.nodes.quadrics[(h.offsets[j] + x) as usize], &self.nodes.quadrics[(h.offsets[j] + y) as usize]);
+                let before = qa.eval_f32(pa) + qb.eval_f32(pb);
+                let (mut qa2, mut qb2) = (*qa, *qb);
+                qa2 -= qv;
+                qb2 += qv;
+                before - qa2.eval(qa2.optimal()) - qb2.eval(qb2.optimal())
+            } else {
+                qv.eval_f32(pa) - qv.eval_f32(pb)
+            };
             if j == h.top() {
                 break;
             }

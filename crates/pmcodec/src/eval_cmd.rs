@@ -53,6 +53,21 @@ pub struct EvalArgs {
     /// Branching factor of the hierarchies.
     #[arg(long, default_value_t = 4)]
     pub branching: u32,
+    /// Hierarchical QEM growth exponent (Kircher & Garland equation 2; the paper used 1.9127).
+    #[arg(long, default_value_t = 4.0)]
+    pub beta: f64,
+    /// Smallest swap benefit, relative to the moving node's error (hysteresis).
+    #[arg(long)]
+    pub min_benefit: Option<f64>,
+    /// Independent-set passes per level per frame.
+    #[arg(long)]
+    pub max_passes: Option<u32>,
+    /// Rank swaps by equation 1's conservative estimate instead of the exact error change.
+    #[arg(long)]
+    pub estimated_benefit: bool,
+    /// Apply the homeomorphism rule of section 4.2 to swaps.
+    #[arg(long)]
+    pub homeomorphism: bool,
     /// Only the first N frames.
     #[arg(long)]
     pub frames: Option<usize>,
@@ -92,7 +107,16 @@ pub fn run(args: EvalArgs, quiet: bool) -> Result<(), Exit> {
         seq.frames.truncate(n.max(1));
     }
     let frames = seq.frame_count();
-    let opts = ApproxOptions { branching: args.branching, ..Default::default() };
+    let mut opts = ApproxOptions { branching: args.branching, ..Default::default() };
+    opts.recluster.beta = args.beta;
+    opts.recluster.homeomorphism = args.homeomorphism;
+    opts.recluster.exact_benefit = !args.estimated_benefit;
+    if let Some(x) = args.min_benefit {
+        opts.recluster.min_relative_benefit = x;
+    }
+    if let Some(x) = args.max_passes {
+        opts.recluster.max_passes = x;
+    }
     let sample = pmcodec_eval::SampleOptions { samples: args.samples, ..Default::default() };
     let originals: Vec<_> = (0..frames).filter_map(|f| seq.frame_mesh(f)).collect();
     let mut reports = Vec::new();
