@@ -1,0 +1,84 @@
+// Geomorphs between cuts (Houle & Poulin, seed 000, section 5): when the cut changes (the
+// budget moved, or the hierarchy changed between frames), each vertex of the new mesh starts at
+// the position of the node that stood for it before and moves to its own position over a short
+// time, instead of popping.
+//
+// The correspondence comes from the hierarchy itself: a new cut node whose ancestor was in the
+// old cut starts at that ancestor (a refinement: children spread out of their parent); a new
+// cut node that is an ancestor of old cut nodes starts at their centroid (a coarsening: the
+// parts slide together); a node in both cuts does not morph.
+
+import { NONE, Replay } from "./replay.js";
+
+/** Render-ready mesh of a cut: one vertex per used cut node, indices into them. */
+export interface CutMesh {
+  /** Global node id of each vertex. */
+  nodes: Uint32Array;
+  indices: Uint32Array;
+}
+
+/** Builds the index buffer of the replay's shown triangles over its cut nodes. */
+export function buildCutMesh(replay: Replay): CutMesh {
+  const rep = replay.cutNodes();
+  const vertexOf = new Map<number, number>();
+  const nodes: number[] = [];
+  const indices = new Uint32Array(replay.shown.length * 3);
+  let n = 0;
+  for (const t of replay.shown) {
+    for (let c = 0; c < 3; c++) {
+      const corner = replay.corners[3 * t + c];
+      const g = rep[replay.offsets[replay.minLevel] + corner];
+      let i = vertexOf.get(g);
+      if (i === undefined) { i = nodes.length; vertexOf.set(g, i); nodes.push(g); }
+      indices[n++] = i;
+    }
+  }
+  return { nodes: Uint32Array.from(nodes), indices };
+}
+
+/**
+ * Start positions for a geomorph from `oldNodes` (the previous cut's vertices) to `mesh`, with
+ * `positions` the current frame's node positions (3 floats per global node) and `parentOf`
+ * giving each node's parent (NONE at the top).
+ */
+export function morphStarts(mesh: CutMesh, oldNodes: Uint32Array, positions: Float32Array, parentOf: (g: number) => number): Float32Array {
+  const wasCut = new Set<number>(oldNodes);
+  const start = new Float32Array(mesh.nodes.length * 3);
+  // Centroids of old cut nodes under each new node that is their ancestor (coarsening).
+  const sum = new Map<number, [number, number, number, number]>();
+  const newSet = new Set<number>(mesh.nodes);
+  for (const o of oldNodes) {
+    let a = parentOf(o);
+    while (a !== NONE && !newSet.has(a)) a = parentOf(a);
+    if (a === NONE) continue;
+    const s = sum.get(a) ?? [0, 0, 0, 0];
+    s[0] += positions[3 * o]; s[1] += positions[3 * o + 1]; s[2] += positions[3 * o + 2]; s[3] += 1;
+    sum.set(a, s);
+  }
+  for (let i = 0; i < mesh.nodes.length; i++) {
+    const g = mesh.nodes[i];
+    let from = g;
+    if (!wasCut.has(g)) {
+      let a = parentOf(g);
+      while (a !== NONE && !wasCut.has(a)) a = parentOf(a);
+      if (a !== NONE) from = a; // refinement: start at the old ancestor
+      else {
+        const s = sum.get(g);
+        if (s && s[3] > 0) { start[3 * i] = s[0] / s[3]; start[3 * i + 1] = s[1] / s[3]; start[3 * i + 2] = s[2] / s[3]; continue; }
+      }
+    }
+    start[3 * i] = positions[3 * from]; start[3 * i + 1] = positions[3 * from + 1]; start[3 * i + 2] = positions[3 * from + 2];
+  }
+  return start;
+}
+
+/** Writes the morphed positions at blend `alpha` (0 = start, 1 = target) into `out`. */
+export function blend(mesh: CutMesh, start: Float32Array, positions: Float32Array, alpha: number, out: Float32Array): void {
+  const a = Math.min(1, Math.max(0, alpha));
+  // Smoothstep: no velocity jump at either end of the morph.
+  const s = a * a * (3 - 2 * a);
+  for (let i = 0; i < mesh.nodes.length; i++) {
+    const g = mesh.nodes[i];
+    for (let c = 0; c < 3; c++) out[3 * i + c] = start[3 * i + c] + (positions[3 * g + c] - start[3 * i + c]) * s;
+  }
+}

@@ -1,0 +1,291 @@
+// Playback of a pmcodec progressive hierarchy down to a finest level L, mirroring
+// `pmcodec_hierarchy::progressive::Replay` (see proto/container.md, "The model the file
+// encodes"). Everything is flat typed arrays indexed by u32 node and triangle ids.
+
+export const NONE = 0xffffffff;
+/** Degeneration node of a triangle that is not alive at this replay's finest level. */
+export const BELOW = 0xfffffffe;
+
+export interface Swap { level: number; v: number; to: number }
+export interface DegenerateDelta { t: number; node: number }
+export interface CornerUpdate { level: number; t: number; corners: [number, number, number] }
+export interface FrameDelta { swaps: Swap[]; degenerate: DegenerateDelta[]; corners: CornerUpdate[] }
+export interface KeyBand { parent: Uint32Array; faces: { t: number; corners: [number, number, number] }[] }
+
+export class DecodeError extends Error {}
+
+/** A growable set of u32 with O(1) insert/remove by slot, like the Rust side's Vec + slot map. */
+class SlotList {
+  items: number[] = [];
+}
+
+export class Replay {
+  readonly levelSizes: number[];
+  readonly offsets: number[];
+  readonly minLevel: number;
+  readonly triangleCount: number;
+  parent: Uint32Array[]; // parent[k][v], k < top
+  corners: Uint32Array; // 3 per triangle, level-minLevel corners (NONE if not alive)
+  nodeOf: Uint32Array;
+  sets: SlotList[];
+  slotInSet: Uint32Array;
+  children: number[][];
+  expanded: Uint8Array;
+  shown: number[] = [];
+  slotInShown: Uint32Array;
+
+  constructor(levelSizes: number[], minLevel: number, triangleCount: number) {
+    if (levelSizes.length === 0 || minLevel >= levelSizes.length) throw new DecodeError(`bad levels ${levelSizes} / ${minLevel}`);
+    this.levelSizes = levelSizes;
+    this.offsets = [0];
+    for (const s of levelSizes) this.offsets.push(this.offsets[this.offsets.length - 1] + s);
+    this.minLevel = minLevel;
+    this.triangleCount = triangleCount;
+    this.parent = levelSizes.slice(0, -1).map((s) => new Uint32Array(s));
+    const total = this.nodeCount;
+    this.corners = new Uint32Array(triangleCount * 3).fill(NONE);
+    this.nodeOf = new Uint32Array(triangleCount).fill(BELOW);
+    this.sets = Array.from({ length: total }, () => new SlotList());
+    this.slotInSet = new Uint32Array(triangleCount).fill(NONE);
+    this.children = Array.from({ length: total }, () => []);
+    this.expanded = new Uint8Array(total);
+    this.slotInShown = new Uint32Array(triangleCount).fill(NONE);
+  }
+
+  get top(): number { return this.levelSizes.length - 1; }
+  get nodeCount(): number { return this.offsets[this.offsets.length - 1]; }
+
+  /** Level of a global node id. */
+  levelOf(g: number): number {
+    let k = 0;
+    while (k + 1 < this.offsets.length && this.offsets[k + 1] <= g) k++;
+    return k;
+  }
+
+  parentGlobal(g: number): number {
+    const k = this.levelOf(g);
+    if (k >= this.top) return NONE;
+    return this.offsets[k + 1] + this.parent[k][g - this.offsets[k]];
+  }
+
+  /** Loads a keyframe: parent maps of bands >= L, and corners from band L (or the input triangles for L = 0). */
+  loadKeyframe(bands: KeyBand[], inputTriangles?: Uint32Array): void {
+    if (bands.length !== this.levelSizes.length) throw new DecodeError(`keyframe has ${bands.length} bands for ${this.levelSizes.length} levels`);
+    for (let j = this.minLevel; j < this.top; j++) {
+      const p = bands[j].parent;
+      if (p.length !== this.levelSizes[j]) throw new DecodeError(`band ${j}: parent map of ${p.length} for ${this.levelSizes[j]} nodes`);
+      for (let i = 0; i < p.length; i++) if (p[i] >= this.levelSizes[j + 1]) throw new DecodeError(`band ${j}: parent out of range`);
+      this.parent[j] = Uint32Array.from(p);
+    }
+    this.corners.fill(NONE);
+    if (this.minLevel === 0) {
+      if (!inputTriangles || inputTriangles.length !== this.triangleCount * 3) throw new DecodeError("level 0 needs the input triangles");
+      for (let i = 0; i < inputTriangles.length; i++) if (inputTriangles[i] >= this.levelSizes[0]) throw new DecodeError("input triangle out of range");
+      this.corners.set(inputTriangles);
+    } else {
+      const size = this.levelSizes[this.minLevel];
+      for (const f of bands[this.minLevel].faces) {
+        if (f.t >= this.triangleCount || f.corners.some((c) => c >= size)) throw new DecodeError(`band ${this.minLevel}: face ${f.t} out of range`);
+        this.corners.set(f.corners, f.t * 3);
+      }
+    }
+    this.rebuild();
+  }
+
+  private rebuild(): void {
+    const L = this.minLevel;
+    for (let t = 0; t < this.triangleCount; t++) {
+      let x = this.corners[3 * t], y = this.corners[3 * t + 1], z = this.corners[3 * t + 2];
+      let node = x === NONE || x === y || y === z || x === z ? BELOW : NONE;
+      if (node === NONE) {
+        for (let k = L; k < this.top; k++) {
+          const p = this.parent[k];
+          x = p[x]; y = p[y]; z = p[z];
+          if (x === y || x === z) { node = this.offsets[k + 1] + x; break; }
+          if (y === z) { node = this.offsets[k + 1] + y; break; }
+        }
+      }
+      this.nodeOf[t] = node;
+    }
+    for (const s of this.sets) s.items.length = 0;
+    for (let t = 0; t < this.triangleCount; t++) {
+      const g = this.nodeOf[t];
+      if (g !== NONE && g !== BELOW) { this.slotInSet[t] = this.sets[g].items.length; this.sets[g].items.push(t); }
+    }
+    for (const c of this.children) c.length = 0;
+    for (let k = L; k < this.top; k++) {
+      const p = this.parent[k];
+      for (let v = 0; v < p.length; v++) this.children[this.offsets[k + 1] + p[v]].push(this.offsets[k] + v);
+    }
+    this.expanded.fill(0);
+    this.shown.length = 0;
+    this.slotInShown.fill(NONE);
+    for (let t = 0; t < this.triangleCount; t++) if (this.nodeOf[t] === NONE) this.show(t);
+  }
+
+  private show(t: number): void {
+    if (this.slotInShown[t] === NONE) { this.slotInShown[t] = this.shown.length; this.shown.push(t); }
+  }
+
+  private hide(t: number): void {
+    const slot = this.slotInShown[t];
+    if (slot === NONE) return;
+    const last = this.shown.pop()!;
+    if (last !== t) { this.shown[slot] = last; this.slotInShown[last] = slot; }
+    this.slotInShown[t] = NONE;
+  }
+
+  expandable(g: number): boolean { return g >= this.offsets[this.minLevel + 1]; }
+
+  expand(g: number): void {
+    let x = g;
+    while (x !== NONE && this.expandable(x) && !this.expanded[x]) {
+      this.expanded[x] = 1;
+      for (const t of this.sets[x].items) this.show(t);
+      x = this.parentGlobal(x);
+    }
+  }
+
+  collapse(g: number): void {
+    const stack = [g];
+    while (stack.length) {
+      const x = stack.pop()!;
+      if (!this.expanded[x]) continue;
+      this.expanded[x] = 0;
+      for (const t of this.sets[x].items) this.hide(t);
+      for (const c of this.children[x]) stack.push(c);
+    }
+  }
+
+  /** Applies one frame's delta (bands >= minLevel). Throws DecodeError on data that does not fit. */
+  apply(delta: FrameDelta): void {
+    const froms: number[] = [];
+    for (const s of delta.swaps) {
+      const k = s.level;
+      if (k < this.minLevel) continue;
+      if (k >= this.top || s.v >= this.levelSizes[k] || s.to >= this.levelSizes[k + 1]) throw new DecodeError(`swap out of range at level ${k}`);
+      const from = this.parent[k][s.v];
+      if (from === s.to) continue;
+      const gv = this.offsets[k] + s.v, ga = this.offsets[k + 1] + from, gb = this.offsets[k + 1] + s.to;
+      this.parent[k][s.v] = s.to;
+      const ch = this.children[ga];
+      const i = ch.indexOf(gv);
+      if (i >= 0) { ch[i] = ch[ch.length - 1]; ch.pop(); }
+      this.children[gb].push(gv);
+      froms.push(ga);
+      if (this.expanded[gv] && !this.expanded[gb]) this.collapse(gv);
+    }
+    for (const ga of froms) if (this.children[ga].length === 0) throw new DecodeError(`swaps left cluster ${ga} empty`);
+    const total = this.nodeCount;
+    const belowLimit = this.offsets[this.minLevel + 1];
+    for (const d of delta.degenerate) {
+      const t = d.t;
+      let g = d.node;
+      if (t >= this.triangleCount || (g !== NONE && g >= total)) throw new DecodeError(`degenerate delta out of range: ${t} -> ${g}`);
+      if (g !== NONE && g < belowLimit) g = BELOW;
+      const old = this.nodeOf[t];
+      if (old === g) continue;
+      if (old !== NONE && old !== BELOW) {
+        const items = this.sets[old].items;
+        const slot = this.slotInSet[t];
+        const last = items.pop()!;
+        if (last !== t && slot < items.length) { items[slot] = last; this.slotInSet[last] = slot; }
+      }
+      if (g !== NONE && g !== BELOW) { this.slotInSet[t] = this.sets[g].items.length; this.sets[g].items.push(t); }
+      else this.slotInSet[t] = NONE;
+      this.nodeOf[t] = g;
+      if (g === NONE || (g !== BELOW && this.expanded[g])) this.show(t); else this.hide(t);
+    }
+    if (this.minLevel > 0) {
+      const size = this.levelSizes[this.minLevel];
+      for (const c of delta.corners) {
+        if (c.level !== this.minLevel) continue;
+        if (c.t >= this.triangleCount || c.corners.some((x) => x >= size)) throw new DecodeError(`corner update out of range: ${c.t}`);
+        this.corners.set(c.corners, c.t * 3);
+      }
+    }
+  }
+
+  /** For every node at minLevel and above, the cut node standing for it (NONE if expanded). */
+  cutNodes(): Uint32Array {
+    const rep = new Uint32Array(this.nodeCount).fill(NONE);
+    for (let k = this.top; k >= this.minLevel; k--) {
+      for (let v = 0; v < this.levelSizes[k]; v++) {
+        const g = this.offsets[k] + v;
+        const above = k === this.top ? NONE : rep[this.offsets[k + 1] + this.parent[k][v]];
+        rep[g] = above !== NONE ? above : this.expanded[g] ? NONE : g;
+      }
+    }
+    return rep;
+  }
+
+  /**
+   * Split priority of every node from decoded positions (proto/container.md, "Cuts"): the
+   * largest distance from the node to a child plus that child's own priority; 0 at minLevel.
+   */
+  nodeErrors(positions: Float32Array): Float64Array {
+    const err = new Float64Array(this.nodeCount);
+    for (let k = this.minLevel; k < this.top; k++) {
+      const p = this.parent[k];
+      for (let v = 0; v < p.length; v++) {
+        const c = this.offsets[k] + v, a = this.offsets[k + 1] + p[v];
+        const dx = positions[3 * c] - positions[3 * a], dy = positions[3 * c + 1] - positions[3 * a + 1], dz = positions[3 * c + 2] - positions[3 * a + 2];
+        const e = Math.sqrt(dx * dx + dy * dy + dz * dz) + err[c];
+        if (e > err[a]) err[a] = e;
+      }
+    }
+    return err;
+  }
+
+  /** Replaces the cut by the greedy one for a triangle budget: largest cut with at most `budget` shown triangles. */
+  selectTriangles(budget: number, errors: Float64Array): void {
+    for (let g = 0; g < this.nodeCount; g++) if (this.expanded[g]) this.collapse(g);
+    let used = this.shown.length;
+    const heap = new MaxHeap();
+    for (let g = this.offsets[this.top]; g < this.offsets[this.top + 1]; g++) if (this.expandable(g)) heap.push(errors[g], g);
+    while (heap.size > 0) {
+      const g = heap.pop();
+      const cost = this.sets[g].items.length;
+      if (used + cost > budget) continue;
+      this.expand(g);
+      used += cost;
+      for (const c of this.children[g]) if (this.expandable(c)) heap.push(errors[c], c);
+    }
+  }
+}
+
+/** A binary max-heap of (key, id), ties broken by the smaller id (matching the Rust side). */
+export class MaxHeap {
+  private keys: number[] = [];
+  private ids: number[] = [];
+  get size(): number { return this.keys.length; }
+  private better(i: number, j: number): boolean {
+    return this.keys[i] > this.keys[j] || (this.keys[i] === this.keys[j] && this.ids[i] < this.ids[j]);
+  }
+  private swap(i: number, j: number): void {
+    [this.keys[i], this.keys[j]] = [this.keys[j], this.keys[i]];
+    [this.ids[i], this.ids[j]] = [this.ids[j], this.ids[i]];
+  }
+  push(key: number, id: number): void {
+    this.keys.push(key); this.ids.push(id);
+    let i = this.keys.length - 1;
+    while (i > 0) { const p = (i - 1) >> 1; if (!this.better(i, p)) break; this.swap(i, p); i = p; }
+  }
+  pop(): number {
+    const id = this.ids[0];
+    const lastK = this.keys.pop()!, lastI = this.ids.pop()!;
+    if (this.keys.length > 0) {
+      this.keys[0] = lastK; this.ids[0] = lastI;
+      let i = 0;
+      for (;;) {
+        const l = 2 * i + 1, r = l + 1;
+        let b = i;
+        if (l < this.keys.length && this.better(l, b)) b = l;
+        if (r < this.keys.length && this.better(r, b)) b = r;
+        if (b === i) break;
+        this.swap(i, b); i = b;
+      }
+    }
+    return id;
+  }
+}
