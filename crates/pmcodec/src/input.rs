@@ -5,6 +5,7 @@ use crate::{EXIT_BAD_INPUT, Exit};
 use anyhow::Context;
 use clap::Args;
 use pmcodec_mesh::Sequence;
+use pmcodec_mesh::gltf_input::{AnimationSelector, GltfOptions};
 use std::path::Path;
 
 /// Options that say how to read the input.
@@ -22,7 +23,12 @@ pub struct InputArgs {
 pub fn load(path: &Path, args: &InputArgs) -> Result<Sequence, Exit> {
     let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     let seq = if ext == "glb" || ext == "gltf" {
-        Err(pmcodec_mesh::MeshError::Unsupported("glTF input (TEMPORARY)".into()))
+        let animation = args.animation.as_ref().map(|a| match a.parse::<usize>() {
+            Ok(i) => AnimationSelector::Index(i),
+            Err(_) => AnimationSelector::Name(a.clone()),
+        });
+        let opts = GltfOptions { animation, frame_rate: args.fps, ..Default::default() };
+        pmcodec_mesh::gltf_input::load_gltf(path, &opts)
     } else {
         pmcodec_mesh::obj::load_obj_sequence(path, args.fps)
     };
