@@ -10,8 +10,6 @@
 use crate::Hierarchy;
 use crate::quadric::Quadric;
 use crate::topology::FineTopology;
-use std::cmp::Ordering;
-use std::collections::BinaryHeap;
 
 /// Options for [`build`].
 #[derive(Clone, Debug, PartialEq)]
@@ -96,43 +94,26 @@ pub fn anchored_sizes(fine: u32, anchor: u32, branching: u32, min_coarsest: u32)
     out
 }
 
-#[derive(Clone, Copy)]
-struct Candidate {
-    cost: f64,
-    u: u32,
-    v: u32,
-    stamp_u: u32,
-    stamp_v: u32,
-}
-
-impl PartialEq for Candidate {
-    fn eq(&self, o: &Self) -> bool {
-        self.cmp(o) == Ordering::Equal
-    }
-}
-impl Eq for Candidate {}
-impl PartialOrd for Candidate {
-    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-        Some(self.cmp(o))
-    }
-}
-impl Ord for Candidate {
-    // BinaryHeap is a max-heap: reverse so the cheapest contraction comes out first; ties broken
-    // by vertex ids so the build is deterministic.
-    fn cmp(&self, o: &Self) -> Ordering {
-        o.cost.total_cmp(&self.cost).then_with(|| o.u.cmp(&self.u)).then_with(|| o.v.cmp(&self.v))
-    }
-}
-
 #[inline]
-fn contraction_cost(a: &Quadric, b: &Quadric) -> f64 {
+fn contraction_cost(a: &Quadric, b: &Quadric) -> f32 {
     let mut q = *a;
     q += b;
-    q.eval(q.optimal()).max(0.0)
+    q.eval(q.optimal()).max(0.0) as f32
 }
+
+/// At most this fraction of the live vertices is contracted per pass: small enough that a pass
+/// stays close to the one-at-a-time greedy order of QSlim, large enough that few passes are
+/// needed (the same batching meshoptimizer's simplifier uses).
+const PASS_FRACTION: u32 = 6;
 
 /// Builds the multilevel mesh from the fine-vertex quadrics that define "error" for the base
 /// hierarchy (frame 0's, or summed over frames: see [`crate::base`]).
+///
+/// Contractions are made in passes: each pass takes the cheapest current edges in cost order
+/// and contracts every one whose ends are both untouched in this pass (an independent set),
+/// up to a pass limit; then only the edges around contracted vertices are re-keyed,
+/// de-duplicated and re-costed. This touches memory in order and avoids a priority queue of
+/// stale entries, which on a 270k-triangle mesh was eight times slower.
 pub fn build(topo: &FineTopology, quadrics: &[Quadric], opts: &BuildOptions) -> Result<Hierarchy, BuildError> {
     let n = topo.vertex_count;
     if n == 0 {
@@ -142,29 +123,101 @@ pub fn build(topo: &FineTopology, quadrics: &[Quadric], opts: &BuildOptions) -> 
         return Err(BuildError::QuadricCount(quadrics.len(), n));
     }
     let targets = opts.targets(n)?;
-    let branching = opts.branching;
-
     let mut q: Vec<Quadric> = quadrics.to_vec();
-    let mut adj: Vec<Vec<u32>> = (0..n).map(|v| topo.neighbours(v).to_vec()).collect();
     let mut alive = vec![true; n as usize];
-    let mut stamp = vec![0u32; n as usize];
     // `merged_into[u]` = the vertex u was contracted into; roots are live vertices.
     let mut merged_into: Vec<u32> = (0..n).collect();
-
-    let mut heap = BinaryHeap::with_capacity(topo.edges.len() * 2);
-    for e in &topo.edges {
-        let (u, v) = (e[0], e[1]);
-        let cost = contraction_cost(&q[u as usize], &q[v as usize]);
-        heap.push(Candidate { cost, u, v, stamp_u: 0, stamp_v: 0 });
-    }
+    // Current edges between live vertices, (a, b) with a < b, and their contraction costs.
+    let mut edges: Vec<[u32; 2]> = topo.edges.clone();
+    let mut cost: Vec<f32> = edges.iter().map(|e| contraction_cost(&q[e[0] as usize], &q[e[1] as usize])).collect();
 
     let mut parents: Vec<Vec<u32>> = Vec::with_capacity(targets.len());
-    // Live representatives of the previous level's nodes, in node order.
     let mut prev_reps: Vec<u32> = (0..n).collect();
-    let mut live = n;
     let mut level_index = vec![u32::MAX; n as usize];
-    let mut snapshot = |merged_into: &mut Vec<u32>, alive: &[bool], prev_reps: &mut Vec<u32>, parents: &mut Vec<Vec<u32>>| {
-        let mut reps = Vec::new();
+    let mut live = n;
+    let mut touched = vec![false; n as usize];
+    let mut order: Vec<u32> = Vec::new();
+    let mut scratch: Vec<f32> = Vec::new();
+    // Both ends of every contraction of the pass, to clear their flags afterwards.
+    let mut changed: Vec<u32> = Vec::new();
+    let mut keys: Vec<(u64, u32)> = Vec::new();
+
+    for &target in &targets {
+        while live > target && !edges.is_empty() {
+            let need = live - target;
+            let limit = need.min((live / PASS_FRACTION).max(1));
+            // The cheapest `3 * limit` edges are enough candidates for `limit` contractions in
+            // all but degenerate cases; a short pass just means another pass.
+            let k = (3 * limit as usize).min(edges.len());
+            scratch.clear();
+            scratch.extend_from_slice(&cost);
+            let threshold = if k < scratch.len() {
+                *scratch.select_nth_unstable_by(k, f32::total_cmp).1
+            } else {
+                f32::INFINITY
+            };
+            order.clear();
+            order.extend((0..edges.len() as u32).filter(|&i| cost[i as usize] <= threshold));
+            order.sort_unstable_by(|&x, &y| cost[x as usize].total_cmp(&cost[y as usize]).then(x.cmp(&y)));
+            let mut done = 0;
+            changed.clear();
+            for &i in &order {
+                if done == limit {
+                    break;
+                }
+                let [u, v] = edges[i as usize];
+                if touched[u as usize] || touched[v as usize] {
+                    continue;
+                }
+                let qv = q[v as usize];
+                q[u as usize] += &qv;
+                merged_into[v as usize] = u;
+                alive[v as usize] = false;
+                touched[u as usize] = true;
+                touched[v as usize] = true;
+                changed.push(u);
+                changed.push(v);
+                done += 1;
+            }
+            live -= done;
+            // Re-key the edges that touch a contracted pair; keep the others in place.
+            keys.clear();
+            let mut w = 0;
+            for i in 0..edges.len() {
+                let [a, b] = edges[i];
+                if touched[a as usize] || touched[b as usize] {
+                    let (a, b) = (merged_into[a as usize], merged_into[b as usize]);
+                    if a != b {
+                        keys.push((((a.min(b) as u64) << 32) | a.max(b) as u64, i as u32));
+                    }
+                } else {
+                    edges[w] = edges[i];
+                    cost[w] = cost[i];
+                    w += 1;
+                }
+            }
+            edges.truncate(w);
+            cost.truncate(w);
+            keys.sort_unstable();
+            keys.dedup_by_key(|k| k.0);
+            for &(key, _) in &keys {
+                let (a, b) = ((key >> 32) as u32, key as u32);
+                edges.push([a, b]);
+                cost.push(contraction_cost(&q[a as usize], &q[b as usize]));
+            }
+            for &u in &changed {
+                touched[u as usize] = false;
+            }
+            if done == 0 {
+                break;
+            }
+        }
+        if (live as usize) >= prev_reps.len() {
+            // Nothing left to contract (one vertex per connected component): the last level is
+            // as coarse as the mesh allows.
+            break;
+        }
+        let mut reps = Vec::with_capacity(live as usize);
         for (v, &a) in alive.iter().enumerate() {
             if a {
                 level_index[v] = reps.len() as u32;
@@ -172,68 +225,14 @@ pub fn build(topo: &FineTopology, quadrics: &[Quadric], opts: &BuildOptions) -> 
             }
         }
         let parent: Vec<u32> =
-            prev_reps.iter().map(|&r| level_index[crate::hierarchy::find(merged_into, r) as usize]).collect();
+            prev_reps.iter().map(|&r| level_index[crate::hierarchy::find(&mut merged_into, r) as usize]).collect();
         parents.push(parent);
-        *prev_reps = reps;
-    };
-
-    let mut next_target = 0usize;
-    while next_target < targets.len() {
-        if live <= targets[next_target] {
-            snapshot(&mut merged_into, &alive, &mut prev_reps, &mut parents);
-            next_target += 1;
-            continue;
-        }
-        let Some(c) = heap.pop() else {
-            // Nothing left to contract (one vertex per connected component): the last level is
-            // as coarse as the mesh allows.
-            if (live as usize) < prev_reps.len() {
-                snapshot(&mut merged_into, &alive, &mut prev_reps, &mut parents);
-            }
+        prev_reps = reps;
+        if live > target {
             break;
-        };
-        let (u, v) = (c.u as usize, c.v as usize);
-        if !alive[u] || !alive[v] || stamp[u] != c.stamp_u || stamp[v] != c.stamp_v {
-            continue; // stale: one end changed since this cost was computed
-        }
-        // Keep the end with more neighbours so fewer lists are rewritten.
-        let (keep, gone) = if adj[u].len() >= adj[v].len() { (u, v) } else { (v, u) };
-        let qg = q[gone];
-        q[keep] += &qg;
-        alive[gone] = false;
-        merged_into[gone] = keep as u32;
-        stamp[keep] += 1;
-        live -= 1;
-        let gone_adj = std::mem::take(&mut adj[gone]);
-        for &w in &gone_adj {
-            let w = w as usize;
-            if w == keep {
-                continue;
-            }
-            let list = &mut adj[w];
-            let has_keep = list.contains(&(keep as u32));
-            if let Some(i) = list.iter().position(|&x| x as usize == gone) {
-                if has_keep {
-                    list.swap_remove(i);
-                } else {
-                    list[i] = keep as u32;
-                }
-            }
-            if !adj[keep].contains(&(w as u32)) {
-                adj[keep].push(w as u32);
-            }
-        }
-        if let Some(i) = adj[keep].iter().position(|&x| x as usize == gone) {
-            adj[keep].swap_remove(i);
-        }
-        let sk = stamp[keep];
-        for &w in &adj[keep] {
-            let cost = contraction_cost(&q[keep], &q[w as usize]);
-            heap.push(Candidate { cost, u: keep as u32, v: w, stamp_u: sk, stamp_v: stamp[w as usize] });
         }
     }
-
-    Ok(Hierarchy::from_parents(branching, n, parents))
+    Ok(Hierarchy::from_parents(opts.branching, n, parents))
 }
 
 #[cfg(test)]
