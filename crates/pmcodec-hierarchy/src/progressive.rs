@@ -576,3 +576,123 @@ impl Replay {
         Ok(())
     }
 }
+
+/// Cuts chosen from decoded data alone (a decoder has positions but no quadrics). The split
+/// priority of a node is the largest distance from it to a child plus that child's priority
+/// (0 at the replay's finest level): an upper bound on how far any finer node under it lies
+/// from it. Specified in proto/container.md so every decoder picks the same cut.
+impl Replay {
+    /// Split priorities of every node from node positions (global ids).
+    pub fn node_errors(&self, positions: &[Vec3]) -> Vec<f64> {
+        let h = &self.h;
+        let mut err = vec![0f64; h.node_count()];
+        for k in self.min_level..h.levels() - 1 {
+            for (v, &p) in h.parent[k].iter().enumerate() {
+                let (c, a) = ((h.offsets[k] + v as u32) as usize, (h.offsets[k + 1] + p) as usize);
+                let (Some(pc), Some(pa)) = (positions.get(c), positions.get(a)) else { continue };
+                let e = (*pc - *pa).length() as f64 + err[c];
+                if e > err[a] {
+                    err[a] = e;
+                }
+            }
+        }
+        err
+    }
+
+    fn collapse_all(&mut self) {
+        for g in 0..self.expanded.len() as u32 {
+            if self.expanded[g as usize] {
+                self.collapse(g);
+            }
+        }
+    }
+
+    /// The largest cut (greedy by priority, ties to the smaller id) with at most `budget`
+    /// shown triangles, or with at most `budget` cut nodes when `vertices` is set.
+    pub fn select_budget(&mut self, budget: u32, vertices: bool, errors: &[f64]) {
+        use std::cmp::Ordering;
+        #[derive(PartialEq)]
+        struct Item(f64, u32);
+        impl Eq for Item {}
+        impl PartialOrd for Item {
+            fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+                Some(self.cmp(o))
+            }
+        }
+        impl Ord for Item {
+            fn cmp(&self, o: &Self) -> Ordering {
+                self.0.total_cmp(&o.0).then_with(|| o.1.cmp(&self.1))
+            }
+        }
+        self.collapse_all();
+        let top = self.h.top();
+        let mut used = if vertices { self.h.level_sizes[top] } else { self.shown.len() as u32 };
+        let mut heap: std::collections::BinaryHeap<Item> = (self.h.offsets[top]..self.h.offsets[top + 1])
+            .filter(|&g| self.expandable(g))
+            .map(|g| Item(errors.get(g as usize).copied().unwrap_or(0.0), g))
+            .collect();
+        while let Some(Item(_, g)) = heap.pop() {
+            let cost = if vertices {
+                (self.children[g as usize].len() as u32).saturating_sub(1)
+            } else {
+                self.sets[g as usize].len() as u32
+            };
+            if used + cost > budget {
+                continue;
+            }
+            self.expand(g);
+            used += cost;
+            for i in 0..self.children[g as usize].len() {
+                let c = self.children[g as usize][i];
+                if self.expandable(c) {
+                    heap.push(Item(errors.get(c as usize).copied().unwrap_or(0.0), c));
+                }
+            }
+        }
+    }
+
+    /// Every node above `level` expanded (clamped to what this replay tracks).
+    pub fn select_level(&mut self, level: usize) {
+        self.collapse_all();
+        let level = level.max(self.min_level).min(self.h.top());
+        for g in self.h.offsets[level + 1]..self.h.offsets[self.h.levels()] {
+            self.expand(g);
+        }
+    }
+
+    /// Every node whose priority exceeds `tolerance` expanded, top down.
+    pub fn select_max_error(&mut self, tolerance: f64, errors: &[f64]) {
+        self.collapse_all();
+        let top = self.h.top();
+        let mut stack: Vec<u32> = (self.h.offsets[top]..self.h.offsets[top + 1]).collect();
+        while let Some(g) = stack.pop() {
+            if self.expandable(g) && errors.get(g as usize).copied().unwrap_or(0.0) > tolerance {
+                self.expand(g);
+                stack.extend_from_slice(&self.children[g as usize]);
+            }
+        }
+    }
+
+    /// The mesh the current cut shows, with node positions (global ids): its vertices are the
+    /// cut nodes used by shown triangles, in first-use order.
+    pub fn mesh(&self, positions: &[Vec3]) -> (pmcodec_mesh::TriMesh, Vec<u32>) {
+        let rep = self.cut_nodes();
+        let base = self.h.offsets[self.min_level];
+        let mut index_of = std::collections::HashMap::new();
+        let mut nodes = Vec::new();
+        let mut mesh = pmcodec_mesh::TriMesh::default();
+        for &t in &self.shown {
+            let c = self.corners[t as usize];
+            let tri = c.map(|x| {
+                let g = rep.get((base + x) as usize).copied().unwrap_or(NONE);
+                *index_of.entry(g).or_insert_with(|| {
+                    nodes.push(g);
+                    mesh.positions.push(positions.get(g as usize).copied().unwrap_or(Vec3::ZERO));
+                    nodes.len() as u32 - 1
+                })
+            });
+            mesh.triangles.push(tri);
+        }
+        (mesh, nodes)
+    }
+}

@@ -1,0 +1,230 @@
+//! Decoding: replaying keyframes and deltas down to a finest level L, reconstructing the
+//! quantized node positions, and extracting meshes at any cut.
+
+use crate::encode::predict;
+use crate::format::ChunkKind;
+use crate::payload;
+use crate::{ByteSource, ContainerError, Reader};
+use glam::Vec3;
+use pmcodec_hierarchy::progressive::{CornerUpdate, DegenerateDelta, FrameDelta, KeyBand, Keyframe, Replay};
+use pmcodec_hierarchy::recluster::Swap;
+use pmcodec_hierarchy::NONE;
+use pmcodec_mesh::TriMesh;
+
+/// Which cut a decoded mesh shows.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MeshTarget {
+    /// The largest cut with at most this many triangles (greedy by split priority).
+    Triangles(u32),
+    /// The largest cut with at most this many vertices.
+    Vertices(u32),
+    /// Every node of this level (0 = the input mesh, vertices in input order).
+    Level(usize),
+    /// Split every node whose priority exceeds this fraction of the bounding-box diagonal.
+    MaxError(f64),
+}
+
+/// Plays a container frame by frame down to a finest level.
+pub struct Decoder<'r, S> {
+    reader: &'r Reader<S>,
+    min_level: usize,
+    replay: Option<Replay>,
+    frame: Option<u32>,
+    triangles: Option<Vec<[u32; 3]>>,
+    /// Quantized positions of every node (global ids; only levels >= min_level are decoded).
+    current: Vec<[i32; 3]>,
+    previous: Vec<[i32; 3]>,
+}
+
+impl<'r, S: ByteSource> Decoder<'r, S> {
+    /// A decoder that reads bands `min_level..` only.
+    pub fn new(reader: &'r Reader<S>, min_level: usize) -> Result<Self, ContainerError> {
+        let h = reader.header();
+        if min_level >= h.levels() {
+            return Err(ContainerError::Options(format!("level {min_level}: the file has levels 0..{}", h.levels() - 1)));
+        }
+        let total = h.node_count() as usize;
+        Ok(Decoder { reader, min_level, replay: None, frame: None, triangles: None, current: vec![[0; 3]; total], previous: vec![[0; 3]; total] })
+    }
+
+    pub fn frame(&self) -> Option<u32> {
+        self.frame
+    }
+
+    pub fn replay(&self) -> Option<&Replay> {
+        self.replay.as_ref()
+    }
+
+    pub fn replay_mut(&mut self) -> Option<&mut Replay> {
+        self.replay.as_mut()
+    }
+
+    fn chunk(&self, kind: ChunkKind, frame: u32, band: usize) -> Result<Vec<u8>, ContainerError> {
+        let e = self.reader.find(kind, frame, band as u32).ok_or_else(|| ContainerError::Corrupt {
+            what: format!("frame {frame} band {band} {}", kind.name()),
+            detail: "missing from the index".into(),
+        })?;
+        self.reader.read_chunk(e)
+    }
+
+    /// Brings the decoder to `frame`: from the current frame when that is on the way, else
+    /// from the keyframe at or before it.
+    pub fn seek(&mut self, frame: u32) -> Result<(), ContainerError> {
+        let h = self.reader.header();
+        if frame >= h.frame_count {
+            return Err(ContainerError::NoSuchFrame { frame, frames: h.frame_count });
+        }
+        let key = h.keyframe_before(frame);
+        let start = match self.frame {
+            Some(c) if c <= frame && c >= key => c,
+            _ => {
+                self.load_keyframe(key)?;
+                key
+            }
+        };
+        for f in start + 1..=frame {
+            self.step(f)?;
+        }
+        Ok(())
+    }
+
+    /// Advances one frame.
+    pub fn next_frame(&mut self) -> Result<(), ContainerError> {
+        let f = self.frame.map_or(0, |f| f + 1);
+        self.seek(f)
+    }
+
+    fn load_keyframe(&mut self, frame: u32) -> Result<(), ContainerError> {
+        let h = self.reader.header();
+        let sizes = &h.level_sizes;
+        let mut key = Keyframe { bands: vec![KeyBand::default(); h.levels()] };
+        for j in (self.min_level..h.levels()).rev() {
+            let what = format!("frame {frame} band {j} keyframe");
+            let raw = self.chunk(ChunkKind::Key, frame, j)?;
+            key.bands[j] = payload::read_key(&raw, &what, sizes, j, h.triangle_count)?;
+        }
+        if self.min_level == 0 && self.triangles.is_none() {
+            let e = self.reader.index().chunks.iter().find(|e| e.kind == ChunkKind::Triangles).ok_or_else(|| {
+                ContainerError::Corrupt { what: "index".into(), detail: "no triangles chunk".into() }
+            })?;
+            let raw = self.reader.read_chunk(e)?;
+            self.triangles = Some(payload::read_triangles(&raw, "triangles chunk", h.triangle_count, h.vertex_count)?);
+        }
+        let replay = Replay::from_keyframe(sizes, h.branching, &key, self.min_level, h.triangle_count as usize, self.triangles.as_deref())
+            .map_err(|source| ContainerError::Delta { what: format!("frame {frame} keyframe"), source })?;
+        self.replay = Some(replay);
+        self.decode_positions(frame, true)?;
+        self.frame = Some(frame);
+        Ok(())
+    }
+
+    fn step(&mut self, frame: u32) -> Result<(), ContainerError> {
+        let h = self.reader.header();
+        let (sizes, triangles, nodes) = (h.level_sizes.clone(), h.triangle_count, h.node_count() as u32);
+        let replay = self.replay.as_mut().ok_or_else(|| ContainerError::Options("no keyframe loaded".into()))?;
+        let mut delta = FrameDelta::default();
+        for j in (self.min_level..sizes.len()).rev() {
+            let what = format!("frame {frame} band {j} delta");
+            let e = self.reader.find(ChunkKind::Delta, frame, j as u32).ok_or_else(|| ContainerError::Corrupt {
+                what: what.clone(),
+                detail: "missing from the index".into(),
+            })?;
+            let raw = self.reader.read_chunk(e)?;
+            let band = payload::read_delta(&raw, &what, &sizes, j, triangles, nodes)?;
+            for (v, to) in band.moves {
+                // `from` is whatever the replay holds: net changes carry no history.
+                let from = replay.h.parent.get(j).and_then(|p| p.get(v as usize)).copied().unwrap_or(NONE);
+                delta.swaps.push(Swap { level: j as u32, v, from, to });
+            }
+            delta.degenerate.extend(band.degenerate.into_iter().map(|(t, new)| DegenerateDelta { t, old: NONE, new }));
+            delta.corners.extend(band.corners.into_iter().map(|(t, corners)| CornerUpdate { level: j as u32, t, corners }));
+        }
+        replay.apply(&delta).map_err(|source| ContainerError::Delta { what: format!("frame {frame} delta"), source })?;
+        std::mem::swap(&mut self.previous, &mut self.current);
+        self.decode_positions(frame, false)?;
+        self.frame = Some(frame);
+        Ok(())
+    }
+
+    /// Decodes the positions chunks of `frame` (bands top..min_level) into `current`.
+    fn decode_positions(&mut self, frame: u32, from_key: bool) -> Result<(), ContainerError> {
+        let h = self.reader.header();
+        let intra = from_key || h.is_keyframe(frame);
+        let replay = self.replay.as_ref().ok_or_else(|| ContainerError::Options("no keyframe loaded".into()))?;
+        let (sizes, offsets) = (&replay.h.level_sizes, &replay.h.offsets);
+        for j in (self.min_level..sizes.len()).rev() {
+            let what = format!("frame {frame} band {j} positions");
+            let raw = self.chunk(ChunkKind::Positions, frame, j)?;
+            let residuals = payload::read_positions(&raw, &what, sizes[j])?;
+            if from_key && !h.is_keyframe(frame) {
+                return Err(ContainerError::Corrupt { what, detail: "keyframe positions on a frame that is not a keyframe".into() });
+            }
+            for (v, r) in residuals.iter().enumerate() {
+                let g = offsets[j] as usize + v;
+                let parent = (j + 1 < sizes.len()).then(|| (offsets[j + 1] + replay.h.parent[j][v]) as usize);
+                let prev_in_level = (v > 0).then(|| g - 1);
+                let p = predict(intra, g, parent, prev_in_level, &self.current, &self.previous);
+                self.current[g] = [0, 1, 2].map(|a| p[a].wrapping_add(r[a]));
+            }
+        }
+        Ok(())
+    }
+
+    /// Quantized positions of every node (global ids; zero below the finest level).
+    pub fn quantized(&self) -> &[[i32; 3]] {
+        &self.current
+    }
+
+    /// Dequantized positions of every node (global ids).
+    pub fn positions(&self) -> Vec<Vec3> {
+        let h = self.reader.header();
+        let lo = Vec3::from_array(h.bbox_min);
+        let step = h.quantization.step;
+        self.current.iter().map(|q| lo + Vec3::new(q[0] as f32, q[1] as f32, q[2] as f32) * step).collect()
+    }
+
+    /// Chooses the cut for `target` on the current frame and returns its mesh. `Level(0)`
+    /// (with a full-resolution decoder) gives every input vertex in input order and the input
+    /// triangles in input order.
+    pub fn mesh(&mut self, target: MeshTarget) -> Result<TriMesh, ContainerError> {
+        let positions = self.positions();
+        let diag = {
+            let h = self.reader.header();
+            (Vec3::from_array(h.bbox_max) - Vec3::from_array(h.bbox_min)).length() as f64
+        };
+        let min_level = self.min_level;
+        let replay = self.replay.as_mut().ok_or_else(|| ContainerError::Options("seek to a frame first".into()))?;
+        if let (MeshTarget::Level(0), 0) = (target, min_level) {
+            let n0 = replay.h.level_sizes[0] as usize;
+            let triangles = self.triangles.clone().unwrap_or_default();
+            return Ok(TriMesh { positions: positions[..n0].to_vec(), triangles });
+        }
+        let errors = replay.node_errors(&positions);
+        match target {
+            MeshTarget::Triangles(n) => replay.select_budget(n, false, &errors),
+            MeshTarget::Vertices(n) => replay.select_budget(n, true, &errors),
+            MeshTarget::Level(l) => replay.select_level(l),
+            MeshTarget::MaxError(e) => replay.select_max_error(e * diag, &errors),
+        }
+        Ok(ordered_mesh(replay, &positions))
+    }
+}
+
+/// The current cut's mesh with triangles in input order and vertices in node order, so equal
+/// cuts give byte-identical meshes.
+pub fn ordered_mesh(replay: &Replay, positions: &[Vec3]) -> TriMesh {
+    let rep = replay.cut_nodes();
+    let base = replay.h.offsets[replay.min_level];
+    let mut shown = replay.shown().to_vec();
+    shown.sort_unstable();
+    let corners: Vec<[u32; 3]> =
+        shown.iter().map(|&t| replay.corners()[t as usize].map(|c| rep.get((base + c) as usize).copied().unwrap_or(NONE))).collect();
+    let mut nodes: Vec<u32> = corners.iter().flatten().copied().collect();
+    nodes.sort_unstable();
+    nodes.dedup();
+    let index_of = |g: u32| nodes.binary_search(&g).map_or(0, |i| i as u32);
+    TriMesh {
+        positions: nodes.iter().map(|&g| positions.get(g as usize).copied().unwrap_or(Vec3::ZERO)).collect(),
+        triangles: corners.iter().map(|c| c.map(index_of)).collect(),
+    }
+}

@@ -1,0 +1,243 @@
+//! Encoding a sequence: build H_0, recluster frame by frame, and write keyframes, deltas and
+//! quantized, predicted node positions by band, coarse first.
+
+use crate::ContainerError;
+use crate::format::*;
+use crate::payload::{self, DeltaBand};
+use glam::Vec3;
+use pmcodec_hierarchy::base::{BaseOptions, PoseSet, VertexWeights, base_quadrics};
+use pmcodec_hierarchy::progressive::{Encoder, FrameDelta, degenerate_band};
+use pmcodec_hierarchy::recluster::ReclusterOptions;
+use pmcodec_hierarchy::{BuildOptions, FineTopology, Hierarchy, build};
+use pmcodec_mesh::Sequence;
+use std::collections::HashMap;
+use std::path::Path;
+
+/// How positions are quantized.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum QuantizationChoice {
+    /// Every position within this fraction of the bounding-box diagonal of its true value.
+    MaxError(f64),
+    /// This many bits per axis over the bounding box's largest extent.
+    Bits(u8),
+}
+
+/// Everything `encode` can be told.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EncodeOptions {
+    pub build: BuildOptions,
+    pub base: BaseOptions,
+    pub recluster: ReclusterOptions,
+    /// A keyframe every this many frames (0: only frame 0).
+    pub keyframe_interval: u32,
+    pub quantization: QuantizationChoice,
+}
+
+impl Default for EncodeOptions {
+    fn default() -> Self {
+        EncodeOptions {
+            build: BuildOptions::default(),
+            base: BaseOptions::default(),
+            recluster: ReclusterOptions::default(),
+            keyframe_interval: 16,
+            quantization: QuantizationChoice::MaxError(1e-4),
+        }
+    }
+}
+
+fn quantize(p: Vec3, lo: Vec3, step: f32) -> [i32; 3] {
+    let q = ((p - lo) / step).round();
+    [q.x as i32, q.y as i32, q.z as i32]
+}
+
+/// Prediction of a node's quantized position (proto/container.md, "Positions"). `parent` is
+/// the node's parent in H_f (global id), `prev` the previous frame's quantized positions.
+pub(crate) fn predict(
+    intra: bool,
+    g: usize,
+    parent: Option<usize>,
+    prev_in_level: Option<usize>,
+    current: &[[i32; 3]],
+    previous: &[[i32; 3]],
+) -> [i32; 3] {
+    let mut out = [0i32; 3];
+    for a in 0..3 {
+        out[a] = match (intra, parent) {
+            (true, Some(p)) => current[p][a],
+            (true, None) => prev_in_level.map_or(0, |i| current[i][a]),
+            (false, Some(p)) => previous[g][a].wrapping_add(current[p][a].wrapping_sub(previous[p][a])),
+            (false, None) => previous[g][a],
+        };
+    }
+    out
+}
+
+/// Net parent changes of one level from a frame's swaps: (node, new parent) where the last
+/// swap of a node leaves it elsewhere than before the frame, ascending by node.
+fn net_moves(delta: &FrameDelta, level: usize) -> Vec<(u32, u32)> {
+    let mut first_from: HashMap<u32, u32> = HashMap::new();
+    let mut last_to: HashMap<u32, u32> = HashMap::new();
+    for s in delta.swaps.iter().filter(|s| s.level as usize == level) {
+        first_from.entry(s.v).or_insert(s.from);
+        last_to.insert(s.v, s.to);
+    }
+    let mut moves: Vec<(u32, u32)> = last_to.into_iter().filter(|(v, to)| first_from.get(v) != Some(to)).collect();
+    moves.sort_unstable();
+    moves
+}
+
+fn delta_band(h: &Hierarchy, delta: &FrameDelta, j: usize) -> DeltaBand {
+    DeltaBand {
+        moves: net_moves(delta, j),
+        degenerate: delta.degenerate.iter().filter(|d| degenerate_band(h, d) == j).map(|d| (d.t, d.new)).collect(),
+        corners: delta.corners.iter().filter(|c| c.level as usize == j).map(|c| (c.t, c.corners)).collect(),
+    }
+}
+
+fn pose_name(p: PoseSet) -> String {
+    match p {
+        PoseSet::FirstFrame => "first-frame".into(),
+        PoseSet::AllFrames => "all-frames".into(),
+        PoseSet::Sampled(n) => format!("sampled-{n}"),
+    }
+}
+
+/// Encodes a sequence; `progress(f)` is called after each frame.
+pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usize)) -> Result<Vec<u8>, ContainerError> {
+    seq.validate()?;
+    let (lo, hi) = seq.bounds().ok_or_else(|| ContainerError::Options("empty sequence".into()))?;
+    let diag = (hi - lo).length().max(f32::MIN_POSITIVE);
+    let extent = (hi - lo).max_element().max(f32::MIN_POSITIVE);
+    let step = match opts.quantization {
+        QuantizationChoice::MaxError(e) if e.is_finite() && e > 0.0 => (2.0 * e * diag as f64 / 3f64.sqrt()) as f32,
+        QuantizationChoice::Bits(b) if (4..=24).contains(&b) => extent / ((1u32 << b) - 1) as f32,
+        q => return Err(ContainerError::Options(format!("quantization {q:?}: use a positive error or 4..=24 bits"))),
+    };
+    if !(step.is_finite() && step > 0.0) || (extent / step) as f64 > (1u64 << 30) as f64 {
+        return Err(ContainerError::Options(format!("quantization step {step} does not fit 30 bits over the bounding box")));
+    }
+    let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
+    let q = base_quadrics(seq, &topo, &opts.base);
+    let base = build(&topo, &q, &opts.build)?;
+    let mut enc = Encoder::new(base, topo, seq.triangles.clone(), opts.recluster.clone());
+    let levels = enc.hierarchy().levels();
+    let sizes = enc.hierarchy().level_sizes.clone();
+    let offsets = enc.hierarchy().offsets.clone();
+
+    let header = Header {
+        vertex_count: seq.vertex_count() as u32,
+        triangle_count: seq.triangles.len() as u32,
+        frame_count: seq.frame_count() as u32,
+        frame_rate: seq.frame_rate,
+        level_sizes: sizes.clone(),
+        branching: opts.build.branching,
+        bbox_min: lo.to_array(),
+        bbox_max: hi.to_array(),
+        quantization: Quantization { step },
+        keyframe_interval: opts.keyframe_interval,
+        encoded_with: EncodedWith {
+            base_poses: pose_name(opts.base.poses),
+            base_weights: match opts.base.weights {
+                VertexWeights::None => "none".into(),
+                VertexWeights::Tertiles => "tertiles".into(),
+                VertexWeights::Smooth => "smooth".into(),
+            },
+            beta: opts.recluster.beta,
+            min_relative_benefit: opts.recluster.min_relative_benefit,
+            max_passes: opts.recluster.max_passes,
+            homeomorphism: opts.recluster.homeomorphism,
+            exact_benefit: opts.recluster.exact_benefit,
+            max_error: match opts.quantization {
+                QuantizationChoice::MaxError(e) => Some(e),
+                _ => None,
+            },
+            quant_bits: match opts.quantization {
+                QuantizationChoice::Bits(b) => Some(b),
+                _ => None,
+            },
+        },
+        generator: format!("pmcodec {}", env!("CARGO_PKG_VERSION")),
+        frame_names: seq.frame_names.clone(),
+    };
+
+    let mut chunks: Vec<(ChunkEntry, Vec<u8>)> = Vec::new();
+    let mut push = |kind: ChunkKind, frame: u32, band: u32, raw: Vec<u8>| -> Result<(), ContainerError> {
+        let stored = zstd::bulk::compress(&raw, ZSTD_LEVEL).map_err(|e| ContainerError::Io(format!("zstd: {e}")))?;
+        let entry = ChunkEntry {
+            kind,
+            frame,
+            band,
+            offset: 0,
+            stored_len: stored.len() as u32,
+            raw_len: raw.len() as u32,
+            crc32: crc32fast::hash(&stored),
+        };
+        chunks.push((entry, stored));
+        Ok(())
+    };
+    push(ChunkKind::Triangles, 0, 0, payload::write_triangles(&seq.triangles))?;
+
+    let total = *offsets.last().unwrap_or(&0) as usize;
+    let mut previous = vec![[0i32; 3]; total];
+    let mut current = vec![[0i32; 3]; total];
+    for (f, frame) in seq.frames.iter().enumerate() {
+        let (delta, _) = enc.encode_frame(frame);
+        let h = enc.hierarchy();
+        let positions = &enc.recluster.nodes.positions;
+        for g in 0..total {
+            current[g] = quantize(if g < frame.len() { frame[g] } else { positions[g] }, lo, step);
+        }
+        let intra = header.is_keyframe(f as u32);
+        let key = intra.then(|| enc.keyframe());
+        for j in (0..levels).rev() {
+            if let Some(k) = &key {
+                push(ChunkKind::Key, f as u32, j as u32, payload::write_key(&k.bands[j]))?;
+            }
+            push(ChunkKind::Delta, f as u32, j as u32, payload::write_delta(&delta_band(h, &delta, j)))?;
+            let mut residuals = Vec::with_capacity(sizes[j] as usize);
+            for v in 0..sizes[j] {
+                let g = (offsets[j] + v) as usize;
+                let parent = (j + 1 < levels).then(|| (offsets[j + 1] + h.parent[j][v as usize]) as usize);
+                let prev_in_level = (v > 0).then(|| g - 1);
+                let p = predict(intra, g, parent, prev_in_level, &current, &previous);
+                residuals.push([0, 1, 2].map(|a| current[g][a].wrapping_sub(p[a])));
+            }
+            push(ChunkKind::Positions, f as u32, j as u32, payload::write_positions(&residuals))?;
+        }
+        std::mem::swap(&mut previous, &mut current);
+        progress(f);
+    }
+
+    // Offsets are relative to the chunk area, so the index's own length does not feed back.
+    let mut offset = 0u64;
+    let mut index = Index::default();
+    for (e, bytes) in &mut chunks {
+        e.offset = offset;
+        offset += bytes.len() as u64;
+        index.chunks.push(*e);
+    }
+    let hb = postcard::to_stdvec(&header).map_err(|e| ContainerError::Io(format!("header: {e}")))?;
+    let ib = postcard::to_stdvec(&index).map_err(|e| ContainerError::Io(format!("index: {e}")))?;
+    let pre = Preamble {
+        version: VERSION,
+        flags: 0,
+        header_len: hb.len() as u32,
+        index_len: ib.len() as u32,
+        header_crc: crc32fast::hash(&hb),
+        index_crc: crc32fast::hash(&ib),
+    };
+    let mut out = Vec::with_capacity(PREAMBLE_LEN + hb.len() + ib.len() + offset as usize);
+    out.extend_from_slice(&pre.to_bytes());
+    out.extend_from_slice(&hb);
+    out.extend_from_slice(&ib);
+    for (_, bytes) in &chunks {
+        out.extend_from_slice(bytes);
+    }
+    Ok(out)
+}
+
+/// Writes a file through a temporary file in the same folder and a rename, so a failed or
+/// killed write never leaves a half file under the final name.
+pub fn write_file(path: &Path, bytes: &[u8]) -> Result<(), ContainerError> {
+    pmcodec_mesh::write::write_atomic(path, bytes).map_err(ContainerError::from)
+}

@@ -1,0 +1,191 @@
+//! The raw serialized types of the `.pmc` container, kept apart from the encoder and decoder
+//! (see proto/container.md for the byte-level specification).
+
+use serde::{Deserialize, Serialize};
+
+/// First 8 bytes of every file. The high-bit byte and the CR LF / EOF / LF bytes make text-mode
+/// transfers and truncating tools fail loudly, as in PNG's signature.
+pub const MAGIC: [u8; 8] = *b"\x89PMC\r\n\x1a\n";
+/// Format version this crate writes and reads.
+pub const VERSION: u16 = 1;
+/// Size of the fixed preamble.
+pub const PREAMBLE_LEN: usize = 32;
+/// Upper bound on the header and index sizes a reader accepts (protects allocations).
+pub const MAX_TABLE_LEN: u32 = 64 << 20;
+/// zstd level for chunks: files are written once and read many times.
+pub const ZSTD_LEVEL: i32 = 19;
+
+/// The fixed 32-byte preamble.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Preamble {
+    pub version: u16,
+    pub flags: u16,
+    pub header_len: u32,
+    pub index_len: u32,
+    pub header_crc: u32,
+    pub index_crc: u32,
+}
+
+impl Preamble {
+    pub fn to_bytes(&self) -> [u8; PREAMBLE_LEN] {
+        let mut b = [0u8; PREAMBLE_LEN];
+        b[..8].copy_from_slice(&MAGIC);
+        b[8..10].copy_from_slice(&self.version.to_le_bytes());
+        b[10..12].copy_from_slice(&self.flags.to_le_bytes());
+        b[12..16].copy_from_slice(&self.header_len.to_le_bytes());
+        b[16..20].copy_from_slice(&self.index_len.to_le_bytes());
+        b[20..24].copy_from_slice(&self.header_crc.to_le_bytes());
+        b[24..28].copy_from_slice(&self.index_crc.to_le_bytes());
+        // 28..32 reserved, zero.
+        b
+    }
+
+    /// Parses and checks magic and version first, as a reader must.
+    pub fn parse(b: &[u8]) -> Result<Self, crate::ContainerError> {
+        use crate::ContainerError as E;
+        if b.len() < PREAMBLE_LEN {
+            return Err(E::Truncated { what: "preamble".into() });
+        }
+        if b[..8] != MAGIC {
+            return Err(E::BadMagic);
+        }
+        let u16_at = |i: usize| u16::from_le_bytes([b[i], b[i + 1]]);
+        let u32_at = |i: usize| u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
+        let version = u16_at(8);
+        if version != VERSION {
+            return Err(E::UnsupportedVersion(version));
+        }
+        let p = Preamble {
+            version,
+            flags: u16_at(10),
+            header_len: u32_at(12),
+            index_len: u32_at(16),
+            header_crc: u32_at(20),
+            index_crc: u32_at(24),
+        };
+        if p.header_len > MAX_TABLE_LEN || p.index_len > MAX_TABLE_LEN {
+            return Err(E::Corrupt { what: "preamble".into(), detail: "header or index length beyond 64 MiB".into() });
+        }
+        Ok(p)
+    }
+}
+
+/// How positions are quantized: `q = round((p - bbox_min) / step)` per axis.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Quantization {
+    pub step: f32,
+}
+
+/// The options the file was encoded with (for `info`, and to re-encode alike).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EncodedWith {
+    pub base_poses: String,
+    pub base_weights: String,
+    pub beta: f64,
+    pub min_relative_benefit: f64,
+    pub max_passes: u32,
+    pub homeomorphism: bool,
+    pub exact_benefit: bool,
+    pub max_error: Option<f64>,
+    pub quant_bits: Option<u8>,
+}
+
+/// The header (postcard).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Header {
+    pub vertex_count: u32,
+    pub triangle_count: u32,
+    pub frame_count: u32,
+    pub frame_rate: f32,
+    /// |M_0| .. |M_top|.
+    pub level_sizes: Vec<u32>,
+    pub branching: u32,
+    pub bbox_min: [f32; 3],
+    pub bbox_max: [f32; 3],
+    pub quantization: Quantization,
+    /// A keyframe every this many frames (0: only frame 0).
+    pub keyframe_interval: u32,
+    pub encoded_with: EncodedWith,
+    pub generator: String,
+    pub frame_names: Vec<String>,
+}
+
+impl Header {
+    pub fn levels(&self) -> usize {
+        self.level_sizes.len()
+    }
+
+    pub fn top(&self) -> usize {
+        self.level_sizes.len().saturating_sub(1)
+    }
+
+    pub fn is_keyframe(&self, frame: u32) -> bool {
+        frame == 0 || (self.keyframe_interval > 0 && frame % self.keyframe_interval == 0)
+    }
+
+    /// The keyframe at or before `frame`.
+    pub fn keyframe_before(&self, frame: u32) -> u32 {
+        if self.keyframe_interval == 0 { 0 } else { frame - frame % self.keyframe_interval }
+    }
+
+    pub fn node_count(&self) -> u64 {
+        self.level_sizes.iter().map(|&s| s as u64).sum()
+    }
+}
+
+/// What a chunk holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum ChunkKind {
+    /// The input triangles (band 0 only; one per file).
+    Triangles,
+    /// A keyframe's band: parent map and faces alive at that level.
+    Key,
+    /// A frame's topology delta for one band: net parent changes, degenerate-set deltas,
+    /// corner updates.
+    Delta,
+    /// A frame's quantized node positions for one band.
+    Positions,
+}
+
+impl ChunkKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            ChunkKind::Triangles => "triangles",
+            ChunkKind::Key => "keyframe",
+            ChunkKind::Delta => "delta",
+            ChunkKind::Positions => "positions",
+        }
+    }
+}
+
+/// One index entry.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ChunkEntry {
+    pub kind: ChunkKind,
+    pub frame: u32,
+    pub band: u32,
+    /// Offset from the end of the index (the start of the chunk area).
+    pub offset: u64,
+    /// Stored (compressed) length.
+    pub stored_len: u32,
+    /// Length after decompression.
+    pub raw_len: u32,
+    /// CRC-32 (IEEE) of the stored bytes.
+    pub crc32: u32,
+}
+
+impl ChunkEntry {
+    /// A name for error messages: "frame 12 band 3 positions".
+    pub fn describe(&self) -> String {
+        match self.kind {
+            ChunkKind::Triangles => "triangles chunk".into(),
+            k => format!("frame {} band {} {}", self.frame, self.band, k.name()),
+        }
+    }
+}
+
+/// The chunk index (postcard).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Index {
+    pub chunks: Vec<ChunkEntry>,
+}

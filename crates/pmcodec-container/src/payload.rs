@@ -1,0 +1,298 @@
+//! Chunk payloads: every integer is an unsigned LEB128 varint (signed values zigzag-encoded),
+//! ids in ascending lists are delta-coded. Readers check every count against the header before
+//! allocating and every id against its range.
+
+use crate::ContainerError;
+use pmcodec_hierarchy::NONE;
+use pmcodec_hierarchy::progressive::KeyBand;
+
+pub fn put(out: &mut Vec<u8>, mut v: u32) {
+    while v >= 0x80 {
+        out.push((v as u8) | 0x80);
+        v >>= 7;
+    }
+    out.push(v as u8);
+}
+
+#[inline]
+pub fn zigzag(v: i32) -> u32 {
+    ((v << 1) ^ (v >> 31)) as u32
+}
+
+#[inline]
+pub fn unzigzag(v: u32) -> i32 {
+    ((v >> 1) as i32) ^ -((v & 1) as i32)
+}
+
+/// A bounds-checked varint reader over one chunk.
+pub struct Cursor<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+    what: &'a str,
+}
+
+impl<'a> Cursor<'a> {
+    pub fn new(bytes: &'a [u8], what: &'a str) -> Self {
+        Cursor { bytes, pos: 0, what }
+    }
+
+    fn corrupt(&self, detail: impl Into<String>) -> ContainerError {
+        ContainerError::Corrupt { what: self.what.to_string(), detail: detail.into() }
+    }
+
+    pub fn get(&mut self) -> Result<u32, ContainerError> {
+        let mut v: u64 = 0;
+        for shift in (0..35).step_by(7) {
+            let Some(&b) = self.bytes.get(self.pos) else {
+                return Err(self.corrupt(format!("ends inside a number at byte {}", self.pos)));
+            };
+            self.pos += 1;
+            v |= ((b & 0x7f) as u64) << shift;
+            if b & 0x80 == 0 {
+                return u32::try_from(v).map_err(|_| self.corrupt("number beyond 32 bits"));
+            }
+        }
+        Err(self.corrupt("number longer than 5 bytes"))
+    }
+
+    /// A value that must be below `limit` (an id).
+    pub fn id(&mut self, limit: u32, name: &str) -> Result<u32, ContainerError> {
+        let v = self.get()?;
+        if v >= limit {
+            return Err(self.corrupt(format!("{name} {v} out of range (< {limit})")));
+        }
+        Ok(v)
+    }
+
+    /// A count that must not exceed `limit` (so allocations stay bounded).
+    pub fn count(&mut self, limit: u64, name: &str) -> Result<usize, ContainerError> {
+        let v = self.get()?;
+        if v as u64 > limit {
+            return Err(self.corrupt(format!("{v} {name}, more than the {limit} possible")));
+        }
+        Ok(v as usize)
+    }
+
+    /// The next id of an ascending list: previous + delta.
+    pub fn ascending(&mut self, prev: &mut Option<u32>, limit: u32, name: &str) -> Result<u32, ContainerError> {
+        let d = self.get()?;
+        let v = match *prev {
+            None => d as u64,
+            Some(p) => p as u64 + d as u64 + 1,
+        };
+        if v >= limit as u64 {
+            return Err(self.corrupt(format!("{name} {v} out of range (< {limit})")));
+        }
+        *prev = Some(v as u32);
+        Ok(v as u32)
+    }
+
+    pub fn finish(&self) -> Result<(), ContainerError> {
+        if self.pos == self.bytes.len() {
+            Ok(())
+        } else {
+            Err(self.corrupt(format!("{} bytes left over", self.bytes.len() - self.pos)))
+        }
+    }
+}
+
+fn put_ascending(out: &mut Vec<u8>, prev: &mut Option<u32>, v: u32) {
+    put(out, match *prev {
+        None => v,
+        Some(p) => v - p - 1,
+    });
+    *prev = Some(v);
+}
+
+/// TRIANGLES: count, then three corners per triangle.
+pub fn write_triangles(tris: &[[u32; 3]]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(tris.len() * 8);
+    put(&mut out, tris.len() as u32);
+    for t in tris {
+        for &c in t {
+            put(&mut out, c);
+        }
+    }
+    out
+}
+
+pub fn read_triangles(bytes: &[u8], what: &str, triangles: u32, vertices: u32) -> Result<Vec<[u32; 3]>, ContainerError> {
+    let mut c = Cursor::new(bytes, what);
+    let n = c.count(triangles as u64, "triangles")?;
+    if n != triangles as usize {
+        return Err(c.corrupt(format!("{n} triangles where the header says {triangles}")));
+    }
+    let mut out = Vec::with_capacity(n);
+    for _ in 0..n {
+        out.push([c.id(vertices, "vertex")?, c.id(vertices, "vertex")?, c.id(vertices, "vertex")?]);
+    }
+    c.finish()?;
+    Ok(out)
+}
+
+/// KEY band j: parent map (|M_j| entries, none for the top band), then the faces alive at
+/// level j (none for band 0) as ascending triangle ids with their three level-j corners.
+pub fn write_key(band: &KeyBand) -> Vec<u8> {
+    let mut out = Vec::new();
+    put(&mut out, band.parent.len() as u32);
+    for &p in &band.parent {
+        put(&mut out, p);
+    }
+    put(&mut out, band.faces.len() as u32);
+    let mut prev = None;
+    for (t, c) in &band.faces {
+        put_ascending(&mut out, &mut prev, *t);
+        for &x in c {
+            put(&mut out, x);
+        }
+    }
+    out
+}
+
+pub fn read_key(bytes: &[u8], what: &str, sizes: &[u32], band: usize, triangles: u32) -> Result<KeyBand, ContainerError> {
+    let mut c = Cursor::new(bytes, what);
+    let top = sizes.len() - 1;
+    let n = c.count(sizes[band] as u64, "parents")?;
+    let expected = if band < top { sizes[band] as usize } else { 0 };
+    if n != expected {
+        return Err(c.corrupt(format!("{n} parents for {expected} nodes")));
+    }
+    let limit = if band < top { sizes[band + 1] } else { 0 };
+    let mut parent = Vec::with_capacity(n);
+    for _ in 0..n {
+        parent.push(c.id(limit, "parent")?);
+    }
+    let m = c.count(triangles as u64, "faces")?;
+    let mut faces = Vec::with_capacity(m);
+    let mut prev = None;
+    for _ in 0..m {
+        let t = c.ascending(&mut prev, triangles, "triangle")?;
+        faces.push((t, [c.id(sizes[band], "corner")?, c.id(sizes[band], "corner")?, c.id(sizes[band], "corner")?]));
+    }
+    c.finish()?;
+    Ok(KeyBand { parent, faces })
+}
+
+/// One band of a frame delta, as stored.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct DeltaBand {
+    /// Net parent changes of level-j nodes: (node, new parent), ascending by node.
+    pub moves: Vec<(u32, u32)>,
+    /// (triangle, new degeneration node as a global id or NONE), ascending by triangle.
+    pub degenerate: Vec<(u32, u32)>,
+    /// (triangle, level-j corners), ascending by triangle.
+    pub corners: Vec<(u32, [u32; 3])>,
+}
+
+/// DELTA band j: moves (node delta-coded, new parent), degenerate-set deltas (triangle
+/// delta-coded, node + 1 with 0 for NONE), corner updates (triangle delta-coded, 3 corners).
+pub fn write_delta(d: &DeltaBand) -> Vec<u8> {
+    let mut out = Vec::new();
+    put(&mut out, d.moves.len() as u32);
+    let mut prev = None;
+    for &(v, to) in &d.moves {
+        put_ascending(&mut out, &mut prev, v);
+        put(&mut out, to);
+    }
+    put(&mut out, d.degenerate.len() as u32);
+    let mut prev = None;
+    for &(t, g) in &d.degenerate {
+        put_ascending(&mut out, &mut prev, t);
+        put(&mut out, if g == NONE { 0 } else { g + 1 });
+    }
+    put(&mut out, d.corners.len() as u32);
+    let mut prev = None;
+    for (t, c) in &d.corners {
+        put_ascending(&mut out, &mut prev, *t);
+        for &x in c {
+            put(&mut out, x);
+        }
+    }
+    out
+}
+
+pub fn read_delta(bytes: &[u8], what: &str, sizes: &[u32], band: usize, triangles: u32, nodes: u32) -> Result<DeltaBand, ContainerError> {
+    let mut c = Cursor::new(bytes, what);
+    let top = sizes.len() - 1;
+    let mut d = DeltaBand::default();
+    let n = c.count(if band < top { sizes[band] as u64 } else { 0 }, "moves")?;
+    let mut prev = None;
+    for _ in 0..n {
+        let v = c.ascending(&mut prev, sizes[band], "node")?;
+        d.moves.push((v, c.id(sizes[band + 1], "parent")?));
+    }
+    let n = c.count(triangles as u64, "degenerate-set deltas")?;
+    let mut prev = None;
+    for _ in 0..n {
+        let t = c.ascending(&mut prev, triangles, "triangle")?;
+        let g = c.id(nodes.saturating_add(1), "node")?;
+        d.degenerate.push((t, if g == 0 { NONE } else { g - 1 }));
+    }
+    let n = c.count(triangles as u64, "corner updates")?;
+    let mut prev = None;
+    for _ in 0..n {
+        let t = c.ascending(&mut prev, triangles, "triangle")?;
+        d.corners.push((t, [c.id(sizes[band], "corner")?, c.id(sizes[band], "corner")?, c.id(sizes[band], "corner")?]));
+    }
+    c.finish()?;
+    Ok(d)
+}
+
+/// POSITIONS band j: three zigzag residuals per level-j node, in node order.
+pub fn write_positions(residuals: &[[i32; 3]]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(residuals.len() * 4);
+    for r in residuals {
+        for &x in r {
+            put(&mut out, zigzag(x));
+        }
+    }
+    out
+}
+
+pub fn read_positions(bytes: &[u8], what: &str, count: u32) -> Result<Vec<[i32; 3]>, ContainerError> {
+    let mut c = Cursor::new(bytes, what);
+    let mut out = Vec::with_capacity(count as usize);
+    for _ in 0..count {
+        out.push([unzigzag(c.get()?), unzigzag(c.get()?), unzigzag(c.get()?)]);
+    }
+    c.finish()?;
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn varints_and_zigzag_round_trip() {
+        let mut out = Vec::new();
+        let values = [0u32, 1, 127, 128, 16383, 16384, u32::MAX];
+        for &v in &values {
+            put(&mut out, v);
+        }
+        let mut c = Cursor::new(&out, "test");
+        for &v in &values {
+            assert_eq!(c.get().unwrap(), v);
+        }
+        c.finish().unwrap();
+        for v in [0, 1, -1, i32::MAX, i32::MIN, 12345, -54321] {
+            assert_eq!(unzigzag(zigzag(v)), v);
+        }
+        assert!(Cursor::new(&[0x80], "x").get().is_err());
+        assert!(Cursor::new(&[0xff, 0xff, 0xff, 0xff, 0x7f], "x").get().is_err());
+    }
+
+    #[test]
+    fn delta_band_round_trips() {
+        let d = DeltaBand {
+            moves: vec![(0, 3), (5, 1), (6, 0)],
+            degenerate: vec![(2, NONE), (7, 12), (8, 0)],
+            corners: vec![(1, [0, 1, 2]), (9, [3, 4, 5])],
+        };
+        let bytes = write_delta(&d);
+        assert_eq!(read_delta(&bytes, "t", &[10, 4, 1], 0, 10, 15).unwrap(), d);
+        // Out-of-range parent is an error naming it.
+        let e = read_delta(&bytes, "t", &[10, 2, 1], 0, 10, 15).unwrap_err().to_string();
+        assert!(e.contains("parent 3 out of range"), "{e}");
+    }
+}

@@ -1,0 +1,229 @@
+//! Reading: a [`ByteSource`] gives bytes at offsets (a slice, a file, an HTTP range client);
+//! the [`Reader`] checks the preamble, header and index once, then fetches, verifies and
+//! decompresses chunks on demand.
+
+use crate::ContainerError;
+use crate::format::{ChunkEntry, ChunkKind, Header, Index, PREAMBLE_LEN, Preamble};
+use std::cell::Cell;
+use std::path::Path;
+
+/// Where the bytes of a file come from.
+pub trait ByteSource {
+    /// Total length in bytes.
+    fn len(&self) -> Result<u64, ContainerError>;
+    /// Exactly `len` bytes at `offset` (an error if the source is shorter).
+    fn read_at(&self, offset: u64, len: usize) -> Result<Vec<u8>, ContainerError>;
+}
+
+impl ByteSource for [u8] {
+    fn len(&self) -> Result<u64, ContainerError> {
+        Ok(<[u8]>::len(self) as u64)
+    }
+    fn read_at(&self, offset: u64, len: usize) -> Result<Vec<u8>, ContainerError> {
+        let start = usize::try_from(offset).map_err(|_| ContainerError::Io("offset beyond memory".into()))?;
+        let end = start.checked_add(len).ok_or_else(|| ContainerError::Io("length overflow".into()))?;
+        self.get(start..end).map(<[u8]>::to_vec).ok_or_else(|| ContainerError::Io(format!("read of {len} bytes at {offset} beyond the end")))
+    }
+}
+
+impl ByteSource for Vec<u8> {
+    fn len(&self) -> Result<u64, ContainerError> {
+        Ok(self.as_slice().len() as u64)
+    }
+    fn read_at(&self, offset: u64, len: usize) -> Result<Vec<u8>, ContainerError> {
+        self.as_slice().read_at(offset, len)
+    }
+}
+
+impl<T: ByteSource + ?Sized> ByteSource for &T {
+    fn len(&self) -> Result<u64, ContainerError> {
+        (**self).len()
+    }
+    fn read_at(&self, offset: u64, len: usize) -> Result<Vec<u8>, ContainerError> {
+        (**self).read_at(offset, len)
+    }
+}
+
+/// A file on disk, read with positioned reads.
+pub struct FileSource {
+    file: std::fs::File,
+    len: u64,
+}
+
+impl FileSource {
+    pub fn open(path: &Path) -> Result<Self, ContainerError> {
+        let file = std::fs::File::open(path).map_err(|e| ContainerError::Io(format!("{}: {e}", path.display())))?;
+        let len = file.metadata().map_err(|e| ContainerError::Io(format!("{}: {e}", path.display())))?.len();
+        Ok(FileSource { file, len })
+    }
+}
+
+impl ByteSource for FileSource {
+    fn len(&self) -> Result<u64, ContainerError> {
+        Ok(self.len)
+    }
+    fn read_at(&self, offset: u64, len: usize) -> Result<Vec<u8>, ContainerError> {
+        use std::os::unix::fs::FileExt;
+        if offset.checked_add(len as u64).is_none_or(|end| end > self.len) {
+            return Err(ContainerError::Io(format!("read of {len} bytes at {offset} beyond the end ({})", self.len)));
+        }
+        let mut buf = vec![0u8; len];
+        self.file.read_exact_at(&mut buf, offset).map_err(|e| ContainerError::Io(e.to_string()))?;
+        Ok(buf)
+    }
+}
+
+/// An opened container: header and index checked, chunks on demand.
+pub struct Reader<S> {
+    source: S,
+    header: Header,
+    index: Index,
+    data_start: u64,
+    file_len: u64,
+    bytes_read: Cell<u64>,
+}
+
+impl<S: ByteSource> Reader<S> {
+    /// Reads and checks the preamble (magic and version first), the header and the index.
+    pub fn open(source: S) -> Result<Self, ContainerError> {
+        let file_len = source.len()?;
+        if file_len < PREAMBLE_LEN as u64 {
+            return Err(ContainerError::Truncated { what: "preamble".into() });
+        }
+        let pre = Preamble::parse(&source.read_at(0, PREAMBLE_LEN)?)?;
+        let data_start = PREAMBLE_LEN as u64 + pre.header_len as u64 + pre.index_len as u64;
+        if data_start > file_len {
+            return Err(ContainerError::Truncated { what: "header and index".into() });
+        }
+        let hb = source.read_at(PREAMBLE_LEN as u64, pre.header_len as usize)?;
+        if crc32fast::hash(&hb) != pre.header_crc {
+            return Err(ContainerError::Checksum { what: "header".into() });
+        }
+        let header: Header = postcard::from_bytes(&hb)
+            .map_err(|e| ContainerError::Corrupt { what: "header".into(), detail: e.to_string() })?;
+        let ib = source.read_at(PREAMBLE_LEN as u64 + pre.header_len as u64, pre.index_len as usize)?;
+        if crc32fast::hash(&ib) != pre.index_crc {
+            return Err(ContainerError::Checksum { what: "index".into() });
+        }
+        let index: Index = postcard::from_bytes(&ib)
+            .map_err(|e| ContainerError::Corrupt { what: "index".into(), detail: e.to_string() })?;
+        check_header(&header)?;
+        let reader = Reader { source, header, index, data_start, file_len, bytes_read: Cell::new(data_start) };
+        reader.check_index()?;
+        Ok(reader)
+    }
+
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+
+    pub fn index(&self) -> &Index {
+        &self.index
+    }
+
+    pub fn file_len(&self) -> u64 {
+        self.file_len
+    }
+
+    /// Offset of the chunk area (preamble + header + index).
+    pub fn data_start(&self) -> u64 {
+        self.data_start
+    }
+
+    /// Bytes fetched from the source so far (preamble, header, index and chunks).
+    pub fn bytes_read(&self) -> u64 {
+        self.bytes_read.get()
+    }
+
+    pub fn source(&self) -> &S {
+        &self.source
+    }
+
+    /// The entry of a chunk, if the file has it.
+    pub fn find(&self, kind: ChunkKind, frame: u32, band: u32) -> Option<&ChunkEntry> {
+        // Entries are in file order: triangles, then per frame per band (coarse first) key,
+        // delta, positions. Binary search on (frame) then scan the few entries of that frame.
+        let chunks = &self.index.chunks;
+        let start = chunks.partition_point(|e| e.kind == ChunkKind::Triangles || e.frame < frame);
+        chunks[start..].iter().take_while(|e| e.frame == frame).find(|e| e.kind == kind && e.band == band)
+    }
+
+    /// Fetches one chunk, checks its CRC before decompressing, and decompresses it into at most
+    /// its declared raw length.
+    pub fn read_chunk(&self, e: &ChunkEntry) -> Result<Vec<u8>, ContainerError> {
+        let what = e.describe();
+        let offset = self.data_start + e.offset;
+        if offset + e.stored_len as u64 > self.file_len {
+            return Err(ContainerError::Truncated { what });
+        }
+        let stored = self.source.read_at(offset, e.stored_len as usize)?;
+        self.bytes_read.set(self.bytes_read.get() + stored.len() as u64);
+        if crc32fast::hash(&stored) != e.crc32 {
+            return Err(ContainerError::Checksum { what });
+        }
+        let raw = zstd::bulk::decompress(&stored, e.raw_len as usize)
+            .map_err(|err| ContainerError::Corrupt { what: what.clone(), detail: format!("zstd: {err}") })?;
+        if raw.len() != e.raw_len as usize {
+            return Err(ContainerError::Corrupt { what, detail: format!("{} bytes where the index says {}", raw.len(), e.raw_len) });
+        }
+        Ok(raw)
+    }
+
+    fn check_index(&self) -> Result<(), ContainerError> {
+        let h = &self.header;
+        let area = self.file_len - self.data_start;
+        // A chunk never needs more than 5 bytes per number, and no chunk holds more numbers
+        // than 4 per triangle plus 3 per node: a bound on decompression that input cannot raise.
+        let max_raw = 5 * (4 * h.triangle_count as u64 + 3 * h.node_count()) + 64;
+        let mut last = None;
+        for e in &self.index.chunks {
+            let what = e.describe();
+            let bad = |detail: &str| ContainerError::Corrupt { what: what.clone(), detail: detail.to_string() };
+            if e.offset.checked_add(e.stored_len as u64).is_none_or(|end| end > area) {
+                return Err(ContainerError::Truncated { what });
+            }
+            if e.raw_len as u64 > max_raw {
+                return Err(bad("declared size beyond what the header allows"));
+            }
+            if e.kind != ChunkKind::Triangles && (e.frame >= h.frame_count || e.band as usize >= h.levels()) {
+                return Err(bad("frame or band beyond the header's counts"));
+            }
+            let key = (e.kind != ChunkKind::Triangles, e.frame);
+            if last.is_some_and(|l| l > key) {
+                return Err(bad("index entries out of order"));
+            }
+            last = Some(key);
+        }
+        Ok(())
+    }
+}
+
+/// Checks the header's own consistency before anything is sized from it.
+fn check_header(h: &Header) -> Result<(), ContainerError> {
+    let bad = |d: String| Err(ContainerError::Corrupt { what: "header".into(), detail: d });
+    if h.level_sizes.is_empty() || h.level_sizes.len() > 64 {
+        return bad(format!("{} levels", h.level_sizes.len()));
+    }
+    if h.level_sizes[0] != h.vertex_count {
+        return bad(format!("level 0 has {} nodes for {} vertices", h.level_sizes[0], h.vertex_count));
+    }
+    if h.level_sizes.windows(2).any(|w| w[1] == 0 || w[1] > w[0]) {
+        return bad(format!("level sizes {:?} do not shrink", h.level_sizes));
+    }
+    if h.node_count() > u32::MAX as u64 / 2 || h.triangle_count > u32::MAX / 4 {
+        return bad("more nodes or triangles than a 32-bit id allows".into());
+    }
+    if h.frame_count == 0 {
+        return bad("no frames".into());
+    }
+    if !(h.quantization.step.is_finite() && h.quantization.step > 0.0) {
+        return bad(format!("quantization step {}", h.quantization.step));
+    }
+    if !(h.frame_rate.is_finite() && h.frame_rate > 0.0) {
+        return bad(format!("frame rate {}", h.frame_rate));
+    }
+    if h.bbox_min.iter().chain(&h.bbox_max).any(|x| !x.is_finite()) {
+        return bad("bounding box is not finite".into());
+    }
+    Ok(())
+}
