@@ -1,0 +1,260 @@
+//! Round trips on real sequences and generated fixtures: the decoded hierarchy equals the
+//! encoder's, positions are within the stated bound, keyframe seeks agree with playback, and a
+//! level-limited reader fetches only its bands.
+
+use glam::Vec3;
+use pmcodec_container::*;
+use pmcodec_hierarchy::base::base_quadrics;
+use pmcodec_hierarchy::progressive::Encoder;
+use pmcodec_hierarchy::{FineTopology, build};
+use pmcodec_mesh::Sequence;
+use std::path::PathBuf;
+
+fn data(name: &str, frames: usize) -> Option<Sequence> {
+    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(name);
+    if !dir.exists() {
+        eprintln!("SKIP: {} is absent", dir.display());
+        return None;
+    }
+    let mut paths = pmcodec_mesh::obj::frame_paths(&dir).expect("frames");
+    paths.truncate(frames);
+    Some(pmcodec_mesh::obj::load_obj_files(&paths, 30.0).expect("load"))
+}
+
+/// Replays the encoder beside the decoder and compares every frame.
+fn round_trip(seq: &Sequence, opts: &EncodeOptions) -> Vec<u8> {
+    let bytes = encode(seq, opts, |_| {}).expect("encode");
+    let reader = Reader::open(bytes.as_slice()).expect("open");
+    let h = reader.header();
+    assert_eq!(h.frame_count as usize, seq.frame_count());
+    let diag = {
+        let (lo, hi) = seq.bounds().unwrap();
+        (hi - lo).length()
+    };
+    let bound = match opts.quantization {
+        QuantizationChoice::MaxError(e) => e as f32 * diag * 1.0001,
+        QuantizationChoice::Bits(_) => h.quantization.step * 0.5 * 3f32.sqrt() * 1.0001,
+    };
+    // The encoder's own hierarchy, rebuilt the same way.
+    let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
+    let base = build(&topo, &base_quadrics(seq, &topo, &opts.base), &opts.build).unwrap();
+    let mut enc = Encoder::new(base, topo, seq.triangles.clone(), opts.recluster.clone());
+    let mut d = Decoder::new(&reader, 0).unwrap();
+    for (f, frame) in seq.frames.iter().enumerate() {
+        enc.encode_frame(frame);
+        d.seek(f as u32).unwrap();
+        let r = d.replay().unwrap();
+        assert_eq!(&r.h, enc.hierarchy(), "frame {f}: parent maps");
+        assert_eq!(r.degeneration(), enc.degeneration(), "frame {f}: degenerate sets");
+        let pos = d.positions();
+        for (v, p) in frame.iter().enumerate() {
+            assert!((pos[v] - *p).length() <= bound, "frame {f} vertex {v}: {} > {bound}", (pos[v] - *p).length());
+        }
+        for g in seq.vertex_count()..pos.len() {
+            assert!((pos[g] - enc.recluster.nodes.positions[g]).length() <= bound, "frame {f} node {g}");
+        }
+    }
+    // Level 0 is the input, in input order.
+    let m = d.mesh(MeshTarget::Level(0)).unwrap();
+    assert_eq!(m.triangles, seq.triangles);
+    assert_eq!(m.positions.len(), seq.vertex_count());
+    bytes
+}
+
+#[test]
+fn horse_gallop_round_trips() {
+    let Some(seq) = data("horse-gallop", 20) else { return };
+    let bytes = round_trip(&seq, &EncodeOptions { keyframe_interval: 8, ..Default::default() });
+    let reader = Reader::open(bytes.as_slice()).unwrap();
+    verify(&reader).expect("verify");
+    // Seeking to a frame from its keyframe equals playing up to it, and budget cuts agree.
+    let mut played = Decoder::new(&reader, 0).unwrap();
+    for f in 0..=13 {
+        played.seek(f).unwrap();
+    }
+    let mut sought = Decoder::new(&reader, 0).unwrap();
+    sought.seek(13).unwrap();
+    assert_eq!(played.replay().unwrap().h, sought.replay().unwrap().h);
+    assert_eq!(played.quantized(), sought.quantized());
+    for budget in [500, 2000, 8000] {
+        let a = played.mesh(MeshTarget::Triangles(budget)).unwrap();
+        let b = sought.mesh(MeshTarget::Triangles(budget)).unwrap();
+        assert_eq!(a, b, "budget {budget}");
+        assert!(a.triangles.len() as u32 <= budget && a.triangles.len() as u32 > budget / 2, "{}", a.triangles.len());
+    }
+}
+
+#[test]
+fn samba_and_cat_round_trip() {
+    if let Some(seq) = data("samba-60", 6) {
+        round_trip(&seq, &EncodeOptions { quantization: QuantizationChoice::Bits(12), keyframe_interval: 4, ..Default::default() });
+    }
+    if let Some(seq) = data("cat-poses", 4) {
+        round_trip(&seq, &EncodeOptions { keyframe_interval: 0, ..Default::default() });
+    }
+}
+
+#[test]
+fn gltf_round_trips() {
+    let path = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/gltf/Fox.glb"));
+    if !path.exists() {
+        eprintln!("SKIP: {} is absent", path.display());
+        return;
+    }
+    let mut seq = pmcodec_mesh::gltf_input::load_gltf(&path, &Default::default()).unwrap();
+    seq.frames.truncate(10);
+    round_trip(&seq, &EncodeOptions { build: pmcodec_hierarchy::BuildOptions { min_coarsest: 4, ..Default::default() }, ..Default::default() });
+}
+
+/// Counts the bytes a reader fetches.
+struct Counting<'a> {
+    bytes: &'a [u8],
+    fetched: std::cell::Cell<u64>,
+}
+impl ByteSource for Counting<'_> {
+    fn len(&self) -> Result<u64, ContainerError> {
+        Ok(self.bytes.len() as u64)
+    }
+    fn read_at(&self, offset: u64, len: usize) -> Result<Vec<u8>, ContainerError> {
+        self.fetched.set(self.fetched.get() + len as u64);
+        self.bytes.read_at(offset, len)
+    }
+}
+
+#[test]
+fn level_limited_decoding_reads_only_its_bands() {
+    let Some(seq) = data("horse-gallop", 10) else { return };
+    let bytes = encode(&seq, &EncodeOptions::default(), |_| {}).unwrap();
+    let full_reader = Reader::open(bytes.as_slice()).unwrap();
+    let mut full = Decoder::new(&full_reader, 0).unwrap();
+    let src = Counting { bytes: &bytes, fetched: Default::default() };
+    let reader = Reader::open(&src).unwrap();
+    let level = 2;
+    let mut part = Decoder::new(&reader, level).unwrap();
+    for f in 0..10 {
+        full.seek(f).unwrap();
+        part.seek(f).unwrap();
+        let (a, b) = (full.replay().unwrap(), part.replay().unwrap());
+        assert_eq!(&a.h.parent[level..], &b.h.parent[level..], "frame {f}");
+        let off = a.h.offsets[level] as usize;
+        assert_eq!(&full.quantized()[off..], &part.quantized()[off..], "frame {f}: positions above level {level}");
+    }
+    // Everything fetched: preamble, header, index and chunks of bands >= level only.
+    let allowed: u64 = reader.data_start()
+        + reader.index().chunks.iter().filter(|e| e.band as usize >= level && e.kind != ChunkKind::Triangles).map(|e| e.stored_len as u64).sum::<u64>();
+    assert!(src.fetched.get() <= allowed, "{} > {allowed}", src.fetched.get());
+    assert!(src.fetched.get() * 4 < bytes.len() as u64, "a level-{level} client read {} of {} bytes", src.fetched.get(), bytes.len());
+    let m = part.mesh(MeshTarget::Triangles(1000)).unwrap();
+    assert!(!m.triangles.is_empty() && m.triangles.len() <= 1000);
+}
+
+fn wave(frames: usize) -> Sequence {
+    let (w, h) = (12u32, 9u32);
+    let mut seq = Sequence { frame_rate: 24.0, ..Default::default() };
+    for y in 0..h - 1 {
+        for x in 0..w - 1 {
+            let i = y * w + x;
+            seq.triangles.push([i, i + 1, i + w + 1]);
+            seq.triangles.push([i, i + w + 1, i + w]);
+        }
+    }
+    for f in 0..frames {
+        seq.frames.push((0..w * h).map(|i| Vec3::new((i % w) as f32, (i / w) as f32, ((i % w) as f32 * 0.7 + f as f32).sin())).collect());
+    }
+    seq
+}
+
+#[test]
+fn corruption_is_an_error_naming_the_region() {
+    let bytes = encode(&wave(5), &EncodeOptions { keyframe_interval: 2, ..Default::default() }, |_| {}).unwrap();
+    let reader = Reader::open(bytes.as_slice()).unwrap();
+    let start = reader.data_start() as usize;
+    let some_chunk = reader.index().chunks[5];
+    let check = |bad: &[u8], expect: &str| {
+        let err = match Reader::open(bad) {
+            Err(e) => e.to_string(),
+            Ok(r) => match verify(&r) {
+                Err(e) => e.to_string(),
+                Ok(_) => panic!("corruption not detected ({expect})"),
+            },
+        };
+        assert!(err.contains(expect), "{err} (expected {expect})");
+    };
+    let mut b = bytes.clone();
+    b[0] ^= 1;
+    check(&b, "magic");
+    let mut b = bytes.clone();
+    b[8] = 9;
+    check(&b, "version 9");
+    let mut b = bytes.clone();
+    b[40] ^= 0x55;
+    check(&b, "header");
+    let mut b = bytes.clone();
+    b[start - 3] ^= 0x55;
+    check(&b, "index");
+    let mut b = bytes.clone();
+    b[start + some_chunk.offset as usize + 2] ^= 0x55;
+    check(&b, &some_chunk.describe());
+    // Truncation anywhere: an error, never a panic.
+    for cut in (0..bytes.len()).step_by(37) {
+        let r = Reader::open(&bytes[..cut]);
+        if let Ok(r) = r {
+            assert!(verify(&r).is_err(), "truncated at {cut} passed");
+        }
+    }
+}
+
+#[test]
+fn header_snapshot() {
+    let bytes = encode(&wave(3), &EncodeOptions::default(), |_| {}).unwrap();
+    // Preamble: magic, version 1, flags 0.
+    assert_eq!(&bytes[..12], b"\x89PMC\r\n\x1a\n\x01\x00\x00\x00");
+    let reader = Reader::open(bytes.as_slice()).unwrap();
+    let h = reader.header();
+    assert_eq!((h.vertex_count, h.triangle_count, h.frame_count), (108, 176, 3));
+    assert_eq!(h.level_sizes, vec![108, 27]);
+    assert_eq!(h.keyframe_interval, 16);
+    // Deterministic output: encoding twice gives the same bytes.
+    assert_eq!(bytes, encode(&wave(3), &EncodeOptions::default(), |_| {}).unwrap());
+    // Index order: triangles, then frame 0 bands top..0, each key, delta, positions.
+    let kinds: Vec<(ChunkKind, u32, u32)> = reader.index().chunks.iter().take(7).map(|e| (e.kind, e.frame, e.band)).collect();
+    assert_eq!(
+        kinds,
+        vec![
+            (ChunkKind::Triangles, 0, 0),
+            (ChunkKind::Key, 0, 1),
+            (ChunkKind::Delta, 0, 1),
+            (ChunkKind::Positions, 0, 1),
+            (ChunkKind::Key, 0, 0),
+            (ChunkKind::Delta, 0, 0),
+            (ChunkKind::Positions, 0, 0)
+        ]
+    );
+}
+
+mod props {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+        #[test]
+        fn encode_decode_compare(frames in 1usize..6, key in 0u32..4, bits in 6u8..16, seed in 0u32..1000) {
+            let mut seq = wave(frames);
+            for (f, frame) in seq.frames.iter_mut().enumerate() {
+                for (i, p) in frame.iter_mut().enumerate() {
+                    p.z += (((i as u32).wrapping_mul(2654435761u32) ^ seed ^ f as u32) % 97) as f32 * 0.01;
+                }
+            }
+            let opts = EncodeOptions { keyframe_interval: key, quantization: QuantizationChoice::Bits(bits), ..Default::default() };
+            round_trip(&seq, &opts);
+        }
+
+        #[test]
+        fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..400)) {
+            if let Ok(r) = Reader::open(bytes.as_slice()) {
+                let _ = verify(&r);
+            }
+        }
+    }
+}
