@@ -88,7 +88,14 @@ impl<S: ByteSource> Reader<S> {
     pub fn open(source: S) -> Result<Self, ContainerError> {
         let file_len = source.len()?;
         if file_len < PREAMBLE_LEN as u64 {
-            return Err(ContainerError::Truncated { what: "preamble".into() });
+            // Say "not a .pmc file" for short junk, "truncated" for a cut-off real one.
+            let head = source.read_at(0, file_len as usize)?;
+            let magic = crate::format::MAGIC;
+            return Err(if head.iter().zip(magic.iter()).all(|(a, b)| a == b) {
+                ContainerError::Truncated { what: "preamble".into() }
+            } else {
+                ContainerError::BadMagic
+            });
         }
         let pre = Preamble::parse(&source.read_at(0, PREAMBLE_LEN)?)?;
         let data_start = PREAMBLE_LEN as u64 + pre.header_len as u64 + pre.index_len as u64;

@@ -1,6 +1,7 @@
 //! `pmcodec`: the command line over the pmcodec libraries. Each subcommand lives in its own
 //! module and only parses arguments, calls a library, and reports.
 
+mod codec_cmd;
 mod eval_cmd;
 mod input;
 
@@ -19,6 +20,14 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Encode an OBJ sequence or an animated glTF/GLB into a .pmc container.
+    Encode(codec_cmd::EncodeArgs),
+    /// Decode a frame (or every frame) of a .pmc at a triangle budget, level or error bound.
+    Decode(codec_cmd::DecodeArgs),
+    /// Describe a .pmc: counts, levels, sizes per band, bits per vertex per frame.
+    Info(codec_cmd::InfoArgs),
+    /// Check every checksum and replay every frame of a .pmc.
+    Verify(codec_cmd::VerifyArgs),
     /// Per-frame surface distance of approximations to the original frames.
     Eval(eval_cmd::EvalArgs),
 }
@@ -47,6 +56,10 @@ fn main() -> ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let result = match cli.command {
+        Command::Encode(args) => codec_cmd::encode_cmd(args, cli.quiet),
+        Command::Decode(args) => codec_cmd::decode_cmd(args, cli.quiet),
+        Command::Info(args) => codec_cmd::info_cmd(args),
+        Command::Verify(args) => codec_cmd::verify_cmd(args, cli.quiet),
         Command::Eval(args) => eval_cmd::run(args, cli.quiet),
     };
     match result {

@@ -1,0 +1,95 @@
+//! The `pmcodec` binary end to end on a generated OBJ sequence: encode, info, verify, decode,
+//! and the errors and exit codes users see.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_pmcodec"))
+}
+
+fn temp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("pmcodec-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Writes a small waving sheet as OBJ frames named so that natural order differs from plain
+/// string order (f2 before f10).
+fn write_sequence(dir: &Path, frames: usize) {
+    let seq = pmcodec_mesh::samples::waving_cloth(14, 10, frames as u32);
+    for f in 0..frames {
+        let mesh = seq.frame_mesh(f).unwrap();
+        pmcodec_mesh::write::write_mesh_file(&dir.join(format!("f{}.obj", f + 1)), &mesh).unwrap();
+    }
+}
+
+fn ok(cmd: &mut Command) -> String {
+    let out = cmd.output().unwrap();
+    assert!(out.status.success(), "{cmd:?}: {}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+#[test]
+fn encode_info_verify_decode() {
+    let dir = temp("main");
+    let frames_dir = dir.join("in");
+    std::fs::create_dir_all(&frames_dir).unwrap();
+    write_sequence(&frames_dir, 12);
+    let pmc = dir.join("seq.pmc");
+    ok(bin().args(["encode", "-q", "--keyframe-interval", "4", "--quant-bits", "14"]).arg(&frames_dir).arg("-o").arg(&pmc));
+    let info: serde_json::Value = serde_json::from_str(&ok(bin().arg("info").arg(&pmc).arg("--json"))).unwrap();
+    assert_eq!(info["header"]["frame_count"], 12);
+    assert_eq!(info["header"]["vertex_count"], 140);
+    assert!(ok(bin().arg("verify").arg(&pmc)).contains("ok"));
+    // Level 0 of frame 9 is the input frame f10.obj: same faces, positions within the bound.
+    let out = dir.join("f9.obj");
+    ok(bin().args(["decode", "-q", "--frame", "9", "--level", "0"]).arg(&pmc).arg("-o").arg(&out));
+    let decoded = pmcodec_mesh::obj::read_obj(&out).unwrap();
+    let input = pmcodec_mesh::obj::read_obj(&frames_dir.join("f10.obj")).unwrap();
+    assert_eq!(decoded.triangles, input.triangles);
+    for (a, b) in decoded.positions.iter().zip(&input.positions) {
+        assert!((*a - *b).length() < 1e-3, "{a} vs {b}");
+    }
+    // A budget, as GLB.
+    let glb = dir.join("b.glb");
+    ok(bin().args(["decode", "-q", "--frame", "3", "--triangles", "60"]).arg(&pmc).arg("-o").arg(&glb));
+    let g = gltf::Gltf::from_slice(&std::fs::read(&glb).unwrap()).unwrap();
+    let count = g.meshes().next().unwrap().primitives().next().unwrap().indices().unwrap().count();
+    assert!(count <= 180 && count > 0, "{count}");
+    // Every frame, names in frame order.
+    let all = dir.join("all");
+    ok(bin().args(["decode", "-q", "--all-frames", "--level", "1"]).arg(&pmc).arg("-o").arg(&all));
+    let mut names: Vec<String> = std::fs::read_dir(&all).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    names.sort();
+    assert_eq!(names.len(), 12);
+    assert_eq!(names[0], "frame-0000.obj");
+    assert_eq!(names[11], "frame-0011.obj");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn bad_input_is_reported_with_exit_code_and_no_output() {
+    let dir = temp("bad");
+    // Frames that disagree: the error names the frame.
+    let frames_dir = dir.join("in");
+    std::fs::create_dir_all(&frames_dir).unwrap();
+    write_sequence(&frames_dir, 3);
+    std::fs::write(frames_dir.join("f3.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let pmc = dir.join("x.pmc");
+    let out = bin().arg("encode").arg(&frames_dir).arg("-o").arg(&pmc).output().unwrap();
+    assert_eq!(out.status.code(), Some(3));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("f3.obj") && err.contains("vertices"), "{err}");
+    assert!(!pmc.exists(), "no half file");
+    assert!(std::fs::read_dir(&dir).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().contains("tmp")));
+    // Not a container.
+    std::fs::write(dir.join("junk.pmc"), b"hello").unwrap();
+    let out = bin().arg("info").arg(dir.join("junk.pmc")).output().unwrap();
+    assert_eq!(out.status.code(), Some(3));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("not a .pmc file"));
+    // Usage errors are clap's exit code 2.
+    assert_eq!(bin().args(["decode", "x.pmc", "--triangles", "5", "--level", "1", "-o", "y.obj"]).output().unwrap().status.code(), Some(2));
+    std::fs::remove_dir_all(&dir).ok();
+}
