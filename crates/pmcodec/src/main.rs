@@ -4,6 +4,7 @@
 mod codec_cmd;
 mod eval_cmd;
 mod input;
+mod serve_cmd;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -30,6 +31,8 @@ enum Command {
     Verify(codec_cmd::VerifyArgs),
     /// Per-frame surface distance of approximations to the original frames.
     Eval(eval_cmd::EvalArgs),
+    /// Serve assets (or the built-in samples) and the viewer over HTTP.
+    Serve(serve_cmd::ServeArgs),
 }
 
 /// Exit codes: 0 success, 1 failure of the work itself, 2 bad usage (clap's own), 3 bad input.
@@ -61,6 +64,7 @@ fn main() -> ExitCode {
         Command::Info(args) => codec_cmd::info_cmd(args),
         Command::Verify(args) => codec_cmd::verify_cmd(args, cli.quiet),
         Command::Eval(args) => eval_cmd::run(args, cli.quiet),
+        Command::Serve(args) => serve_cmd::run(args, cli.quiet),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
