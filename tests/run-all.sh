@@ -1,8 +1,24 @@
 #!/usr/bin/env bash
-# Every test of the project: the Rust workspace (unit, integration, property and corpus tests,
-# which read the real meshes in ../shared/data when present). Benchmarks and long fuzzing are
-# not part of it (see README.md).
+# Every test of the project, on a fresh machine (installs what it needs):
+#   1. the Rust workspace: unit, integration, property, corpus and CLI tests (they read the real
+#      meshes in ../shared/data when present);
+#   2. the viewer: TypeScript unit tests (node's test runner) and the production build;
+#   3. end to end: `pmcodec serve` with the built-in samples and the viewer, driven by headless
+#      Chromium (Debian's package) through playwright-core.
+# Benchmarks and long fuzzing are not part of it (see README.md).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export CARGO_TERM_COLOR=never
+
+echo "== cargo test"
 cargo test --workspace --locked --no-fail-fast 2>&1
+
+echo "== viewer unit tests and build"
+(cd web && npm ci --no-audit --no-fund && npm test && npm run build)
+
+echo "== end to end"
+if ! command -v chromium >/dev/null 2>&1; then
+  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null
+fi
+cargo build --locked -p pmcodec 2>&1
+(cd web && PMCODEC_BIN="$PWD/../target/debug/pmcodec" node test/e2e.mjs)

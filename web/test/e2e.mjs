@@ -1,0 +1,64 @@
+// End-to-end: start `pmcodec serve` (built-in samples + this viewer), open the page in headless
+// Chromium, and check that frames play, the canvas shows a mesh, and moving the triangle budget
+// changes the triangle count. Saves a screenshot to web/test-artifacts/viewer.png.
+// Needs: the release binary (cargo build --release -p pmcodec), web/dist (npm run build),
+// Debian's chromium at /usr/bin/chromium.
+import { chromium } from "playwright-core";
+import { spawn } from "node:child_process";
+import { mkdirSync } from "node:fs";
+import assert from "node:assert/strict";
+
+const root = new URL("../..", import.meta.url).pathname;
+const port = 18000 + Math.floor(Math.random() * 1000);
+const bin = process.env.PMCODEC_BIN ?? `${root}/target/release/pmcodec`;
+const server = spawn(bin, ["serve", "--listen", `127.0.0.1:${port}`, "--viewer", `${root}/web/dist`], { stdio: ["ignore", "inherit", "inherit"] });
+const base = `http://127.0.0.1:${port}`;
+let browser;
+const deadline = Date.now() + 120_000;
+try {
+  // Wait for the server (it encodes its samples at start).
+  for (;;) {
+    try { if ((await fetch(`${base}/readyz`)).ok) break; } catch {}
+    if (Date.now() > deadline) throw new Error("server did not start");
+    await new Promise((r) => setTimeout(r, 250));
+  }
+  browser = await chromium.launch({
+    executablePath: "/usr/bin/chromium",
+    args: ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking", "--disable-component-update", "--disable-sync"],
+  });
+  const page = await browser.newPage({ viewport: { width: 960, height: 640 } });
+  const meshRequests = [];
+  page.on("request", (r) => { if (r.url().includes("/mesh?")) meshRequests.push(r.url()); });
+  await page.goto(base + "/");
+  const frameOf = () => page.$eval("#overlay", (e) => Number(e.dataset.frame ?? -1));
+  const trianglesOf = () => page.$eval("#overlay", (e) => Number(e.dataset.triangles ?? 0));
+  await page.waitForFunction(() => Number(document.getElementById("overlay")?.dataset.triangles ?? 0) > 0, null, { timeout: 30_000 });
+  const f0 = await frameOf();
+  await page.waitForFunction((f) => Number(document.getElementById("overlay")?.dataset.frame ?? -1) !== f, f0, { timeout: 10_000 });
+  assert.notEqual(await frameOf(), f0, "the frame counter advances");
+  // Non-background pixels on the canvas.
+  const lit = await page.$eval("#view", (c) => {
+    const gl = c.getContext("webgl2") ?? c.getContext("webgl");
+    const w = gl.drawingBufferWidth, h = gl.drawingBufferHeight;
+    const px = new Uint8Array(w * h * 4);
+    gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, px);
+    let n = 0;
+    for (let i = 0; i < px.length; i += 4) if (Math.abs(px[i] - 0x1d) + Math.abs(px[i + 1] - 0x20) + Math.abs(px[i + 2] - 0x26) > 30) n++;
+    return n;
+  });
+  assert.ok(lit > 1000, `only ${lit} lit pixels`);
+  // Budget slider: fewer triangles shown, and requested from the server.
+  await page.click("#play");
+  const before = await trianglesOf();
+  await page.$eval("#budget", (e) => { e.value = "200"; e.dispatchEvent(new Event("change")); });
+  await page.waitForFunction((b) => Number(document.getElementById("overlay")?.dataset.triangles ?? 0) !== b, before, { timeout: 10_000 });
+  const after = await trianglesOf();
+  assert.ok(after <= 200 && after < before, `budget 200 shows ${after} (was ${before})`);
+  assert.ok(meshRequests.some((u) => u.includes("triangles=200")), "the server saw the new budget");
+  mkdirSync(`${root}/web/test-artifacts`, { recursive: true });
+  await page.screenshot({ path: `${root}/web/test-artifacts/viewer.png` });
+  console.log(`e2e: 1 passed, 0 failed (frames advance, ${lit} lit pixels, ${before} -> ${after} triangles)`);
+} finally {
+  await browser?.close();
+  server.kill("SIGTERM");
+}
