@@ -73,8 +73,9 @@ impl ChildIndex {
     }
 }
 
+/// A heap item ordered by error, ties to the smaller node id (so cuts are deterministic).
 #[derive(PartialEq)]
-struct ByError(f64, u32);
+pub(crate) struct ByError(pub f64, pub u32);
 impl Eq for ByError {}
 impl PartialOrd for ByError {
     fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
@@ -161,14 +162,19 @@ fn greedy(
 /// For every node, the cut node that stands for it (itself, or its cut ancestor), or [`NONE`]
 /// for expanded nodes.
 pub fn cut_nodes(h: &Hierarchy, cut: &Cut) -> Vec<u32> {
+    cut_nodes_from(h, &cut.expanded, 0)
+}
+
+/// [`cut_nodes`] from expanded flags, for the nodes at `min_level` and above (others NONE).
+pub fn cut_nodes_from(h: &Hierarchy, expanded: &[bool], min_level: usize) -> Vec<u32> {
     let mut rep = vec![NONE; h.node_count()];
-    for k in (0..h.levels()).rev() {
+    for k in (min_level..h.levels()).rev() {
         for v in 0..h.level_sizes[k] {
             let g = h.offsets[k] + v;
             let above = if k == h.top() { NONE } else { rep[(h.offsets[k + 1] + h.parent[k][v as usize]) as usize] };
             rep[g as usize] = if above != NONE {
                 above
-            } else if cut.expanded[g as usize] {
+            } else if expanded[g as usize] {
                 NONE
             } else {
                 g

@@ -469,22 +469,7 @@ impl Replay {
 
     /// For every node at `min_level` and above, the cut node standing for it (NONE if expanded).
     pub fn cut_nodes(&self) -> Vec<u32> {
-        let h = &self.h;
-        let mut rep = vec![NONE; h.node_count()];
-        for k in (self.min_level..h.levels()).rev() {
-            for v in 0..h.level_sizes[k] {
-                let g = h.offsets[k] + v;
-                let above = if k == h.top() { NONE } else { rep[(h.offsets[k + 1] + h.parent[k][v as usize]) as usize] };
-                rep[g as usize] = if above != NONE {
-                    above
-                } else if self.expanded[g as usize] {
-                    NONE
-                } else {
-                    g
-                };
-            }
-        }
-        rep
+        crate::cut::cut_nodes_from(&self.h, &self.expanded, self.min_level)
     }
 
     /// Applies one frame's delta (the bands from `min_level` up; other parts are ignored),
@@ -610,20 +595,7 @@ impl Replay {
     /// The largest cut (greedy by priority, ties to the smaller id) with at most `budget`
     /// shown triangles, or with at most `budget` cut nodes when `vertices` is set.
     pub fn select_budget(&mut self, budget: u32, vertices: bool, errors: &[f64]) {
-        use std::cmp::Ordering;
-        #[derive(PartialEq)]
-        struct Item(f64, u32);
-        impl Eq for Item {}
-        impl PartialOrd for Item {
-            fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-                Some(self.cmp(o))
-            }
-        }
-        impl Ord for Item {
-            fn cmp(&self, o: &Self) -> Ordering {
-                self.0.total_cmp(&o.0).then_with(|| o.1.cmp(&self.1))
-            }
-        }
+        use crate::cut::ByError as Item;
         self.collapse_all();
         let top = self.h.top();
         let mut used = if vertices { self.h.level_sizes[top] } else { self.shown.len() as u32 };

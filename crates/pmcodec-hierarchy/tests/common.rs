@@ -65,3 +65,16 @@ pub fn grid(w: u32, h: u32, frames: usize) -> Sequence {
     }
     seq
 }
+
+/// A random cut: expand each node with probability p, keeping the set closed upward.
+pub fn random_cut(h: &pmcodec_hierarchy::Hierarchy, rng: &mut Rng, p: f32) -> pmcodec_hierarchy::Cut {
+    let mut expanded = vec![false; h.node_count()];
+    for k in (1..h.levels()).rev() {
+        for v in 0..h.level_sizes[k] {
+            let g = h.offsets[k] + v;
+            let parent_ok = k == h.top() || expanded[(h.offsets[k + 1] + h.parent[k][v as usize]) as usize];
+            expanded[g as usize] = parent_ok && rng.unit() < p;
+        }
+    }
+    pmcodec_hierarchy::Cut { expanded, triangles: 0, vertices: 0 }
+}

@@ -22,18 +22,6 @@ fn build_seq(seq: pmcodec_mesh::Sequence, opts: &BuildOptions) -> Built {
     Built { seq, topo, h, d }
 }
 
-/// A random cut: expand each node with probability p, keeping the set closed upward.
-fn random_cut(h: &Hierarchy, rng: &mut Rng, p: f32) -> Cut {
-    let mut expanded = vec![false; h.node_count()];
-    for k in (1..h.levels()).rev() {
-        for v in 0..h.level_sizes[k] {
-            let g = h.offsets[k] + v;
-            let parent_ok = k == h.top() || expanded[(h.offsets[k + 1] + h.parent[k][v as usize]) as usize];
-            expanded[g as usize] = parent_ok && rng.unit() < p;
-        }
-    }
-    Cut { expanded, triangles: 0, vertices: 0 }
-}
 
 /// The degenerate-set rule against brute force: t is shown iff its corners map to three
 /// distinct cut nodes.

@@ -2,7 +2,7 @@
 //! reclustered frame, and the degenerate-set rule equal to brute force for random cuts.
 
 mod common;
-use common::Rng;
+use common::{Rng, random_cut};
 use glam::Vec3;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
 use pmcodec_hierarchy::cut::{self, Cut};
@@ -44,17 +44,6 @@ fn random_sequence(seed: u64, w: u32, h: u32, drop_percent: u64, frames: usize) 
     seq
 }
 
-fn random_cut(h: &Hierarchy, rng: &mut Rng, p: f32) -> Cut {
-    let mut expanded = vec![false; h.node_count()];
-    for k in (1..h.levels()).rev() {
-        for v in 0..h.level_sizes[k] {
-            let g = h.offsets[k] + v;
-            let parent_ok = k == h.top() || expanded[(h.offsets[k + 1] + h.parent[k][v as usize]) as usize];
-            expanded[g as usize] = parent_ok && rng.unit() < p;
-        }
-    }
-    Cut { expanded, triangles: 0, vertices: 0 }
-}
 
 fn brute_shown(h: &Hierarchy, tris: &[[u32; 3]], c: &Cut) -> Vec<u32> {
     let rep = cut::cut_nodes(h, c);
