@@ -120,7 +120,7 @@ impl Header {
     }
 
     pub fn is_keyframe(&self, frame: u32) -> bool {
-        frame == 0 || (self.keyframe_interval > 0 && frame % self.keyframe_interval == 0)
+        frame == 0 || (self.keyframe_interval > 0 && frame.is_multiple_of(self.keyframe_interval))
     }
 
     /// The keyframe at or before `frame`.

@@ -3,6 +3,9 @@
 //! sampled uniformly by area on one surface (plus its vertices), each measured to the closest
 //! point of the other surface through a bounding volume hierarchy; both directions pooled.
 
+// `!(x > 0.0)` is written on purpose: it is also true for NaN, which these checks must reject.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 mod bvh;
 
 pub use bvh::SurfaceIndex;

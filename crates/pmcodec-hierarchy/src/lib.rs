@@ -5,6 +5,9 @@
 //!
 //! Data is flat arrays indexed by `u32`; nodes have a global id (see [`Hierarchy`]).
 
+// `!(x > 0.0)` is written on purpose: it is also true for NaN, which these checks must reject.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod approx;
 pub mod base;
 pub mod build;

@@ -4,7 +4,7 @@
 mod common;
 use common::*;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
-use pmcodec_hierarchy::cut::{self, ChildIndex, Cut, CutTarget};
+use pmcodec_hierarchy::cut::{self, ChildIndex, CutTarget};
 use pmcodec_hierarchy::*;
 
 struct Built {

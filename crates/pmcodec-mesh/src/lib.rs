@@ -5,6 +5,9 @@
 //! single frames as OBJ or GLB ([`write`]). Everything downstream (the hierarchy, the container,
 //! the server) works on [`Sequence`] and [`TriMesh`] and never touches files itself.
 
+// `!(x > 0.0)` is written on purpose: it is also true for NaN, which these checks must reject.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod error;
 pub mod gltf_input;
 pub mod obj;

@@ -100,7 +100,7 @@ pub fn glb_bytes(mesh: &TriMesh) -> Vec<u8> {
     while json_bytes.len() % 4 != 0 {
         json_bytes.push(b' ');
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let total = 12 + 8 + json_bytes.len() + if bin.is_empty() { 0 } else { 8 + bin.len() };

@@ -72,7 +72,8 @@ fn draco_compressed_parrot_is_named_unsupported() {
 
 #[test]
 fn morph_target_animals() {
-    for (name, targets) in [("Horse.glb", 15)] {
+    {
+        let (name, targets) = ("Horse.glb", 15);
         let Some(path) = data(name) else { return };
         let seq = load_gltf(&path, &GltfOptions::default()).expect("load");
         check_animated(&seq, 10);
@@ -86,11 +87,11 @@ fn morph_target_animals() {
 /// Builds a GLB from a JSON document and one binary buffer.
 fn glb(json: serde_json::Value, bin: &[u8]) -> Vec<u8> {
     let mut j = serde_json::to_vec(&json).unwrap();
-    while j.len() % 4 != 0 {
+    while !j.len().is_multiple_of(4) {
         j.push(b' ');
     }
     let mut b = bin.to_vec();
-    while b.len() % 4 != 0 {
+    while !b.len().is_multiple_of(4) {
         b.push(0);
     }
     let mut out = Vec::new();
@@ -215,7 +216,7 @@ fn two_joint_skin_bends_a_strip() {
     let offs: Vec<usize> = [&joints[..], &weights, &ibm, &idx, &times, &rots]
         .iter()
         .map(|part| {
-            while bin.len() % 4 != 0 {
+            while !bin.len().is_multiple_of(4) {
                 bin.push(0);
             }
             let o = bin.len();

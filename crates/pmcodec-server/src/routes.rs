@@ -151,11 +151,10 @@ async fn mesh(State(state): State<Shared>, Path(id): Path<String>, Query(q): Que
         if frame >= h.frame_count {
             return Err(ApiError::BadRequest(format!("frame {frame}: the asset has frames 0..{}", h.frame_count - 1)));
         }
-        if let MeshTarget::Level(l) = target {
-            if l >= h.levels() {
+        if let MeshTarget::Level(l) = target
+            && l >= h.levels() {
                 return Err(ApiError::BadRequest(format!("level {l}: the asset has levels 0..{}", h.levels() - 1)));
             }
-        }
         // A level request reads only the bands it needs.
         let min_level = if let MeshTarget::Level(l) = target { l } else { 0 };
         let mut d = Decoder::new(&r, min_level).map_err(|e| ApiError::Internal(e.to_string()))?;
