@@ -20,5 +20,6 @@ echo "== end to end"
 if ! command -v chromium >/dev/null 2>&1; then
   apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null
 fi
-cargo build --locked -p pmcodec 2>&1
+# `cargo test` above already built target/debug/pmcodec for the CLI tests; build only if not.
+[ -x target/debug/pmcodec ] || cargo build --locked -p pmcodec 2>&1
 (cd web && PMCODEC_BIN="$PWD/../target/debug/pmcodec" node test/e2e.mjs)
