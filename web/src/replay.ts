@@ -229,8 +229,10 @@ export class Replay {
       const p = this.parent[k];
       for (let v = 0; v < p.length; v++) {
         const c = this.offsets[k] + v, a = this.offsets[k + 1] + p[v];
-        const dx = positions[3 * c] - positions[3 * a], dy = positions[3 * c + 1] - positions[3 * a + 1], dz = positions[3 * c + 2] - positions[3 * a + 2];
-        const e = Math.sqrt(dx * dx + dy * dy + dz * dz) + err[c];
+        // In f32 like the Rust decoder (glam's Vec3::length), so both pick the same cut.
+        const f = Math.fround;
+        const dx = f(positions[3 * c] - positions[3 * a]), dy = f(positions[3 * c + 1] - positions[3 * a + 1]), dz = f(positions[3 * c + 2] - positions[3 * a + 2]);
+        const e = f(Math.sqrt(f(f(f(dx * dx) + f(dy * dy)) + f(dz * dz)))) + err[c];
         if (e > err[a]) err[a] = e;
       }
     }

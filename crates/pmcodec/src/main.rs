@@ -33,6 +33,37 @@ enum Command {
     Eval(eval_cmd::EvalArgs),
     /// Serve assets (or the built-in samples) and the viewer over HTTP.
     Serve(serve_cmd::ServeArgs),
+    /// Write a built-in sample animation as an OBJ sequence.
+    Sample(SampleArgs),
+}
+
+#[derive(clap::Args)]
+struct SampleArgs {
+    /// One of: twisting-tube, waving-cloth.
+    name: String,
+    /// Folder to write frame-NNNN.obj files into.
+    #[arg(short, long)]
+    output: std::path::PathBuf,
+    /// Only the first N frames.
+    #[arg(long)]
+    frames: Option<usize>,
+}
+
+fn sample(args: SampleArgs) -> Result<(), Exit> {
+    use anyhow::Context;
+    let mut seq = pmcodec_mesh::samples::by_name(&args.name).ok_or_else(|| {
+        Exit(2, anyhow::anyhow!("no sample {:?}; the samples are {:?}", args.name, pmcodec_mesh::samples::NAMES))
+    })?;
+    if let Some(n) = args.frames {
+        seq.frames.truncate(n.max(1));
+    }
+    std::fs::create_dir_all(&args.output).with_context(|| format!("creating {}", args.output.display()))?;
+    for f in 0..seq.frame_count() {
+        let path = args.output.join(format!("frame-{f:04}.obj"));
+        let mesh = seq.frame_mesh(f).context("frame")?;
+        pmcodec_mesh::write::write_mesh_file(&path, &mesh).with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
 }
 
 /// Exit codes: 0 success, 1 failure of the work itself, 2 bad usage (clap's own), 3 bad input.
@@ -65,6 +96,7 @@ fn main() -> ExitCode {
         Command::Verify(args) => codec_cmd::verify_cmd(args, cli.quiet),
         Command::Eval(args) => eval_cmd::run(args, cli.quiet),
         Command::Serve(args) => serve_cmd::run(args, cli.quiet),
+        Command::Sample(args) => sample(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,317 @@
+// A decoder of the .pmc container written from proto/container.md: preamble, postcard header
+// and index, zstd chunks with CRC-32, varint payloads, and position prediction. Byte access is
+// a callback, so the same code reads a file in Node or HTTP ranges in a browser.
+
+import { decompress } from "fzstd";
+import { BELOW, DecodeError, FrameDelta, KeyBand, NONE, Replay } from "./replay.js";
+
+export const MAGIC = [0x89, 0x50, 0x4d, 0x43, 0x0d, 0x0a, 0x1a, 0x0a];
+export const PREAMBLE_LEN = 32;
+
+export enum ChunkKind { Triangles = 0, Key = 1, Delta = 2, Positions = 3 }
+
+export interface Header {
+  vertexCount: number; triangleCount: number; frameCount: number; frameRate: number;
+  levelSizes: number[]; branching: number; bboxMin: number[]; bboxMax: number[];
+  step: number; keyframeInterval: number; generator: string; frameNames: string[];
+}
+
+export interface ChunkEntry { kind: ChunkKind; frame: number; band: number; offset: number; storedLen: number; rawLen: number; crc32: number }
+
+/** Fetches `len` bytes at `offset`. */
+export type ReadAt = (offset: number, len: number) => Promise<Uint8Array>;
+
+const CRC_TABLE = (() => {
+  const t = new Uint32Array(256);
+  for (let n = 0; n < 256; n++) {
+    let c = n;
+    for (let k = 0; k < 8; k++) c = c & 1 ? 0xedb88320 ^ (c >>> 1) : c >>> 1;
+    t[n] = c >>> 0;
+  }
+  return t;
+})();
+
+export function crc32(b: Uint8Array): number {
+  let c = 0xffffffff;
+  for (let i = 0; i < b.length; i++) c = CRC_TABLE[(c ^ b[i]) & 0xff] ^ (c >>> 8);
+  return (c ^ 0xffffffff) >>> 0;
+}
+
+/** postcard's wire format, the parts the header and index use. */
+class Postcard {
+  pos = 0;
+  private view: DataView;
+  constructor(private b: Uint8Array, private what: string) { this.view = new DataView(b.buffer, b.byteOffset, b.byteLength); }
+  private need(n: number): void { if (this.pos + n > this.b.length) throw new DecodeError(`${this.what}: ends early`); }
+  varint(): number {
+    let v = 0, mul = 1;
+    for (let i = 0; i < 10; i++) {
+      this.need(1);
+      const byte = this.b[this.pos++];
+      v += (byte & 0x7f) * mul;
+      if (!(byte & 0x80)) { if (v > Number.MAX_SAFE_INTEGER) throw new DecodeError(`${this.what}: number too large`); return v; }
+      mul *= 128;
+    }
+    throw new DecodeError(`${this.what}: varint too long`);
+  }
+  u8(): number { this.need(1); return this.b[this.pos++]; }
+  bool(): boolean { const v = this.u8(); if (v > 1) throw new DecodeError(`${this.what}: bad bool`); return v === 1; }
+  f32(): number { this.need(4); const v = this.view.getFloat32(this.pos, true); this.pos += 4; return v; }
+  f64(): number { this.need(8); const v = this.view.getFloat64(this.pos, true); this.pos += 8; return v; }
+  str(): string { const n = this.varint(); this.need(n); const s = new TextDecoder().decode(this.b.subarray(this.pos, this.pos + n)); this.pos += n; return s; }
+  seq<T>(item: () => T, max: number): T[] {
+    const n = this.varint();
+    if (n > max) throw new DecodeError(`${this.what}: ${n} items is too many`);
+    return Array.from({ length: n }, item);
+  }
+  option<T>(item: () => T): T | null { return this.bool() ? item() : null; }
+}
+
+/** Varint payload reader (proto/container.md, "Chunks"). */
+class Payload {
+  pos = 0;
+  constructor(private b: Uint8Array, private what: string) {}
+  get(): number {
+    let v = 0, mul = 1;
+    for (let i = 0; i < 5; i++) {
+      if (this.pos >= this.b.length) throw new DecodeError(`${this.what}: ends inside a number`);
+      const byte = this.b[this.pos++];
+      v += (byte & 0x7f) * mul;
+      if (!(byte & 0x80)) { if (v > 0xffffffff) throw new DecodeError(`${this.what}: number beyond 32 bits`); return v; }
+      mul *= 128;
+    }
+    throw new DecodeError(`${this.what}: number longer than 5 bytes`);
+  }
+  id(limit: number, name: string): number { const v = this.get(); if (v >= limit) throw new DecodeError(`${this.what}: ${name} ${v} out of range`); return v; }
+  count(limit: number, name: string): number { const v = this.get(); if (v > limit) throw new DecodeError(`${this.what}: ${v} ${name}`); return v; }
+  ascending(prev: { v: number | null }, limit: number, name: string): number {
+    const d = this.get();
+    const v = prev.v === null ? d : prev.v + d + 1;
+    if (v >= limit) throw new DecodeError(`${this.what}: ${name} ${v} out of range`);
+    prev.v = v;
+    return v;
+  }
+  zigzag(): number { const v = this.get(); return (v >>> 1) ^ -(v & 1); }
+  finish(): void { if (this.pos !== this.b.length) throw new DecodeError(`${this.what}: ${this.b.length - this.pos} bytes left over`); }
+}
+
+export class Container {
+  private constructor(readonly readAt: ReadAt, readonly header: Header, readonly index: ChunkEntry[], readonly dataStart: number, readonly fileLen: number) {}
+  bytesRead = 0;
+
+  static async open(readAt: ReadAt, fileLen: number): Promise<Container> {
+    if (fileLen < PREAMBLE_LEN) throw new DecodeError("not a .pmc file (too short)");
+    const pre = await readAt(0, PREAMBLE_LEN);
+    for (let i = 0; i < 8; i++) if (pre[i] !== MAGIC[i]) throw new DecodeError("not a .pmc file (bad magic number)");
+    const dv = new DataView(pre.buffer, pre.byteOffset, pre.byteLength);
+    const version = dv.getUint16(8, true);
+    if (version !== 1) throw new DecodeError(`container version ${version} is not supported`);
+    const headerLen = dv.getUint32(12, true), indexLen = dv.getUint32(16, true);
+    const headerCrc = dv.getUint32(20, true), indexCrc = dv.getUint32(24, true);
+    const dataStart = PREAMBLE_LEN + headerLen + indexLen;
+    if (dataStart > fileLen || headerLen > 64 << 20 || indexLen > 64 << 20) throw new DecodeError("header and index: the file ends before they do");
+    const tables = await readAt(PREAMBLE_LEN, headerLen + indexLen);
+    const hb = tables.subarray(0, headerLen), ib = tables.subarray(headerLen);
+    if (crc32(hb) !== headerCrc) throw new DecodeError("header: checksum mismatch");
+    if (crc32(ib) !== indexCrc) throw new DecodeError("index: checksum mismatch");
+    const p = new Postcard(hb, "header");
+    const header: Header = {
+      vertexCount: p.varint(), triangleCount: p.varint(), frameCount: p.varint(), frameRate: p.f32(),
+      levelSizes: p.seq(() => p.varint(), 64), branching: p.varint(),
+      bboxMin: [p.f32(), p.f32(), p.f32()], bboxMax: [p.f32(), p.f32(), p.f32()],
+      step: p.f32(), keyframeInterval: p.varint(), generator: "", frameNames: [],
+    };
+    // encoded_with: informative, read and dropped.
+    p.str(); p.str(); p.f64(); p.f64(); p.varint(); p.bool(); p.bool(); p.option(() => p.f64()); p.option(() => p.u8());
+    header.generator = p.str();
+    header.frameNames = p.seq(() => p.str(), 1 << 20);
+    const q = new Postcard(ib, "index");
+    const index = q.seq((): ChunkEntry => {
+      const kind = q.varint();
+      if (kind > 3) throw new DecodeError(`index: chunk kind ${kind}`);
+      return { kind, frame: q.varint(), band: q.varint(), offset: q.varint(), storedLen: q.varint(), rawLen: q.varint(), crc32: q.varint() };
+    }, 1 << 24);
+    const h = header;
+    if (h.levelSizes.length === 0 || h.levelSizes[0] !== h.vertexCount || h.frameCount === 0 || !(h.step > 0)) throw new DecodeError("header: inconsistent counts");
+    for (const e of index) if (e.offset + e.storedLen > fileLen - dataStart) throw new DecodeError(`${describe(e)}: the file ends before it does`);
+    const c = new Container(readAt, header, index, dataStart, fileLen);
+    c.bytesRead = PREAMBLE_LEN + headerLen + indexLen;
+    return c;
+  }
+
+  isKeyframe(f: number): boolean { return f === 0 || (this.header.keyframeInterval > 0 && f % this.header.keyframeInterval === 0); }
+  keyframeBefore(f: number): number { const k = this.header.keyframeInterval; return k === 0 ? 0 : f - (f % k); }
+
+  find(kind: ChunkKind, frame: number, band: number): ChunkEntry {
+    const e = this.index.find((x) => x.kind === kind && x.frame === frame && x.band === band && (kind !== ChunkKind.Triangles || true));
+    if (!e) throw new DecodeError(`frame ${frame} band ${band} ${ChunkKind[kind]}: missing from the index`);
+    return e;
+  }
+
+  async chunk(e: ChunkEntry): Promise<Uint8Array> {
+    const stored = await this.readAt(this.dataStart + e.offset, e.storedLen);
+    this.bytesRead += stored.length;
+    if (crc32(stored) !== e.crc32) throw new DecodeError(`${describe(e)}: checksum mismatch`);
+    const raw = decompress(stored, new Uint8Array(e.rawLen));
+    if (raw.length !== e.rawLen) throw new DecodeError(`${describe(e)}: ${raw.length} bytes where the index says ${e.rawLen}`);
+    return raw;
+  }
+}
+
+export function describe(e: ChunkEntry): string {
+  return e.kind === ChunkKind.Triangles ? "triangles chunk" : `frame ${e.frame} band ${e.band} ${ChunkKind[e.kind].toLowerCase()}`;
+}
+
+function readKey(raw: Uint8Array, what: string, sizes: number[], band: number, triangles: number): KeyBand {
+  const c = new Payload(raw, what);
+  const top = sizes.length - 1;
+  const n = c.count(sizes[band], "parents");
+  if (n !== (band < top ? sizes[band] : 0)) throw new DecodeError(`${what}: ${n} parents`);
+  const parent = new Uint32Array(n);
+  for (let i = 0; i < n; i++) parent[i] = c.id(sizes[band + 1], "parent");
+  const m = c.count(triangles, "faces");
+  const faces: KeyBand["faces"] = [];
+  const prev = { v: null as number | null };
+  for (let i = 0; i < m; i++) {
+    const t = c.ascending(prev, triangles, "triangle");
+    faces.push({ t, corners: [c.id(sizes[band], "corner"), c.id(sizes[band], "corner"), c.id(sizes[band], "corner")] });
+  }
+  c.finish();
+  return { parent, faces };
+}
+
+function readDelta(raw: Uint8Array, what: string, sizes: number[], band: number, triangles: number, nodes: number, out: FrameDelta): void {
+  const c = new Payload(raw, what);
+  const top = sizes.length - 1;
+  let n = c.count(band < top ? sizes[band] : 0, "moves");
+  let prev = { v: null as number | null };
+  for (let i = 0; i < n; i++) {
+    const v = c.ascending(prev, sizes[band], "node");
+    out.swaps.push({ level: band, v, to: c.id(sizes[band + 1], "parent") });
+  }
+  n = c.count(triangles, "degenerate-set deltas");
+  prev = { v: null };
+  for (let i = 0; i < n; i++) {
+    const t = c.ascending(prev, triangles, "triangle");
+    const g = c.id(nodes + 1, "node");
+    out.degenerate.push({ t, node: g === 0 ? NONE : g - 1 });
+  }
+  n = c.count(triangles, "corner updates");
+  prev = { v: null };
+  for (let i = 0; i < n; i++) {
+    const t = c.ascending(prev, triangles, "triangle");
+    out.corners.push({ level: band, t, corners: [c.id(sizes[band], "corner"), c.id(sizes[band], "corner"), c.id(sizes[band], "corner")] });
+  }
+  c.finish();
+}
+
+/** Plays a container down to a finest level: hierarchy (Replay) and quantized node positions. */
+export class Player {
+  replay: Replay;
+  frame = -1;
+  current: Int32Array;
+  previous: Int32Array;
+  private triangles: Uint32Array | null = null;
+
+  constructor(readonly c: Container, readonly minLevel: number) {
+    const h = c.header;
+    if (minLevel >= h.levelSizes.length) throw new DecodeError(`level ${minLevel}: the file has ${h.levelSizes.length} levels`);
+    this.replay = new Replay(h.levelSizes, minLevel, h.triangleCount);
+    const total = h.levelSizes.reduce((a, b) => a + b, 0);
+    this.current = new Int32Array(total * 3);
+    this.previous = new Int32Array(total * 3);
+  }
+
+  async seek(f: number): Promise<void> {
+    const h = this.c.header;
+    if (f < 0 || f >= h.frameCount) throw new DecodeError(`frame ${f} is beyond the ${h.frameCount} frames`);
+    const key = this.c.keyframeBefore(f);
+    let start: number;
+    if (this.frame >= key && this.frame <= f) start = this.frame;
+    else { await this.loadKeyframe(key); start = key; }
+    for (let g = start + 1; g <= f; g++) await this.step(g);
+  }
+
+  private async loadKeyframe(k: number): Promise<void> {
+    const h = this.c.header;
+    const bands: KeyBand[] = h.levelSizes.map(() => ({ parent: new Uint32Array(0), faces: [] }));
+    for (let j = h.levelSizes.length - 1; j >= this.minLevel; j--) {
+      bands[j] = readKey(await this.c.chunk(this.c.find(ChunkKind.Key, k, j)), `frame ${k} band ${j} keyframe`, h.levelSizes, j, h.triangleCount);
+    }
+    if (this.minLevel === 0 && !this.triangles) {
+      const raw = await this.c.chunk(this.c.find(ChunkKind.Triangles, 0, 0));
+      const p = new Payload(raw, "triangles chunk");
+      const n = p.count(h.triangleCount, "triangles");
+      if (n !== h.triangleCount) throw new DecodeError(`triangles chunk: ${n} triangles`);
+      const tris = new Uint32Array(3 * n);
+      for (let i = 0; i < 3 * n; i++) tris[i] = p.id(h.vertexCount, "vertex");
+      p.finish();
+      this.triangles = tris;
+    }
+    this.replay.loadKeyframe(bands, this.triangles ?? undefined);
+    await this.decodePositions(k, true);
+    this.frame = k;
+  }
+
+  private async step(f: number): Promise<void> {
+    const h = this.c.header;
+    const delta: FrameDelta = { swaps: [], degenerate: [], corners: [] };
+    const nodes = this.current.length / 3;
+    for (let j = h.levelSizes.length - 1; j >= this.minLevel; j--) {
+      readDelta(await this.c.chunk(this.c.find(ChunkKind.Delta, f, j)), `frame ${f} band ${j} delta`, h.levelSizes, j, h.triangleCount, nodes, delta);
+    }
+    this.replay.apply(delta);
+    [this.previous, this.current] = [this.current, this.previous];
+    await this.decodePositions(f, false);
+    this.frame = f;
+  }
+
+  /** Positions of bands top..minLevel (proto/container.md, "Positions"). */
+  private async decodePositions(f: number, fromKey: boolean): Promise<void> {
+    const h = this.c.header, r = this.replay;
+    const intra = fromKey || this.c.isKeyframe(f);
+    const cur = this.current, prev = this.previous;
+    for (let j = h.levelSizes.length - 1; j >= this.minLevel; j--) {
+      const p = new Payload(await this.c.chunk(this.c.find(ChunkKind.Positions, f, j)), `frame ${f} band ${j} positions`);
+      for (let v = 0; v < h.levelSizes[j]; v++) {
+        const g = r.offsets[j] + v;
+        const parent = j < h.levelSizes.length - 1 ? r.offsets[j + 1] + r.parent[j][v] : -1;
+        for (let a = 0; a < 3; a++) {
+          let pred: number;
+          if (intra) pred = parent >= 0 ? cur[3 * parent + a] : v > 0 ? cur[3 * (g - 1) + a] : 0;
+          else pred = parent >= 0 ? prev[3 * g + a] + cur[3 * parent + a] - prev[3 * parent + a] : prev[3 * g + a];
+          cur[3 * g + a] = (pred + p.zigzag()) | 0;
+        }
+      }
+      p.finish();
+    }
+  }
+
+  /** Dequantized positions of every node (3 floats per global id). */
+  positions(): Float32Array {
+    const h = this.c.header;
+    const out = new Float32Array(this.current.length);
+    // f32 arithmetic, as the Rust decoder: lo + (q as f32) * step.
+    for (let i = 0; i < out.length; i++) out[i] = Math.fround(h.bboxMin[i % 3] + Math.fround(this.current[i] * h.step));
+    return out;
+  }
+
+  /** The mesh of the current cut, ordered as the Rust decoder orders it (triangles by input id, vertices by node id). */
+  orderedMesh(positions: Float32Array): { positions: Float32Array; indices: Uint32Array; nodes: Uint32Array } {
+    const r = this.replay;
+    const rep = r.cutNodes();
+    const base = r.offsets[r.minLevel];
+    const shown = [...r.shown].sort((a, b) => a - b);
+    const corners = new Uint32Array(shown.length * 3);
+    shown.forEach((t, i) => { for (let c = 0; c < 3; c++) corners[3 * i + c] = rep[base + r.corners[3 * t + c]]; });
+    const nodes = Uint32Array.from(new Set(corners)).sort();
+    const indexOf = new Map<number, number>();
+    nodes.forEach((g, i) => indexOf.set(g, i));
+    const indices = corners.map((g) => indexOf.get(g)!);
+    const pos = new Float32Array(nodes.length * 3);
+    nodes.forEach((g, i) => pos.set(positions.subarray(3 * g, 3 * g + 3), 3 * i));
+    return { positions: pos, indices, nodes };
+  }
+}
+
+export { BELOW };

@@ -1,0 +1,95 @@
+// The TypeScript container decoder against files the Rust encoder writes: same hierarchy-driven
+// cut, same triangles, positions equal to the Rust decoder's (and so within the stated bound).
+import { test } from "node:test";
+import assert from "node:assert/strict";
+import { execFileSync } from "node:child_process";
+import { existsSync, mkdtempSync, readFileSync } from "node:fs";
+import { tmpdir } from "node:os";
+import { join } from "node:path";
+import { Container, Player } from "../src/container.js";
+import { DecodeError } from "../src/replay.js";
+
+const root = join(import.meta.dirname, "../..");
+const bin = process.env.PMCODEC_BIN ?? join(root, "target/debug/pmcodec");
+
+function fixtures(): { dir: string; pmc: string } {
+  if (!existsSync(bin)) throw new Error(`${bin} is missing: build it with cargo build -p pmcodec (or set PMCODEC_BIN)`);
+  const dir = mkdtempSync(join(tmpdir(), "pmc-ts-"));
+  execFileSync(bin, ["sample", "twisting-tube", "-o", join(dir, "frames"), "--frames", "20"]);
+  const pmc = join(dir, "tube.pmc");
+  execFileSync(bin, ["encode", "-q", join(dir, "frames"), "-o", pmc, "--keyframe-interval", "8", "--quant-bits", "14"]);
+  return { dir, pmc };
+}
+
+function readObj(path: string): { positions: number[]; indices: number[] } {
+  const positions: number[] = [], indices: number[] = [];
+  for (const line of readFileSync(path, "utf8").split("\n")) {
+    const w = line.trim().split(/\s+/);
+    if (w[0] === "v") positions.push(+w[1], +w[2], +w[3]);
+    if (w[0] === "f") indices.push(+w[1] - 1, +w[2] - 1, +w[3] - 1);
+  }
+  return { positions, indices };
+}
+
+async function open(pmc: string): Promise<Container> {
+  const bytes = new Uint8Array(readFileSync(pmc));
+  return Container.open(async (o, n) => bytes.slice(o, o + n), bytes.length);
+}
+
+const { dir, pmc } = fixtures();
+
+test("decodes the same cut and positions as the Rust decoder", async () => {
+  const c = await open(pmc);
+  assert.equal(c.header.frameCount, 20);
+  const player = new Player(c, 0);
+  for (const [frame, budget] of [[0, 300], [5, 1000], [13, 4000], [19, 150]]) {
+    const out = join(dir, `expected-${frame}-${budget}.obj`);
+    execFileSync(bin, ["decode", "-q", pmc, "--frame", String(frame), "--triangles", String(budget), "-o", out]);
+    const expected = readObj(out);
+    await player.seek(frame);
+    const pos = player.positions();
+    player.replay.selectTriangles(budget, player.replay.nodeErrors(pos));
+    const mesh = player.orderedMesh(pos);
+    assert.deepEqual(Array.from(mesh.indices), expected.indices, `frame ${frame} budget ${budget}: triangles`);
+    assert.equal(mesh.positions.length, expected.positions.length);
+    for (let i = 0; i < expected.positions.length; i++) {
+      assert.ok(Math.abs(mesh.positions[i] - expected.positions[i]) <= 1e-5 * (1 + Math.abs(expected.positions[i])), `frame ${frame}: coordinate ${i}`);
+    }
+  }
+});
+
+test("level 0 is the input within the quantization bound", async () => {
+  const c = await open(pmc);
+  const player = new Player(c, 0);
+  await player.seek(7);
+  const pos = player.positions();
+  const input = readObj(join(dir, "frames", "frame-0007.obj"));
+  const bound = c.header.step * Math.sqrt(3) / 2 * 1.001;
+  for (let v = 0; v < c.header.vertexCount; v++) {
+    const d = Math.hypot(pos[3 * v] - input.positions[3 * v], pos[3 * v + 1] - input.positions[3 * v + 1], pos[3 * v + 2] - input.positions[3 * v + 2]);
+    assert.ok(d <= bound, `vertex ${v}: ${d} > ${bound}`);
+  }
+});
+
+test("a level-limited player reads fewer bytes and agrees above its level", async () => {
+  const full = await open(pmc), part = await open(pmc);
+  const a = new Player(full, 0), b = new Player(part, 2);
+  await a.seek(11);
+  await b.seek(11);
+  assert.ok(part.bytesRead * 3 < full.bytesRead, `${part.bytesRead} vs ${full.bytesRead}`);
+  const off = a.replay.offsets[2] * 3;
+  assert.deepEqual(Array.from(b.current.subarray(off)), Array.from(a.current.subarray(off)));
+});
+
+test("damaged files are errors, not crashes", async () => {
+  const bytes = new Uint8Array(readFileSync(pmc));
+  for (const at of [0, 9, 40, bytes.length - 3]) {
+    const b = bytes.slice();
+    b[at] ^= 0x5a;
+    await assert.rejects(async () => {
+      const c = await Container.open(async (o, n) => b.slice(o, o + n), b.length);
+      const p = new Player(c, 0);
+      for (let f = 0; f < c.header.frameCount; f++) await p.seek(f);
+    }, DecodeError, `flip at ${at}`);
+  }
+});
