@@ -27,8 +27,8 @@ try {
     args: ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking", "--disable-component-update", "--disable-sync"],
   });
   const page = await browser.newPage({ viewport: { width: 960, height: 640 } });
-  const meshRequests = [];
-  page.on("request", (r) => { if (r.url().includes("/mesh?")) meshRequests.push(r.url()); });
+  const fileRequests = [];
+  page.on("request", (r) => { if (r.url().includes("/v/")) fileRequests.push(r.headers()["range"] ?? "all"); });
   await page.goto(base + "/");
   const frameOf = () => page.$eval("#overlay", (e) => Number(e.dataset.frame ?? -1));
   const trianglesOf = () => page.$eval("#overlay", (e) => Number(e.dataset.triangles ?? 0));
@@ -47,17 +47,27 @@ try {
     return n;
   });
   assert.ok(lit > 1000, `only ${lit} lit pixels`);
-  // Budget slider: fewer triangles shown, and requested from the server.
+  // Budget slider: fewer triangles shown; then a large budget makes the page fetch finer bands
+  // (new range requests to the container's immutable URL, more bytes, a finer level).
   await page.click("#play");
   const before = await trianglesOf();
   await page.$eval("#budget", (e) => { e.value = "200"; e.dispatchEvent(new Event("change")); });
   await page.waitForFunction((b) => Number(document.getElementById("overlay")?.dataset.triangles ?? 0) !== b, before, { timeout: 10_000 });
   const after = await trianglesOf();
   assert.ok(after <= 200 && after < before, `budget 200 shows ${after} (was ${before})`);
-  assert.ok(meshRequests.some((u) => u.includes("triangles=200")), "the server saw the new budget");
+  const levelBefore = await page.$eval("#overlay", (e) => Number(e.dataset.level));
+  const requestsBefore = fileRequests.length;
+  await page.$eval("#budget", (e) => { e.value = e.max; e.dispatchEvent(new Event("change")); });
+  await page.waitForFunction((l) => Number(document.getElementById("overlay")?.dataset.level) < l, levelBefore, { timeout: 10_000 });
+  await page.waitForFunction((a) => Number(document.getElementById("overlay")?.dataset.triangles ?? 0) > a, after, { timeout: 10_000 });
+  const big = await trianglesOf();
+  assert.ok(fileRequests.length > requestsBefore, "raising the budget fetched more of the container");
+  assert.ok(fileRequests.every((r) => r.startsWith("bytes=")), "every container read is a range request");
+  // Let a geomorph finish before the screenshot.
+  await page.waitForTimeout(400);
   mkdirSync(`${root}/web/test-artifacts`, { recursive: true });
   await page.screenshot({ path: `${root}/web/test-artifacts/viewer.png` });
-  console.log(`e2e: 1 passed, 0 failed (frames advance, ${lit} lit pixels, ${before} -> ${after} triangles)`);
+  console.log(`e2e: 1 passed, 0 failed (frames advance, ${lit} lit pixels, ${before} -> ${after} -> ${big} triangles, ${fileRequests.length} range requests)`);
 } finally {
   await browser?.close();
   server.kill("SIGTERM");
