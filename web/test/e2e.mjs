@@ -11,7 +11,11 @@ import assert from "node:assert/strict";
 const root = new URL("../..", import.meta.url).pathname;
 const port = 18000 + Math.floor(Math.random() * 1000);
 const bin = process.env.PMCODEC_BIN ?? `${root}/target/release/pmcodec`;
-const server = spawn(bin, ["serve", "--listen", `127.0.0.1:${port}`, "--viewer", `${root}/web/dist`], { stdio: ["ignore", "inherit", "inherit"] });
+const server = spawn(bin, ["serve", "--listen", `127.0.0.1:${port}`, "--viewer", `${root}/web/dist`], { stdio: ["ignore", "pipe", "pipe"] });
+// The server's request log (one line per request on stderr).
+let serverLog = "";
+server.stdout.on("data", (d) => { serverLog += d; });
+server.stderr.on("data", (d) => { serverLog += d; });
 const base = `http://127.0.0.1:${port}`;
 let browser;
 const deadline = Date.now() + 120_000;
@@ -57,12 +61,15 @@ try {
   assert.ok(after <= 200 && after < before, `budget 200 shows ${after} (was ${before})`);
   const levelBefore = await page.$eval("#overlay", (e) => Number(e.dataset.level));
   const requestsBefore = fileRequests.length;
+  const logBefore = serverLog.length;
   await page.$eval("#budget", (e) => { e.value = e.max; e.dispatchEvent(new Event("change")); });
   await page.waitForFunction((l) => Number(document.getElementById("overlay")?.dataset.level) < l, levelBefore, { timeout: 10_000 });
   await page.waitForFunction((a) => Number(document.getElementById("overlay")?.dataset.triangles ?? 0) > a, after, { timeout: 10_000 });
   const big = await trianglesOf();
   assert.ok(fileRequests.length > requestsBefore, "raising the budget fetched more of the container");
   assert.ok(fileRequests.every((r) => r.startsWith("bytes=")), "every container read is a range request");
+  const newLines = serverLog.slice(logBefore).split("\n").filter((l) => l.includes("/v/") && l.includes("range=bytes=") && l.includes("status=206"));
+  assert.ok(newLines.length > 0, "the server's request log shows the finer bands being fetched");
   // Let a geomorph finish before the screenshot.
   await page.waitForTimeout(400);
   mkdirSync(`${root}/web/test-artifacts`, { recursive: true });

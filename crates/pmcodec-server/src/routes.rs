@@ -25,12 +25,30 @@ pub fn router(state: Shared, viewer: Option<&std::path::Path>) -> Router {
         .route("/v1/assets/{id}/mesh", get(mesh))
         .route("/v1/assets/{id}/v/{version}", get(file))
         .with_state(state)
+        .layer(axum::middleware::from_fn(log_request))
         .layer(tower_http::cors::CorsLayer::permissive())
         .layer(tower_http::limit::RequestBodyLimitLayer::new(64 * 1024));
     match viewer {
         Some(dir) if dir.is_dir() => api.fallback_service(tower_http::services::ServeDir::new(dir)),
         _ => api,
     }
+}
+
+/// One log line per request (method, path and query, range, status, time), the server's
+/// request log.
+async fn log_request(req: axum::extract::Request, next: axum::middleware::Next) -> Response {
+    let (method, uri) = (req.method().clone(), req.uri().clone());
+    let range = req.headers().get(header::RANGE).and_then(|v| v.to_str().ok()).map(str::to_string);
+    let start = std::time::Instant::now();
+    let resp = next.run(req).await;
+    tracing::info!(
+        target: "pmcodec::request",
+        "{method} {uri} range={} status={} {:.1}ms",
+        range.as_deref().unwrap_or("-"),
+        resp.status().as_u16(),
+        start.elapsed().as_secs_f64() * 1e3
+    );
+    resp
 }
 
 fn find(state: &AppState, id: &str) -> Result<Arc<Asset>, ApiError> {

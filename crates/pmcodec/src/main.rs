@@ -85,7 +85,11 @@ fn main() -> ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_env("PMCODEC_LOG")
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(if cli.quiet { "error" } else { "warn" })),
+                .unwrap_or_else(|_| {
+                    // The server logs every request at info; other commands stay quiet.
+                    let serving = matches!(cli.command, Command::Serve(_));
+                    tracing_subscriber::EnvFilter::new(if cli.quiet { "error" } else if serving { "info" } else { "warn" })
+                }),
         )
         .with_writer(std::io::stderr)
         .init();
