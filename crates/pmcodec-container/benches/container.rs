@@ -28,7 +28,7 @@ fn encode_horse_48_frames() -> usize {
 #[divan::bench(sample_count = 10)]
 fn decode_horse_48_frames() -> u32 {
     let reader = Reader::open(file().as_slice()).expect("open");
-    let mut d = Decoder::new(&reader, 0).expect("decoder");
+    let mut d = Decoder::new(reader.borrowed(), 0).expect("decoder");
     for f in 0..reader.header().frame_count {
         d.seek(f).expect("frame");
     }

@@ -24,9 +24,10 @@ pub enum MeshTarget {
     MaxError(f64),
 }
 
-/// Plays a container frame by frame down to a finest level.
-pub struct Decoder<'r, S> {
-    reader: &'r Reader<S>,
+/// Plays a container frame by frame down to a finest level. It owns its [`Reader`]; use
+/// [`Reader::borrowed`] to decode from a reader you keep.
+pub struct Decoder<S> {
+    reader: Reader<S>,
     min_level: usize,
     replay: Option<Replay>,
     frame: Option<u32>,
@@ -36,9 +37,9 @@ pub struct Decoder<'r, S> {
     previous: Vec<[i32; 3]>,
 }
 
-impl<'r, S: ByteSource> Decoder<'r, S> {
+impl<S: ByteSource> Decoder<S> {
     /// A decoder that reads bands `min_level..` only.
-    pub fn new(reader: &'r Reader<S>, min_level: usize) -> Result<Self, ContainerError> {
+    pub fn new(reader: Reader<S>, min_level: usize) -> Result<Self, ContainerError> {
         let h = reader.header();
         if min_level >= h.levels() {
             return Err(ContainerError::Options(format!("level {min_level}: the file has levels 0..{}", h.levels() - 1)));
@@ -49,6 +50,45 @@ impl<'r, S: ByteSource> Decoder<'r, S> {
 
     pub fn frame(&self) -> Option<u32> {
         self.frame
+    }
+
+    pub fn reader(&self) -> &Reader<S> {
+        &self.reader
+    }
+
+    /// Finest level this decoder reads.
+    pub fn min_level(&self) -> usize {
+        self.min_level
+    }
+
+    /// The chunks that advancing to `frame` reads that are not yet read (for prefetching by a
+    /// network client): from the current frame when on the way, else from the keyframe.
+    pub fn chunks_for(&self, frame: u32) -> Vec<crate::ChunkEntry> {
+        let h = self.reader.header();
+        if frame >= h.frame_count {
+            return Vec::new();
+        }
+        let key = h.keyframe_before(frame);
+        let (start, load_key) = match self.frame {
+            Some(c) if c <= frame && c >= key => (c + 1, false),
+            _ => (key, true),
+        };
+        // Frames whose deltas are applied: after the keyframe, or after the current frame.
+        let first_delta = start + if load_key { 1 } else { 0 };
+        let first_positions = if load_key { key } else { start };
+        let mut out = Vec::new();
+        for e in self.reader.index().chunks.iter().filter(|e| e.band as usize >= self.min_level) {
+            let take = match e.kind {
+                ChunkKind::Triangles => load_key && self.min_level == 0 && self.triangles.is_none(),
+                ChunkKind::Key => load_key && e.frame == key,
+                ChunkKind::Delta => e.frame >= first_delta && e.frame <= frame,
+                ChunkKind::Positions => e.frame >= first_positions && e.frame <= frame,
+            };
+            if take {
+                out.push(*e);
+            }
+        }
+        out
     }
 
     pub fn replay(&self) -> Option<&Replay> {

@@ -128,14 +128,14 @@ pub fn verify<S: ByteSource>(reader: &Reader<S>) -> Result<VerifyReport, Contain
     for e in &reader.index().chunks {
         reader.read_chunk(e)?;
     }
-    let mut d = Decoder::new(reader, 0)?;
+    let mut d = Decoder::new(reader.borrowed(), 0)?;
     let frames = reader.header().frame_count;
     for f in 0..frames {
         d.seek(f)?;
     }
     // Seeking through keyframes must agree with playing through (spot check: the last frame).
     if frames > 1 {
-        let mut fresh = Decoder::new(reader, 0)?;
+        let mut fresh = Decoder::new(reader.borrowed(), 0)?;
         fresh.seek(frames - 1)?;
         if fresh.replay().map(|r| &r.h) != d.replay().map(|r| &r.h) {
             return Err(ContainerError::Corrupt {

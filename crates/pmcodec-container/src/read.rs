@@ -124,6 +124,19 @@ impl<S: ByteSource> Reader<S> {
         &self.header
     }
 
+    /// A reader over a borrow of this one's source (header and index copied), e.g. to hand to
+    /// a [`crate::Decoder`] while keeping this reader.
+    pub fn borrowed(&self) -> Reader<&S> {
+        Reader {
+            source: &self.source,
+            header: self.header.clone(),
+            index: self.index.clone(),
+            data_start: self.data_start,
+            file_len: self.file_len,
+            bytes_read: Cell::new(self.bytes_read.get()),
+        }
+    }
+
     pub fn index(&self) -> &Index {
         &self.index
     }

@@ -6,7 +6,7 @@ use pmcodec_container::{Decoder, MeshTarget, Reader, verify};
 fn exercise(bytes: &[u8]) -> Result<(), String> {
     let reader = Reader::open(bytes).map_err(|e| e.to_string())?;
     verify(&reader).map_err(|e| e.to_string())?;
-    let mut d = Decoder::new(&reader, 0).map_err(|e| e.to_string())?;
+    let mut d = Decoder::new(reader.borrowed(), 0).map_err(|e| e.to_string())?;
     d.seek(reader.header().frame_count - 1).map_err(|e| e.to_string())?;
     d.mesh(MeshTarget::Triangles(50)).map_err(|e| e.to_string())?;
     Ok(())

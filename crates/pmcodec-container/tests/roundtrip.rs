@@ -39,7 +39,7 @@ fn round_trip(seq: &Sequence, opts: &EncodeOptions) -> Vec<u8> {
     let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
     let base = build(&topo, &base_quadrics(seq, &topo, &opts.base), &opts.build).unwrap();
     let mut enc = Encoder::new(base, topo, seq.triangles.clone(), opts.recluster.clone());
-    let mut d = Decoder::new(&reader, 0).unwrap();
+    let mut d = Decoder::new(reader.borrowed(), 0).unwrap();
     for (f, frame) in seq.frames.iter().enumerate() {
         enc.encode_frame(frame);
         d.seek(f as u32).unwrap();
@@ -68,11 +68,11 @@ fn horse_gallop_round_trips() {
     let reader = Reader::open(bytes.as_slice()).unwrap();
     verify(&reader).expect("verify");
     // Seeking to a frame from its keyframe equals playing up to it, and budget cuts agree.
-    let mut played = Decoder::new(&reader, 0).unwrap();
+    let mut played = Decoder::new(reader.borrowed(), 0).unwrap();
     for f in 0..=13 {
         played.seek(f).unwrap();
     }
-    let mut sought = Decoder::new(&reader, 0).unwrap();
+    let mut sought = Decoder::new(reader.borrowed(), 0).unwrap();
     sought.seek(13).unwrap();
     assert_eq!(played.replay().unwrap().h, sought.replay().unwrap().h);
     assert_eq!(played.quantized(), sought.quantized());
@@ -126,11 +126,11 @@ fn level_limited_decoding_reads_only_its_bands() {
     let Some(seq) = data("horse-gallop", 10) else { return };
     let bytes = encode(&seq, &EncodeOptions::default(), |_| {}).unwrap();
     let full_reader = Reader::open(bytes.as_slice()).unwrap();
-    let mut full = Decoder::new(&full_reader, 0).unwrap();
+    let mut full = Decoder::new(full_reader.borrowed(), 0).unwrap();
     let src = Counting { bytes: &bytes, fetched: Default::default() };
     let reader = Reader::open(&src).unwrap();
     let level = 2;
-    let mut part = Decoder::new(&reader, level).unwrap();
+    let mut part = Decoder::new(reader.borrowed(), level).unwrap();
     for f in 0..10 {
         full.seek(f).unwrap();
         part.seek(f).unwrap();

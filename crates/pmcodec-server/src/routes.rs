@@ -114,7 +114,7 @@ async fn asset_info(State(state): State<Shared>, Path(id): Path<String>) -> Resu
     tokio::task::spawn_blocking(move || {
         let r = a.reader()?;
         let s = summary(&r);
-        let mut d = Decoder::new(&r, 0).map_err(|e| ApiError::Internal(e.to_string()))?;
+        let mut d = Decoder::new(r.borrowed(), 0).map_err(|e| ApiError::Internal(e.to_string()))?;
         d.seek(0).map_err(|e| ApiError::Internal(e.to_string()))?;
         let mut triangles_per_level = Vec::new();
         for l in 0..s.header.levels() {
@@ -175,7 +175,7 @@ async fn mesh(State(state): State<Shared>, Path(id): Path<String>, Query(q): Que
             }
         // A level request reads only the bands it needs.
         let min_level = if let MeshTarget::Level(l) = target { l } else { 0 };
-        let mut d = Decoder::new(&r, min_level).map_err(|e| ApiError::Internal(e.to_string()))?;
+        let mut d = Decoder::new(r.borrowed(), min_level).map_err(|e| ApiError::Internal(e.to_string()))?;
         d.seek(frame).map_err(|e| ApiError::Internal(e.to_string()))?;
         d.mesh(target).map_err(|e| ApiError::Internal(e.to_string()))
     })

@@ -157,7 +157,7 @@ pub fn decode_cmd(args: DecodeArgs, quiet: bool) -> Result<(), Exit> {
         MeshTarget::Level(l) => l.min(reader.header().top()),
         _ => 0,
     };
-    let mut dec = Decoder::new(&reader, min_level).context("starting the decoder")?;
+    let mut dec = Decoder::new(reader.borrowed(), min_level).context("starting the decoder")?;
     if args.all_frames {
         std::fs::create_dir_all(&args.output).with_context(|| format!("creating {}", args.output.display()))?;
         let frames = reader.header().frame_count;
