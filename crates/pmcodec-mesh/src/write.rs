@@ -1,115 +1,165 @@
 //! Writers for one frame: Wavefront OBJ and binary glTF 2.0 (GLB), and a file writer that
 //! never leaves a half-written file behind.
+//!
+//! Both writers expect a mesh that passed [`crate::Sequence::validate`] (finite coordinates,
+//! indices in range); they do not check it again.
 
 use crate::{MeshError, TriMesh};
 use glam::Vec3;
+use serde_json::json;
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 
-/// Writes positions (shortest round-trip formatting of f32) and 1-based faces.
+/// Writes `v` lines and 1-based `f` lines. Coordinates use Rust's `{}` formatting of `f32`,
+/// the shortest decimal that parses back to the same `f32`, so a round trip is exact. `w` gets
+/// many small writes: give it a `BufWriter` (or a `Vec`) rather than a bare `File`.
+/// A mesh without triangles is written as its vertices alone.
 pub fn write_obj<W: Write>(mut w: W, mesh: &TriMesh) -> std::io::Result<()> {
     writeln!(w, "# pmcodec: {} vertices, {} triangles", mesh.positions.len(), mesh.triangles.len())?;
     for p in &mesh.positions {
         writeln!(w, "v {} {} {}", p.x, p.y, p.z)?;
     }
     for t in &mesh.triangles {
-        writeln!(w, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1)?;
+        writeln!(w, "f {} {} {}", u64::from(t[0]) + 1, u64::from(t[1]) + 1, u64::from(t[2]) + 1)?;
     }
     w.flush()
 }
 
-/// Area-weighted vertex normals (zero-area neighbourhoods get +Z).
+/// Area-weighted vertex normals, unit length. A vertex whose faces have no area (or that no
+/// face uses) gets +Z: glTF requires unit normals, and any unit vector is as good as another
+/// there. Indices out of range are skipped rather than trusted.
 pub fn vertex_normals(mesh: &TriMesh) -> Vec<Vec3> {
     let mut n = vec![Vec3::ZERO; mesh.positions.len()];
     for t in &mesh.triangles {
-        let [a, b, c] = t.map(|i| mesh.positions.get(i as usize).copied().unwrap_or(Vec3::ZERO));
-        let face = (b - a).cross(c - a); // length = twice the area: area weighting for free
+        let Some([a, b, c]) = corners(mesh, t) else { continue };
+        // The cross product's length is twice the area: area weighting for free.
+        let face = (b - a).cross(c - a);
         for &i in t {
-            if let Some(slot) = n.get_mut(i as usize) {
-                *slot += face;
-            }
+            n[i as usize] += face;
         }
     }
     n.into_iter().map(|v| v.try_normalize().unwrap_or(Vec3::Z)).collect()
 }
 
+fn corners(mesh: &TriMesh, t: &[u32; 3]) -> Option<[Vec3; 3]> {
+    Some([*mesh.positions.get(t[0] as usize)?, *mesh.positions.get(t[1] as usize)?, *mesh.positions.get(t[2] as usize)?])
+}
+
 const GLB_MAGIC: u32 = 0x4654_6C67; // "glTF"
+const GLB_VERSION: u32 = 2;
 const CHUNK_JSON: u32 = 0x4E4F_534A; // "JSON"
 const CHUNK_BIN: u32 = 0x004E_4942; // "BIN\0"
+const ARRAY_BUFFER: u32 = 34962;
+const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+const FLOAT: u32 = 5126;
+const UNSIGNED_INT: u32 = 5125;
+const TRIANGLES: u32 = 4;
 
-/// A GLB holding one mesh (POSITION, NORMAL, u32 indices), one node and one scene.
+/// Bytes of binary data a GLB of `mesh` carries: positions, normals, indices.
+fn bin_len(mesh: &TriMesh) -> u64 {
+    mesh.positions.len() as u64 * 24 + mesh.triangles.len() as u64 * 12
+}
+
+/// Whether `mesh` fits the GLB format, whose header stores the file length in a `u32` (4 GiB,
+/// about 170 million triangles with their vertices). 4 KiB is kept for the JSON, far more than
+/// its few hundred bytes.
+fn fits_glb(mesh: &TriMesh) -> bool {
+    bin_len(mesh) + 4096 <= u64::from(u32::MAX)
+}
+
+/// A glTF 2.0 binary holding one scene with one node and one mesh of one indexed triangle
+/// primitive: POSITION (with the min/max the spec requires), area-weighted NORMAL and `u32`
+/// indices, each in its own 4-byte-aligned buffer view of a single buffer.
+///
+/// A mesh without triangles has no surface to draw and becomes a valid GLB of one scene with
+/// one empty node (no mesh, no buffer), so a reader always gets a file it can open.
+///
+/// The mesh must fit the format's 4 GiB (see [`write_glb`], which checks); a larger one gives
+/// a file with a wrong length field.
 pub fn glb_bytes(mesh: &TriMesh) -> Vec<u8> {
-    let normals = vertex_normals(mesh);
-    let mut bin: Vec<u8> = Vec::with_capacity(mesh.positions.len() * 24 + mesh.triangles.len() * 12);
-    for p in &mesh.positions {
-        for c in p.to_array() {
-            bin.extend_from_slice(&c.to_le_bytes());
-        }
-    }
-    let normals_offset = bin.len();
-    for p in &normals {
-        for c in p.to_array() {
-            bin.extend_from_slice(&c.to_le_bytes());
-        }
-    }
-    let indices_offset = bin.len();
-    for t in &mesh.triangles {
-        for i in t {
-            bin.extend_from_slice(&i.to_le_bytes());
-        }
-    }
-    let (lo, hi) = mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
+    debug_assert!(fits_glb(mesh), "mesh too large for GLB");
     let nv = mesh.positions.len();
-    let mut accessors = vec![];
-    let mut views = vec![];
-    let mut attributes = serde_json::Map::new();
-    if nv > 0 {
-        views.push(serde_json::json!({"buffer": 0, "byteOffset": 0, "byteLength": normals_offset, "target": 34962}));
-        views.push(serde_json::json!({"buffer": 0, "byteOffset": normals_offset, "byteLength": indices_offset - normals_offset, "target": 34962}));
-        accessors.push(serde_json::json!({"bufferView": 0, "componentType": 5126, "count": nv, "type": "VEC3",
-            "min": lo.to_array(), "max": hi.to_array()}));
-        accessors.push(serde_json::json!({"bufferView": 1, "componentType": 5126, "count": nv, "type": "VEC3"}));
-        attributes.insert("POSITION".into(), 0.into());
-        attributes.insert("NORMAL".into(), 1.into());
-    }
-    let mut primitive = serde_json::json!({"attributes": attributes, "mode": 4});
-    if !mesh.triangles.is_empty() && nv > 0 {
-        views.push(serde_json::json!({"buffer": 0, "byteOffset": indices_offset, "byteLength": bin.len() - indices_offset, "target": 34963}));
-        accessors.push(serde_json::json!({"bufferView": views.len() - 1, "componentType": 5125, "count": mesh.triangles.len() * 3, "type": "SCALAR"}));
-        primitive["indices"] = (accessors.len() - 1).into();
-    }
-    // An empty mesh becomes an empty scene: glTF requires a primitive to have attributes.
-    let mut json = if nv == 0 {
-        serde_json::json!({"asset": {"version": "2.0", "generator": "pmcodec"}, "scene": 0, "scenes": [{"nodes": []}]})
+    let nt = mesh.triangles.len();
+    let empty = nt == 0 || nv == 0;
+
+    let (json, bin) = if empty {
+        // One scene holding one node without a mesh: `scene.nodes` may not be an empty array
+        // (glTF 2.0 schema, minItems 1), the `gltf` crate rejects a scene without `nodes`, and
+        // viewers expect a default scene to exist.
+        (
+            json!({"asset": {"version": "2.0", "generator": "pmcodec"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{}]}),
+            Vec::new(),
+        )
     } else {
-        serde_json::json!({
+        let mut bin: Vec<u8> = Vec::with_capacity(bin_len(mesh) as usize);
+        // Every element is a 4-byte float or u32, so each view starts 4-byte aligned without
+        // padding between them.
+        let put = |bin: &mut Vec<u8>, v: Vec3| {
+            for c in v.to_array() {
+                bin.extend_from_slice(&c.to_le_bytes());
+            }
+        };
+        for &p in &mesh.positions {
+            put(&mut bin, p);
+        }
+        let normals_at = bin.len();
+        for n in vertex_normals(mesh) {
+            put(&mut bin, n);
+        }
+        let indices_at = bin.len();
+        for t in &mesh.triangles {
+            for i in t {
+                bin.extend_from_slice(&i.to_le_bytes());
+            }
+        }
+        let (lo, hi) = mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
+        let json = json!({
             "asset": {"version": "2.0", "generator": "pmcodec"},
             "scene": 0,
             "scenes": [{"nodes": [0]}],
             "nodes": [{"mesh": 0}],
-            "meshes": [{"primitives": [primitive]}],
-            "accessors": accessors,
-            "bufferViews": views,
-        })
+            "meshes": [{"primitives": [{
+                "attributes": {"POSITION": 0, "NORMAL": 1},
+                "indices": 2,
+                "mode": TRIANGLES,
+            }]}],
+            "accessors": [
+                {"bufferView": 0, "componentType": FLOAT, "count": nv, "type": "VEC3",
+                 "min": lo.to_array(), "max": hi.to_array()},
+                {"bufferView": 1, "componentType": FLOAT, "count": nv, "type": "VEC3"},
+                {"bufferView": 2, "componentType": UNSIGNED_INT, "count": nt * 3, "type": "SCALAR"},
+            ],
+            "bufferViews": [
+                {"buffer": 0, "byteOffset": 0, "byteLength": normals_at, "target": ARRAY_BUFFER},
+                {"buffer": 0, "byteOffset": normals_at, "byteLength": indices_at - normals_at, "target": ARRAY_BUFFER},
+                {"buffer": 0, "byteOffset": indices_at, "byteLength": bin.len() - indices_at, "target": ELEMENT_ARRAY_BUFFER},
+            ],
+            "buffers": [{"byteLength": bin.len()}],
+        });
+        (json, bin)
     };
-    if !bin.is_empty() {
-        json["buffers"] = serde_json::json!([{"byteLength": bin.len()}]);
-    }
-    let mut json_bytes = serde_json::to_vec(&json).unwrap_or_default();
-    // GLB chunks are 4-byte aligned: JSON padded with spaces, BIN with zeros (glTF 2.0, 4.4.3).
-    while json_bytes.len() % 4 != 0 {
+    assemble_glb(&json, bin)
+}
+
+/// Header and chunks (glTF 2.0, "Binary glTF Layout"): each chunk's data is padded to a
+/// multiple of 4 bytes, JSON with spaces (still valid JSON), BIN with zeros. No BIN chunk when
+/// there is no binary data.
+fn assemble_glb(json: &serde_json::Value, mut bin: Vec<u8>) -> Vec<u8> {
+    // Serialising a `Value` whose keys are all strings cannot fail.
+    let mut json_bytes = serde_json::to_vec(json).unwrap_or_default();
+    while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
     }
     while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
-    let total = 12 + 8 + json_bytes.len() + if bin.is_empty() { 0 } else { 8 + bin.len() };
+    let bin_chunk = if bin.is_empty() { 0 } else { 8 + bin.len() };
+    let total = 12 + 8 + json_bytes.len() + bin_chunk;
     let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(&GLB_MAGIC.to_le_bytes());
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
-    out.extend_from_slice(&CHUNK_JSON.to_le_bytes());
+    for word in [GLB_MAGIC, GLB_VERSION, total as u32, json_bytes.len() as u32, CHUNK_JSON] {
+        out.extend_from_slice(&word.to_le_bytes());
+    }
     out.extend_from_slice(&json_bytes);
     if !bin.is_empty() {
         out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
@@ -119,47 +169,91 @@ pub fn glb_bytes(mesh: &TriMesh) -> Vec<u8> {
     out
 }
 
+/// Writes [`glb_bytes`] to `w`. Errors (`InvalidInput`) for a mesh beyond the format's 4 GiB.
 pub fn write_glb<W: Write>(mut w: W, mesh: &TriMesh) -> std::io::Result<()> {
+    if !fits_glb(mesh) {
+        return Err(std::io::Error::new(std::io::ErrorKind::InvalidInput, too_large(mesh)));
+    }
     w.write_all(&glb_bytes(mesh))?;
     w.flush()
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so that a
-/// failure (or a kill) never leaves a half-written file under the final name.
+fn too_large(mesh: &TriMesh) -> String {
+    format!("{} vertices and {} triangles exceed the 4 GiB a GLB file can hold", mesh.positions.len(), mesh.triangles.len())
+}
+
+/// Distinguishes temporary files of concurrent writes from one process.
+static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so that
+/// a failure (or a kill) never leaves a half-written file under the final name: readers see the
+/// old file or the new one. The temporary file is removed on any error.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), MeshError> {
     let io = |source| MeshError::Io { path: path.to_path_buf(), source };
+    let Some(name) = path.file_name() else {
+        return Err(MeshError::Invalid(format!("cannot write {}: it does not name a file", path.display())));
+    };
+    // Same folder, so the rename stays on one file system and is atomic.
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
+        _ => PathBuf::from("."),
     };
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
-    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
+    // Hidden, and unique per process and call; `create_new` refuses to reuse a leftover from a
+    // crashed run, so try a few names before giving up.
+    let mut attempt = 0;
+    let (tmp, mut file) = loop {
+        let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
+        let tmp = dir.join(format!(".{}.{}.{n}.tmp", name.to_string_lossy(), std::process::id()));
+        match std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
+            Ok(f) => break (tmp, f),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && attempt < 8 => attempt += 1,
+            Err(e) => return Err(io(e)),
+        }
+    };
+    let result = file
+        .write_all(bytes)
+        // The data must be on disk before the rename makes it visible under the final name.
+        .and_then(|()| file.sync_all())
+        .and_then(|()| {
+            drop(file);
+            std::fs::rename(&tmp, path)
+        });
     if let Err(e) = result {
         let _ = std::fs::remove_file(&tmp);
         return Err(io(e));
     }
+    // Make the rename itself durable. Best effort: not every platform can sync a directory.
+    if let Ok(d) = std::fs::File::open(&dir) {
+        let _ = d.sync_all();
+    }
     Ok(())
 }
 
-/// Writes one mesh as `.obj` or `.glb`, chosen by the extension.
+/// Writes one mesh as `.obj` or `.glb` (case-insensitive), chosen by the extension, through
+/// [`write_atomic`].
 pub fn write_mesh_file(path: &Path, mesh: &TriMesh) -> Result<(), MeshError> {
-    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
-    let bytes = match ext.as_str() {
-        "glb" => glb_bytes(mesh),
-        "obj" => {
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+    let bytes = match ext.as_deref() {
+        Some("glb") => {
+            if !fits_glb(mesh) {
+                return Err(MeshError::TooLarge { what: too_large(mesh) });
+            }
+            glb_bytes(mesh)
+        }
+        Some("obj") => {
             let mut v = Vec::new();
             write_obj(&mut v, mesh).map_err(|source| MeshError::Io { path: path.to_path_buf(), source })?;
             v
         }
-        other => {
+        Some(other) => {
             return Err(MeshError::Invalid(format!(
-                "cannot write {}: unknown extension {other:?} (use .obj or .glb)",
+                "cannot write {}: unknown extension \".{other}\" (use .obj or .glb)",
+                path.display()
+            )));
+        }
+        None => {
+            return Err(MeshError::Invalid(format!(
+                "cannot write {}: no extension to choose the format by (use .obj or .glb)",
                 path.display()
             )));
         }
