@@ -30,4 +30,11 @@ pub enum MeshError {
     Unsupported(String),
     #[error("{0}")]
     Invalid(String),
+    /// An animation was asked for by a name or index the file does not have.
+    #[error("no animation {wanted} in the file; it has: {}", list_or_none(available))]
+    NoSuchAnimation { wanted: String, available: Vec<String> },
+}
+
+fn list_or_none(items: &[String]) -> String {
+    if items.is_empty() { "none".to_string() } else { items.join(", ") }
 }

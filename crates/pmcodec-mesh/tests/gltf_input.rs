@@ -1,92 +1,150 @@
-//! glTF input on the real skinned and morph-target files, and on small generated files that pin
-//! down interpolation, skinning, morphing and error reporting.
+//! glTF input on the real skinned and morph-target files, and on small files generated here that
+//! pin down interpolation, skinning, morphing, welding, topology conversion and error reporting.
 
 use glam::Vec3;
-use pmcodec_mesh::gltf_input::{AnimationSelector, GltfOptions, load_gltf, load_gltf_bytes};
+use pmcodec_mesh::gltf_input::{
+    AnimationSelector, GltfOptions, RiggedMesh, list_animations, list_animations_bytes, load_gltf, load_gltf_bytes,
+};
 use pmcodec_mesh::{MeshError, Sequence};
+use serde_json::{Value, json};
+use std::collections::BTreeSet;
 use std::path::PathBuf;
 
+// ------------------------------------------------------------------------------------------------
+// Helpers
+// ------------------------------------------------------------------------------------------------
+
+/// A real file from /work/shared/data/gltf; `None` (with a message) only when that folder is
+/// absent. A missing file in a present folder fails the test when it is opened.
 fn data(name: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/gltf")).join(name);
-    if p.exists() {
-        Some(p)
+    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/gltf"));
+    if dir.is_dir() {
+        Some(dir.join(name))
     } else {
-        eprintln!("SKIP: {} is absent", p.display());
+        eprintln!("SKIP: {} is absent", dir.display());
         None
     }
 }
 
-fn bbox_diag(frame: &[Vec3]) -> f32 {
-    let (lo, hi) = pmcodec_mesh::bounds_of(frame).expect("points");
+fn opts(animation: Option<AnimationSelector>, frame_rate: f32, weld: bool) -> GltfOptions {
+    GltfOptions { animation, frame_rate, weld }
+}
+
+fn diag(points: &[Vec3]) -> f32 {
+    let (lo, hi) = pmcodec_mesh::bounds_of(points).expect("points");
     (hi - lo).length()
 }
 
-fn check_animated(seq: &Sequence, min_frames: usize) {
+fn close(a: Vec3, b: Vec3, tol: f32) -> bool {
+    (a - b).length() <= tol
+}
+
+/// Number of connected pieces of the surface (vertices joined by triangle edges).
+fn components(vertex_count: usize, triangles: &[[u32; 3]]) -> usize {
+    let mut parent: Vec<usize> = (0..vertex_count).collect();
+    fn find(parent: &mut [usize], mut x: usize) -> usize {
+        while parent[x] != x {
+            parent[x] = parent[parent[x]];
+            x = parent[x];
+        }
+        x
+    }
+    for t in triangles {
+        let a = find(&mut parent, t[0] as usize);
+        for &c in &t[1..] {
+            let b = find(&mut parent, c as usize);
+            parent[b] = a;
+        }
+    }
+    let used: BTreeSet<u32> = triangles.iter().flatten().copied().collect();
+    used.iter().map(|&v| find(&mut parent, v as usize)).collect::<BTreeSet<_>>().len()
+}
+
+/// Checks every frame of an animated sequence: finite, of a plausible size (a broken skinning
+/// transform blows the mesh up or collapses it), and actually moving.
+fn check_animated(seq: &Sequence, rest_diag: f32) {
     seq.validate().expect("valid");
-    assert!(seq.frame_count() >= min_frames, "{} frames", seq.frame_count());
-    let rest = bbox_diag(&seq.frames[0]);
-    for f in &seq.frames {
-        assert!(f.iter().all(|p| p.is_finite()));
-        // A broken skinning transform blows the mesh up or collapses it.
-        let d = bbox_diag(f);
-        assert!(d < 3.0 * rest && d > rest / 3.0, "diag {d} vs {rest}");
+    for (f, frame) in seq.frames.iter().enumerate() {
+        assert!(frame.iter().all(|p| p.is_finite()), "frame {f}");
+        let d = diag(frame);
+        assert!(d < 3.0 * rest_diag && d > rest_diag / 3.0, "frame {f}: diagonal {d} vs rest {rest_diag}");
     }
-    let moved = seq.frames[0].iter().zip(&seq.frames[seq.frame_count() / 2]).filter(|(a, b)| (**a - **b).length() > 1e-4 * rest).count();
-    assert!(moved > seq.vertex_count() / 10, "only {moved} vertices move");
+    let moved =
+        |a: &[Vec3], b: &[Vec3]| a.iter().zip(b).filter(|(p, q)| (**p - **q).length() > 1e-3 * rest_diag).count();
+    let n = seq.frame_count();
+    assert!(n >= 2);
+    let m = moved(&seq.frames[0], &seq.frames[n / 2]);
+    assert!(m > seq.vertex_count() / 20, "only {m} of {} vertices move", seq.vertex_count());
+    let distinct = seq.frames.windows(2).filter(|w| w[0] != w[1]).count();
+    assert!(distinct * 2 >= n - 1, "only {distinct} of {} consecutive frame pairs differ", n - 1);
     assert_eq!(seq.source.len(), seq.vertex_count());
+    assert_eq!(seq.frame_names.len(), n);
 }
 
-#[test]
-fn fox_is_skinned_welded_and_animated() {
-    let Some(path) = data("Fox.glb") else { return };
-    let seq = load_gltf(&path, &GltfOptions::default()).expect("load");
-    assert_eq!(seq.triangles.len(), 576);
-    assert!(seq.vertex_count() < 1728 / 2, "welded to {} vertices", seq.vertex_count());
-    check_animated(&seq, 10);
-    // Each animation by name and by index; a wrong name lists the names.
-    let walk = load_gltf(&path, &GltfOptions { animation: Some(AnimationSelector::Name("Walk".into())), ..Default::default() }).expect("Walk");
-    let by_index = load_gltf(&path, &GltfOptions { animation: Some(AnimationSelector::Index(2)), ..Default::default() }).expect("index 2");
-    assert_eq!(walk.frames, by_index.frames, "Walk is animation 2 (Run, Survey, Walk)");
-    let e = load_gltf(&path, &GltfOptions { animation: Some(AnimationSelector::Name("Fly".into())), ..Default::default() }).unwrap_err();
-    assert!(e.to_string().contains("Survey") && e.to_string().contains("Run"), "{e}");
-    let unwelded = load_gltf(&path, &GltfOptions { weld: false, ..Default::default() }).expect("unwelded");
-    assert_eq!(unwelded.vertex_count(), 1728);
-    assert!(unwelded.source.iter().all(|s| (s.index as usize) < 1728));
+/// Binary data for generated files: each `add` appends one tightly packed accessor.
+#[derive(Default)]
+struct Bin {
+    bytes: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
 }
 
-#[test]
-fn robot_merges_primitives_with_skin_and_morphs() {
-    let Some(path) = data("RobotExpressive.glb") else { return };
-    let seq = load_gltf(&path, &GltfOptions::default()).expect("load");
-    let prims: std::collections::BTreeSet<u32> = seq.source.iter().map(|s| s.primitive).collect();
-    assert!(prims.len() >= 10, "{} primitives merged", prims.len());
-    check_animated(&seq, 5);
-}
-
-#[test]
-fn draco_compressed_parrot_is_named_unsupported() {
-    let Some(path) = data("Parrot.glb") else { return };
-    let e = load_gltf(&path, &GltfOptions::default()).unwrap_err();
-    assert!(matches!(e, MeshError::Unsupported(_)) && e.to_string().contains("KHR_draco_mesh_compression"), "{e}");
-}
-
-#[test]
-fn morph_target_animals() {
-    {
-        let (name, targets) = ("Horse.glb", 15);
-        let Some(path) = data(name) else { return };
-        let seq = load_gltf(&path, &GltfOptions::default()).expect("load");
-        check_animated(&seq, 10);
-        assert_eq!(seq.morph_displacement.len(), seq.vertex_count(), "{name} ({targets} targets)");
-        assert!(seq.morph_displacement.iter().any(|&d| d > 0.0));
+impl Bin {
+    fn add(&mut self, data: &[u8], count: usize, ty: &str, component: u32, normalized: bool) -> usize {
+        while !self.bytes.len().is_multiple_of(4) {
+            self.bytes.push(0);
+        }
+        self.views.push(json!({"buffer": 0, "byteOffset": self.bytes.len(), "byteLength": data.len()}));
+        self.bytes.extend_from_slice(data);
+        let mut acc =
+            json!({"bufferView": self.views.len() - 1, "componentType": component, "count": count, "type": ty});
+        if normalized {
+            acc["normalized"] = json!(true);
+        }
+        self.accessors.push(acc);
+        self.accessors.len() - 1
+    }
+    fn f32(&mut self, v: &[f32], ty: &str) -> usize {
+        let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        self.add(&bytes, v.len() / dims(ty), ty, 5126, false)
+    }
+    fn u16(&mut self, v: &[u16], ty: &str) -> usize {
+        let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        self.add(&bytes, v.len() / dims(ty), ty, 5123, false)
+    }
+    fn u8(&mut self, v: &[u8], ty: &str, normalized: bool) -> usize {
+        self.add(v, v.len() / dims(ty), ty, 5121, normalized)
+    }
+    fn i16_normalized(&mut self, v: &[i16], ty: &str) -> usize {
+        let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        self.add(&bytes, v.len() / dims(ty), ty, 5122, true)
+    }
+    /// `doc` (scenes, nodes, meshes, ...) completed with asset, buffer, views and accessors.
+    fn document(&self, mut doc: Value) -> Value {
+        doc["asset"] = json!({"version": "2.0"});
+        doc["buffers"] = json!([{"byteLength": self.bytes.len()}]);
+        doc["bufferViews"] = Value::Array(self.views.clone());
+        doc["accessors"] = Value::Array(self.accessors.clone());
+        doc
+    }
+    fn glb(&self, doc: Value) -> Vec<u8> {
+        glb(&self.document(doc), &self.bytes)
     }
 }
 
-// ---- generated files ----
+fn dims(ty: &str) -> usize {
+    match ty {
+        "SCALAR" => 1,
+        "VEC2" => 2,
+        "VEC3" => 3,
+        "VEC4" => 4,
+        "MAT4" => 16,
+        _ => panic!("{ty}"),
+    }
+}
 
-/// Builds a GLB from a JSON document and one binary buffer.
-fn glb(json: serde_json::Value, bin: &[u8]) -> Vec<u8> {
-    let mut j = serde_json::to_vec(&json).unwrap();
+fn glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
+    let mut j = serde_json::to_vec(doc).unwrap();
     while !j.len().is_multiple_of(4) {
         j.push(b' ');
     }
@@ -94,168 +152,820 @@ fn glb(json: serde_json::Value, bin: &[u8]) -> Vec<u8> {
     while !b.len().is_multiple_of(4) {
         b.push(0);
     }
-    let mut out = Vec::new();
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&((12 + 8 + j.len() + 8 + b.len()) as u32).to_le_bytes());
-    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&j);
-    out.extend_from_slice(&(b.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&b);
+    let mut out = b"glTF".to_vec();
+    out.extend(2u32.to_le_bytes());
+    out.extend(((12 + 8 + j.len() + 8 + b.len()) as u32).to_le_bytes());
+    out.extend((j.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(&j);
+    out.extend((b.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(&b);
     out
 }
 
-fn f32s(v: &[f32]) -> Vec<u8> {
-    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+fn base64(bytes: &[u8]) -> String {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::new();
+    for chunk in bytes.chunks(3) {
+        let n = chunk.iter().enumerate().fold(0u32, |acc, (i, &b)| acc | (u32::from(b) << (16 - 8 * i)));
+        for i in 0..4 {
+            if i <= chunk.len() {
+                out.push(ALPHABET[(n >> (18 - 6 * i) & 63) as usize] as char);
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
 }
 
-/// One triangle on a node animated by `channel` (a translation or rotation sampler) and a
-/// morph target that moves vertex 2 by +1 in z, with morph weights animated 0 -> 1.
-fn animated_triangle(path: &str, interpolation: &str, times: &[f32], values: &[f32], mode: u32, required: &[&str]) -> Vec<u8> {
-    let mut bin = f32s(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]); // positions @0 (36)
-    bin.extend(f32s(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])); // morph deltas @36 (36)
-    let t_off = bin.len();
-    bin.extend(f32s(times));
-    let v_off = bin.len();
-    bin.extend(f32s(values));
-    let w_off = bin.len();
-    bin.extend(f32s(&[0.0, 1.0])); // weights at times[0], times[last]
-    let wt_off = bin.len();
-    bin.extend(f32s(&[times[0], *times.last().unwrap()]));
-    let comps = if path == "rotation" { "VEC4" } else { "VEC3" };
-    let json = serde_json::json!({
-        "asset": {"version": "2.0"},
-        "extensionsRequired": required,
-        "extensionsUsed": required,
+const TRIANGLE: [f32; 9] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+
+/// A triangle on node 0 with one morph target (vertex 2 moves +1 in z; weight 0 by default) and
+/// an animation "move" with one channel driving `path` of node 0.
+fn animated_triangle(path: &str, interpolation: &str, times: &[f32], values: &[f32]) -> (Bin, Value) {
+    let mut bin = Bin::default();
+    let pos = bin.f32(&TRIANGLE, "VEC3");
+    let delta = bin.f32(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0], "VEC3");
+    let input = bin.f32(times, "SCALAR");
+    let ty = match path {
+        "rotation" => "VEC4",
+        "weights" => "SCALAR",
+        _ => "VEC3",
+    };
+    let output = bin.f32(values, ty);
+    let doc = json!({
         "scene": 0, "scenes": [{"nodes": [0]}],
         "nodes": [{"mesh": 0}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "targets": [{"POSITION": 1}], "mode": mode}], "weights": [0.0]}],
-        "buffers": [{"byteLength": bin.len()}],
-        "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": 36},
-            {"buffer": 0, "byteOffset": 36, "byteLength": 36},
-            {"buffer": 0, "byteOffset": t_off, "byteLength": times.len() * 4},
-            {"buffer": 0, "byteOffset": v_off, "byteLength": values.len() * 4},
-            {"buffer": 0, "byteOffset": w_off, "byteLength": 8},
-            {"buffer": 0, "byteOffset": wt_off, "byteLength": 8}
-        ],
-        "accessors": [
-            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0,0,0], "max": [1,1,0]},
-            {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0,0,0], "max": [0,0,1]},
-            {"bufferView": 2, "componentType": 5126, "count": times.len(), "type": "SCALAR", "min": [times[0]], "max": [*times.last().unwrap()]},
-            {"bufferView": 3, "componentType": 5126, "count": values.len() / if comps == "VEC4" {4} else {3}, "type": comps},
-            {"bufferView": 4, "componentType": 5126, "count": 2, "type": "SCALAR"},
-            {"bufferView": 5, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [times[0]], "max": [*times.last().unwrap()]}
-        ],
-        "animations": [{"name": "move", "channels": [
-            {"sampler": 0, "target": {"node": 0, "path": path}},
-            {"sampler": 1, "target": {"node": 0, "path": "weights"}}
-        ], "samplers": [
-            {"input": 2, "output": 3, "interpolation": interpolation},
-            {"input": 5, "output": 4, "interpolation": "LINEAR"}
-        ]}]
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos}, "targets": [{"POSITION": delta}]}], "weights": [0.0]}],
+        "animations": [{"name": "move", "channels": [{"sampler": 0, "target": {"node": 0, "path": path}}],
+                        "samplers": [{"input": input, "output": output, "interpolation": interpolation}]}]
     });
-    glb(json, &bin)
+    (bin, doc)
 }
 
 fn load(bytes: &[u8], fps: f32) -> Result<Sequence, MeshError> {
-    load_gltf_bytes(bytes, &GltfOptions { frame_rate: fps, weld: false, ..Default::default() })
+    load_gltf_bytes(bytes, &opts(None, fps, false))
+}
+
+fn triangle_x(path_values: &[f32], interpolation: &str, times: &[f32], fps: f32) -> Vec<f32> {
+    let (bin, doc) = animated_triangle("translation", interpolation, times, path_values);
+    let seq = load(&bin.glb(doc), fps).unwrap();
+    // Vertex 0 sits at the origin, so it shows the node's translation.
+    seq.frames.iter().map(|f| f[0].x).collect()
+}
+
+// ------------------------------------------------------------------------------------------------
+// Real files
+// ------------------------------------------------------------------------------------------------
+
+#[test]
+fn fox_is_welded_into_one_connected_skinned_surface() {
+    let Some(path) = data("Fox.glb") else { return };
+    let anims = list_animations(&path).unwrap();
+    let names: Vec<&str> = anims.iter().map(|a| a.name.as_deref().unwrap()).collect();
+    assert_eq!(names, ["Run", "Survey", "Walk"]);
+
+    let rig = RiggedMesh::from_path(&path).unwrap();
+    assert_eq!(rig.vertex_count(), 1728, "every triangle has its own corners before welding");
+    assert_eq!(rig.skins.len(), 1);
+    assert_eq!(rig.skins[0].joints.len(), 24);
+    assert_eq!(rig.instances.len(), 1);
+    for w in &rig.weights {
+        assert!((w.iter().sum::<f32>() - 1.0).abs() < 1e-5, "{w:?}");
+    }
+    assert!(components(1728, &rig.triangles) > 100, "unwelded, the fox is in pieces");
+
+    let seq = load_gltf(&path, &GltfOptions::default()).unwrap();
+    assert_eq!(seq.triangles.len(), 576);
+    assert!(seq.vertex_count() < 1728 / 2, "welded to {} vertices", seq.vertex_count());
+    assert_eq!(components(seq.vertex_count(), &seq.triangles), 1, "welded, the fox is one piece");
+    // The default is the first animation, Run.
+    assert_eq!(seq.frame_count(), (anims[0].duration * 30.0).floor() as usize + 1);
+    assert!(seq.frame_names[0].starts_with("Run@0.000s"), "{}", seq.frame_names[0]);
+    assert!(seq.morph_displacement.is_empty(), "skinned only: no morph weights");
+    // The source map leads back to the authored vertex.
+    let mut welded = rig.clone();
+    welded.weld();
+    assert_eq!(welded.vertex_count(), seq.vertex_count());
+    assert_eq!(welded.source, seq.source);
+    for (v, s) in welded.source.iter().enumerate() {
+        assert_eq!(s.primitive, 0);
+        assert_eq!(welded.positions[v], rig.positions[s.index as usize]);
+        assert_eq!(welded.joints[v], rig.joints[s.index as usize]);
+    }
+    let rest = diag(&rig.pose(None, 0.0));
+    check_animated(&seq, rest);
+
+    // Every animation, by name and by index.
+    for (i, a) in anims.iter().enumerate() {
+        let name = a.name.clone().unwrap();
+        let by_name = load_gltf(&path, &opts(Some(AnimationSelector::Name(name.clone())), 30.0, true)).unwrap();
+        let by_index = load_gltf(&path, &opts(Some(AnimationSelector::Index(i)), 30.0, true)).unwrap();
+        assert_eq!(by_name.frames, by_index.frames, "{name}");
+        assert_eq!(by_name.frame_count(), (a.duration * 30.0).floor() as usize + 1, "{name}");
+        assert!(by_name.frame_names.iter().all(|f| f.starts_with(&format!("{name}@"))));
+        check_animated(&by_name, rest);
+    }
+    let survey = load_gltf(&path, &opts(Some(AnimationSelector::Name("Survey".into())), 30.0, true)).unwrap();
+    assert_ne!(survey.frames[survey.frame_count() / 2], seq.frames[seq.frame_count() / 2]);
+
+    let e = load_gltf(&path, &opts(Some(AnimationSelector::Name("Fly".into())), 30.0, true)).unwrap_err();
+    assert!(matches!(&e, MeshError::NoSuchAnimation { available, .. } if available.len() == 3), "{e}");
+    let msg = e.to_string();
+    assert!(msg.contains("Fly") && msg.contains("Run") && msg.contains("Survey") && msg.contains("Walk"), "{msg}");
+    let e = load_gltf(&path, &opts(Some(AnimationSelector::Index(3)), 30.0, true)).unwrap_err();
+    assert!(matches!(e, MeshError::NoSuchAnimation { .. }), "{e}");
+
+    let unwelded = load_gltf(&path, &opts(None, 30.0, false)).unwrap();
+    assert_eq!(unwelded.vertex_count(), 1728);
+    assert!(unwelded.source.iter().enumerate().all(|(v, s)| s.index as usize == v && s.primitive == 0));
+    // Welding changes no position: each welded vertex moves exactly like its source.
+    for (f, frame) in seq.frames.iter().enumerate() {
+        for (v, s) in seq.source.iter().enumerate() {
+            assert_eq!(frame[v], unwelded.frames[f][s.index as usize], "frame {f} vertex {v}");
+        }
+    }
 }
 
 #[test]
-fn linear_step_and_morph_weights() {
-    let bytes = animated_triangle("translation", "LINEAR", &[0.0, 1.0], &[0.0, 0.0, 0.0, 2.0, 0.0, 0.0], 4, &[]);
-    let seq = load(&bytes, 4.0).unwrap();
-    assert_eq!(seq.frame_count(), 5);
-    // Halfway: translated by 1 in x, morph weight 0.5 lifts vertex 2 by 0.5.
-    assert!((seq.frames[2][0] - Vec3::new(1.0, 0.0, 0.0)).length() < 1e-5, "{:?}", seq.frames[2][0]);
-    assert!((seq.frames[2][2] - Vec3::new(1.0, 1.0, 0.5)).length() < 1e-5, "{:?}", seq.frames[2][2]);
-    let step = load(&animated_triangle("translation", "STEP", &[0.0, 1.0], &[0.0, 0.0, 0.0, 2.0, 0.0, 0.0], 4, &[]), 4.0).unwrap();
-    assert_eq!(step.frames[3][0], Vec3::ZERO);
-    assert_eq!(step.frames[4][0], Vec3::new(2.0, 0.0, 0.0));
+fn robot_merges_nineteen_primitives_of_rigid_skinned_and_morphing_parts() {
+    let Some(path) = data("RobotExpressive.glb") else { return };
+    let rig = RiggedMesh::from_path(&path).unwrap();
+    assert_eq!(rig.primitives.len(), 19);
+    assert_eq!(rig.instances.len(), 14);
+    assert_eq!(rig.instances.iter().filter(|i| i.skin.is_some()).count(), 2, "the hands are skinned");
+    assert_eq!(rig.instances.iter().filter(|i| !i.morph_targets.is_empty()).count(), 1, "the head morphs");
+    assert_eq!(rig.animations.len(), 14);
+
+    let seq = load_gltf(&path, &GltfOptions::default()).unwrap();
+    let prims: BTreeSet<u32> = seq.source.iter().map(|s| s.primitive).collect();
+    assert_eq!(prims, (0..19).collect());
+    // Every source entry is an authored vertex of that primitive, and welding never merges
+    // across primitives of different mesh nodes.
+    let authored: BTreeSet<(u32, u32)> = rig.source.iter().map(|s| (s.primitive, s.index)).collect();
+    for s in &seq.source {
+        assert!(authored.contains(&(s.primitive, s.index)), "{s:?}");
+    }
+    for t in &seq.triangles {
+        let nodes: BTreeSet<usize> =
+            t.iter().map(|&v| rig.primitives[seq.source[v as usize].primitive as usize].node).collect();
+        assert_eq!(nodes.len(), 1, "{t:?}");
+    }
+    // Morph displacement only where the head's targets move vertices.
+    assert_eq!(seq.morph_displacement.len(), seq.vertex_count());
+    let head = rig.instances.iter().find(|i| !i.morph_targets.is_empty()).unwrap().mesh;
+    let mut displaced = 0;
+    for (v, &d) in seq.morph_displacement.iter().enumerate() {
+        assert!(d >= 0.0 && d.is_finite());
+        if d > 0.0 {
+            displaced += 1;
+            assert_eq!(rig.primitives[seq.source[v].primitive as usize].mesh, head, "vertex {v}");
+        }
+    }
+    assert!(displaced > 10, "{displaced} displaced vertices");
+
+    let rest = diag(&rig.pose(None, 0.0));
+    for a in &rig.animations {
+        let label = a.label();
+        let s = load_gltf(&path, &opts(Some(AnimationSelector::Name(label.clone())), 30.0, true)).unwrap();
+        assert_eq!(s.frame_count(), (a.duration * 30.0).floor() as usize + 1, "{label}");
+        assert_eq!(s.vertex_count(), seq.vertex_count());
+        check_animated(&s, rest);
+    }
+
+    // Rigid parts follow their bones: in "No" the head (attached to the Head bone) turns.
+    let no = load_gltf(&path, &opts(Some(AnimationSelector::Name("No".into())), 30.0, true)).unwrap();
+    let head_vertices: Vec<usize> =
+        (0..no.vertex_count()).filter(|&v| rig.primitives[no.source[v].primitive as usize].mesh == head).collect();
+    let max_move = no
+        .frames
+        .iter()
+        .map(|f| head_vertices.iter().map(|&v| (f[v] - no.frames[0][v]).length()).fold(0.0, f32::max))
+        .fold(0.0, f32::max);
+    assert!(max_move > 0.01 * rest, "the head moves by {max_move}");
 }
 
 #[test]
-fn cubic_spline_and_slerp() {
-    // Hermite with zero tangents from 0 to 2: value at u = 0.5 is 1, at u = 0.25 is 2*(3u^2-2u^3) = 0.3125.
-    let values = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, /* key 1 */ 0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0];
-    let seq = load(&animated_triangle("translation", "CUBICSPLINE", &[0.0, 1.0], &values, 4, &[]), 4.0).unwrap();
-    assert!((seq.frames[1][0].x - 0.3125).abs() < 1e-5, "{}", seq.frames[1][0].x);
-    assert!((seq.frames[2][0].x - 1.0).abs() < 1e-5);
-    // Rotation from identity to 180 degrees about z: halfway is 90 degrees.
-    let h = std::f32::consts::FRAC_1_SQRT_2;
-    let rot = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0];
-    let seq = load(&animated_triangle("rotation", "LINEAR", &[0.0, 1.0], &rot, 4, &[]), 2.0).unwrap();
-    assert!((seq.frames[1][1] - Vec3::new(0.0, 1.0, 0.0)).length() < 1e-5, "{:?} ({h})", seq.frames[1][1]);
+fn horse_gallop_hits_each_morph_target_on_its_keyframe() {
+    let Some(path) = data("Horse.glb") else { return };
+    let rig = {
+        let mut r = RiggedMesh::from_path(&path).unwrap();
+        r.weld();
+        r
+    };
+    assert_eq!(rig.instances.len(), 1);
+    let targets = &rig.instances[0].morph_targets;
+    assert_eq!(targets.len(), 15);
+    let anims = list_animations(&path).unwrap();
+    assert_eq!(anims.len(), 1);
+
+    let seq = load_gltf(&path, &GltfOptions::default()).unwrap();
+    assert_eq!(seq.frame_count(), (anims[0].duration * 30.0).floor() as usize + 1);
+    assert_eq!(seq.frame_count(), 46);
+    assert_eq!(seq.vertex_count(), rig.vertex_count());
+    let unwelded = RiggedMesh::from_path(&path).unwrap();
+    assert_eq!(unwelded.vertex_count(), 796);
+    assert!(seq.vertex_count() < 796, "seams welded to {}", seq.vertex_count());
+    check_animated(&seq, diag(&rig.positions));
+    // Keys every 0.1 s put all weight on target k at time k/10, which is frame 3k at 30 fps.
+    let size = diag(&rig.positions);
+    for (k, target) in targets.iter().enumerate() {
+        for (v, p) in seq.frames[3 * k].iter().enumerate() {
+            let want = rig.positions[v] + target[v];
+            assert!(close(*p, want, 1e-5 * size), "target {k} vertex {v}: {p} vs {want}");
+        }
+    }
+    assert_eq!(seq.morph_displacement.len(), seq.vertex_count());
+    for (v, &d) in seq.morph_displacement.iter().enumerate() {
+        let want: f32 = targets.iter().map(|t| t[v].length()).sum();
+        assert!((d - want).abs() <= 1e-5 * want.max(1.0), "vertex {v}");
+    }
+    assert!(seq.morph_displacement.iter().any(|&d| d > 0.0));
 }
 
 #[test]
-fn unsupported_features_are_named() {
-    let e = load(&animated_triangle("translation", "LINEAR", &[0.0, 1.0], &[0.0; 6], 4, &["KHR_draco_mesh_compression"]), 30.0).unwrap_err();
+fn draco_compressed_parrot_is_refused_by_name() {
+    let Some(path) = data("Parrot.glb") else { return };
+    let e = load_gltf(&path, &GltfOptions::default()).unwrap_err();
     assert!(matches!(e, MeshError::Unsupported(_)) && e.to_string().contains("KHR_draco_mesh_compression"), "{e}");
-    let e = load(&animated_triangle("translation", "LINEAR", &[0.0, 1.0], &[0.0; 6], 0, &[]), 30.0).unwrap_err();
-    assert!(e.to_string().contains("Points"), "{e}");
-    assert!(load(b"not a gltf", 30.0).is_err());
-    assert!(load(&[], 30.0).is_err());
+}
+
+// ------------------------------------------------------------------------------------------------
+// Generated files: sampling
+// ------------------------------------------------------------------------------------------------
+
+#[test]
+fn linear_and_step_sampling_clamp_outside_the_keys() {
+    // Keys at 0.5 s (x = 1) and 1.5 s (x = 3), sampled at 4 fps: t = 0, 0.25, ..., 1.5.
+    let x = triangle_x(&[1.0, 0.0, 0.0, 3.0, 0.0, 0.0], "LINEAR", &[0.5, 1.5], 4.0);
+    assert_eq!(x.len(), 7);
+    let want = [1.0, 1.0, 1.0, 1.5, 2.0, 2.5, 3.0];
+    for (got, want) in x.iter().zip(want) {
+        assert!((got - want).abs() < 1e-6, "{x:?}");
+    }
+    let x = triangle_x(&[1.0, 0.0, 0.0, 3.0, 0.0, 0.0], "STEP", &[0.5, 1.5], 4.0);
+    assert_eq!(x, [1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 3.0]);
+}
+
+#[test]
+fn cubic_spline_uses_tangents_scaled_by_the_key_interval() {
+    // Two keys 2 s apart, values 0 and 2; out-tangent of key 0 is 1, in-tangent of key 1 is 0.
+    // p(u) = h10(u) * 2 * 1 + h01(u) * 2: p(0.25) = 0.59375, p(0.5) = 1.25.
+    #[rustfmt::skip]
+    let values = [
+        9.0, 9.0, 9.0,  0.0, 0.0, 0.0,  1.0, 0.0, 0.0, // key 0: in, value, out
+        0.0, 0.0, 0.0,  2.0, 0.0, 0.0,  9.0, 9.0, 9.0, // key 1
+    ];
+    let x = triangle_x(&values, "CUBICSPLINE", &[0.0, 2.0], 2.0);
+    assert_eq!(x.len(), 5);
+    // p(0.75) = h10 * 2 + h01 * 2 with h10 = 0.046875, h01 = 0.84375: 0.09375 + 1.6875.
+    let want = [0.0, 0.59375, 1.25, 1.78125, 2.0];
+    for (got, want) in x.iter().zip(want) {
+        assert!((got - want).abs() < 1e-5, "{x:?}");
+    }
+}
+
+#[test]
+fn rotations_slerp_on_the_short_arc_and_are_normalised() {
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    // 0 to 90 degrees about z, the end written as the negated quaternion: the short way is
+    // still 90 degrees, so halfway is 45 (the long way would pass -135).
+    let (bin, doc) = animated_triangle("rotation", "LINEAR", &[0.0, 1.0], &[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, -s, -s]);
+    let seq = load(&bin.glb(doc), 2.0).unwrap();
+    assert_eq!(seq.frame_count(), 3);
+    let half = Vec3::new(s, s, 0.0);
+    assert!(close(seq.frames[1][1], half, 1e-5), "{}", seq.frames[1][1]);
+    assert!(close(seq.frames[2][1], Vec3::new(0.0, 1.0, 0.0), 1e-5), "{}", seq.frames[2][1]);
+
+    // A cubic spline between the same rotations with zero tangents blends components to a
+    // quaternion of length 0.92 at the middle; normalised, it must not shrink the mesh.
+    #[rustfmt::skip]
+    let values = [
+        0.0, 0.0, 0.0, 0.0,  0.0, 0.0, 0.0, 1.0,  0.0, 0.0, 0.0, 0.0,
+        0.0, 0.0, 0.0, 0.0,  0.0, 0.0, s, s,      0.0, 0.0, 0.0, 0.0,
+    ];
+    let (bin, doc) = animated_triangle("rotation", "CUBICSPLINE", &[0.0, 1.0], &values);
+    let bytes = bin.glb(doc);
+    let seq = load(&bytes, 2.0).unwrap();
+    let mid = seq.frames[1][1];
+    assert!((mid.length() - 1.0).abs() < 1e-5, "{mid}");
+    assert!(close(mid, half, 1e-5), "{mid}");
+    // The public sampler itself returns unit quaternions.
+    let rig = RiggedMesh::from_bytes(&bytes).unwrap();
+    let q = rig.animations[0].channels[0].sample(0.5);
+    let len = q.iter().map(|c| c * c).sum::<f32>().sqrt();
+    assert!((len - 1.0).abs() < 1e-6, "{q:?}");
+    assert!((q[2] - (std::f32::consts::PI / 8.0).sin()).abs() < 1e-5, "{q:?}");
+}
+
+#[test]
+fn frame_count_names_and_rate() {
+    let (bin, doc) = animated_triangle("translation", "LINEAR", &[0.0, 1.0], &[0.0, 0.0, 0.0, 1.0, 0.0, 0.0]);
+    let bytes = bin.glb(doc.clone());
+    let seq = load(&bytes, 30.0).unwrap();
+    assert_eq!(seq.frame_count(), 31);
+    assert_eq!(seq.frame_rate, 30.0);
+    assert_eq!(seq.frame_names[0], "move@0.000s");
+    assert_eq!(seq.frame_names[1], "move@0.033s");
+    assert_eq!(seq.frame_names[30], "move@1.000s");
+    assert_eq!(load(&bytes, 24.0).unwrap().frame_count(), 25);
+    assert_eq!(load(&bytes, 7.0).unwrap().frame_count(), 8);
+    for bad in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+        assert!(load(&bytes, bad).is_err(), "{bad}");
+    }
+    // An unnamed animation is labelled by its index.
+    let mut unnamed = doc;
+    unnamed["animations"][0].as_object_mut().unwrap().remove("name");
+    let seq = load(&bin.glb(unnamed), 2.0).unwrap();
+    assert_eq!(seq.frame_names[1], "0@0.500s");
+    // A huge duration is refused rather than allocated.
+    let (bin, doc) = animated_triangle("translation", "LINEAR", &[0.0, 1e9], &[0.0; 6]);
+    assert!(matches!(load(&bin.glb(doc), 30.0), Err(MeshError::TooLarge { .. })));
+
+    let infos = list_animations_bytes(&bytes).unwrap();
+    assert_eq!(infos.len(), 1);
+    assert_eq!(infos[0].name.as_deref(), Some("move"));
+    assert_eq!(infos[0].duration, 1.0);
+}
+
+#[test]
+fn a_file_without_animation_gives_its_rest_pose() {
+    let mut bin = Bin::default();
+    let pos = bin.f32(&TRIANGLE, "VEC3");
+    let bytes = bin.glb(json!({
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "translation": [0.0, 0.0, 5.0]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos}}]}]
+    }));
+    let seq = load(&bytes, 30.0).unwrap();
+    assert_eq!(seq.frame_count(), 1);
+    assert_eq!(seq.frame_names, ["rest@0.000s"]);
+    assert_eq!(seq.frames[0][1], Vec3::new(1.0, 0.0, 5.0), "a mesh node's transform applies");
+    assert!(seq.morph_displacement.is_empty());
+    let e = load_gltf_bytes(&bytes, &opts(Some(AnimationSelector::Index(0)), 30.0, true)).unwrap_err();
+    assert!(matches!(e, MeshError::NoSuchAnimation { .. }) && e.to_string().contains("none"), "{e}");
+}
+
+// ------------------------------------------------------------------------------------------------
+// Generated files: morphs and skins
+// ------------------------------------------------------------------------------------------------
+
+#[test]
+fn morph_weights_scale_their_deltas() {
+    // Weight 0 -> 1 over one second: at 0.5 s vertex 2 is lifted by half its delta.
+    let (bin, doc) = animated_triangle("weights", "LINEAR", &[0.0, 1.0], &[0.0, 1.0]);
+    let seq = load(&bin.glb(doc.clone()), 2.0).unwrap();
+    assert_eq!(seq.frames[1][2], Vec3::new(0.0, 1.0, 0.5));
+    assert_eq!(seq.frames[2][2], Vec3::new(0.0, 1.0, 1.0));
+    assert_eq!(seq.frames[1][1], Vec3::new(1.0, 0.0, 0.0), "vertices without a delta stay");
+    assert_eq!(seq.morph_displacement, [0.0, 0.0, 1.0]);
+
+    // Two targets blended: weights (0.5, 0.25) give half of one delta and a quarter of the other.
+    let mut bin = Bin::default();
+    let pos = bin.f32(&TRIANGLE, "VEC3");
+    let d0 = bin.f32(&[2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], "VEC3");
+    let d1 = bin.f32(&[0.0, 4.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], "VEC3");
+    let input = bin.f32(&[0.0, 1.0], "SCALAR");
+    let output = bin.f32(&[0.0, 0.0, 1.0, 0.5], "SCALAR");
+    let doc = json!({
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos}, "targets": [{"POSITION": d0}, {"POSITION": d1}]}]}],
+        "animations": [{"channels": [{"sampler": 0, "target": {"node": 0, "path": "weights"}}],
+                        "samplers": [{"input": input, "output": output}]}]
+    });
+    let seq = load(&bin.glb(doc.clone()), 2.0).unwrap();
+    assert_eq!(seq.frames[1][0], Vec3::new(1.0, 1.0, 0.0));
+    assert_eq!(seq.morph_displacement, [6.0, 0.0, 0.0]);
+
+    // Without an animation the node's weights apply, else the mesh's.
+    let mut still = doc;
+    still.as_object_mut().unwrap().remove("animations");
+    still["meshes"][0]["weights"] = json!([0.5, 0.0]);
+    assert_eq!(load(&bin.glb(still.clone()), 30.0).unwrap().frames[0][0], Vec3::new(1.0, 0.0, 0.0));
+    still["nodes"][0]["weights"] = json!([0.0, 0.5]);
+    assert_eq!(load(&bin.glb(still), 30.0).unwrap().frames[0][0], Vec3::new(0.0, 2.0, 0.0));
+}
+
+/// A strip of three quads along x (vertices at x = 0, 1, 2, 3; y = 0 or 0.1) as a TRIANGLE_STRIP,
+/// skinned to joint 0 (root, at the origin) and joint 1 (its child at x = 1). Vertices at x = 1
+/// are split half and half; beyond, they follow joint 1. Joint 1 turns 90 degrees about z over
+/// one second. The skinned node itself is moved by 100 in x (which glTF says to ignore), and a
+/// rigid triangle hangs from joint 1 one unit further along x.
+fn bent_strip() -> (Bin, Value) {
+    let mut bin = Bin::default();
+    let pos: Vec<f32> = (0..8).flat_map(|i| [(i / 2) as f32, (i % 2) as f32 * 0.1, 0.0]).collect();
+    let pos = bin.f32(&pos, "VEC3");
+    let joints: Vec<u16> = (0..8).flat_map(|i| if i / 2 == 0 { [0, 0, 0, 0] } else { [0, 1, 0, 0] }).collect();
+    let joints = bin.u16(&joints, "VEC4");
+    // Normalised u8 weights that do not sum to one (200 alone; 100 + 100): normalised on read.
+    let weights: Vec<u8> = (0..8)
+        .flat_map(|i| match i / 2 {
+            0 => [200, 0, 0, 0],
+            1 => [100, 100, 0, 0],
+            _ => [0, 200, 0, 0],
+        })
+        .collect();
+    let weights = bin.u8(&weights, "VEC4", true);
+    #[rustfmt::skip]
+    let ibm = bin.f32(&[
+        1., 0., 0., 0.,  0., 1., 0., 0.,  0., 0., 1., 0.,  0., 0., 0., 1.,
+        1., 0., 0., 0.,  0., 1., 0., 0.,  0., 0., 1., 0.,  -1., 0., 0., 1.,
+    ], "MAT4");
+    let rigid = bin.f32(&TRIANGLE, "VEC3");
+    let times = bin.f32(&[0.0, 1.0], "SCALAR");
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    let rots = bin.f32(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, s, s], "VEC4");
+    let doc = json!({
+        "scene": 0, "scenes": [{"nodes": [0, 2]}],
+        "nodes": [
+            {"children": [1]},
+            {"translation": [1.0, 0.0, 0.0], "children": [3]},
+            {"mesh": 0, "skin": 0, "translation": [100.0, 0.0, 0.0]},
+            {"mesh": 1, "translation": [1.0, 0.0, 0.0]}
+        ],
+        "skins": [{"joints": [0, 1], "inverseBindMatrices": ibm}],
+        "meshes": [
+            {"primitives": [{"attributes": {"POSITION": pos, "JOINTS_0": joints, "WEIGHTS_0": weights}, "mode": 5}]},
+            {"primitives": [{"attributes": {"POSITION": rigid}}]}
+        ],
+        "animations": [{"channels": [{"sampler": 0, "target": {"node": 1, "path": "rotation"}}],
+                        "samplers": [{"input": times, "output": rots, "interpolation": "LINEAR"}]}]
+    });
+    (bin, doc)
 }
 
 #[test]
 fn two_joint_skin_bends_a_strip() {
-    // A strip of 3 quads along x; joint 1 (child of joint 0, at x = 1) turns 90 degrees about z.
-    let pos: Vec<f32> = (0..8).flat_map(|i| [(i / 2) as f32, (i % 2) as f32 * 0.1, 0.0]).collect();
-    let joints: Vec<u8> = (0..8).flat_map(|i| [if i / 2 >= 2 { 1u8 } else { 0 }, 0, 0, 0]).collect();
-    let weights = f32s(&(0..8).flat_map(|_| [1.0, 0.0, 0.0, 0.0]).collect::<Vec<f32>>());
-    let ibm = f32s(&[1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., /* joint 1 at x=1 */ 1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0., -1., 0., 0., 1.]);
-    let idx: Vec<u8> = [0u16, 2, 1, 1, 2, 3, 2, 4, 3, 3, 4, 5, 4, 6, 5, 5, 6, 7].iter().flat_map(|i| i.to_le_bytes()).collect();
-    let times = f32s(&[0.0, 1.0]);
-    let h = std::f32::consts::FRAC_1_SQRT_2;
-    let rots = f32s(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, h, h]);
-    let mut bin = f32s(&pos);
-    let offs: Vec<usize> = [&joints[..], &weights, &ibm, &idx, &times, &rots]
-        .iter()
-        .map(|part| {
-            while !bin.len().is_multiple_of(4) {
-                bin.push(0);
-            }
-            let o = bin.len();
-            bin.extend_from_slice(part);
-            o
-        })
-        .collect();
-    let json = serde_json::json!({
-        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 2]}],
-        "nodes": [{"children": [1]}, {"translation": [1.0, 0.0, 0.0]}, {"mesh": 0, "skin": 0}],
-        "skins": [{"joints": [0, 1], "inverseBindMatrices": 3}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "JOINTS_0": 1, "WEIGHTS_0": 2}, "indices": 4}]}],
-        "buffers": [{"byteLength": bin.len()}],
-        "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": 96},
-            {"buffer": 0, "byteOffset": offs[0], "byteLength": 32},
-            {"buffer": 0, "byteOffset": offs[1], "byteLength": 128},
-            {"buffer": 0, "byteOffset": offs[2], "byteLength": 128},
-            {"buffer": 0, "byteOffset": offs[3], "byteLength": 36},
-            {"buffer": 0, "byteOffset": offs[4], "byteLength": 8},
-            {"buffer": 0, "byteOffset": offs[5], "byteLength": 32}
-        ],
-        "accessors": [
-            {"bufferView": 0, "componentType": 5126, "count": 8, "type": "VEC3", "min": [0,0,0], "max": [3,0.1,0]},
-            {"bufferView": 1, "componentType": 5121, "count": 8, "type": "VEC4"},
-            {"bufferView": 2, "componentType": 5126, "count": 8, "type": "VEC4"},
-            {"bufferView": 3, "componentType": 5126, "count": 2, "type": "MAT4"},
-            {"bufferView": 4, "componentType": 5123, "count": 18, "type": "SCALAR"},
-            {"bufferView": 5, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [0.0], "max": [1.0]},
-            {"bufferView": 6, "componentType": 5126, "count": 2, "type": "VEC4"}
-        ],
-        "animations": [{"channels": [{"sampler": 0, "target": {"node": 1, "path": "rotation"}}],
-                        "samplers": [{"input": 5, "output": 6, "interpolation": "LINEAR"}]}]
-    });
-    let seq = load(&glb(json, &bin), 1.0).unwrap();
+    let (bin, doc) = bent_strip();
+    let seq = load(&bin.glb(doc), 1.0).unwrap();
     assert_eq!(seq.frame_count(), 2);
-    // Rest: vertex 6 at (3, 0, 0). Bent: joint 1 turned 90 degrees at x = 1: (1, 2, 0).
-    assert!((seq.frames[0][6] - Vec3::new(3.0, 0.0, 0.0)).length() < 1e-5, "{:?}", seq.frames[0][6]);
-    assert!((seq.frames[1][6] - Vec3::new(1.0, 2.0, 0.0)).length() < 1e-4, "{:?}", seq.frames[1][6]);
-    // Joint-0 vertices do not move.
-    assert_eq!(seq.frames[1][0], seq.frames[0][0]);
+    // Depth first from the scene's nodes [0, 2]: node 0, its child 1, its child 3 (the rigid
+    // triangle, primitive 0), then node 2 (the strip, primitive 1).
+    let prims: Vec<u32> = seq.source.iter().map(|s| s.primitive).collect();
+    assert_eq!(prims, [0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1]);
+    assert_eq!(seq.triangles.len(), 1 + 6);
+    let strip = |k: usize| 3 + k;
+    let (rest, bent) = (&seq.frames[0], &seq.frames[1]);
+    // Rest pose: the mesh node's own translation by 100 is ignored.
+    assert!(close(rest[strip(6)], Vec3::new(3.0, 0.0, 0.0), 1e-5), "{}", rest[strip(6)]);
+    assert!(close(rest[strip(3)], Vec3::new(1.0, 0.1, 0.0), 1e-5), "{}", rest[strip(3)]);
+    // Bent: joint 1 turned 90 degrees at x = 1.
+    assert!(close(bent[strip(6)], Vec3::new(1.0, 2.0, 0.0), 1e-5), "{}", bent[strip(6)]);
+    assert!(close(bent[strip(4)], Vec3::new(1.0, 1.0, 0.0), 1e-5), "{}", bent[strip(4)]);
+    // Half and half: the average of (1, 0.1) unmoved and (0.9, 0) turned.
+    assert!(close(bent[strip(3)], Vec3::new(0.95, 0.05, 0.0), 1e-5), "{}", bent[strip(3)]);
+    assert_eq!(bent[strip(0)], rest[strip(0)], "joint-0 vertices do not move");
+    assert_eq!(bent[strip(1)], rest[strip(1)]);
+    // The rigid triangle hangs from joint 1: at x = 2 at rest, at (1, 1) once turned.
+    assert!(close(rest[0], Vec3::new(2.0, 0.0, 0.0), 1e-5), "{}", rest[0]);
+    assert!(close(bent[0], Vec3::new(1.0, 1.0, 0.0), 1e-5), "{}", bent[0]);
+    assert!(close(bent[1], Vec3::new(1.0, 2.0, 0.0), 1e-5), "{}", bent[1]);
+    // The strip's triangles all face the same way.
+    let normal_z = |t: &[u32; 3]| {
+        let [a, b, c] = t.map(|i| rest[i as usize]);
+        (b - a).cross(c - a).z
+    };
+    let signs: BTreeSet<bool> = seq.triangles[1..].iter().map(|t| normal_z(t) > 0.0).collect();
+    assert_eq!(signs.len(), 1, "strip winding alternates correctly");
+    // The rig keeps joints and normalised weights for a writer.
+    let rig = RiggedMesh::from_bytes(&bin.glb(bent_strip().1)).unwrap();
+    assert_eq!(rig.instances.len(), 2);
+    assert_eq!(rig.instances[1].skin, Some(0));
+    assert_eq!(rig.instances[1].vertices, 3..11);
+    assert_eq!(rig.joints[strip(3)], [0, 1, 0, 0]);
+    assert_eq!(rig.weights[strip(3)], [0.5, 0.5, 0.0, 0.0]);
+    assert_eq!(rig.weights[strip(6)], [1.0, 0.0, 0.0, 0.0]);
+    assert_eq!(rig.joints[strip(6)], [1, 0, 0, 0], "zero-weight slots are dropped");
+    assert_eq!(rig.weights[0], [0.0; 4], "unskinned vertices carry no weights");
+    assert_eq!(rig.pose(None, 0.0), seq.frames[0]);
+    assert_eq!(rig.pose(Some(&rig.animations[0]), 1.0), seq.frames[1]);
+}
+
+#[test]
+fn quantized_positions_are_decoded() {
+    // KHR_mesh_quantization: normalised i16 positions, scaled back by the node.
+    let mut bin = Bin::default();
+    let pos = bin.i16_normalized(&[0, 0, 0, 32767, 0, 0, 0, -32767, 0, 0, 0, 0], "VEC3");
+    let idx = bin.u16(&[0, 1, 2], "SCALAR");
+    let bytes = bin.glb(json!({
+        "extensionsUsed": ["KHR_mesh_quantization"], "extensionsRequired": ["KHR_mesh_quantization"],
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "scale": [2.0, 2.0, 2.0]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos}, "indices": idx}]}]
+    }));
+    let seq = load(&bytes, 30.0).unwrap();
+    assert_eq!(seq.vertex_count(), 3, "the unused fourth vertex is dropped");
+    assert_eq!(seq.frames[0], [Vec3::ZERO, Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, -2.0, 0.0)]);
+}
+
+// ------------------------------------------------------------------------------------------------
+// Generated files: topology and welding
+// ------------------------------------------------------------------------------------------------
+
+#[test]
+fn fans_become_consistently_wound_triangles() {
+    // A fan around the origin over five rim points, counter-clockwise seen from +z.
+    let mut pts = vec![0.0, 0.0, 0.0];
+    for i in 0..5 {
+        let a = i as f32 * 0.5;
+        pts.extend([a.cos(), a.sin(), 0.0]);
+    }
+    let mut bin = Bin::default();
+    let pos = bin.f32(&pts, "VEC3");
+    let bytes = bin.glb(json!({
+        "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos}, "mode": 6}]}]
+    }));
+    let seq = load(&bytes, 30.0).unwrap();
+    assert_eq!(seq.triangles.len(), 4);
+    for t in &seq.triangles {
+        assert!(t.contains(&0), "{t:?} pivots on vertex 0");
+        let [a, b, c] = t.map(|i| seq.frames[0][i as usize]);
+        assert!((b - a).cross(c - a).z > 0.0, "{t:?} keeps the counter-clockwise winding");
+    }
+}
+
+/// Three triangles written unindexed (nine vertices, four distinct points A B C D): ABC, CBD and
+/// the sliver A B A', which repeats A once welded. `delta_on` puts a morph delta on one vertex.
+fn loose_quad(delta_on: Option<usize>) -> Vec<u8> {
+    let (a, b, c, d) = ([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]);
+    let pts: Vec<f32> = [a, b, c, c, b, d, a, b, a].concat();
+    let mut bin = Bin::default();
+    let pos = bin.f32(&pts, "VEC3");
+    let mut prim = json!({"attributes": {"POSITION": pos}});
+    if let Some(v) = delta_on {
+        let mut deltas = vec![0.0f32; 27];
+        deltas[3 * v + 2] = 1.0;
+        prim["targets"] = json!([{"POSITION": bin.f32(&deltas, "VEC3")}]);
+    }
+    bin.glb(json!({"scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}], "meshes": [{"primitives": [prim]}]}))
+}
+
+#[test]
+fn welding_joins_seams_keeps_order_and_drops_slivers() {
+    let bytes = loose_quad(None);
+    let raw = load_gltf_bytes(&bytes, &opts(None, 30.0, false)).unwrap();
+    assert_eq!(raw.vertex_count(), 9);
+    assert_eq!(raw.triangles.len(), 3);
+    let welded = load_gltf_bytes(&bytes, &GltfOptions::default()).unwrap();
+    assert_eq!(welded.vertex_count(), 4);
+    assert_eq!(welded.triangles, [[0, 1, 2], [2, 1, 3]], "first occurrences in order; the sliver is gone");
+    let first: Vec<u32> = welded.source.iter().map(|s| s.index).collect();
+    assert_eq!(first, [0, 1, 2, 5]);
+    assert_eq!(components(welded.vertex_count(), &welded.triangles), 1);
+
+    // A copy of C that morphs differently is not the same vertex.
+    let bytes = loose_quad(Some(3));
+    let welded = load_gltf_bytes(&bytes, &GltfOptions::default()).unwrap();
+    assert_eq!(welded.vertex_count(), 5);
+    assert_eq!(welded.triangles.len(), 2);
+    assert_eq!(welded.morph_displacement.iter().filter(|&&d| d > 0.0).count(), 1);
+}
+
+#[test]
+fn meshes_sharing_a_skin_weld_along_their_seam() {
+    // Two skinned nodes, one triangle each, sharing an edge and the skin: one surface.
+    let mut bin = Bin::default();
+    let left = bin.f32(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], "VEC3");
+    let right = bin.f32(&[0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0], "VEC3");
+    let joints = bin.u8(&[0; 12], "VEC4", false);
+    let weights = bin.f32(&[1.0, 0.0, 0.0, 0.0].repeat(3), "VEC4");
+    let prim = |pos: usize| json!({"attributes": {"POSITION": pos, "JOINTS_0": joints, "WEIGHTS_0": weights}});
+    let bytes = bin.glb(json!({
+        "scenes": [{"nodes": [0, 1, 2]}],
+        "nodes": [{"translation": [0.0, 0.0, 1.0]}, {"mesh": 0, "skin": 0}, {"mesh": 1, "skin": 0}],
+        "skins": [{"joints": [0]}],
+        "meshes": [{"primitives": [prim(left)]}, {"primitives": [prim(right)]}]
+    }));
+    let seq = load_gltf_bytes(&bytes, &GltfOptions::default()).unwrap();
+    assert_eq!(seq.vertex_count(), 4);
+    assert_eq!(components(4, &seq.triangles), 1);
+    assert_eq!(seq.frames[0][3], Vec3::new(1.0, 1.0, 1.0), "posed by the joint");
+    let prims: Vec<u32> = seq.source.iter().map(|s| s.primitive).collect();
+    assert_eq!(prims, [0, 0, 0, 1]);
+}
+
+// ------------------------------------------------------------------------------------------------
+// Generated files: containers and errors
+// ------------------------------------------------------------------------------------------------
+
+#[test]
+fn gltf_json_with_embedded_or_external_buffers() {
+    let (bin, doc) = animated_triangle("translation", "LINEAR", &[0.0, 1.0], &[0.0, 0.0, 0.0, 2.0, 0.0, 0.0]);
+    let from_glb = load(&bin.glb(doc.clone()), 4.0).unwrap();
+
+    let mut embedded = bin.document(doc.clone());
+    embedded["buffers"][0]["uri"] = json!(format!("data:application/octet-stream;base64,{}", base64(&bin.bytes)));
+    let from_json = load(&serde_json::to_vec(&embedded).unwrap(), 4.0).unwrap();
+    assert_eq!(from_json.frames, from_glb.frames);
+
+    let mut external = bin.document(doc);
+    external["buffers"][0]["uri"] = json!("tri%20data.bin");
+    let json_bytes = serde_json::to_vec(&external).unwrap();
+    let e = load(&json_bytes, 4.0).unwrap_err();
+    assert!(e.to_string().contains("path") && e.to_string().contains("tri%20data.bin"), "{e}");
+
+    let dir = std::env::temp_dir().join(format!("pmcodec-gltf-input-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("tri data.bin"), &bin.bytes).unwrap();
+    std::fs::write(dir.join("tri.gltf"), &json_bytes).unwrap();
+    let from_path = load_gltf(&dir.join("tri.gltf"), &opts(None, 4.0, false)).unwrap();
+    assert_eq!(from_path.frames, from_glb.frames);
+    // A buffer outside the file's folder is not read.
+    external["buffers"][0]["uri"] = json!("../tri.bin");
+    std::fs::write(dir.join("escape.gltf"), serde_json::to_vec(&external).unwrap()).unwrap();
+    let e = load_gltf(&dir.join("escape.gltf"), &GltfOptions::default()).unwrap_err();
+    assert!(matches!(e, MeshError::Unsupported(_)), "{e}");
+    external["buffers"][0]["uri"] = json!("%ff%fe.bin");
+    std::fs::write(dir.join("bad.gltf"), serde_json::to_vec(&external).unwrap()).unwrap();
+    assert!(load_gltf(&dir.join("bad.gltf"), &GltfOptions::default()).is_err());
+    let e = load_gltf(&dir.join("missing.glb"), &GltfOptions::default()).unwrap_err();
+    assert!(matches!(e, MeshError::Io { .. }), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn unsupported_features_are_named() {
+    let (bin, doc) = animated_triangle("translation", "LINEAR", &[0.0, 1.0], &[0.0; 6]);
+    let with = |f: &dyn Fn(&mut Value)| {
+        let mut d = bin.document(doc.clone());
+        f(&mut d);
+        load(&glb(&d, &bin.bytes), 30.0)
+    };
+    let e = with(&|d| d["extensionsRequired"] = json!(["KHR_draco_mesh_compression", "EXT_meshopt_compression"]))
+        .unwrap_err();
+    assert!(matches!(e, MeshError::Unsupported(_)), "{e}");
+    assert!(
+        e.to_string().contains("KHR_draco_mesh_compression") && e.to_string().contains("EXT_meshopt_compression"),
+        "{e}"
+    );
+    // Extensions that only touch materials or textures do not stop the geometry being read.
+    with(&|d| d["extensionsRequired"] = json!(["KHR_texture_transform", "KHR_materials_unlit"])).unwrap();
+    for (mode, name) in [(0, "POINTS"), (1, "LINES"), (2, "LINE_LOOP"), (3, "LINE_STRIP")] {
+        let e = with(&|d| d["meshes"][0]["primitives"][0]["mode"] = json!(mode)).unwrap_err();
+        assert!(matches!(e, MeshError::Unsupported(_)) && e.to_string().contains(name), "{e}");
+    }
+    let e = with(&|d| d["asset"] = json!({"version": "1.0"})).unwrap_err();
+    assert!(matches!(e, MeshError::Unsupported(_)) && e.to_string().contains("1.0"), "{e}");
+}
+
+#[test]
+fn broken_files_give_errors_that_say_what_is_wrong() {
+    let (bin, doc) = bent_strip();
+    let with = |f: &dyn Fn(&mut Value)| {
+        let mut d = bin.document(doc.clone());
+        f(&mut d);
+        load(&glb(&d, &bin.bytes), 30.0)
+    };
+    let expect = |result: Result<Sequence, MeshError>, words: &[&str]| {
+        let e = result.expect_err("should fail").to_string();
+        for w in words {
+            assert!(e.contains(w), "{e:?} lacks {w:?}");
+        }
+    };
+    with(&|_| {}).unwrap();
+    expect(with(&|d| d["meshes"][1]["primitives"][0]["attributes"] = json!({})), &["no POSITION"]);
+    expect(with(&|d| d["accessors"][0]["count"] = json!(80)), &["accessor 0", "past the end"]);
+    expect(with(&|d| d["accessors"][0]["byteOffset"] = json!(400)), &["accessor 0"]);
+    expect(with(&|d| d["bufferViews"][0]["byteLength"] = json!(100000)), &["bufferView 0", "outside buffer"]);
+    expect(with(&|d| d["bufferViews"][0]["byteStride"] = json!(4)), &["byteStride"]);
+    expect(with(&|d| d["accessors"][1]["componentType"] = json!(5126)), &["JOINTS_0"]);
+    expect(with(&|d| d["animations"][0]["channels"][0]["target"]["node"] = json!(99)), &["node 99"]);
+    expect(with(&|d| d["animations"][0]["channels"][0]["sampler"] = json!(7)), &["sampler 7"]);
+    expect(with(&|d| d["nodes"][1]["children"] = json!([0])), &["cycle"]);
+    expect(with(&|d| d["nodes"][2]["children"] = json!([3])), &["child of both"]);
+    expect(with(&|d| d["nodes"][2]["skin"] = json!(4)), &["skin 4"]);
+    expect(with(&|d| d["nodes"][3]["mesh"] = json!(9)), &["mesh 9"]);
+    expect(with(&|d| d["skins"][0]["joints"] = json!([0])), &["joint 1"]);
+    // Finite but huge transforms overflow while posing: reported by validation, not hidden.
+    let e = with(&|d| d["nodes"][1]["scale"] = json!([3e38, 3e38, 3e38])).unwrap_err();
+    assert!(matches!(e, MeshError::NonFinite { .. }), "{e}");
+
+    // Index out of range, NaN position: a triangle file with indices.
+    let mut tri = Bin::default();
+    let pos = tri.f32(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, f32::NAN, 0.0, 5.0, 5.0, 5.0], "VEC3");
+    let idx = tri.u16(&[0, 1, 2, 0, 1, 7], "SCALAR");
+    let bad_index = tri.glb(json!({"scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos}, "indices": idx}]}]}));
+    expect(load(&bad_index, 30.0), &["index 7", "out of range"]);
+    let mut tri = Bin::default();
+    let pos = tri.f32(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, f32::NAN, 0.0], "VEC3");
+    let nan = tri.glb(json!({"scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos}}]}]}));
+    expect(load(&nan, 30.0), &["primitive 0 vertex 2", "finite"]);
+    let mut tri = Bin::default();
+    let pos = tri.f32(&TRIANGLE, "VEC3");
+    let idx = tri.f32(&[0.0, 1.0, 2.0], "SCALAR");
+    let float_indices = tri.glb(json!({"scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos}, "indices": idx}]}]}));
+    expect(load(&float_indices, 30.0), &["indices"]);
+
+    // An empty accessor is an empty mesh, not an underflow.
+    let mut empty = bin.document(doc.clone());
+    empty["accessors"][0]["count"] = json!(0);
+    empty["accessors"][4]["count"] = json!(0);
+    assert!(load(&glb(&empty, &bin.bytes), 30.0).is_err());
+    assert!(load(b"not a gltf", 30.0).is_err());
+    assert!(load(&[], 30.0).is_err());
+    assert!(load(b"glTF", 30.0).is_err());
+}
+
+#[test]
+fn sparse_accessors_substitute_values() {
+    // Morph deltas given sparsely: only vertex 2 moves, by +1 in z.
+    let mut bin = Bin::default();
+    let pos = bin.f32(&TRIANGLE, "VEC3");
+    let sparse_indices = bin.u16(&[2], "SCALAR");
+    let sparse_values = bin.f32(&[0.0, 0.0, 1.0], "VEC3");
+    let sparse_target = json!({"componentType": 5126, "count": 3, "type": "VEC3", "sparse": {
+        "count": 1,
+        "indices": {"bufferView": bin.accessors[sparse_indices]["bufferView"], "componentType": 5123},
+        "values": {"bufferView": bin.accessors[sparse_values]["bufferView"]}
+    }});
+    bin.accessors.push(sparse_target);
+    let target = bin.accessors.len() - 1;
+    let doc = json!({
+        "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0, "weights": [1.0]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos}, "targets": [{"POSITION": target}]}]}]
+    });
+    let seq = load(&bin.glb(doc.clone()), 30.0).unwrap();
+    assert_eq!(seq.frames[0][2], Vec3::new(0.0, 1.0, 1.0));
+    assert_eq!(seq.frames[0][1], Vec3::new(1.0, 0.0, 0.0));
+    // A sparse index beyond the accessor is an error.
+    let bad = bin.document(doc);
+    let view = bin.accessors[sparse_indices]["bufferView"].as_u64().unwrap() as usize;
+    let mut bytes = bin.bytes.clone();
+    let at = bin.views[view]["byteOffset"].as_u64().unwrap() as usize;
+    bytes[at] = 9;
+    let e = load(&glb(&bad, &bytes), 30.0).unwrap_err();
+    assert!(e.to_string().contains("sparse index 9"), "{e}");
+    // More sparse values than elements is an error too.
+    let mut bad = bad;
+    bad["accessors"][target]["sparse"]["count"] = json!(4);
+    let e = load(&glb(&bad, &bin.bytes), 30.0).unwrap_err();
+    assert!(e.to_string().contains("4 sparse values for 3 elements"), "{e}");
+}
+
+#[test]
+fn oversized_requests_are_refused_or_handled_in_linear_time() {
+    // 200 000 empty morph targets on a 1000-vertex mesh would expand to 2e8 deltas: refused
+    // before anything that size is allocated.
+    let mut bin = Bin::default();
+    let pts: Vec<f32> = (0..3000).map(|i| i as f32).collect();
+    let pos = bin.f32(&pts, "VEC3");
+    let targets = vec![json!({}); 200_000];
+    let bytes = bin.glb(json!({"scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos}, "targets": targets}]}]}));
+    let start = std::time::Instant::now();
+    assert!(matches!(load(&bytes, 30.0), Err(MeshError::TooLarge { .. })));
+    // An accessor without a bufferView may not claim billions of (zero) elements.
+    let mut doc = bin.document(json!({"scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos}}]}]}));
+    doc["accessors"][0] = json!({"componentType": 5126, "count": 4_000_000_000u64, "type": "VEC3"});
+    assert!(matches!(load(&glb(&doc, &bin.bytes), 30.0), Err(MeshError::TooLarge { .. })));
+
+    // A chain of 100 000 nodes with the mesh at the bottom: fine, and not quadratic.
+    let mut tri = Bin::default();
+    let pos = tri.f32(&TRIANGLE, "VEC3");
+    let depth = 100_000;
+    let mut nodes: Vec<Value> = (1..depth).map(|i| json!({"children": [i]})).collect();
+    nodes.push(json!({"mesh": 0, "translation": [1.0, 0.0, 0.0]}));
+    let chain = tri.glb(json!({"scenes": [{"nodes": [0]}], "nodes": nodes,
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos}}]}]}));
+    let seq = load(&chain, 30.0).unwrap();
+    assert_eq!(seq.frames[0][0], Vec3::new(1.0, 0.0, 0.0));
+    // The same chain closed into a loop is a cycle, reported as such.
+    let mut doc: Value = tri.document(json!({"scenes": [{"nodes": [0]}], "nodes": [], "meshes": [
+        {"primitives": [{"attributes": {"POSITION": pos}}]}]}));
+    let mut nodes: Vec<Value> = (1..depth).map(|i| json!({"children": [i]})).collect();
+    nodes.push(json!({"mesh": 0, "children": [0]}));
+    doc["nodes"] = Value::Array(nodes);
+    let e = load(&glb(&doc, &tri.bytes), 30.0).unwrap_err();
+    assert!(e.to_string().contains("cycle"), "{e}");
+    assert!(start.elapsed().as_secs() < 20, "took {:?}", start.elapsed());
+}
+
+#[test]
+fn corrupted_bytes_never_panic() {
+    // Every truncation and every flipped byte of a small skinned, animated GLB either loads or
+    // gives an error; none may panic.
+    let (bin, doc) = bent_strip();
+    let bytes = bin.glb(doc);
+    for cut in (0..bytes.len()).step_by(7) {
+        let _ = load(&bytes[..cut], 30.0);
+    }
+    for at in 0..bytes.len() {
+        for flip in [0xFF, 0x01, 0x80] {
+            let mut b = bytes.clone();
+            b[at] ^= flip;
+            let _ = load_gltf_bytes(&b, &GltfOptions { frame_rate: 5.0, ..Default::default() });
+        }
+    }
+    // The GLB length field itself smaller than the header.
+    let mut b = bytes.clone();
+    b[8..12].copy_from_slice(&4u32.to_le_bytes());
+    assert!(load(&b, 30.0).is_err());
 }
