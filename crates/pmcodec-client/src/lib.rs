@@ -1,0 +1,301 @@
+//! A client for the pmcodec HTTP API (proto/http.md): list assets, fetch a LOD on demand, and
+//! play an asset as a [`Session`] that streams the container with range requests, reading only
+//! the bands its triangle budget needs and prefetching frames ahead of the playhead, and hands
+//! out ready-to-draw vertex and index buffers per frame.
+
+use pmcodec_container::{ByteSource, ChunkEntry, ChunkKind, ContainerError, Decoder, MeshTarget, Reader};
+use pmcodec_mesh::TriMesh;
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+#[derive(Debug, thiserror::Error)]
+pub enum ClientError {
+    #[error("HTTP: {0}")]
+    Http(#[from] reqwest::Error),
+    #[error("{url}: HTTP {status}: {detail}")]
+    Status { url: String, status: u16, detail: String },
+    #[error("container: {0}")]
+    Container(#[from] ContainerError),
+    #[error("{0}")]
+    Protocol(String),
+}
+
+/// One asset as listed by `GET /v1/assets`.
+#[derive(Clone, Debug, Deserialize)]
+pub struct AssetSummary {
+    pub id: String,
+    pub frames: u32,
+    pub frame_rate: f32,
+    pub vertices: u32,
+    pub triangles: u32,
+    pub levels: Vec<u32>,
+    pub bytes: u64,
+    /// Immutable URL of the container, relative to the server.
+    pub file: String,
+}
+
+/// `GET /v1/assets/{id}`.
+#[derive(Clone, Debug, Deserialize)]
+pub struct AssetInfo {
+    #[serde(flatten)]
+    pub summary: AssetSummary,
+    pub triangles_per_level: Vec<usize>,
+    pub bytes_per_frame_to_level: Vec<f64>,
+}
+
+/// A connection to one server.
+#[derive(Clone, Debug)]
+pub struct Client {
+    http: reqwest::Client,
+    base: String,
+}
+
+impl Client {
+    /// `base` is the server's root, e.g. `http://127.0.0.1:8080`.
+    pub fn new(base: &str) -> Result<Self, ClientError> {
+        let http = reqwest::Client::builder().timeout(Duration::from_secs(60)).build()?;
+        Ok(Client { http, base: base.trim_end_matches('/').to_string() })
+    }
+
+    async fn get(&self, path: &str, range: Option<(u64, u64)>) -> Result<reqwest::Response, ClientError> {
+        let url = format!("{}{path}", self.base);
+        let mut req = self.http.get(&url);
+        if let Some((start, end)) = range {
+            req = req.header("Range", format!("bytes={start}-{end}"));
+        }
+        let resp = req.send().await?;
+        if !resp.status().is_success() {
+            let status = resp.status().as_u16();
+            let detail = resp.text().await.unwrap_or_default();
+            return Err(ClientError::Status { url, status, detail });
+        }
+        Ok(resp)
+    }
+
+    pub async fn assets(&self) -> Result<Vec<AssetSummary>, ClientError> {
+        #[derive(Deserialize)]
+        struct List {
+            assets: Vec<AssetSummary>,
+        }
+        Ok(self.get("/v1/assets", None).await?.json::<List>().await?.assets)
+    }
+
+    pub async fn asset(&self, id: &str) -> Result<AssetInfo, ClientError> {
+        Ok(self.get(&format!("/v1/assets/{id}"), None).await?.json().await?)
+    }
+
+    /// LOD on demand: frame `frame` cut by the server (compact binary format).
+    pub async fn mesh(&self, id: &str, frame: u32, target: MeshTarget) -> Result<TriMesh, ClientError> {
+        let q = match target {
+            MeshTarget::Triangles(n) => format!("triangles={n}"),
+            MeshTarget::Level(l) => format!("level={l}"),
+            MeshTarget::MaxError(e) => format!("max_error={e}"),
+            MeshTarget::Vertices(_) => return Err(ClientError::Protocol("the server cuts by triangles, level or error".into())),
+        };
+        let bytes = self.get(&format!("/v1/assets/{id}/mesh?frame={frame}&{q}&format=bin"), None).await?.bytes().await?;
+        parse_bin_mesh(&bytes)
+    }
+
+    /// Opens a playback session at a triangle budget.
+    pub async fn session(&self, id: &str, triangles: u32) -> Result<Session, ClientError> {
+        Session::open(self.clone(), self.asset(id).await?, triangles).await
+    }
+}
+
+/// Parses the compact binary mesh of proto/http.md.
+pub fn parse_bin_mesh(b: &[u8]) -> Result<TriMesh, ClientError> {
+    let bad = |m: &str| ClientError::Protocol(format!("binary mesh: {m}"));
+    if b.len() < 16 || &b[..4] != b"PMCM" {
+        return Err(bad("bad magic"));
+    }
+    let u = |i: usize| u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
+    let (v, t) = (u(8) as usize, u(12) as usize);
+    if b.len() != 16 + 12 * v + 12 * t {
+        return Err(bad("length does not match its counts"));
+    }
+    let f = |i: usize| f32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
+    let positions = (0..v).map(|i| glam::Vec3::new(f(16 + 12 * i), f(20 + 12 * i), f(24 + 12 * i))).collect();
+    let base = 16 + 12 * v;
+    let triangles: Vec<[u32; 3]> = (0..t).map(|i| [u(base + 12 * i), u(base + 12 * i + 4), u(base + 12 * i + 8)]).collect();
+    if triangles.iter().flatten().any(|&i| i as usize >= v) {
+        return Err(bad("index out of range"));
+    }
+    Ok(TriMesh { positions, triangles })
+}
+
+/// The byte ranges fetched so far: a [`ByteSource`] that serves what was prefetched and
+/// reports anything else as missing (the session fetches before it decodes).
+#[derive(Debug, Default)]
+pub struct Prefetched {
+    len: u64,
+    ranges: Mutex<BTreeMap<u64, Vec<u8>>>,
+}
+
+impl Prefetched {
+    fn has(&self, offset: u64, len: u64) -> bool {
+        let ranges = self.ranges.lock().unwrap_or_else(|e| e.into_inner());
+        ranges.range(..=offset).next_back().is_some_and(|(&s, b)| s + b.len() as u64 >= offset + len)
+    }
+
+    fn insert(&self, offset: u64, bytes: Vec<u8>) {
+        self.ranges.lock().unwrap_or_else(|e| e.into_inner()).insert(offset, bytes);
+    }
+}
+
+impl ByteSource for Prefetched {
+    fn len(&self) -> Result<u64, ContainerError> {
+        Ok(self.len)
+    }
+    fn read_at(&self, offset: u64, len: usize) -> Result<Vec<u8>, ContainerError> {
+        let ranges = self.ranges.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((&s, b)) = ranges.range(..=offset).next_back() {
+            let (i, end) = ((offset - s) as usize, (offset - s) as usize + len);
+            if end <= b.len() {
+                return Ok(b[i..end].to_vec());
+            }
+        }
+        Err(ContainerError::Io(format!("bytes {offset}..{} were not fetched", offset + len as u64)))
+    }
+}
+
+/// A shared handle on the fetched bytes: the session fetches into it, the decoder reads it.
+#[derive(Clone, Debug, Default)]
+pub struct SharedBytes(Arc<Prefetched>);
+
+impl ByteSource for SharedBytes {
+    fn len(&self) -> Result<u64, ContainerError> {
+        self.0.len()
+    }
+    fn read_at(&self, offset: u64, len: usize) -> Result<Vec<u8>, ContainerError> {
+        self.0.read_at(offset, len)
+    }
+}
+
+/// One frame, ready to draw.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    pub frame: u32,
+    pub mesh: TriMesh,
+    /// Bytes downloaded by the session so far.
+    pub bytes_downloaded: u64,
+    /// Time to apply the frame's deltas and cut it (network excluded).
+    pub decode_time: Duration,
+}
+
+/// Streaming playback of one asset at a triangle budget.
+pub struct Session {
+    client: Client,
+    pub info: AssetInfo,
+    source: SharedBytes,
+    decoder: Decoder<SharedBytes>,
+    budget: u32,
+    /// Frames fetched ahead of the one being decoded.
+    pub ahead: u32,
+    bytes_downloaded: u64,
+}
+
+/// The coarsest level whose whole mesh still has at least `budget` triangles.
+fn level_for(info: &AssetInfo, budget: u32) -> usize {
+    info.triangles_per_level.iter().rposition(|&t| t >= budget as usize).unwrap_or(0)
+}
+
+impl Session {
+    async fn open(client: Client, info: AssetInfo, budget: u32) -> Result<Self, ClientError> {
+        let source = SharedBytes(Arc::new(Prefetched { len: info.summary.bytes, ..Default::default() }));
+        let mut downloaded = 0;
+        // Preamble, then header and index (their lengths are in the preamble).
+        let pre = client.get(&info.summary.file, Some((0, 31))).await?.bytes().await?.to_vec();
+        if pre.len() < 32 {
+            return Err(ClientError::Protocol("short preamble".into()));
+        }
+        let tables = 32 + u32::from_le_bytes([pre[12], pre[13], pre[14], pre[15]]) as u64 + u32::from_le_bytes([pre[16], pre[17], pre[18], pre[19]]) as u64;
+        if tables > info.summary.bytes {
+            return Err(ClientError::Protocol("header and index beyond the file".into()));
+        }
+        let head = client.get(&info.summary.file, Some((0, tables - 1))).await?.bytes().await?.to_vec();
+        downloaded += (pre.len() + head.len()) as u64;
+        source.0.insert(0, head);
+        let reader = Reader::open(source.clone())?;
+        let decoder = Decoder::new(reader, level_for(&info, budget))?;
+        Ok(Session { client, info, source, decoder, budget, ahead: 4, bytes_downloaded: downloaded })
+    }
+
+    pub fn budget(&self) -> u32 {
+        self.budget
+    }
+
+    /// Finest level this session reads.
+    pub fn level(&self) -> usize {
+        self.decoder.min_level()
+    }
+
+    pub fn bytes_downloaded(&self) -> u64 {
+        self.bytes_downloaded
+    }
+
+    /// Changes the budget while playing; a budget that needs finer bands restarts the decoder
+    /// at that level (it re-reads the current frame's keyframe and the finer bands).
+    pub fn set_budget(&mut self, triangles: u32) -> Result<(), ClientError> {
+        self.budget = triangles;
+        let need = level_for(&self.info, triangles);
+        if need < self.decoder.min_level() {
+            let reader = Reader::open(self.source.clone())?;
+            self.decoder = Decoder::new(reader, need)?;
+        }
+        Ok(())
+    }
+
+    /// Downloads what frames `frame..=frame + ahead` need and is not here yet, adjacent chunks
+    /// in one range request.
+    async fn fetch(&mut self, frame: u32) -> Result<(), ClientError> {
+        let h = self.decoder.reader().header();
+        let last = (frame + self.ahead).min(h.frame_count - 1);
+        let mut wanted: Vec<ChunkEntry> = self.decoder.chunks_for(frame);
+        let level = self.decoder.min_level() as u32;
+        wanted.extend(
+            self.decoder
+                .reader()
+                .index()
+                .chunks
+                .iter()
+                .filter(|e| e.frame > frame && e.frame <= last && e.band >= level && matches!(e.kind, ChunkKind::Delta | ChunkKind::Positions)),
+        );
+        let start = self.decoder.reader().data_start();
+        let mut spans: Vec<(u64, u64)> = wanted
+            .iter()
+            .map(|e| (start + e.offset, start + e.offset + e.stored_len as u64))
+            .filter(|&(s, e)| !self.source.0.has(s, e - s))
+            .collect();
+        spans.sort_unstable();
+        let mut merged: Vec<(u64, u64)> = Vec::new();
+        for (s, e) in spans {
+            match merged.last_mut() {
+                Some(last) if s <= last.1 => last.1 = last.1.max(e),
+                _ => merged.push((s, e)),
+            }
+        }
+        for (s, e) in merged {
+            if e == s {
+                continue;
+            }
+            let bytes = self.client.get(&self.info.summary.file, Some((s, e - 1))).await?.bytes().await?.to_vec();
+            if bytes.len() as u64 != e - s {
+                return Err(ClientError::Protocol(format!("range {s}-{} returned {} bytes", e - 1, bytes.len())));
+            }
+            self.bytes_downloaded += bytes.len() as u64;
+            self.source.0.insert(s, bytes);
+        }
+        Ok(())
+    }
+
+    /// Frame `frame` at the current budget.
+    pub async fn frame(&mut self, frame: u32) -> Result<Frame, ClientError> {
+        self.fetch(frame).await?;
+        let t = Instant::now();
+        self.decoder.seek(frame)?;
+        let mesh = self.decoder.mesh(MeshTarget::Triangles(self.budget))?;
+        Ok(Frame { frame, mesh, bytes_downloaded: self.bytes_downloaded, decode_time: t.elapsed() })
+    }
+}
