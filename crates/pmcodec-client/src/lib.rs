@@ -50,18 +50,29 @@ pub struct AssetInfo {
 pub struct Client {
     http: reqwest::Client,
     base: String,
+    /// Bearer token for servers that guard reads.
+    token: Option<String>,
 }
 
 impl Client {
     /// `base` is the server's root, e.g. `http://127.0.0.1:8080`.
     pub fn new(base: &str) -> Result<Self, ClientError> {
         let http = reqwest::Client::builder().timeout(Duration::from_secs(60)).build()?;
-        Ok(Client { http, base: base.trim_end_matches('/').to_string() })
+        Ok(Client { http, base: base.trim_end_matches('/').to_string(), token: None })
+    }
+
+    /// Sends `Authorization: Bearer <token>` with every request (servers with a read token).
+    pub fn with_token(mut self, token: impl Into<String>) -> Self {
+        self.token = Some(token.into());
+        self
     }
 
     async fn get(&self, path: &str, range: Option<(u64, u64)>) -> Result<reqwest::Response, ClientError> {
         let url = format!("{}{path}", self.base);
         let mut req = self.http.get(&url);
+        if let Some(t) = &self.token {
+            req = req.bearer_auth(t);
+        }
         if let Some((start, end)) = range {
             req = req.header("Range", format!("bytes={start}-{end}"));
         }

@@ -4,25 +4,24 @@
 use pmcodec_client::{Client, parse_bin_mesh};
 use pmcodec_container::{Decoder, MeshTarget, Reader};
 
-async fn server() -> (String, Vec<u8>, std::path::PathBuf) {
+async fn server() -> (pmcodec_server::RunningServer, Vec<u8>, std::path::PathBuf) {
     let dir = std::env::temp_dir().join(format!("pmcodec-client-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let seq = pmcodec_mesh::samples::twisting_tube(16, 24, 20);
     let bytes = pmcodec_container::encode(&seq, &pmcodec_container::EncodeOptions { keyframe_interval: 8, ..Default::default() }, |_| {}).unwrap();
     std::fs::write(dir.join("tube.pmc"), &bytes).unwrap();
-    let config = pmcodec_server::Config { assets: Some(dir.clone()), listen: "127.0.0.1:0".parse().unwrap(), viewer: None };
-    let (tx, rx) = tokio::sync::oneshot::channel();
-    tokio::spawn(pmcodec_server::serve(config, move |addr| {
-        let _ = tx.send(addr);
-    }));
-    let addr = tokio::time::timeout(std::time::Duration::from_secs(30), rx).await.unwrap().unwrap();
-    (format!("http://{addr}"), bytes, dir)
+    let config = pmcodec_server::Config {
+        store: pmcodec_server::config::StoreConfig::Local { path: dir.clone() },
+        listen: "127.0.0.1:0".parse().unwrap(),
+        ..Default::default()
+    };
+    (pmcodec_server::start(config).await.unwrap(), bytes, dir)
 }
 
 #[tokio::test]
 async fn playback_matches_local_decoding() {
-    let (base, bytes, dir) = server().await;
-    let client = Client::new(&base).unwrap();
+    let (server, bytes, dir) = server().await;
+    let client = Client::new(&server.url()).unwrap();
     let assets = client.assets().await.unwrap();
     assert_eq!(assets.len(), 1);
     assert_eq!(assets[0].id, "tube");

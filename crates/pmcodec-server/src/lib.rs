@@ -1,123 +1,255 @@
-//! The pmcodec HTTP server (see proto/http.md): a list of assets, LOD on demand (any frame at any
-//! triangle budget, level or error bound, as GLB or a compact binary), and each asset's
-//! container bytes at a stable, immutable URL with ETag and Range support for streaming clients.
+//! The pmcodec HTTP server (proto/http.md, proto/openapi.yaml).
 //!
-//! Assets are `.pmc` files held in memory. With no asset folder the server encodes its built-in
-//! sample animations at start, so it runs with no data at all.
+//! - Assets are `.pmc` containers in an [`AssetStore`]: a local folder (default), an
+//!   S3-compatible bucket shared by any number of stateless servers, or memory (the built-in
+//!   samples, encoded at start when no store is configured).
+//! - **LOD on demand**: any frame at a triangle budget, level or error bound, as GLB or a compact
+//!   binary, decoded on worker threads that keep decoder states in a bounded LRU ([`decode`]).
+//! - **Streaming**: the container, its chunk table and each chunk at content-addressed,
+//!   immutable URLs with strong ETags, conditional requests and (multi-)range support
+//!   ([`ranges`]), and a playback-order stream limited to the levels a client draws.
+//! - **Uploads** (bearer token) become encode jobs with progress over SSE ([`jobs`]); the asset
+//!   appears with one atomic store write when the job succeeds.
+//! - **Operations**: request ids and tracing, Prometheus metrics, health and readiness, body
+//!   limits, timeouts, compression of JSON, CORS, graceful shutdown ([`middleware`]).
 
+pub mod assets;
+pub mod config;
+pub mod decode;
 mod error;
-mod routes;
+mod id;
+pub mod jobs;
+mod lru;
+pub mod meshfmt;
+pub mod metrics;
+pub mod middleware;
+pub mod ranges;
+pub mod routes;
+pub mod store;
+pub mod upload;
 
-pub use error::ApiError;
-pub use routes::{MESH_MAGIC, ROUTES, parse_range, router};
+pub use config::Config;
+pub use error::{ApiError, ServerError};
+pub use id::AssetId;
+pub use meshfmt::{MESH_MAGIC, MeshFormat, decode_bin, encode_bin};
+pub use routes::{mounted_routes, router};
+pub use store::{AssetStore, StoreError};
 
-use pmcodec_container::{EncodeOptions, Reader, encode};
-use std::collections::BTreeMap;
-use std::path::Path;
+use assets::AssetCache;
+use decode::DecodePool;
+use jobs::Jobs;
+use metrics::Metrics;
+use std::future::Future;
+use std::net::SocketAddr;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use tokio::sync::watch;
 
-/// One servable asset.
-#[derive(Debug)]
-pub struct Asset {
-    pub id: String,
-    /// The whole container.
-    pub bytes: Vec<u8>,
-    /// Strong validator: CRC-32 of the bytes and their length (assets never change in place).
-    pub etag: String,
+/// Everything a handler can reach, passed explicitly as axum state.
+#[derive(Clone)]
+pub struct AppState(Arc<Inner>);
+
+pub struct Inner {
+    pub config: Config,
+    pub store: Arc<dyn AssetStore>,
+    pub assets: AssetCache,
+    pub decoder: Arc<DecodePool>,
+    pub jobs: Jobs,
+    pub metrics: Metrics,
+    /// False until the store is filled (samples) and after shutdown began.
+    pub ready: AtomicBool,
+    /// Flips to true when shutdown begins; long responses (SSE) end on it.
+    pub shutdown: watch::Sender<bool>,
 }
 
-impl Asset {
-    /// Checks the bytes are a readable container before they are served.
-    pub fn new(id: String, bytes: Vec<u8>) -> Result<Self, ApiError> {
-        validate_id(&id)?;
-        Reader::open(bytes.as_slice()).map_err(|e| ApiError::BadRequest(format!("asset {id}: {e}")))?;
-        let etag = format!("\"{:08x}-{:x}\"", crc32fast::hash(&bytes), bytes.len());
-        Ok(Asset { id, bytes, etag })
+impl std::ops::Deref for AppState {
+    type Target = Inner;
+    fn deref(&self) -> &Inner {
+        &self.0
+    }
+}
+
+impl AppState {
+    /// State over a store; `ready` starts false.
+    pub fn new(config: Config, store: Arc<dyn AssetStore>) -> Result<AppState, ServerError> {
+        config.validate().map_err(ServerError::Config)?;
+        let c = &config.cache;
+        let decoder = Arc::new(
+            DecodePool::new(c.decode_workers, c.decode_bytes, config.limits.decode_queue)
+                .map_err(|e| ServerError::Config(format!("starting decode workers: {e}")))?,
+        );
+        let purge = decoder.clone();
+        let assets = AssetCache::new(
+            store.clone(),
+            c.asset_bytes,
+            std::time::Duration::from_millis(c.revalidate_ms),
+            Box::new(move |version| purge.purge(version)),
+        );
+        let l = &config.limits;
+        let jobs = Jobs::new(l.encode_concurrency, l.max_pending_jobs, l.finished_jobs_kept);
+        Ok(AppState(Arc::new(Inner {
+            store,
+            assets,
+            decoder,
+            jobs,
+            metrics: Metrics::default(),
+            ready: AtomicBool::new(false),
+            shutdown: watch::channel(false).0,
+            config,
+        })))
     }
 
-    pub fn reader(&self) -> Result<Reader<&[u8]>, ApiError> {
-        Reader::open(self.bytes.as_slice()).map_err(|e| ApiError::Internal(format!("asset {}: {e}", self.id)))
+    pub fn set_ready(&self, ready: bool) {
+        self.ready.store(ready, Ordering::SeqCst);
     }
-}
 
-/// Shared state: the assets, by id.
-#[derive(Debug, Default)]
-pub struct AppState {
-    pub assets: BTreeMap<String, Arc<Asset>>,
-}
+    pub fn is_ready(&self) -> bool {
+        self.ready.load(Ordering::SeqCst)
+    }
 
-/// Asset ids: lowercase letters, digits, `.`, `_`, `-`, starting with a letter or digit, at most
-/// 64 characters. Nothing else can reach a path or a key.
-pub fn validate_id(id: &str) -> Result<(), ApiError> {
-    let ok = !id.is_empty()
-        && id.len() <= 64
-        && id.bytes().enumerate().all(|(i, b)| b.is_ascii_lowercase() || b.is_ascii_digit() || (i > 0 && matches!(b, b'.' | b'_' | b'-')))
-        && !id.contains("..");
-    if ok { Ok(()) } else { Err(ApiError::BadRequest(format!("invalid asset id {id:?}: use [a-z0-9][a-z0-9._-]{{0,63}}"))) }
-}
+    /// Encodes the built-in sample animations into the store (a few seconds of CPU).
+    pub async fn load_samples(&self) -> Result<(), ServerError> {
+        let tasks: Vec<_> = pmcodec_mesh::samples::NAMES
+            .iter()
+            .map(|&name| {
+                let keyframes = self.config.keyframe_interval;
+                tokio::task::spawn_blocking(move || -> Result<(AssetId, Vec<u8>), String> {
+                    let seq = pmcodec_mesh::samples::by_name(name).ok_or_else(|| format!("no sample {name}"))?;
+                    let opts = pmcodec_container::EncodeOptions { keyframe_interval: keyframes, ..Default::default() };
+                    let bytes = pmcodec_container::encode(&seq, &opts, |_| {}).map_err(|e| format!("{name}: {e}"))?;
+                    Ok((AssetId::parse(name).map_err(|e| e.to_string())?, bytes))
+                })
+            })
+            .collect();
+        for t in tasks {
+            let (id, bytes) = t.await.map_err(|e| ServerError::Samples(e.to_string()))?.map_err(ServerError::Samples)?;
+            self.store.put(&id, bytes.into()).await?;
+            tracing::info!(asset = %id, "built-in sample ready");
+        }
+        Ok(())
+    }
 
-/// The built-in samples, encoded.
-pub fn builtin_assets() -> Result<Vec<Asset>, ApiError> {
-    pmcodec_mesh::samples::NAMES
-        .iter()
-        .map(|&name| {
-            let seq = pmcodec_mesh::samples::by_name(name).ok_or_else(|| ApiError::Internal(format!("no sample {name}")))?;
-            let bytes = encode(&seq, &EncodeOptions::default(), |_| {}).map_err(|e| ApiError::Internal(format!("encoding {name}: {e}")))?;
-            Asset::new(name.to_string(), bytes)
-        })
-        .collect()
-}
-
-/// Every `*.pmc` in a folder, by file stem.
-pub fn folder_assets(dir: &Path) -> Result<Vec<Asset>, ApiError> {
-    let entries = std::fs::read_dir(dir).map_err(|e| ApiError::Internal(format!("{}: {e}", dir.display())))?;
-    let mut out = Vec::new();
-    for entry in entries {
-        let path = entry.map_err(|e| ApiError::Internal(e.to_string()))?.path();
-        if path.extension().is_some_and(|e| e == "pmc") {
-            let id = path.file_stem().map(|s| s.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
-            let bytes = std::fs::read(&path).map_err(|e| ApiError::Internal(format!("{}: {e}", path.display())))?;
-            out.push(Asset::new(id, bytes)?);
+    /// Serves on `listener` until `shutdown` completes, then lets open requests finish for at
+    /// most the configured grace period.
+    pub async fn serve(self, listener: tokio::net::TcpListener, shutdown: impl Future<Output = ()> + Send + 'static) -> Result<(), ServerError> {
+        let app = router(self.clone());
+        let grace = std::time::Duration::from_secs(self.config.limits.shutdown_grace_secs);
+        let mut begun = self.shutdown.subscribe();
+        let state = self.clone();
+        let server = axum::serve(listener, app).with_graceful_shutdown(async move {
+            shutdown.await;
+            tracing::info!("shutting down: no new connections; finishing open requests");
+            state.set_ready(false);
+            let _ = state.shutdown.send(true);
+        });
+        tokio::select! {
+            r = server => r.map_err(ServerError::Serve),
+            _ = async {
+                let _ = begun.wait_for(|stop| *stop).await;
+                tokio::time::sleep(grace).await;
+            } => {
+                tracing::warn!("requests still open {grace:?} after shutdown began; stopping anyway");
+                Ok(())
+            }
         }
     }
-    out.sort_by(|a, b| a.id.cmp(&b.id));
-    Ok(out)
 }
 
-/// Server configuration.
-#[derive(Clone, Debug)]
-pub struct Config {
-    pub assets: Option<std::path::PathBuf>,
-    pub listen: std::net::SocketAddr,
-    /// Folder of the built viewer, served at `/` when present.
-    pub viewer: Option<std::path::PathBuf>,
-}
-
-/// Loads the assets and serves until SIGINT/SIGTERM; `ready` is called with the bound address.
-pub async fn serve(config: Config, ready: impl FnOnce(std::net::SocketAddr)) -> Result<(), ApiError> {
-    let assets = match &config.assets {
-        Some(dir) => folder_assets(dir)?,
-        None => tokio::task::spawn_blocking(builtin_assets).await.map_err(|e| ApiError::Internal(e.to_string()))??,
+/// Resolves on SIGINT (Ctrl-C) or SIGTERM (container runtimes).
+pub async fn shutdown_signal() {
+    let ctrl_c = async {
+        if tokio::signal::ctrl_c().await.is_err() {
+            // No handler could be installed: never resolve from here.
+            std::future::pending::<()>().await;
+        }
     };
-    let state = Arc::new(AppState { assets: assets.into_iter().map(|a| (a.id.clone(), Arc::new(a))).collect() });
-    let app = router(state, config.viewer.as_deref());
-    let listener = tokio::net::TcpListener::bind(config.listen).await.map_err(|e| ApiError::Internal(format!("binding {}: {e}", config.listen)))?;
-    let addr = listener.local_addr().map_err(|e| ApiError::Internal(e.to_string()))?;
-    ready(addr);
-    axum::serve(listener, app)
-        .with_graceful_shutdown(async {
-            let ctrl_c = tokio::signal::ctrl_c();
-            #[cfg(unix)]
-            {
-                let mut term = match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-                    Ok(t) => t,
-                    Err(_) => return,
-                };
-                tokio::select! { _ = ctrl_c => {}, _ = term.recv() => {} }
+    #[cfg(unix)]
+    {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut term) => tokio::select! { _ = ctrl_c => {}, _ = term.recv() => {} },
+            Err(_) => ctrl_c.await,
+        }
+    }
+    #[cfg(not(unix))]
+    ctrl_c.await;
+}
+
+/// A server running in the background of the current tokio runtime (tests, embedding).
+pub struct RunningServer {
+    pub addr: SocketAddr,
+    pub state: AppState,
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+    task: tokio::task::JoinHandle<Result<(), ServerError>>,
+}
+
+impl RunningServer {
+    /// `http://addr`, for clients.
+    pub fn url(&self) -> String {
+        format!("http://{}", self.addr)
+    }
+
+    /// Begins a graceful shutdown and waits for it.
+    pub async fn stop(mut self) -> Result<(), ServerError> {
+        if let Some(stop) = self.stop.take() {
+            let _ = stop.send(());
+        }
+        (&mut self.task).await.map_err(|e| ServerError::Serve(std::io::Error::other(e)))?
+    }
+}
+
+impl Drop for RunningServer {
+    fn drop(&mut self) {
+        if let Some(stop) = self.stop.take() {
+            let _ = stop.send(());
+        }
+    }
+}
+
+/// Starts a server from a configuration on the current runtime and returns once it listens
+/// and is ready (the built-in samples, when configured, are encoded first). Port 0 in
+/// `config.listen` picks a free port; [`RunningServer::addr`] says which.
+pub async fn start(config: Config) -> Result<RunningServer, ServerError> {
+    let store = store::from_config(&config.store)?;
+    let samples = matches!(config.store, config::StoreConfig::Samples);
+    let listen = config.listen;
+    let state = AppState::new(config, store)?;
+    let listener = tokio::net::TcpListener::bind(listen).await.map_err(|source| ServerError::Bind { addr: listen, source })?;
+    let addr = listener.local_addr().map_err(ServerError::Serve)?;
+    if samples {
+        state.load_samples().await?;
+    }
+    state.set_ready(true);
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let task = tokio::spawn(state.clone().serve(listener, async move {
+        let _ = stopped.await;
+    }));
+    Ok(RunningServer { addr, state, stop: Some(stop), task })
+}
+
+/// Starts a server from a configuration: builds the store, binds, calls `on_bound` with the
+/// address, fills the samples store when that is the configured one, and serves until SIGINT
+/// or SIGTERM.
+pub async fn run(config: Config, on_bound: impl FnOnce(SocketAddr)) -> Result<(), ServerError> {
+    config.validate().map_err(ServerError::Config)?;
+    let store = store::from_config(&config.store)?;
+    tracing::info!(store = %store.describe(), "asset store");
+    let samples = matches!(config.store, config::StoreConfig::Samples);
+    let listen = config.listen;
+    let state = AppState::new(config, store)?;
+    let listener = tokio::net::TcpListener::bind(listen).await.map_err(|source| ServerError::Bind { addr: listen, source })?;
+    let addr = listener.local_addr().map_err(ServerError::Serve)?;
+    on_bound(addr);
+    if samples {
+        // Listen at once (health checks answer) and become ready when the samples are in.
+        let s = state.clone();
+        tokio::spawn(async move {
+            match s.load_samples().await {
+                Ok(()) => s.set_ready(true),
+                Err(e) => tracing::error!(error = %e, "the built-in samples could not be prepared; staying not ready"),
             }
-            #[cfg(not(unix))]
-            let _ = ctrl_c.await;
-        })
-        .await
-        .map_err(|e| ApiError::Internal(e.to_string()))
+        });
+    } else {
+        state.set_ready(true);
+    }
+    state.serve(listener, shutdown_signal()).await
 }

@@ -1,269 +1,541 @@
-//! The routes, one handler each, in the order proto/http.md documents them.
+//! The routes: one table (what is mounted, with which limits) and one handler per route, in the
+//! order proto/http.md documents them.
 
-use crate::{ApiError, AppState, Asset, validate_id};
-use axum::extract::{Path, Query, State};
-use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use crate::assets::LoadedAsset;
+use crate::decode::MeshRequest;
+use crate::jobs::valid_job_id;
+use crate::meshfmt::MeshFormat;
+use crate::middleware::{self, CompressWhenItPays, WriteAccess};
+use crate::ranges::{self, IMMUTABLE, Representation};
+use crate::upload::{UploadBody, UploadOptions};
+use crate::{ApiError, AppState, AssetId};
+use axum::body::Body;
+use axum::extract::{DefaultBodyLimit, FromRequestParts, Path, Query, Request, State};
+use axum::http::request::Parts;
+use axum::http::{HeaderMap, HeaderValue, Method, StatusCode, Uri, header};
+use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
-use axum::routing::get;
+use axum::routing::{MethodRouter, delete, get, post};
 use axum::{Json, Router};
-use pmcodec_container::{Decoder, MeshTarget, summary};
-use serde::{Deserialize, Serialize};
+use bytes::Bytes;
+use pmcodec_container::MeshTarget;
+use pmcodec_mesh::gltf_input::AnimationSelector;
+use serde::Deserialize;
+use serde::de::DeserializeOwned;
+use std::collections::HashMap;
 use std::sync::Arc;
+use std::time::Duration;
 
-type Shared = Arc<AppState>;
+/// How a route is guarded and limited.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Class {
+    /// Health, readiness, metrics: no token, short timeout.
+    Ops,
+    /// Reads under /v1: the read token when configured, the request timeout.
+    Read,
+    /// Long-lived reads (event streams): the read token, no timeout on the head either.
+    LongRead,
+    /// Writes: the write token (checked by the handler's `WriteAccess` argument), the upload
+    /// body limit and timeout.
+    Write,
+}
 
-/// Every route the server mounts (checked against proto/openapi.yaml by a test).
-pub const ROUTES: &[&str] = &["/healthz", "/readyz", "/v1/assets", "/v1/assets/{id}", "/v1/assets/{id}/mesh", "/v1/assets/{id}/v/{version}"];
+struct Route {
+    method: Method,
+    path: &'static str,
+    class: Class,
+    handler: MethodRouter<AppState>,
+}
 
-/// The application: API routes, and the viewer's files at `/` when a folder is given.
-pub fn router(state: Shared, viewer: Option<&std::path::Path>) -> Router {
-    let api = Router::new()
-        .route("/healthz", get(|| async { "ok" }))
-        .route("/readyz", get(|| async { "ready" }))
-        .route("/v1/assets", get(list_assets))
-        .route("/v1/assets/{id}", get(asset_info))
-        .route("/v1/assets/{id}/mesh", get(mesh))
-        .route("/v1/assets/{id}/v/{version}", get(file))
-        .with_state(state)
-        .layer(axum::middleware::from_fn(log_request))
-        .layer(tower_http::cors::CorsLayer::permissive())
-        .layer(tower_http::limit::RequestBodyLimitLayer::new(64 * 1024));
-    match viewer {
-        Some(dir) if dir.is_dir() => api.fallback_service(tower_http::services::ServeDir::new(dir)),
-        _ => api,
+fn table() -> Vec<Route> {
+    use Class::*;
+    let r = |method: Method, path: &'static str, class: Class, handler: MethodRouter<AppState>| Route { method, path, class, handler };
+    vec![
+        r(Method::GET, "/healthz", Ops, get(healthz)),
+        r(Method::GET, "/readyz", Ops, get(readyz)),
+        r(Method::GET, "/metrics", Ops, get(metrics)),
+        r(Method::GET, "/v1/assets", Read, get(list_assets)),
+        r(Method::POST, "/v1/assets", Write, post(upload)),
+        r(Method::GET, "/v1/assets/{id}", Read, get(asset_info)),
+        r(Method::DELETE, "/v1/assets/{id}", Write, delete(delete_asset)),
+        r(Method::GET, "/v1/assets/{id}/mesh", Read, get(mesh)),
+        r(Method::GET, "/v1/assets/{id}/stream", Read, get(stream)),
+        r(Method::GET, "/v1/assets/{id}/v/{version}/file", Read, get(file)),
+        r(Method::GET, "/v1/assets/{id}/v/{version}/index", Read, get(index)),
+        r(Method::GET, "/v1/assets/{id}/v/{version}/chunks/{n}", Read, get(chunk)),
+        r(Method::GET, "/v1/jobs/{id}", Read, get(job_status)),
+        r(Method::GET, "/v1/jobs/{id}/events", LongRead, get(job_events)),
+    ]
+}
+
+/// Every (method, path template) the router mounts; a test holds this equal to
+/// proto/openapi.yaml. (GET routes also answer HEAD, as HTTP requires.)
+pub fn mounted_routes() -> Vec<(Method, &'static str)> {
+    table().into_iter().map(|r| (r.method, r.path)).collect()
+}
+
+/// The whole application: API routes, the viewer's files at `/` when configured, and JSON
+/// errors for unknown routes and methods.
+pub fn router(app: AppState) -> Router {
+    let limits = &app.config.limits;
+    let mut api = Router::new();
+    for route in table() {
+        let h = route.handler;
+        let h = match route.class {
+            Class::Ops => h.layer(axum::middleware::from_fn_with_state(Duration::from_secs(5), middleware::timeout)),
+            Class::Read => h
+                .layer(axum::middleware::from_fn_with_state(limits.request_timeout(), middleware::timeout))
+                .layer(axum::middleware::from_fn_with_state(app.clone(), middleware::read_auth)),
+            Class::LongRead => h.layer(axum::middleware::from_fn_with_state(app.clone(), middleware::read_auth)),
+            Class::Write => h
+                .layer(DefaultBodyLimit::max(usize::try_from(limits.upload_bytes).unwrap_or(usize::MAX)))
+                .layer(axum::middleware::from_fn_with_state(limits.upload_timeout(), middleware::timeout)),
+        };
+        let h = if route.class == Class::Write { h } else { h.layer(DefaultBodyLimit::max(usize::try_from(limits.body_bytes).unwrap_or(usize::MAX))) };
+        api = api.route(route.path, h);
+    }
+    api.method_not_allowed_fallback(method_not_allowed)
+        .fallback(fallback)
+        .with_state(app.clone())
+        .layer(tower_http::compression::CompressionLayer::new().compress_when(CompressWhenItPays))
+        .layer(middleware::cors(&app.config.cors.allow_origins))
+        .layer(axum::middleware::from_fn_with_state(app.clone(), middleware::request_context))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Extractors whose rejections are JSON errors like every other 4xx.
+
+/// Path parameters by name.
+struct Params(HashMap<String, String>);
+
+impl<S: Send + Sync> FromRequestParts<S> for Params {
+    type Rejection = ApiError;
+    async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, ApiError> {
+        Path::<HashMap<String, String>>::from_request_parts(parts, state)
+            .await
+            .map(|Path(p)| Params(p))
+            .map_err(|e| ApiError::BadRequest(e.body_text()))
     }
 }
 
-/// One log line per request (method, path and query, range, status, time), the server's
-/// request log.
-async fn log_request(req: axum::extract::Request, next: axum::middleware::Next) -> Response {
-    let (method, uri) = (req.method().clone(), req.uri().clone());
-    let range = req.headers().get(header::RANGE).and_then(|v| v.to_str().ok()).map(str::to_string);
-    let start = std::time::Instant::now();
-    let resp = next.run(req).await;
-    tracing::info!(
-        target: "pmcodec::request",
-        "{method} {uri} range={} status={} {:.1}ms",
-        range.as_deref().unwrap_or("-"),
-        resp.status().as_u16(),
-        start.elapsed().as_secs_f64() * 1e3
-    );
-    resp
+impl Params {
+    fn get(&self, name: &str) -> Result<&str, ApiError> {
+        self.0.get(name).map(String::as_str).ok_or_else(|| ApiError::Internal(format!("route has no {{{name}}}")))
+    }
+    fn asset_id(&self) -> Result<AssetId, ApiError> {
+        AssetId::parse(self.get("id")?)
+    }
 }
 
-fn find(state: &AppState, id: &str) -> Result<Arc<Asset>, ApiError> {
-    validate_id(id)?;
-    state.assets.get(id).cloned().ok_or_else(|| ApiError::NotFound(format!("no asset {id:?}")))
+/// A query string; unknown parameters and bad values are 400 with serde's message.
+struct Q<T>(T);
+
+impl<T: DeserializeOwned, S: Send + Sync> FromRequestParts<S> for Q<T> {
+    type Rejection = ApiError;
+    async fn from_request_parts(parts: &mut Parts, _: &S) -> Result<Self, ApiError> {
+        Query::<T>::try_from_uri(&parts.uri).map(|Query(q)| Q(q)).map_err(|e| ApiError::BadRequest(e.body_text()))
+    }
 }
 
-#[derive(Serialize)]
-struct AssetSummary {
-    id: String,
-    frames: u32,
-    frame_rate: f32,
-    vertices: u32,
-    triangles: u32,
-    levels: Vec<u32>,
-    bytes: usize,
-    /// Immutable URL of the container (changes whenever the content does).
-    file: String,
+fn header_value(s: &str) -> Result<HeaderValue, ApiError> {
+    HeaderValue::from_str(s).map_err(|e| ApiError::Internal(format!("header value {s:?}: {e}")))
 }
 
-fn version(a: &Asset) -> String {
-    a.etag.trim_matches('"').to_string()
+/// JSON that may change (metadata by id): validated by ETag, never cached without asking.
+fn json_revalidated<T: serde::Serialize>(req: &HeaderMap, etag: &str, value: &T) -> Result<Response, ApiError> {
+    let body = serde_json::to_vec(value).map_err(|e| ApiError::Internal(e.to_string()))?;
+    ranges::serve(req, Representation { bytes: body.into(), etag: etag.into(), content_type: "application/json", cache_control: "no-cache" }, 0)
 }
 
-fn summarise(a: &Asset) -> Result<AssetSummary, ApiError> {
-    let r = a.reader()?;
-    let h = r.header();
-    Ok(AssetSummary {
-        id: a.id.clone(),
-        frames: h.frame_count,
-        frame_rate: h.frame_rate,
-        vertices: h.vertex_count,
-        triangles: h.triangle_count,
-        levels: h.level_sizes.clone(),
-        bytes: a.bytes.len(),
-        file: format!("/v1/assets/{}/v/{}.pmc", a.id, version(a)),
-    })
+// ---------------------------------------------------------------------------------------------
+// Operations.
+
+/// `GET /healthz`: the process answers.
+async fn healthz() -> &'static str {
+    "ok"
 }
+
+/// `GET /readyz`: the assets are in place and the store answers.
+async fn readyz(State(app): State<AppState>) -> Result<&'static str, ApiError> {
+    if !app.is_ready() {
+        return Err(ApiError::Busy("not ready: starting (encoding the built-in samples) or shutting down".into()));
+    }
+    match tokio::time::timeout(Duration::from_secs(3), app.store.check()).await {
+        Ok(Ok(())) => Ok("ready"),
+        Ok(Err(e)) => {
+            tracing::warn!(error = %e, "readiness: the store does not answer");
+            Err(ApiError::Busy("not ready: the asset store does not answer".into()))
+        }
+        Err(_) => Err(ApiError::Busy("not ready: the asset store is slow to answer".into())),
+    }
+}
+
+/// `GET /metrics`: Prometheus text exposition.
+async fn metrics(State(app): State<AppState>) -> Response {
+    use std::sync::atomic::Ordering::Relaxed;
+    let (asset_bytes, asset_entries) = app.assets.usage();
+    let s = &app.decoder.stats;
+    let g = crate::metrics::Gauges {
+        ready: app.is_ready(),
+        asset_cache_bytes: asset_bytes,
+        asset_cache_entries: asset_entries,
+        decode_state_bytes: s.state_bytes.iter().map(|a| a.load(Relaxed)).sum(),
+        decode_states: s.states.iter().map(|a| a.load(Relaxed)).sum(),
+        decode_hits: s.hits.load(Relaxed),
+        decode_misses: s.misses.load(Relaxed),
+        decode_requests: s.requests.load(Relaxed),
+        decode_workers: app.decoder.workers(),
+        jobs_pending: app.jobs.pending(),
+    };
+    ([(header::CONTENT_TYPE, "text/plain; version=0.0.4; charset=utf-8")], app.metrics.render(&g)).into_response()
+}
+
+async fn method_not_allowed(method: Method, uri: Uri) -> ApiError {
+    ApiError::MethodNotAllowed { method: method.to_string(), path: uri.path().to_string() }
+}
+
+/// Unknown paths: JSON 404 under /v1, else the viewer's files when a viewer folder is set.
+async fn fallback(State(app): State<AppState>, req: Request) -> Response {
+    let path = req.uri().path();
+    let api = path == "/v1" || path.starts_with("/v1/");
+    match (&app.config.viewer, api) {
+        (Some(dir), false) if matches!(*req.method(), Method::GET | Method::HEAD) => {
+            use tower::ServiceExt;
+            match tower_http::services::ServeDir::new(dir).oneshot(req).await {
+                Ok(resp) => resp.into_response(),
+                Err(never) => match never {},
+            }
+        }
+        _ => ApiError::NotFound(format!("no route {} {path}; the API is described in proto/openapi.yaml", req.method())).into_response(),
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Assets.
 
 /// `GET /v1/assets`
-async fn list_assets(State(state): State<Shared>) -> Result<Json<serde_json::Value>, ApiError> {
-    let assets = state.assets.values().map(|a| summarise(a)).collect::<Result<Vec<_>, _>>()?;
-    Ok(Json(serde_json::json!({ "assets": assets })))
-}
-
-#[derive(Serialize)]
-struct AssetInfo {
-    #[serde(flatten)]
-    summary: AssetSummary,
-    bbox_min: [f32; 3],
-    bbox_max: [f32; 3],
-    keyframe_interval: u32,
-    /// Triangles shown by each whole level in frame 0.
-    triangles_per_level: Vec<usize>,
-    /// Bytes per frame a client stopping at each level reads.
-    bytes_per_frame_to_level: Vec<f64>,
-    positions_bits_per_vertex_frame: f64,
+async fn list_assets(State(app): State<AppState>) -> Result<Response, ApiError> {
+    let objects = app.store.list().await?;
+    let mut assets = Vec::with_capacity(objects.len());
+    for obj in &objects {
+        match app.assets.info(obj).await {
+            Ok(info) => assets.push(info.summary.clone()),
+            // One unreadable object should not hide the others; the log names it.
+            Err(e) => tracing::warn!(asset = %obj.id, error = %e, "leaving an unreadable asset out of the listing"),
+        }
+    }
+    let mut resp = Json(serde_json::json!({ "assets": assets })).into_response();
+    resp.headers_mut().insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));
+    Ok(resp)
 }
 
 /// `GET /v1/assets/{id}`
-async fn asset_info(State(state): State<Shared>, Path(id): Path<String>) -> Result<Json<AssetInfo>, ApiError> {
-    let a = find(&state, &id)?;
-    tokio::task::spawn_blocking(move || {
-        let r = a.reader()?;
-        let s = summary(&r);
-        let mut d = Decoder::new(r.borrowed(), 0).map_err(|e| ApiError::Internal(e.to_string()))?;
-        d.seek(0).map_err(|e| ApiError::Internal(e.to_string()))?;
-        let mut triangles_per_level = Vec::new();
-        for l in 0..s.header.levels() {
-            let m = d.mesh(MeshTarget::Level(l)).map_err(|e| ApiError::Internal(e.to_string()))?;
-            triangles_per_level.push(m.triangles.len());
-        }
-        Ok(Json(AssetInfo {
-            summary: summarise(&a)?,
-            bbox_min: s.header.bbox_min,
-            bbox_max: s.header.bbox_max,
-            keyframe_interval: s.header.keyframe_interval,
-            triangles_per_level,
-            bytes_per_frame_to_level: s.bytes_per_frame_to_level,
-            positions_bits_per_vertex_frame: s.positions_bits_per_vertex_frame,
-        }))
-    })
-    .await
-    .map_err(|e| ApiError::Internal(e.to_string()))?
+async fn asset_info(State(app): State<AppState>, p: Params, headers: HeaderMap) -> Result<Response, ApiError> {
+    let a = app.assets.get(&p.asset_id()?).await?;
+    json_revalidated(&headers, &format!("\"{}-info\"", a.version), &*a.info)
 }
 
 #[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct UploadQuery {
+    id: Option<String>,
+    fps: Option<f32>,
+    animation: Option<String>,
+    replace: Option<bool>,
+}
+
+/// `POST /v1/assets?id=ID[&fps=F][&animation=A][&replace=true]`: starts an encode job.
+async fn upload(State(app): State<AppState>, _: WriteAccess, Q(q): Q<UploadQuery>, headers: HeaderMap, body: Body) -> Result<Response, ApiError> {
+    let id = AssetId::parse(q.id.as_deref().ok_or_else(|| ApiError::BadRequest("name the asset: POST /v1/assets?id=<id>".into()))?)?;
+    let frame_rate = q.fps.unwrap_or(30.0);
+    if !(frame_rate.is_finite() && frame_rate > 0.0 && frame_rate <= 1000.0) {
+        return Err(ApiError::BadRequest(format!("fps {frame_rate}: use a frame rate in (0, 1000]")));
+    }
+    let animation = q.animation.map(|a| a.parse::<usize>().map_or(AnimationSelector::Name(a), AnimationSelector::Index));
+    // Refuse before reading a large body when the answer is known already.
+    if !q.replace.unwrap_or(false) && app.store.head(&id).await?.is_some() {
+        return Err(ApiError::Conflict(format!("asset {id} exists; add replace=true to replace it")));
+    }
+    if app.jobs.is_pending(&id) {
+        return Err(ApiError::Conflict(format!("an encode job for asset {id} is already queued or running")));
+    }
+    let body = UploadBody::read(&headers, body, app.config.limits.upload_bytes).await?;
+    let opts = UploadOptions { frame_rate, animation, unpacked_limit: app.config.limits.unpacked_bytes };
+    let status = app.jobs.submit(&app, id, body, opts)?;
+    let location = header_value(&status.status_url)?;
+    Ok((StatusCode::ACCEPTED, [(header::LOCATION, location)], Json(status)).into_response())
+}
+
+/// `DELETE /v1/assets/{id}`
+async fn delete_asset(State(app): State<AppState>, _: WriteAccess, p: Params) -> Result<StatusCode, ApiError> {
+    let id = p.asset_id()?;
+    let existed = app.store.delete(&id).await?;
+    app.assets.forget(&id);
+    if existed { Ok(StatusCode::NO_CONTENT) } else { Err(ApiError::NotFound(format!("no asset {id}"))) }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
 struct MeshQuery {
     frame: Option<u32>,
     triangles: Option<u32>,
+    vertices: Option<u32>,
     level: Option<usize>,
     max_error: Option<f64>,
     format: Option<String>,
 }
 
-/// Magic of the compact binary mesh format (proto/http.md).
-pub const MESH_MAGIC: &[u8; 4] = b"PMCM";
-
-/// `GET /v1/assets/{id}/mesh?frame=F&triangles=N|level=L|max_error=E&format=glb|bin`
-async fn mesh(State(state): State<Shared>, Path(id): Path<String>, Query(q): Query<MeshQuery>) -> Result<Response, ApiError> {
-    let a = find(&state, &id)?;
-    let target = match (q.triangles, q.level, q.max_error) {
-        (Some(n), None, None) => MeshTarget::Triangles(n),
-        (None, Some(l), None) => MeshTarget::Level(l),
-        (None, None, Some(e)) if e.is_finite() && e >= 0.0 => MeshTarget::MaxError(e),
-        (None, None, Some(e)) => return Err(ApiError::BadRequest(format!("max_error {e} must be a finite number >= 0"))),
-        (None, None, None) => MeshTarget::Triangles(u32::MAX),
-        _ => return Err(ApiError::BadRequest("give at most one of triangles, level, max_error".into())),
-    };
-    let format = q.format.unwrap_or_else(|| "glb".into());
-    if format != "glb" && format != "bin" {
-        return Err(ApiError::BadRequest(format!("format {format:?}: use glb or bin")));
-    }
-    let frame = q.frame.unwrap_or(0);
-    let mesh = tokio::task::spawn_blocking(move || {
-        let r = a.reader()?;
-        let h = r.header();
+impl MeshQuery {
+    /// The request, checked against the asset.
+    fn resolve(self, a: &LoadedAsset) -> Result<MeshRequest, ApiError> {
+        let h = &a.header;
+        let frame = self.frame.unwrap_or(0);
         if frame >= h.frame_count {
-            return Err(ApiError::BadRequest(format!("frame {frame}: the asset has frames 0..{}", h.frame_count - 1)));
+            return Err(ApiError::BadRequest(format!("frame {frame}: asset {} has frames 0..={}", a.id, h.frame_count - 1)));
         }
-        if let MeshTarget::Level(l) = target
-            && l >= h.levels() {
-                return Err(ApiError::BadRequest(format!("level {l}: the asset has levels 0..{}", h.levels() - 1)));
+        let target = match (self.triangles, self.vertices, self.level, self.max_error) {
+            (Some(n), None, None, None) => MeshTarget::Triangles(n),
+            (None, Some(n), None, None) => MeshTarget::Vertices(n),
+            (None, None, Some(l), None) if l < h.levels() => MeshTarget::Level(l),
+            (None, None, Some(l), None) => {
+                return Err(ApiError::BadRequest(format!("level {l}: asset {} has levels 0..={}", a.id, h.levels() - 1)));
             }
-        // A level request reads only the bands it needs.
-        let min_level = if let MeshTarget::Level(l) = target { l } else { 0 };
-        let mut d = Decoder::new(r.borrowed(), min_level).map_err(|e| ApiError::Internal(e.to_string()))?;
-        d.seek(frame).map_err(|e| ApiError::Internal(e.to_string()))?;
-        d.mesh(target).map_err(|e| ApiError::Internal(e.to_string()))
-    })
-    .await
-    .map_err(|e| ApiError::Internal(e.to_string()))??;
-    let (body, mime) = if format == "glb" {
-        (pmcodec_mesh::write::glb_bytes(&mesh), "model/gltf-binary")
-    } else {
-        let mut b = Vec::with_capacity(16 + mesh.positions.len() * 12 + mesh.triangles.len() * 12);
-        b.extend_from_slice(MESH_MAGIC);
-        b.extend_from_slice(&1u32.to_le_bytes());
-        b.extend_from_slice(&(mesh.positions.len() as u32).to_le_bytes());
-        b.extend_from_slice(&(mesh.triangles.len() as u32).to_le_bytes());
-        for p in &mesh.positions {
-            for c in p.to_array() {
-                b.extend_from_slice(&c.to_le_bytes());
-            }
-        }
-        for t in &mesh.triangles {
-            for i in t {
-                b.extend_from_slice(&i.to_le_bytes());
-            }
-        }
-        (b, "application/octet-stream")
+            (None, None, None, Some(e)) if e.is_finite() && e >= 0.0 => MeshTarget::MaxError(e),
+            (None, None, None, Some(e)) => return Err(ApiError::BadRequest(format!("max_error {e}: use a finite number >= 0"))),
+            (None, None, None, None) => MeshTarget::Level(0),
+            _ => return Err(ApiError::BadRequest("give at most one of triangles, vertices, level, max_error".into())),
+        };
+        let format = match self.format.as_deref() {
+            None => MeshFormat::Glb,
+            Some(f) => MeshFormat::parse(f).ok_or_else(|| ApiError::BadRequest(format!("format {f:?}: use glb or bin")))?,
+        };
+        Ok(MeshRequest { frame, target, format })
+    }
+}
+
+/// A strong validator of a mesh response: the output is a function of the container's bytes
+/// and the normalised request.
+fn mesh_etag(version: &str, r: &MeshRequest) -> String {
+    let t = match r.target {
+        MeshTarget::Triangles(n) => format!("t{n}"),
+        MeshTarget::Vertices(n) => format!("v{n}"),
+        MeshTarget::Level(l) => format!("l{l}"),
+        MeshTarget::MaxError(e) => format!("e{e}"),
     };
-    let mut resp = body.into_response();
-    resp.headers_mut().insert(header::CONTENT_TYPE, HeaderValue::from_static(mime));
+    format!("\"{version}-f{}-{t}-{}\"", r.frame, r.format.name())
+}
+
+/// `GET /v1/assets/{id}/mesh?frame=F&triangles=N|vertices=N|level=L|max_error=E&format=glb|bin`
+async fn mesh(State(app): State<AppState>, p: Params, Q(q): Q<MeshQuery>, headers: HeaderMap) -> Result<Response, ApiError> {
+    let a = app.assets.get(&p.asset_id()?).await?;
+    let req = q.resolve(&a)?;
+    let etag = mesh_etag(&a.version, &req);
+    let version = header_value(&a.version)?;
+    // Answer a revalidation without decoding anything.
+    let mut resp = if headers.get(header::IF_NONE_MATCH).and_then(|v| v.to_str().ok()).is_some_and(|v| v.split(',').any(|t| t.trim() == etag || t.trim() == "*")) {
+        StatusCode::NOT_MODIFIED.into_response()
+    } else {
+        let out = app.decoder.mesh(a, req).await?;
+        let mut resp = (StatusCode::OK, [(header::CONTENT_TYPE, req.format.content_type())], out.body).into_response();
+        let h = resp.headers_mut();
+        h.insert("x-pmc-vertices", HeaderValue::from(out.vertices));
+        h.insert("x-pmc-triangles", HeaderValue::from(out.triangles));
+        h.insert("server-timing", header_value(&format!("decode;dur={:.3}", out.micros as f64 / 1e3))?);
+        resp
+    };
+    let h = resp.headers_mut();
+    h.insert(header::ETAG, header_value(&etag)?);
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));
+    h.insert("x-pmc-version", version);
     Ok(resp)
 }
 
-/// `GET /v1/assets/{id}/v/{version}.pmc`: the container, immutable, with Range and ETag.
-async fn file(State(state): State<Shared>, Path((id, version_pmc)): Path<(String, String)>, headers: HeaderMap) -> Result<Response, ApiError> {
-    let a = find(&state, &id)?;
-    let wanted = version_pmc.strip_suffix(".pmc").unwrap_or(&version_pmc);
-    if wanted != version(&a) {
-        return Err(ApiError::NotFound(format!("asset {id} has no version {wanted:?} (current: {})", version(&a))));
-    }
-    let etag = HeaderValue::from_str(&a.etag).map_err(|e| ApiError::Internal(e.to_string()))?;
-    let mut base = HeaderMap::new();
-    base.insert(header::ETAG, etag);
-    base.insert(header::CACHE_CONTROL, HeaderValue::from_static("public, max-age=31536000, immutable"));
-    base.insert(header::ACCEPT_RANGES, HeaderValue::from_static("bytes"));
-    base.insert(header::CONTENT_TYPE, HeaderValue::from_static("application/octet-stream"));
-    if headers.get(header::IF_NONE_MATCH).and_then(|v| v.to_str().ok()).is_some_and(|v| v.split(',').any(|t| t.trim() == a.etag || t.trim() == "*")) {
-        return Ok((StatusCode::NOT_MODIFIED, base).into_response());
-    }
-    // If-Range with a different validator: the client's partial copy is stale, send it all.
-    let range_applies = headers.get(header::IF_RANGE).and_then(|v| v.to_str().ok()).is_none_or(|v| v == a.etag);
-    let len = a.bytes.len() as u64;
-    match headers.get(header::RANGE).and_then(|v| v.to_str().ok()) {
-        Some(spec) if range_applies => match parse_range(spec, len)? {
-            Some((start, end)) => {
-                let mut h = base;
-                h.insert(
-                    header::CONTENT_RANGE,
-                    HeaderValue::from_str(&format!("bytes {start}-{end}/{len}")).map_err(|e| ApiError::Internal(e.to_string()))?,
-                );
-                Ok((StatusCode::PARTIAL_CONTENT, h, a.bytes[start as usize..=end as usize].to_vec()).into_response())
-            }
-            None => Ok((StatusCode::OK, base, a.bytes.clone()).into_response()),
-        },
-        _ => Ok((StatusCode::OK, base, a.bytes.clone()).into_response()),
-    }
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct StreamQuery {
+    /// Finest level the client draws: bands `level..=top` are sent.
+    level: Option<usize>,
+    /// First frame the client plays: the stream starts at the keyframe at or before it.
+    from: Option<u32>,
 }
 
-/// One `bytes=` range (RFC 9110 section 14.1.2) as inclusive `(start, end)`; `None` for a set of
-/// several ranges, which this server answers with the whole representation (allowed by
-/// section 14.2). Unsatisfiable or malformed ranges are 416.
-pub fn parse_range(spec: &str, len: u64) -> Result<Option<(u64, u64)>, ApiError> {
-    let bad = || ApiError::RangeNotSatisfiable(format!("range {spec:?} does not fit {len} bytes"));
-    let set = spec.strip_prefix("bytes=").ok_or_else(bad)?;
-    if set.contains(',') {
-        return Ok(None);
+fn check_level(a: &LoadedAsset, level: usize) -> Result<(), ApiError> {
+    if level >= a.header.levels() {
+        return Err(ApiError::BadRequest(format!("level {level}: asset {} has levels 0..={}", a.id, a.header.levels() - 1)));
     }
-    let (a, b) = set.trim().split_once('-').ok_or_else(bad)?;
-    let (start, end) = if a.is_empty() {
-        let n: u64 = b.parse().map_err(|_| bad())?;
-        if n == 0 || len == 0 {
-            return Err(bad());
+    Ok(())
+}
+
+/// `GET /v1/assets/{id}/stream?level=L&from=F`: preamble, header and index, then the chunks
+/// of bands `L..=top` of each frame from the keyframe at or before F, in playback order.
+async fn stream(State(app): State<AppState>, p: Params, Q(q): Q<StreamQuery>) -> Result<Response, ApiError> {
+    let a = app.assets.get(&p.asset_id()?).await?;
+    let level = q.level.unwrap_or(0);
+    check_level(&a, level)?;
+    let from = q.from.unwrap_or(0);
+    if from >= a.header.frame_count {
+        return Err(ApiError::BadRequest(format!("from {from}: asset {} has frames 0..={}", a.id, a.header.frame_count - 1)));
+    }
+    let start = a.header.keyframe_before(from);
+    let head = a.bytes.slice(0..a.data_start as usize);
+    let pieces: Vec<Bytes> = std::iter::once(head)
+        .chain(a.chunks_for(level, start).map(|(_, e)| {
+            let r = a.chunk_range(e);
+            a.bytes.slice(r.start as usize..r.end as usize)
+        }))
+        .collect();
+    let mut resp = Body::from_stream(futures_util::stream::iter(pieces.into_iter().map(Ok::<_, std::convert::Infallible>))).into_response();
+    let h = resp.headers_mut();
+    h.insert(header::CONTENT_TYPE, HeaderValue::from_static("application/vnd.pmcodec.stream"));
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));
+    h.insert("x-pmc-version", header_value(&a.version)?);
+    h.insert("x-pmc-level", HeaderValue::from(level));
+    h.insert("x-pmc-from", HeaderValue::from(start));
+    Ok(resp)
+}
+
+/// The asset at the version a content-addressed URL names (404 once it has been replaced).
+async fn versioned(app: &AppState, p: &Params) -> Result<Arc<LoadedAsset>, ApiError> {
+    let a = app.assets.get(&p.asset_id()?).await?;
+    let v = p.get("version")?;
+    if v != a.version {
+        return Err(ApiError::NotFound(format!("asset {} has no version {v:?}; its current version is {}", a.id, a.version)));
+    }
+    Ok(a)
+}
+
+/// `GET /v1/assets/{id}/v/{version}/file`: the container, immutable, with Range.
+async fn file(State(app): State<AppState>, p: Params, headers: HeaderMap) -> Result<Response, ApiError> {
+    let a = versioned(&app, &p).await?;
+    let rep = Representation { bytes: a.bytes.clone(), etag: format!("\"{}\"", a.version), content_type: "application/vnd.pmcodec", cache_control: IMMUTABLE };
+    ranges::serve(&headers, rep, app.config.limits.max_ranges)
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct IndexQuery {
+    level: Option<usize>,
+}
+
+/// `GET /v1/assets/{id}/v/{version}/index?level=L`: the chunks a client drawing down to level L
+/// needs, with their byte ranges and URLs, and per frame one range covering them.
+async fn index(State(app): State<AppState>, p: Params, Q(q): Q<IndexQuery>, headers: HeaderMap) -> Result<Response, ApiError> {
+    let a = versioned(&app, &p).await?;
+    let level = q.level.unwrap_or(0);
+    check_level(&a, level)?;
+    let base = format!("/v1/assets/{}/v/{}", a.id, a.version);
+    let mut chunks = Vec::new();
+    // Per frame: the first and last byte of its selected chunks (contiguous: bands are stored
+    // top first within a frame, so bands >= L are a prefix of the frame's chunks).
+    let mut frames: Vec<Option<(u64, u64)>> = vec![None; a.header.frame_count as usize];
+    for (n, e) in a.chunks_for(level, 0) {
+        let r = a.chunk_range(e);
+        chunks.push(serde_json::json!({
+            "n": n, "kind": e.kind.name(), "frame": e.frame, "band": e.band,
+            "offset": r.start, "length": e.stored_len, "raw_length": e.raw_len, "crc32": e.crc32,
+            "url": format!("{base}/chunks/{n}"),
+        }));
+        if e.kind != pmcodec_container::ChunkKind::Triangles
+            && let Some(slot) = frames.get_mut(e.frame as usize)
+        {
+            let (s, t) = slot.get_or_insert((r.start, r.end));
+            *s = (*s).min(r.start);
+            *t = (*t).max(r.end);
         }
-        (len.saturating_sub(n), len - 1)
-    } else {
-        let s: u64 = a.parse().map_err(|_| bad())?;
-        let e: u64 = if b.is_empty() { len.saturating_sub(1) } else { b.parse::<u64>().map_err(|_| bad())?.min(len.saturating_sub(1)) };
-        (s, e)
-    };
-    if start >= len || start > end {
-        return Err(bad());
     }
-    Ok(Some((start, end)))
+    let frames: Vec<_> = frames
+        .iter()
+        .enumerate()
+        .map(|(f, r)| {
+            let (s, t) = r.unwrap_or((0, 0));
+            serde_json::json!({ "frame": f, "keyframe": a.header.is_keyframe(f as u32), "offset": s, "length": t - s })
+        })
+        .collect();
+    let body = serde_json::json!({
+        "id": a.id.as_str(), "version": a.version, "file": format!("{base}/file"), "length": a.bytes.len(),
+        "header_length": a.data_start, "level": level, "levels": a.header.levels(), "frames_count": a.header.frame_count,
+        "keyframe_interval": a.header.keyframe_interval,
+        "chunks": chunks, "frames": frames,
+    });
+    let bytes = serde_json::to_vec(&body).map_err(|e| ApiError::Internal(e.to_string()))?;
+    let rep = Representation { bytes: bytes.into(), etag: format!("\"{}-index-{level}\"", a.version), content_type: "application/json", cache_control: IMMUTABLE };
+    ranges::serve(&headers, rep, app.config.limits.max_ranges)
+}
+
+/// `GET /v1/assets/{id}/v/{version}/chunks/{n}`: one stored chunk (a zstd frame), immutable.
+async fn chunk(State(app): State<AppState>, p: Params, headers: HeaderMap) -> Result<Response, ApiError> {
+    let a = versioned(&app, &p).await?;
+    let raw = p.get("n")?;
+    let n: usize = raw.parse().map_err(|_| ApiError::BadRequest(format!("chunk {raw:?}: use the chunk's number from the index")))?;
+    let e = a.chunks.get(n).ok_or_else(|| ApiError::NotFound(format!("chunk {n}: asset {} has chunks 0..={}", a.id, a.chunks.len().saturating_sub(1))))?;
+    let r = a.chunk_range(e);
+    let rep = Representation {
+        bytes: a.bytes.slice(r.start as usize..r.end as usize),
+        etag: format!("\"{}-chunk-{n}\"", a.version),
+        content_type: "application/zstd",
+        cache_control: IMMUTABLE,
+    };
+    ranges::serve(&headers, rep, app.config.limits.max_ranges)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Jobs.
+
+fn job_id(p: &Params) -> Result<String, ApiError> {
+    let id = p.get("id")?;
+    if !valid_job_id(id) {
+        return Err(ApiError::BadRequest(format!("invalid job id {id:?}: job ids are 32 hex digits")));
+    }
+    Ok(id.to_string())
+}
+
+/// `GET /v1/jobs/{id}`
+async fn job_status(State(app): State<AppState>, p: Params) -> Result<Response, ApiError> {
+    let id = job_id(&p)?;
+    let status = app.jobs.status(&id).ok_or_else(|| ApiError::NotFound(format!("no job {id} on this server")))?;
+    let mut resp = Json(status).into_response();
+    resp.headers_mut().insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    Ok(resp)
+}
+
+/// `GET /v1/jobs/{id}/events`: server-sent events, one per status change (named after the
+/// state), ending after `succeeded` or `failed`.
+async fn job_events(State(app): State<AppState>, p: Params) -> Result<Response, ApiError> {
+    let id = job_id(&p)?;
+    let rx = app.jobs.subscribe(&id).ok_or_else(|| ApiError::NotFound(format!("no job {id} on this server")))?;
+    let shutdown = app.shutdown.subscribe();
+    // State: the receiver, whether the first event was sent, whether the job has finished.
+    let events = futures_util::stream::unfold((rx, shutdown, false, false), |(mut rx, mut shutdown, started, done)| async move {
+        if done {
+            return None;
+        }
+        if started {
+            tokio::select! {
+                changed = rx.changed() => changed.ok()?,
+                _ = shutdown.wait_for(|stop| *stop) => return None,
+            }
+        }
+        let status = rx.borrow_and_update().clone();
+        let finished = status.state.is_finished();
+        let event = Event::default().event(status.state.name()).data(serde_json::to_string(&status).unwrap_or_default());
+        Some((Ok::<_, std::convert::Infallible>(event), (rx, shutdown, true, finished)))
+    });
+    let mut resp = Sse::new(events).keep_alive(KeepAlive::default()).into_response();
+    resp.headers_mut().insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    Ok(resp)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::jobs::JobState;
+
+    #[test]
+    fn table_has_no_duplicates_and_job_states_name_events() {
+        let mut seen = std::collections::HashSet::new();
+        for (m, p) in mounted_routes() {
+            assert!(seen.insert((m.clone(), p)), "{m} {p} twice");
+        }
+        assert_eq!(JobState::Failed.name(), "failed");
+    }
 }

@@ -1,4 +1,8 @@
-//! `pmcodec serve`: the HTTP server over a folder of `.pmc` files, or the built-in samples.
+//! `pmcodec serve`: the HTTP server (crates/pmcodec-server) over a folder of `.pmc` files, an S3
+//! bucket (configuration file or environment), or the built-in samples.
+//!
+//! Settings apply in this order, later ones winning: defaults, `--config FILE`, `PMCODEC_*`
+//! environment variables, then the flags given here.
 
 use crate::Exit;
 use anyhow::Context;
@@ -7,24 +11,48 @@ use std::path::PathBuf;
 
 #[derive(Args, Debug)]
 pub struct ServeArgs {
-    /// Folder of .pmc files to serve (default: the built-in sample animations).
-    #[arg(long, env = "PMCODEC_ASSETS")]
+    /// Folder of <id>.pmc files to serve and to store uploads in (default: the built-in sample
+    /// animations, encoded at start and kept in memory).
+    #[arg(long, value_name = "DIR")]
     pub assets: Option<PathBuf>,
-    /// Address to listen on.
-    #[arg(long, env = "PMCODEC_LISTEN", default_value = "127.0.0.1:8080")]
-    pub listen: std::net::SocketAddr,
-    /// Folder of the built viewer, served at / (default: web/dist when it exists).
-    #[arg(long, env = "PMCODEC_VIEWER")]
+    /// Address to listen on [default: 127.0.0.1:8080].
+    #[arg(long, value_name = "ADDR")]
+    pub listen: Option<std::net::SocketAddr>,
+    /// Configuration file, TOML (or JSON when it ends in .json); see proto/http.md.
+    #[arg(long, value_name = "FILE", env = "PMCODEC_CONFIG")]
+    pub config: Option<PathBuf>,
+    /// Folder of the built viewer, served at / [default: web/dist when it exists].
+    #[arg(long, value_name = "DIR")]
     pub viewer: Option<PathBuf>,
+    /// Serve no viewer even if web/dist exists.
+    #[arg(long, conflicts_with = "viewer")]
+    pub no_viewer: bool,
 }
 
 pub fn run(args: ServeArgs, quiet: bool) -> Result<(), Exit> {
-    let viewer = args.viewer.or_else(|| Some(PathBuf::from("web/dist")).filter(|p| p.is_dir()));
-    let config = pmcodec_server::Config { assets: args.assets, listen: args.listen, viewer: viewer.clone() };
-    let rt = tokio::runtime::Runtime::new().context("starting the async runtime")?;
-    rt.block_on(pmcodec_server::serve(config, |addr| {
+    let mut config = pmcodec_server::Config::load(args.config.as_deref()).map_err(|e| Exit(crate::EXIT_BAD_INPUT, e.into()))?;
+    if let Some(dir) = args.assets {
+        config.store = pmcodec_server::config::StoreConfig::Local { path: dir };
+    }
+    if let Some(addr) = args.listen {
+        config.listen = addr;
+    }
+    if args.no_viewer {
+        config.viewer = None;
+    } else if let Some(dir) = args.viewer {
+        config.viewer = Some(dir);
+    } else if config.viewer.is_none() {
+        config.viewer = Some(PathBuf::from("web/dist")).filter(|p| p.is_dir());
+    }
+    config.validate().map_err(|e| Exit(crate::EXIT_BAD_INPUT, anyhow::anyhow!("configuration: {e}")))?;
+    let viewer = config.viewer.clone();
+    let rt = tokio::runtime::Builder::new_multi_thread().enable_all().build().context("starting the async runtime")?;
+    rt.block_on(pmcodec_server::run(config, |addr| {
         if !quiet {
-            eprintln!("pmcodec: serving on http://{addr}/ (viewer: {})", viewer.as_ref().map_or("none".into(), |p| p.display().to_string()));
+            eprintln!(
+                "pmcodec: serving on http://{addr}/ (viewer: {})",
+                viewer.as_ref().map_or("none".into(), |p| p.display().to_string())
+            );
         }
     }))
     .context("serving")?;

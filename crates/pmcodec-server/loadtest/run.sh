@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Load test of the server (issue 5's bars), with wrk (Debian's package) on this machine:
+#   1. LOD on demand for the 8,431-vertex horse at random frames and budgets, 64 connections;
+#   2. range requests for random chunks of its container, 64 connections;
+#   3. bytes a playback client downloads for the whole sequence at 10% of the triangles,
+#      beside a full-resolution client.
+# Usage: crates/pmcodec-server/loadtest/run.sh [seconds per run, default 20]
+set -euo pipefail
+cd "$(dirname "$0")/../../.."
+secs=${1:-20}
+command -v wrk >/dev/null || { apt-get update -qq && apt-get install -y -qq wrk >/dev/null; }
+cargo build --release --locked -q -p pmcodec
+bin=target/release/pmcodec
+work=$(mktemp -d)
+trap 'kill $server 2>/dev/null || true; rm -rf "$work"' EXIT
+mkdir -p "$work/assets"
+$bin encode ../shared/data/horse-gallop -o "$work/assets/horse.pmc" --quiet
+port=18480
+$bin serve --assets "$work/assets" --listen 127.0.0.1:$port --no-viewer --quiet &
+server=$!
+for _ in $(seq 100); do curl -fs http://127.0.0.1:$port/readyz >/dev/null && break; sleep 0.1; done
+base=http://127.0.0.1:$port
+info=$(curl -fs $base/v1/assets/horse)
+file=$(echo "$info" | python3 -c 'import json,sys; print(json.load(sys.stdin)["file"])')
+index=$(echo "$info" | python3 -c 'import json,sys; print(json.load(sys.stdin)["index"])')
+curl -fs "$base$index" | python3 -c 'import json,sys
+for c in json.load(sys.stdin)["chunks"]: print(c["offset"], c["length"])' > "$work/chunks.txt"
+
+echo "== warm-up (decoder states for every keyframe interval)"
+ASSET=horse FRAMES=48 wrk -t2 -c8 -d3s -s crates/pmcodec-server/loadtest/lod.lua $base >/dev/null
+echo "== LOD on demand: horse, random frame 0..47, random budget 200..16000 triangles, 64 connections, ${secs}s"
+ASSET=horse FRAMES=48 wrk -t2 -c64 -d${secs}s --latency -s crates/pmcodec-server/loadtest/lod.lua $base
+echo "== chunk range requests: random chunk of the horse's container, 64 connections, ${secs}s"
+FILE=$file CHUNKS=$work/chunks.txt wrk -t2 -c64 -d${secs}s --latency -s crates/pmcodec-server/loadtest/chunks.lua $base
+echo "== playback: bytes downloaded for the whole sequence"
+full=$($bin play $base --asset horse --triangles 16843 --json --quiet | tail -n 1)
+tenth=$($bin play $base --asset horse --triangles 1684 --json | tail -n 1)
+python3 - "$full" "$tenth" <<'P'
+import json, sys
+full, tenth = json.loads(sys.argv[1]) if sys.argv[1] else None, json.loads(sys.argv[2])
+print(f"10% client (budget {tenth['budget']}, level >= {tenth['level']}): {tenth['bytes_downloaded']} bytes, "
+      f"{tenth['share_of_file']*100:.1f}% of the file, mean decode {tenth['mean_decode_ms']:.3f} ms/frame")
+if full:
+    print(f"full-resolution client: {full['bytes_downloaded']} bytes; 10% client downloads "
+          f"{tenth['bytes_downloaded']/full['bytes_downloaded']*100:.1f}% of that")
+P

@@ -1,0 +1,268 @@
+//! Assets as the server serves them: a container's bytes with its content hash, header, index
+//! and metadata, kept in an LRU bounded by bytes and revalidated against the store so that
+//! servers sharing a bucket see each other's uploads and deletes.
+
+use crate::lru::Lru;
+use crate::store::{AssetStore, StoredObject};
+use crate::{ApiError, AssetId};
+use bytes::Bytes;
+use pmcodec_container::{ChunkEntry, ChunkKind, Decoder, Header, MeshTarget, Reader, summary};
+use serde::Serialize;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// A loaded, checked container.
+#[derive(Debug)]
+pub struct LoadedAsset {
+    pub id: AssetId,
+    /// The store's tag of the object these bytes came from.
+    pub tag: String,
+    /// Content hash (the first 128 bits of SHA-256, hex): the `{version}` of immutable URLs.
+    pub version: String,
+    pub bytes: Bytes,
+    pub header: Header,
+    pub chunks: Vec<ChunkEntry>,
+    /// Offset of the chunk area (preamble + header + index), where index offsets start.
+    pub data_start: u64,
+    pub info: Arc<AssetInfo>,
+}
+
+/// What `GET /v1/assets` lists per asset.
+#[derive(Clone, Debug, Serialize)]
+pub struct AssetSummary {
+    pub id: String,
+    pub version: String,
+    pub frames: u32,
+    pub frame_rate: f32,
+    pub vertices: u32,
+    pub triangles: u32,
+    /// Nodes per level, `|M_0|` (the input) to `|M_top|`.
+    pub levels: Vec<u32>,
+    /// Size of the container.
+    pub bytes: u64,
+    /// The container's immutable URL.
+    pub file: String,
+}
+
+/// What `GET /v1/assets/{id}` returns.
+#[derive(Clone, Debug, Serialize)]
+pub struct AssetInfo {
+    #[serde(flatten)]
+    pub summary: AssetSummary,
+    pub bbox_min: [f32; 3],
+    pub bbox_max: [f32; 3],
+    pub keyframe_interval: u32,
+    /// Triangles shown when every node of a level is drawn (frame 0).
+    pub triangles_per_level: Vec<usize>,
+    /// Stored bytes of each band (all frames).
+    pub bytes_per_level: Vec<u64>,
+    /// Everything a client stopping at each level reads: preamble, header, index, the bands
+    /// from the top down to that level, and the input triangles for level 0.
+    pub bytes_to_level: Vec<u64>,
+    /// Bytes per frame of deltas and positions a client stopping at each level reads.
+    pub bytes_per_frame_to_level: Vec<f64>,
+    pub positions_bits_per_vertex_frame: f64,
+    /// The chunk table (JSON) at an immutable URL.
+    pub index: String,
+    /// Header and frames in playback order, one request.
+    pub stream: String,
+    pub generator: String,
+}
+
+impl LoadedAsset {
+    /// Checks and describes a container (CPU work: run it on a blocking thread).
+    pub fn new(obj: &StoredObject, bytes: Bytes) -> Result<LoadedAsset, String> {
+        let reader = Reader::open(&bytes[..]).map_err(|e| e.to_string())?;
+        let version = content_version(&bytes);
+        let s = summary(&reader);
+        let h = reader.header().clone();
+        let id = obj.id.clone();
+        let levels = h.levels();
+
+        let mut triangles_per_level = Vec::with_capacity(levels);
+        let mut d = Decoder::new(reader.borrowed(), 0).map_err(|e| e.to_string())?;
+        d.seek(0).map_err(|e| e.to_string())?;
+        for l in 0..levels {
+            triangles_per_level.push(d.mesh(MeshTarget::Level(l)).map_err(|e| e.to_string())?.triangles.len());
+        }
+        let bytes_per_level: Vec<u64> = (0..levels).map(|l| s.key_bytes[l] + s.delta_bytes[l] + s.positions_bytes[l]).collect();
+        let bytes_to_level = (0..levels)
+            .map(|l| {
+                let bands: u64 = bytes_per_level[l..].iter().sum();
+                reader.data_start() + bands + if l == 0 { s.triangles_bytes } else { 0 }
+            })
+            .collect();
+        let base = format!("/v1/assets/{id}");
+        let summary_ = AssetSummary {
+            id: id.to_string(),
+            version: version.clone(),
+            frames: h.frame_count,
+            frame_rate: h.frame_rate,
+            vertices: h.vertex_count,
+            triangles: h.triangle_count,
+            levels: h.level_sizes.clone(),
+            bytes: bytes.len() as u64,
+            file: format!("{base}/v/{version}/file"),
+        };
+        let info = AssetInfo {
+            summary: summary_,
+            bbox_min: h.bbox_min,
+            bbox_max: h.bbox_max,
+            keyframe_interval: h.keyframe_interval,
+            triangles_per_level,
+            bytes_per_level,
+            bytes_to_level,
+            bytes_per_frame_to_level: s.bytes_per_frame_to_level.clone(),
+            positions_bits_per_vertex_frame: s.positions_bits_per_vertex_frame,
+            index: format!("{base}/v/{version}/index"),
+            stream: format!("{base}/stream"),
+            generator: h.generator.clone(),
+        };
+        Ok(LoadedAsset {
+            tag: obj.tag.clone(),
+            version,
+            chunks: reader.index().chunks.clone(),
+            data_start: reader.data_start(),
+            header: h,
+            bytes,
+            info: Arc::new(info),
+            id,
+        })
+    }
+
+    /// Absolute byte range of a chunk in the file.
+    pub fn chunk_range(&self, e: &ChunkEntry) -> std::ops::Range<u64> {
+        let start = self.data_start + e.offset;
+        start..start + e.stored_len as u64
+    }
+
+    /// The chunks a client that draws down to `level` needs, in file order (which is playback
+    /// order): every chunk of the bands `level..=top` of the frames from `from` on, and the
+    /// input triangles when `level` is 0.
+    pub fn chunks_for(&self, level: usize, from: u32) -> impl Iterator<Item = (usize, &ChunkEntry)> {
+        self.chunks.iter().enumerate().filter(move |(_, e)| match e.kind {
+            ChunkKind::Triangles => level == 0,
+            _ => e.band as usize >= level && e.frame >= from,
+        })
+    }
+}
+
+/// The content hash used in immutable URLs.
+pub fn content_version(bytes: &[u8]) -> String {
+    use sha2::Digest;
+    let digest = sha2::Sha256::digest(bytes);
+    digest.iter().take(16).map(|b| format!("{b:02x}")).collect()
+}
+
+struct Cached {
+    asset: Arc<LoadedAsset>,
+    checked: Instant,
+}
+
+/// Loaded assets by id, bounded by bytes, plus the (small) metadata of every asset seen so
+/// that listing does not need every container in memory.
+pub struct AssetCache {
+    store: Arc<dyn AssetStore>,
+    lru: Mutex<Lru<AssetId, Cached>>,
+    infos: Mutex<HashMap<AssetId, (String, Arc<AssetInfo>)>>,
+    revalidate: Duration,
+    /// Told the version of every asset that leaves the cache because it changed or went away,
+    /// so decoder states of it can go too.
+    on_stale: Box<dyn Fn(&str) + Send + Sync>,
+}
+
+/// Listing metadata is kept for at most this many assets (a few hundred bytes each).
+const MAX_INFOS: usize = 100_000;
+
+impl AssetCache {
+    pub fn new(store: Arc<dyn AssetStore>, capacity: u64, revalidate: Duration, on_stale: Box<dyn Fn(&str) + Send + Sync>) -> Self {
+        AssetCache { store, lru: Mutex::new(Lru::new(capacity)), infos: Mutex::new(HashMap::new()), revalidate, on_stale }
+    }
+
+    pub fn store(&self) -> &Arc<dyn AssetStore> {
+        &self.store
+    }
+
+    fn lru(&self) -> std::sync::MutexGuard<'_, Lru<AssetId, Cached>> {
+        // Every critical section is a single map operation: a panic cannot leave it half done.
+        self.lru.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    fn infos(&self) -> std::sync::MutexGuard<'_, HashMap<AssetId, (String, Arc<AssetInfo>)>> {
+        self.infos.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Bytes and entries held.
+    pub fn usage(&self) -> (u64, usize) {
+        let l = self.lru();
+        (l.weight(), l.len())
+    }
+
+    /// The current asset with this id, from memory when it was checked against the store
+    /// recently, else after asking the store whether it changed.
+    pub async fn get(&self, id: &AssetId) -> Result<Arc<LoadedAsset>, ApiError> {
+        if let Some(c) = self.lru().get(id)
+            && c.checked.elapsed() < self.revalidate
+        {
+            return Ok(c.asset.clone());
+        }
+        let Some(obj) = self.store.head(id).await? else {
+            self.forget(id);
+            return Err(ApiError::NotFound(format!("no asset {id}")));
+        };
+        if let Some(c) = self.lru().get(id)
+            && c.asset.tag == obj.tag
+        {
+            c.checked = Instant::now();
+            return Ok(c.asset.clone());
+        }
+        self.load(id).await
+    }
+
+    /// Metadata of a listed object: from memory when its tag is unchanged, else by loading it.
+    pub async fn info(&self, obj: &StoredObject) -> Result<Arc<AssetInfo>, ApiError> {
+        if let Some((tag, info)) = self.infos().get(&obj.id)
+            && *tag == obj.tag
+        {
+            return Ok(info.clone());
+        }
+        Ok(self.load(&obj.id).await?.info.clone())
+    }
+
+    async fn load(&self, id: &AssetId) -> Result<Arc<LoadedAsset>, ApiError> {
+        let Some((obj, bytes)) = self.store.get(id).await? else {
+            self.forget(id);
+            return Err(ApiError::NotFound(format!("no asset {id}")));
+        };
+        let weight = bytes.len() as u64;
+        let asset = tokio::task::spawn_blocking(move || LoadedAsset::new(&obj, bytes))
+            .await
+            .map_err(|e| ApiError::Internal(format!("loading {id}: {e}")))?
+            .map_err(|e| ApiError::Internal(format!("asset {id} in the store is not a readable container: {e}")))?;
+        let asset = Arc::new(asset);
+        let evicted = {
+            let mut infos = self.infos();
+            if infos.len() >= MAX_INFOS {
+                infos.clear();
+            }
+            infos.insert(id.clone(), (asset.tag.clone(), asset.info.clone()));
+            self.lru().insert(id.clone(), Cached { asset: asset.clone(), checked: Instant::now() }, weight)
+        };
+        for old in evicted {
+            if old.asset.version != asset.version && old.asset.id == asset.id {
+                (self.on_stale)(&old.asset.version);
+            }
+        }
+        Ok(asset)
+    }
+
+    /// Drops an asset that changed or went away.
+    pub fn forget(&self, id: &AssetId) {
+        self.infos().remove(id);
+        let old = self.lru().remove(id);
+        if let Some(old) = old {
+            (self.on_stale)(&old.asset.version);
+        }
+    }
+}

@@ -1,0 +1,69 @@
+//! Assets in memory: the built-in samples, tests, throwaway servers.
+
+use super::{AssetStore, StoreError, StoredObject};
+use crate::AssetId;
+use bytes::Bytes;
+use futures_util::future::BoxFuture;
+use std::collections::BTreeMap;
+use std::sync::Mutex;
+
+#[derive(Default)]
+pub struct MemoryStore {
+    inner: Mutex<Inner>,
+}
+
+#[derive(Default)]
+struct Inner {
+    objects: BTreeMap<AssetId, (Bytes, u64)>,
+    /// Every put gets a new generation, which is the object's tag.
+    generation: u64,
+}
+
+impl MemoryStore {
+    fn lock(&self) -> Result<std::sync::MutexGuard<'_, Inner>, StoreError> {
+        // A poisoned lock means a panic while holding it; the map itself is still whole
+        // (every update is a single insert or remove), so keep serving.
+        Ok(self.inner.lock().unwrap_or_else(|p| p.into_inner()))
+    }
+
+    fn object(id: &AssetId, bytes: &Bytes, generation: u64) -> StoredObject {
+        StoredObject { id: id.clone(), size: bytes.len() as u64, tag: format!("mem-{generation}") }
+    }
+}
+
+impl AssetStore for MemoryStore {
+    fn describe(&self) -> String {
+        "memory".into()
+    }
+
+    fn list(&self) -> BoxFuture<'_, Result<Vec<StoredObject>, StoreError>> {
+        Box::pin(async move { Ok(self.lock()?.objects.iter().map(|(id, (b, g))| Self::object(id, b, *g)).collect()) })
+    }
+
+    fn head<'a>(&'a self, id: &'a AssetId) -> BoxFuture<'a, Result<Option<StoredObject>, StoreError>> {
+        Box::pin(async move { Ok(self.lock()?.objects.get(id).map(|(b, g)| Self::object(id, b, *g))) })
+    }
+
+    fn get<'a>(&'a self, id: &'a AssetId) -> BoxFuture<'a, Result<Option<(StoredObject, Bytes)>, StoreError>> {
+        Box::pin(async move { Ok(self.lock()?.objects.get(id).map(|(b, g)| (Self::object(id, b, *g), b.clone()))) })
+    }
+
+    fn put<'a>(&'a self, id: &'a AssetId, bytes: Bytes) -> BoxFuture<'a, Result<StoredObject, StoreError>> {
+        Box::pin(async move {
+            let mut inner = self.lock()?;
+            inner.generation += 1;
+            let g = inner.generation;
+            let obj = Self::object(id, &bytes, g);
+            inner.objects.insert(id.clone(), (bytes, g));
+            Ok(obj)
+        })
+    }
+
+    fn delete<'a>(&'a self, id: &'a AssetId) -> BoxFuture<'a, Result<bool, StoreError>> {
+        Box::pin(async move { Ok(self.lock()?.objects.remove(id).is_some()) })
+    }
+
+    fn check(&self) -> BoxFuture<'_, Result<(), StoreError>> {
+        Box::pin(async { Ok(()) })
+    }
+}

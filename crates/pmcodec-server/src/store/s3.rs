@@ -1,0 +1,160 @@
+//! An S3-compatible bucket (AWS, MinIO, s3s-fs, ...) through the `object_store` crate, so that
+//! any number of stateless servers can share one set of assets.
+//!
+//! Objects are `<prefix><id>.pmc`. A new asset is written with one PUT of the whole container:
+//! S3 makes an object visible only once its upload has completed, so the PUT itself is the
+//! atomic "put final" step (a temporary key plus a server-side copy would add two requests and
+//! no safety). Containers are bounded by the upload limit, well inside a single PUT's 5 GiB.
+
+use super::{AssetStore, StoreError, StoredObject};
+use crate::AssetId;
+use crate::config::S3Config;
+use bytes::Bytes;
+use futures_util::future::BoxFuture;
+use object_store::aws::AmazonS3Builder;
+use object_store::path::Path as ObjectPath;
+use object_store::{ClientOptions, ObjectMeta, ObjectStore, ObjectStoreExt, RetryConfig};
+use std::sync::Arc;
+use std::time::Duration;
+
+pub struct S3Store {
+    store: Arc<dyn ObjectStore>,
+    bucket: String,
+    /// The prefix as given, normalised to end in `/` unless empty.
+    prefix: String,
+}
+
+impl S3Store {
+    pub fn new(c: &S3Config) -> Result<S3Store, StoreError> {
+        if c.bucket.trim().is_empty() {
+            return Err(StoreError::Config("an S3 store needs a bucket name".into()));
+        }
+        // Start from the AWS_* environment so that instance roles and the usual variables work
+        // when the configuration names no keys; explicit settings override it.
+        let mut b = AmazonS3Builder::from_env().with_bucket_name(&c.bucket);
+        if let Some(e) = &c.endpoint {
+            b = b.with_endpoint(e);
+        }
+        b = b.with_region(c.region.clone().unwrap_or_else(|| "us-east-1".into()));
+        if let (Some(k), Some(s)) = (&c.access_key_id, &c.secret_access_key) {
+            b = b.with_access_key_id(k.expose()).with_secret_access_key(s.expose());
+        }
+        // Requests must fail within a request's own time budget rather than retry for minutes.
+        let retry = RetryConfig { max_retries: 2, retry_timeout: Duration::from_secs(15), ..RetryConfig::default() };
+        let client = ClientOptions::new()
+            .with_allow_http(c.allow_http)
+            .with_connect_timeout(Duration::from_secs(5))
+            .with_timeout(Duration::from_secs(120));
+        let store = b
+            .with_allow_http(c.allow_http)
+            .with_retry(retry)
+            .with_client_options(client)
+            .build()
+            .map_err(|e| StoreError::Config(format!("S3 store: {e}")))?;
+        let prefix = c.prefix.trim_matches('/');
+        let prefix = if prefix.is_empty() { String::new() } else { format!("{prefix}/") };
+        Ok(S3Store { store: Arc::new(store), bucket: c.bucket.clone(), prefix })
+    }
+
+    fn key(&self, id: &AssetId) -> ObjectPath {
+        ObjectPath::from(format!("{}{}", self.prefix, id.file_name()))
+    }
+
+    fn object(id: &AssetId, meta: &ObjectMeta) -> StoredObject {
+        let tag = meta.e_tag.clone().unwrap_or_else(|| format!("{}-{}", meta.last_modified.timestamp_nanos_opt().unwrap_or(0), meta.size));
+        StoredObject { id: id.clone(), size: meta.size, tag }
+    }
+
+    fn err(&self, what: &str, e: object_store::Error) -> StoreError {
+        StoreError::Io(format!("s3 bucket {}: {what}: {e}", self.bucket))
+    }
+}
+
+impl AssetStore for S3Store {
+    fn describe(&self) -> String {
+        format!("s3 bucket {} prefix {:?}", self.bucket, self.prefix)
+    }
+
+    fn list(&self) -> BoxFuture<'_, Result<Vec<StoredObject>, StoreError>> {
+        Box::pin(async move {
+            let prefix = (!self.prefix.is_empty()).then(|| ObjectPath::from(self.prefix.trim_end_matches('/')));
+            // One level only: objects in "sub-folders" of the prefix are not assets.
+            let listing = self.store.list_with_delimiter(prefix.as_ref()).await.map_err(|e| self.err("listing", e))?;
+            let mut out: Vec<StoredObject> = listing
+                .objects
+                .iter()
+                .filter_map(|m| {
+                    let name = m.location.filename()?;
+                    let id = AssetId::from_file_name(name);
+                    if id.is_none() && name.ends_with(".pmc") {
+                        tracing::warn!(key = %m.location, "skipping a .pmc whose name is not a valid asset id");
+                    }
+                    id.map(|id| Self::object(&id, m))
+                })
+                .collect();
+            out.sort_by(|a, b| a.id.cmp(&b.id));
+            Ok(out)
+        })
+    }
+
+    fn head<'a>(&'a self, id: &'a AssetId) -> BoxFuture<'a, Result<Option<StoredObject>, StoreError>> {
+        Box::pin(async move {
+            match self.store.head(&self.key(id)).await {
+                Ok(meta) => Ok(Some(Self::object(id, &meta))),
+                Err(object_store::Error::NotFound { .. }) => Ok(None),
+                Err(e) => Err(self.err("head", e)),
+            }
+        })
+    }
+
+    fn get<'a>(&'a self, id: &'a AssetId) -> BoxFuture<'a, Result<Option<(StoredObject, Bytes)>, StoreError>> {
+        Box::pin(async move {
+            let result = match self.store.get(&self.key(id)).await {
+                Ok(r) => r,
+                Err(object_store::Error::NotFound { .. }) => return Ok(None),
+                Err(e) => return Err(self.err("get", e)),
+            };
+            let obj = Self::object(id, &result.meta);
+            let bytes = result.bytes().await.map_err(|e| self.err("get", e))?;
+            Ok(Some((StoredObject { size: bytes.len() as u64, ..obj }, bytes)))
+        })
+    }
+
+    fn put<'a>(&'a self, id: &'a AssetId, bytes: Bytes) -> BoxFuture<'a, Result<StoredObject, StoreError>> {
+        Box::pin(async move {
+            let size = bytes.len() as u64;
+            let r = self.store.put(&self.key(id), bytes.into()).await.map_err(|e| self.err("put", e))?;
+            // Some stores answer a PUT without an ETag; ask once so that the tag matches what
+            // a listing or a HEAD will report.
+            let tag = match r.e_tag {
+                Some(t) => t,
+                None => self.head(id).await?.map(|o| o.tag).unwrap_or_default(),
+            };
+            Ok(StoredObject { id: id.clone(), size, tag })
+        })
+    }
+
+    fn delete<'a>(&'a self, id: &'a AssetId) -> BoxFuture<'a, Result<bool, StoreError>> {
+        Box::pin(async move {
+            // S3's DELETE succeeds on missing keys, so ask first to answer 404 for those.
+            if self.head(id).await?.is_none() {
+                return Ok(false);
+            }
+            self.store.delete(&self.key(id)).await.map_err(|e| self.err("delete", e))?;
+            Ok(true)
+        })
+    }
+
+    fn check(&self) -> BoxFuture<'_, Result<(), StoreError>> {
+        Box::pin(async move {
+            use futures_util::StreamExt;
+            // The first page of a listing: it fails for a missing bucket or a bad signature,
+            // where a HEAD of a missing key would answer 404 either way.
+            let prefix = (!self.prefix.is_empty()).then(|| ObjectPath::from(self.prefix.trim_end_matches('/')));
+            match self.store.list(prefix.as_ref()).next().await {
+                None | Some(Ok(_)) => Ok(()),
+                Some(Err(e)) => Err(self.err("readiness probe", e)),
+            }
+        })
+    }
+}
