@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Every test of the project, on a fresh machine (installs what it needs):
-#   1. the Rust workspace: unit, integration, property, corpus and CLI tests (they read the real
-#      meshes in ../shared/data when present);
+#   1. the Rust workspace: unit, integration, property, corpus and CLI tests, and the system tests
+#      in tests/system (the server on real sockets, uploads of ../shared/data, the client, the S3
+#      store against s3s-fs, installed here with cargo when missing);
 #   2. the viewer: TypeScript unit tests (node's test runner) and the production build;
 #   3. end to end: `pmcodec serve` with the built-in samples and the viewer, driven by headless
 #      Chromium (Debian's package) through playwright-core.
@@ -9,6 +10,12 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export CARGO_TERM_COLOR=never
+
+echo "== S3-compatible server for the S3 store tests (s3s-fs, checks request signatures)"
+if ! command -v s3s-fs >/dev/null 2>&1 && [ ! -x "$HOME/.cargo/bin/s3s-fs" ]; then
+  # Later versions need a newer rustc than this toolchain.
+  cargo install s3s-fs@0.14.1 --features binary --locked 2>&1 | tail -n 3
+fi
 
 echo "== cargo test"
 cargo test --workspace --locked --no-fail-fast 2>&1

@@ -4,6 +4,7 @@
 mod codec_cmd;
 mod eval_cmd;
 mod input;
+mod play_cmd;
 mod serve_cmd;
 
 use clap::{Parser, Subcommand};
@@ -33,6 +34,9 @@ enum Command {
     Eval(eval_cmd::EvalArgs),
     /// Serve assets (or the built-in samples) and the viewer over HTTP.
     Serve(serve_cmd::ServeArgs),
+    /// Play an asset from a server through a streaming session at a triangle budget, printing
+    /// per-frame triangles, bytes downloaded and decode time.
+    Play(play_cmd::PlayArgs),
     /// Write a built-in sample animation as an OBJ sequence.
     Sample(SampleArgs),
 }
@@ -92,9 +96,12 @@ fn main() -> ExitCode {
                 }),
         )
         .with_writer(std::io::stderr)
+        // Colour codes only for a person at a terminal, not in log files and collectors.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
     let result = match cli.command {
         Command::Encode(args) => codec_cmd::encode_cmd(args, cli.quiet),
+        Command::Play(args) => play_cmd::run(args, cli.quiet),
         Command::Decode(args) => codec_cmd::decode_cmd(args, cli.quiet),
         Command::Info(args) => codec_cmd::info_cmd(args),
         Command::Verify(args) => codec_cmd::verify_cmd(args, cli.quiet),
