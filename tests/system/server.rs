@@ -295,9 +295,11 @@ fn s3s_fs() -> S3Server {
         .stderr(std::process::Stdio::null())
         .spawn()
         .unwrap_or_else(|e| panic!("{}: {e}; install it with `cargo install s3s-fs@0.14.1 --features binary --locked` (./tests/run-all.sh does)", exe.display()));
+    // Owned at once, so that the child is killed and waited for on every path.
+    let server = S3Server { child, port, _root: root };
     for _ in 0..100 {
         if std::net::TcpStream::connect(("127.0.0.1", port)).is_ok() {
-            return S3Server { child, port, _root: root };
+            return server;
         }
         std::thread::sleep(Duration::from_millis(50));
     }

@@ -379,8 +379,7 @@ mod tests {
 
     #[test]
     fn assets_folder_and_viewer_from_environment() {
-        let mut c = Config::default();
-        c.viewer = Some("web/dist".into());
+        let mut c = Config { viewer: Some("web/dist".into()), ..Default::default() };
         c.apply_env(env(&[("PMCODEC_ASSETS", "/data"), ("PMCODEC_VIEWER", "none")])).unwrap();
         assert_eq!(c.store, StoreConfig::Local { path: "/data".into() });
         assert_eq!(c.viewer, None);
