@@ -18,7 +18,7 @@ server.stdout.on("data", (d) => { serverLog += d; });
 server.stderr.on("data", (d) => { serverLog += d; });
 const base = `http://127.0.0.1:${port}`;
 let browser;
-const deadline = Date.now() + 120_000;
+const deadline = Date.now() + 300_000;
 try {
   // Wait for the server (it encodes its samples at start).
   for (;;) {
@@ -36,9 +36,9 @@ try {
   await page.goto(base + "/");
   const frameOf = () => page.$eval("#overlay", (e) => Number(e.dataset.frame ?? -1));
   const trianglesOf = () => page.$eval("#overlay", (e) => Number(e.dataset.triangles ?? 0));
-  await page.waitForFunction(() => Number(document.getElementById("overlay")?.dataset.triangles ?? 0) > 0, null, { timeout: 30_000 });
+  await page.waitForFunction(() => Number(document.getElementById("overlay")?.dataset.triangles ?? 0) > 0, null, { timeout: 90_000 });
   const f0 = await frameOf();
-  await page.waitForFunction((f) => Number(document.getElementById("overlay")?.dataset.frame ?? -1) !== f, f0, { timeout: 10_000 });
+  await page.waitForFunction((f) => Number(document.getElementById("overlay")?.dataset.frame ?? -1) !== f, f0, { timeout: 60_000 });
   assert.notEqual(await frameOf(), f0, "the frame counter advances");
   // Non-background pixels on the canvas.
   const lit = await page.$eval("#view", (c) => {
@@ -56,15 +56,15 @@ try {
   await page.click("#play");
   const before = await trianglesOf();
   await page.$eval("#budget", (e) => { e.value = "200"; e.dispatchEvent(new Event("change")); });
-  await page.waitForFunction((b) => Number(document.getElementById("overlay")?.dataset.triangles ?? 0) !== b, before, { timeout: 10_000 });
+  await page.waitForFunction((b) => Number(document.getElementById("overlay")?.dataset.triangles ?? 0) !== b, before, { timeout: 60_000 });
   const after = await trianglesOf();
   assert.ok(after <= 200 && after < before, `budget 200 shows ${after} (was ${before})`);
   const levelBefore = await page.$eval("#overlay", (e) => Number(e.dataset.level));
   const requestsBefore = fileRequests.length;
   const logBefore = serverLog.length;
   await page.$eval("#budget", (e) => { e.value = e.max; e.dispatchEvent(new Event("change")); });
-  await page.waitForFunction((l) => Number(document.getElementById("overlay")?.dataset.level) < l, levelBefore, { timeout: 10_000 });
-  await page.waitForFunction((a) => Number(document.getElementById("overlay")?.dataset.triangles ?? 0) > a, after, { timeout: 10_000 });
+  await page.waitForFunction((l) => Number(document.getElementById("overlay")?.dataset.level) < l, levelBefore, { timeout: 60_000 });
+  await page.waitForFunction((a) => Number(document.getElementById("overlay")?.dataset.triangles ?? 0) > a, after, { timeout: 60_000 });
   const big = await trianglesOf();
   assert.ok(fileRequests.length > requestsBefore, "raising the budget fetched more of the container");
   assert.ok(fileRequests.every((r) => r.startsWith("bytes=")), "every container read is a range request");
