@@ -4,6 +4,7 @@
 mod codec_cmd;
 mod eval_cmd;
 mod input;
+mod lod_cmd;
 mod serve_cmd;
 
 use clap::{Parser, Subcommand};
@@ -35,6 +36,8 @@ enum Command {
     Serve(serve_cmd::ServeArgs),
     /// Write a built-in sample animation as an OBJ sequence.
     Sample(SampleArgs),
+    /// Deformation-aware LODs of a skinned/morph glTF, with geomorph tables, as one GLB.
+    Lod(lod_cmd::LodArgs),
 }
 
 #[derive(clap::Args)]
@@ -101,6 +104,7 @@ fn main() -> ExitCode {
         Command::Eval(args) => eval_cmd::run(args, cli.quiet),
         Command::Serve(args) => serve_cmd::run(args, cli.quiet),
         Command::Sample(args) => sample(args),
+        Command::Lod(args) => lod_cmd::run(args, cli.quiet),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
