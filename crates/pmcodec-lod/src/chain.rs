@@ -107,6 +107,16 @@ pub fn level_rig(input: &RiggedMesh, attrs: &VertexAttrs, verts: &[Vertex], tria
     (rig, ids)
 }
 
+impl LodChain {
+    /// A chain of level 0 alone: the welded input in the output layout (to write a rig as GLB).
+    pub fn single(input: RiggedMesh) -> Result<Self, LodError> {
+        let attrs = VertexAttrs::from_rig(&input)?;
+        let (rig, ids) = level_rig(&input, &attrs, &attrs.verts, &input.triangles);
+        let levels = vec![LodLevel { rig, target: None, ids, to_coarser: Vec::new() }];
+        Ok(LodChain { input, attrs, levels, pose_count: 0 })
+    }
+}
+
 /// Builds the chain: level 0 is the welded `input`, then one level per target (decreasing
 /// triangle counts).
 pub fn build_chain(input: RiggedMesh, targets: &[usize], opts: &LodOptions) -> Result<LodChain, LodError> {

@@ -14,7 +14,7 @@
 //!   morph-weight channel on an input mesh node is copied onto every level's node that carries
 //!   that mesh's morph targets (sharing the sampler).
 //! * Attributes: POSITION (with min/max), NORMAL (rest pose, unit), JOINTS_0 (u16),
-//!   WEIGHTS_0 (float, summing to 1), u32 indices, morph target POSITION deltas. The
+//!   WEIGHTS_0 (float, summing to 1; unused slots joint 0), u32 indices, morph target POSITION deltas. The
 //!   correspondence tables are u32 SCALAR accessors no mesh uses.
 
 use crate::LodError;
@@ -221,7 +221,9 @@ pub fn chain_glb(chain: &LodChain, placement: &str) -> Result<Vec<u8>, LodError>
                     let w = rig.weights.get(v).copied().unwrap_or_default();
                     let sum: f32 = w.iter().sum();
                     let w = if sum > 0.0 { w.map(|x| x / sum) } else { [1.0, 0.0, 0.0, 0.0] };
-                    joints.push(rig.joints.get(v).copied().unwrap_or_default());
+                    // Unused slots point at joint 0 (the validator warns about others).
+                    let j = rig.joints.get(v).copied().unwrap_or_default();
+                    joints.push(std::array::from_fn(|k| if w[k] > 0.0 { j[k] } else { 0 }));
                     weights.extend(w);
                 }
             }

@@ -24,6 +24,7 @@
 pub mod attrs;
 pub mod chain;
 pub mod error;
+pub mod fixture;
 pub mod gltf_out;
 pub mod measure;
 pub mod placement;
