@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 use pmcodec_lod::LodChain;
+#[allow(unused_imports)]
 pub use pmcodec_lod::fixture::bending_tube_and_face;
 use pmcodec_mesh::gltf_input::RiggedMesh;
 use std::path::PathBuf;
