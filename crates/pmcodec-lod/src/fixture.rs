@@ -13,19 +13,21 @@ use pmcodec_mesh::gltf_input::{
 /// morph-target grid on its own node with one target (a bump) driven by a weights animation.
 pub fn bending_tube_and_face(rings: usize, around: usize) -> RiggedMesh {
     let (rings, around) = (rings.max(2), around.max(3));
-    let mut rig = RiggedMesh::default();
     // Nodes: 0 root joint, 1 upper joint (child of 0, at y = 1), 2 skinned mesh node, 3 face node.
-    rig.nodes = vec![
-        NodeTransform::default(),
-        NodeTransform { translation: Vec3::new(0.0, 1.0, 0.0), ..Default::default() },
-        NodeTransform::default(),
-        NodeTransform { translation: Vec3::new(3.0, 0.0, 0.0), ..Default::default() },
-    ];
-    rig.parents = vec![None, Some(0), None, None];
-    rig.skins = vec![Skin {
-        joints: vec![0, 1],
-        inverse_bind_matrices: vec![Mat4::IDENTITY, Mat4::from_translation(Vec3::new(0.0, -1.0, 0.0))],
-    }];
+    let mut rig = RiggedMesh {
+        nodes: vec![
+            NodeTransform::default(),
+            NodeTransform { translation: Vec3::new(0.0, 1.0, 0.0), ..Default::default() },
+            NodeTransform::default(),
+            NodeTransform { translation: Vec3::new(3.0, 0.0, 0.0), ..Default::default() },
+        ],
+        parents: vec![None, Some(0), None, None],
+        skins: vec![Skin {
+            joints: vec![0, 1],
+            inverse_bind_matrices: vec![Mat4::IDENTITY, Mat4::from_translation(Vec3::new(0.0, -1.0, 0.0))],
+        }],
+        ..Default::default()
+    };
     // Tube: y from 0 to 2.
     for r in 0..rings {
         let y = 2.0 * r as f32 / (rings - 1) as f32;

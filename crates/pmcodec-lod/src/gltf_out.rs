@@ -189,8 +189,7 @@ pub fn chain_glb(chain: &LodChain, placement: &str) -> Result<Vec<u8>, LodError>
                 .collect();
             let (skin, bind) = match inst.skin {
                 Some(s) => (s, Mat4::IDENTITY),
-                None => {
-                    let entry = match rigid_skin.get(&inst.node) {
+                None => match rigid_skin.get(&inst.node) {
                         Some(e) => *e,
                         None => {
                             let w = rest_world.get(inst.node).copied().unwrap_or(Mat4::IDENTITY);
@@ -203,9 +202,7 @@ pub fn chain_glb(chain: &LodChain, placement: &str) -> Result<Vec<u8>, LodError>
                             rigid_skin.insert(inst.node, e);
                             e
                         }
-                    };
-                    entry
-                }
+                },
             };
             let rigid = inst.skin.is_none();
             let positions: Vec<Vec3> =
@@ -348,10 +345,10 @@ pub fn chain_glb(chain: &LodChain, placement: &str) -> Result<Vec<u8>, LodError>
     if !animations.is_empty() {
         root["animations"] = json!(animations);
     }
-    if skins.is_empty() {
-        if let Some(o) = root.as_object_mut() {
-            o.remove("skins");
-        }
+    if skins.is_empty()
+        && let Some(o) = root.as_object_mut()
+    {
+        o.remove("skins");
     }
     assemble(&root, b.bin)
 }
