@@ -110,11 +110,49 @@ pub fn level_rig(input: &RiggedMesh, attrs: &VertexAttrs, verts: &[Vertex], tria
 impl LodChain {
     /// A chain of level 0 alone: the welded input in the output layout (to write a rig as GLB).
     pub fn single(input: RiggedMesh) -> Result<Self, LodError> {
+        validate_rig(&input)?;
         let attrs = VertexAttrs::from_rig(&input)?;
         let (rig, ids) = level_rig(&input, &attrs, &attrs.verts, &input.triangles);
         let levels = vec![LodLevel { rig, target: None, ids, to_coarser: Vec::new() }];
         Ok(LodChain { input, attrs, levels, pose_count: 0 })
     }
+}
+
+/// Checks what the simplifier and the writer index by: triangle corners, skins, joints.
+/// [`RiggedMesh`]s read from files already pass; rigs built in code may not.
+pub fn validate_rig(rig: &RiggedMesh) -> Result<(), LodError> {
+    let n = rig.vertex_count();
+    if rig.triangles.is_empty() {
+        return Err(LodError::BadRig("no triangles".into()));
+    }
+    for (t, tri) in rig.triangles.iter().enumerate() {
+        if tri.iter().any(|&i| i as usize >= n) || tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
+            return Err(LodError::BadRig(format!("triangle {t} {tri:?} is out of range or repeats a corner ({n} vertices)")));
+        }
+    }
+    if rig.joints.len() != n || rig.weights.len() != n {
+        return Err(LodError::BadRig(format!("{} joints and {} weights for {n} vertices", rig.joints.len(), rig.weights.len())));
+    }
+    if rig.parents.len() != rig.nodes.len() {
+        return Err(LodError::BadRig(format!("{} parents for {} nodes", rig.parents.len(), rig.nodes.len())));
+    }
+    for (i, inst) in rig.instances.iter().enumerate() {
+        if inst.node >= rig.nodes.len() {
+            return Err(LodError::BadRig(format!("instance {i} is placed by node {}, which does not exist", inst.node)));
+        }
+        let Some(s) = inst.skin else { continue };
+        let skin = rig.skins.get(s).ok_or_else(|| LodError::BadRig(format!("instance {i} uses skin {s}, which does not exist")))?;
+        if skin.joints.iter().any(|&j| j >= rig.nodes.len()) || skin.inverse_bind_matrices.len() != skin.joints.len() {
+            return Err(LodError::BadRig(format!("skin {s} names missing nodes or lacks inverse bind matrices")));
+        }
+        for v in inst.vertices.clone() {
+            let (j, w) = (rig.joints.get(v).copied().unwrap_or_default(), rig.weights.get(v).copied().unwrap_or_default());
+            if j.iter().zip(&w).any(|(&j, &w)| w != 0.0 && j as usize >= skin.joints.len()) || !w.iter().all(|x| x.is_finite() && *x >= 0.0) {
+                return Err(LodError::BadRig(format!("vertex {v}: joints {j:?} weights {w:?} do not fit skin {s}")));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Builds the chain: level 0 is the welded `input`, then one level per target (decreasing
@@ -123,6 +161,7 @@ pub fn build_chain(input: RiggedMesh, targets: &[usize], opts: &LodOptions) -> R
     if targets.is_empty() {
         return Err(LodError::NoTargets);
     }
+    validate_rig(&input)?;
     let attrs = VertexAttrs::from_rig(&input)?;
     let poses = thin_poses(&sample_poses(&input, &opts.poses)?, attrs.len());
     let weights = importance(&displacement(&attrs, &poses), opts.poses.vertex_weighting);

@@ -99,4 +99,17 @@ fn bad_requests_are_errors() {
     let opts = LodOptions { poses: PoseOptions { weights, ..Default::default() }, ..Default::default() };
     assert!(matches!(build_chain(rig, &[10], &opts), Err(LodError::NoPoses)));
     assert!(PoseWeights::parse(&["rest=-1".into()]).is_ok_and(|w| w.rest == -1.0));
+    let weights = PoseWeights::parse(&["rest=-1".into()]).unwrap();
+    let opts = LodOptions { poses: PoseOptions { weights, ..Default::default() }, ..Default::default() };
+    let rig = bending_tube_and_face(8, 8);
+    assert!(matches!(build_chain(rig.clone(), &[10], &opts), Err(LodError::BadPoseWeight { .. })));
+    let mut broken = rig.clone();
+    broken.triangles.push([0, 0, 1]);
+    assert!(matches!(build_chain(broken, &[10], &LodOptions::default()), Err(LodError::BadRig(_))));
+    let mut broken = rig.clone();
+    broken.joints[0] = [9, 0, 0, 0];
+    assert!(matches!(build_chain(broken, &[10], &LodOptions::default()), Err(LodError::BadRig(_))));
+    let mut broken = rig;
+    broken.triangles[0][1] = 1_000_000;
+    assert!(matches!(build_chain(broken, &[10], &LodOptions::default()), Err(LodError::BadRig(_))));
 }
