@@ -113,3 +113,22 @@ fn bad_requests_are_errors() {
     broken.triangles[0][1] = 1_000_000;
     assert!(matches!(build_chain(broken, &[10], &LodOptions::default()), Err(LodError::BadRig(_))));
 }
+
+#[test]
+fn geomorph_targets_are_nearby_in_every_pose() {
+    let rig = bending_tube_and_face(16, 12);
+    let total = rig.triangles.len();
+    let chain = build_chain(rig, &[total / 3, total / 8], &LodOptions::default()).expect("chain");
+    let diag = pmcodec_lod::measure::posed_mesh(&chain.input, None, 0.0).diagonal();
+    for t in [0.0, 0.5, 1.0] {
+        for k in 0..chain.levels.len() - 1 {
+            let (fine, coarse) = (&chain.levels[k], &chain.levels[k + 1]);
+            let pf = fine.rig.pose(Some(&fine.rig.animations[0]), t);
+            let pc = coarse.rig.pose(Some(&coarse.rig.animations[0]), t);
+            for (i, &c) in fine.to_coarser.iter().enumerate() {
+                let d = (pf[i] - pc[c as usize]).length();
+                assert!(d < 0.25 * diag, "t {t} level {k} vertex {i} -> {c}: {d} of {diag}");
+            }
+        }
+    }
+}
