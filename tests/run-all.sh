@@ -5,7 +5,8 @@
 #      store against s3s-fs, installed here with cargo when missing);
 #   2. the viewer: TypeScript unit tests (node's test runner) and the production build;
 #   3. end to end: `pmcodec serve` with the built-in samples and the viewer, driven by headless
-#      Chromium (Debian's package) through playwright-core.
+#      Chromium (Debian's package) through playwright-core;
+#   4. `pmcodec lod` output checked by the Khronos glTF validator (npm `gltf-validator`).
 # Benchmarks and long fuzzing are not part of it (see README.md).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -30,3 +31,27 @@ fi
 # `cargo test` above already built target/debug/pmcodec for the CLI tests; build only if not.
 [ -x target/debug/pmcodec ] || cargo build --locked -p pmcodec 2>&1
 (cd web && PMCODEC_BIN="$PWD/../target/debug/pmcodec" node test/e2e.mjs)
+
+# ---- glTF validator on `pmcodec lod` output --------------------------------------------------
+# LOD chains of the built-in test rig and of the shared models (when present; the Parrot is
+# Draco-compressed, so it is decoded first with glTF Transform) must have no validator errors.
+echo "== glTF validator on pmcodec lod output"
+(cd tests && npm ci --no-audit --no-fund)
+bin="${CARGO_TARGET_DIR:-target}/debug/pmcodec"
+[ -x "$bin" ] || cargo build --locked -p pmcodec 2>&1
+lod_out="$(mktemp -d)"
+trap 'rm -rf "$lod_out"' EXIT
+cargo run --locked -q -p pmcodec-lod --example write_fixture -- "$lod_out/fixture.glb"
+"$bin" -q lod "$lod_out/fixture.glb" --triangles 50%,20% -o "$lod_out/fixture-lod.glb"
+models=../shared/data/gltf
+for m in Fox RobotExpressive Horse; do
+  if [ -f "$models/$m.glb" ]; then
+    "$bin" -q lod "$models/$m.glb" --triangles 25%,10% -o "$lod_out/$m-lod.glb"
+  fi
+done
+if [ -f "$models/Parrot.glb" ]; then
+  node tests/draco-decompress.mjs "$models/Parrot.glb" "$lod_out/Parrot-plain.glb"
+  "$bin" -q lod "$lod_out/Parrot-plain.glb" --triangles 25%,10% -o "$lod_out/Parrot-lod.glb"
+fi
+node tests/gltf-validate.mjs "$lod_out"/*.glb
+# ---- end of glTF validator block --------------------------------------------------------------

@@ -5,6 +5,7 @@ mod codec_cmd;
 mod eval_cmd;
 mod input;
 mod play_cmd;
+mod lod_cmd;
 mod serve_cmd;
 
 use clap::{Parser, Subcommand};
@@ -39,6 +40,8 @@ enum Command {
     Play(play_cmd::PlayArgs),
     /// Write a built-in sample animation as an OBJ sequence.
     Sample(SampleArgs),
+    /// Deformation-aware LODs of a skinned/morph glTF, with geomorph tables, as one GLB.
+    Lod(lod_cmd::LodArgs),
 }
 
 #[derive(clap::Args)]
@@ -108,6 +111,7 @@ fn main() -> ExitCode {
         Command::Eval(args) => eval_cmd::run(args, cli.quiet),
         Command::Serve(args) => serve_cmd::run(args, cli.quiet),
         Command::Sample(args) => sample(args),
+        Command::Lod(args) => lod_cmd::run(args, cli.quiet),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,44 @@
+//! Deformation-aware discrete LODs for skinned and morph-target glTF models (issue 7).
+//!
+//! The pipeline, one module per step:
+//! 1. [`poses`]: the example poses (frames sampled from every animation, each morph target at
+//!    full weight, the rest pose), their user weights, the per-pose transforms, and the
+//!    per-vertex displacement weights of Berner & Rieger (tertiles, or a smooth variant).
+//! 2. [`attrs`]: the welded vertex record the simplifier carries (rest position, four skin
+//!    influences, morph deltas) and how it is posed: in every pose a vertex is an affine
+//!    function of its rest position, which makes multi-pose quadrics solvable in rest space.
+//! 3. [`placement`]: where a collapsed vertex goes and which skin it gets: endpoint (Mohr &
+//!    Gleicher 4.3), optimal with blended weights cut to four influences, or Houle & Poulin's
+//!    bone-space translation (4.1).
+//! 4. [`simplify`]: greedy edge collapse over the quadrics summed over poses, snapshotted at
+//!    every triangle target: one run gives a nested LOD chain.
+//! 5. [`chain`]: the LOD chain as rigs (per LOD a [`pmcodec_mesh::gltf_input::RiggedMesh`] that
+//!    poses like the input) plus the correspondence tables for geomorphing.
+//! 6. [`gltf_out`]: the GLB writer (skins, morph targets, animations, one scene per LOD, the
+//!    chain described in `extras`, see `proto/lod.md`).
+//! 7. [`measure`]: per-frame error over every animation, and the meshoptimizer baseline.
+
+// `!(x > 0.0)` is written on purpose: it is also true for NaN, which these checks must reject.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+pub mod attrs;
+pub mod chain;
+pub mod error;
+pub mod fixture;
+pub mod gltf_out;
+pub mod measure;
+pub mod placement;
+pub mod poses;
+pub mod simplify;
+
+pub use chain::{LodChain, LodLevel, build_chain};
+pub use error::LodError;
+pub use placement::Placement;
+pub use poses::{PoseOptions, PoseWeights, VertexWeighting};
+
+/// Everything [`build_chain`] needs besides the rig and the targets.
+#[derive(Clone, Debug, Default)]
+pub struct LodOptions {
+    pub poses: PoseOptions,
+    pub placement: Placement,
+}

@@ -1,0 +1,68 @@
+//! `pmcodec lod` end to end on the built-in test rig: a chain written, read back by the `gltf`
+//! crate and by our reader, the report printed; bad requests get exit code 3 and no output.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_pmcodec"))
+}
+
+fn temp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("pmcodec-lod-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn fixture(dir: &std::path::Path) -> PathBuf {
+    let chain = pmcodec_lod::LodChain::single(pmcodec_lod::fixture::bending_tube_and_face(16, 12)).unwrap();
+    let path = dir.join("rig.glb");
+    std::fs::write(&path, pmcodec_lod::gltf_out::chain_glb(&chain, "none").unwrap()).unwrap();
+    path
+}
+
+#[test]
+fn lod_writes_a_chain_and_reports() {
+    let dir = temp("ok");
+    let input = fixture(&dir);
+    let out = dir.join("lod.glb");
+    let run = bin()
+        .args(["lod", "--triangles", "50%,20%", "--placement", "blended", "--weighting", "smooth", "--report"])
+        .args(["--pose-weight", "rest=2,bend=1"])
+        .arg(&input)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let report = String::from_utf8_lossy(&run.stdout);
+    assert!(report.contains("lod1") && report.contains("lod2"), "{report}");
+    let bytes = std::fs::read(&out).unwrap();
+    let g = gltf::Gltf::from_slice(&bytes).expect("gltf crate reads it");
+    assert_eq!(g.scenes().count(), 3);
+    assert_eq!(g.animations().count(), 1);
+    assert!(g.skins().count() >= 1);
+    let back = pmcodec_mesh::gltf_input::RiggedMesh::from_bytes(&bytes).expect("our reader reads it");
+    assert_eq!(back.animations.len(), 1);
+}
+
+#[test]
+fn lod_bad_requests_exit_3() {
+    let dir = temp("bad");
+    let input = fixture(&dir);
+    let out = dir.join("never.glb");
+    for triangles in ["0", "abc", "150%", "10,20", "100000"] {
+        let run = bin().args(["-q", "lod", "--triangles", triangles]).arg(&input).arg("-o").arg(&out).output().unwrap();
+        assert_eq!(run.status.code(), Some(3), "--triangles {triangles}: {}", String::from_utf8_lossy(&run.stderr));
+        assert!(!out.exists());
+    }
+    let run = bin().args(["-q", "lod", "--triangles", "10", "--pose-weight", "nope=1"]).arg(&input).arg("-o").arg(&out).output().unwrap();
+    assert_eq!(run.status.code(), Some(3));
+    let junk = dir.join("junk.glb");
+    std::fs::write(&junk, b"not a glb").unwrap();
+    let run = bin().args(["-q", "lod", "--triangles", "10"]).arg(&junk).arg("-o").arg(&out).output().unwrap();
+    assert_eq!(run.status.code(), Some(3));
+    assert!(!String::from_utf8_lossy(&run.stderr).is_empty());
+    assert!(!out.exists());
+}
