@@ -154,6 +154,10 @@ pub fn cors(origins: &[String]) -> tower_http::cors::CorsLayer {
             HeaderName::from_static("x-pmc-version"),
             HeaderName::from_static("x-pmc-vertices"),
             HeaderName::from_static("x-pmc-triangles"),
+            HeaderName::from_static("x-pmc-level"),
+            HeaderName::from_static("x-pmc-from"),
+            HeaderName::from_static("server-timing"),
+            header::LOCATION,
         ])
         .max_age(Duration::from_secs(3600))
 }

@@ -332,7 +332,11 @@ async fn mesh(State(app): State<AppState>, p: Params, Q(q): Q<MeshQuery>, header
     let etag = mesh_etag(&a.version, &req);
     let version = header_value(&a.version)?;
     // Answer a revalidation without decoding anything.
-    let mut resp = if headers.get(header::IF_NONE_MATCH).and_then(|v| v.to_str().ok()).is_some_and(|v| v.split(',').any(|t| t.trim() == etag || t.trim() == "*")) {
+    let mut resp = if headers.get(header::IF_NONE_MATCH).and_then(|v| v.to_str().ok()).is_some_and(|v| v.split(',').any(|t| {
+        // If-None-Match compares weakly (RFC 9110 13.1.2): a W/ prefix does not matter.
+        let t = t.trim();
+        t == "*" || t.strip_prefix("W/").unwrap_or(t) == etag
+    })) {
         StatusCode::NOT_MODIFIED.into_response()
     } else {
         let out = app.decoder.mesh(a, req).await?;

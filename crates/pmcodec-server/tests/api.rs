@@ -92,6 +92,9 @@ async fn list_metadata_and_meshes_match_local_decoding() {
     let etag = r.header("etag").to_string();
     let r = get(&app, "/v1/assets/cloth/mesh?frame=2&level=1", &[("if-none-match", &etag)]).await;
     assert_eq!(r.status, StatusCode::NOT_MODIFIED);
+    // If-None-Match compares weakly: a cache that weakened the tag still revalidates.
+    let r = get(&app, "/v1/assets/cloth/mesh?frame=2&level=1", &[("if-none-match", &format!("\"x\", W/{etag}"))]).await;
+    assert_eq!(r.status, StatusCode::NOT_MODIFIED);
 }
 
 #[tokio::test]

@@ -41,7 +41,9 @@ pub fn run(args: ServeArgs, quiet: bool) -> Result<(), Exit> {
         config.viewer = None;
     } else if let Some(dir) = args.viewer {
         config.viewer = Some(dir);
-    } else if config.viewer.is_none() {
+    } else if config.viewer.is_none() && std::env::var_os("PMCODEC_VIEWER").is_none() {
+        // The default viewer folder, unless the environment turned the viewer off
+        // (PMCODEC_VIEWER=none or empty).
         config.viewer = Some(PathBuf::from("web/dist")).filter(|p| p.is_dir());
     }
     config.validate().map_err(|e| Exit(crate::EXIT_BAD_INPUT, anyhow::anyhow!("configuration: {e}")))?;
