@@ -17,9 +17,57 @@ fn main() {
     println!("{}: {} vertices, {} frames, levels {:?}; encoded in {secs:.2} s", args[1], v, f, s.header.level_sizes);
     println!("total .pmc: {} bytes ({:.1} KB/frame)", s.file_bytes, s.file_bytes as f64 / f / 1024.0);
     println!("positions ({bits}-bit): {:.2} bits/vertex/frame (all bands)", s.positions_bits_per_vertex_frame);
+    println!("positions by band (bits per input vertex per frame): {:?}", s.positions_bytes.iter().map(|&b| format!("{:.2}", b as f64 * 8.0 / (v * f))).collect::<Vec<_>>());
+    let (mut key, mut inter) = (0u64, 0u64);
+    for e in reader.index().chunks.iter().filter(|e| e.kind == pmcodec_container::ChunkKind::Positions) {
+        if s.header.is_keyframe(e.frame) { key += e.stored_len as u64 } else { inter += e.stored_len as u64 }
+    }
+    let nk = (0..s.header.frame_count).filter(|&x| s.header.is_keyframe(x)).count() as f64;
+    println!("positions on keyframes {:.2}, other frames {:.2} bits/vertex/frame", key as f64 * 8.0 / (v * nk), inter as f64 * 8.0 / (v * (f - nk)));
     println!("topology deltas: {:.0} B/frame compressed, {:.0} B/frame raw", s.delta_bytes_per_frame, s.delta_raw_bytes_per_frame);
     println!("keyframes: {:?} B per band in all", s.key_bytes);
     println!("bytes per frame for a client stopping at level L: {:?}", s.bytes_per_frame_to_level.iter().map(|x| x.round()).collect::<Vec<_>>());
+    // Speed: full-resolution playback of every frame, best of 5, and random seeks.
+    let mut best = f64::INFINITY;
+    for _ in 0..5 {
+        let t = std::time::Instant::now();
+        let mut d = pmcodec_container::Decoder::new(reader.borrowed(), 0).expect("decoder");
+        for fr in 0..s.header.frame_count {
+            d.seek(fr).expect("frame");
+        }
+        best = best.min(t.elapsed().as_secs_f64());
+    }
+    println!("decode, full resolution: {:.3} ms/frame = {:.0} frames/s (one core)", best * 1e3 / f, f / best);
+    let mut worst = 0f64;
+    let mut total = 0f64;
+    let n = 50u32;
+    for i in 0..n {
+        let fr = (i.wrapping_mul(2654435761) >> 7) % s.header.frame_count;
+        let t = std::time::Instant::now();
+        let mut d = pmcodec_container::Decoder::new(reader.borrowed(), 0).expect("decoder");
+        d.seek(fr).expect("seek");
+        let e = t.elapsed().as_secs_f64();
+        worst = worst.max(e);
+        total += e;
+    }
+    println!("seek to a random frame from a fresh decoder: mean {:.2} ms, worst {:.2} ms", total * 1e3 / n as f64, worst * 1e3);
+    // An open decoder (triangles read) jumping to random frames, as a player scrubbing does.
+    let mut d = pmcodec_container::Decoder::new(reader.borrowed(), 0).expect("decoder");
+    d.seek(0).expect("seek");
+    let (mut worst, mut total, mut key_total, mut keys) = (0f64, 0f64, 0f64, 0u32);
+    for i in 0..n {
+        let fr = (i.wrapping_mul(2246822519).wrapping_add(12345) >> 9) % s.header.frame_count;
+        let t = std::time::Instant::now();
+        d.seek(fr).expect("seek");
+        let e = t.elapsed().as_secs_f64();
+        worst = worst.max(e);
+        total += e;
+        if s.header.is_keyframe(fr) {
+            key_total += e;
+            keys += 1;
+        }
+    }
+    println!("seek to a random frame with an open decoder: mean {:.2} ms, worst {:.2} ms (to keyframes: mean {:.2} ms)", total * 1e3 / n as f64, worst * 1e3, key_total * 1e3 / keys.max(1) as f64);
     // References.
     println!("raw f32 positions: 96 bits/vertex/frame ({:.0} KB/frame)", v * 12.0 / 1024.0);
     let mut zsum = 0usize;
