@@ -24,7 +24,7 @@ fn main() {
     }
     let nk = (0..s.header.frame_count).filter(|&x| s.header.is_keyframe(x)).count() as f64;
     println!("positions on keyframes {:.2}, other frames {:.2} bits/vertex/frame", key as f64 * 8.0 / (v * nk), inter as f64 * 8.0 / (v * (f - nk)));
-    println!("topology deltas: {:.0} B/frame compressed, {:.0} B/frame raw", s.delta_bytes_per_frame, s.delta_raw_bytes_per_frame);
+    println!("topology deltas: {:.0} B/frame compressed, {:.0} B/frame raw; by band {:?} B/frame", s.delta_bytes_per_frame, s.delta_raw_bytes_per_frame, s.delta_bytes.iter().map(|&b| (b as f64 / f).round()).collect::<Vec<_>>());
     println!("keyframes: {:?} B per band in all", s.key_bytes);
     println!("bytes per frame for a client stopping at level L: {:?}", s.bytes_per_frame_to_level.iter().map(|x| x.round()).collect::<Vec<_>>());
     // Speed: full-resolution playback of every frame, best of 5, and random seeks.

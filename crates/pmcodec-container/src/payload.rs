@@ -299,16 +299,17 @@ pub fn read_positions(bytes: &[u8], what: &str, count: u32) -> Result<(u32, Vec<
         for x in f.iter_mut().take(n) {
             *x = c.get()?;
         }
-        tables.push(rans::Table::new(&f[..n]).ok_or_else(|| c.corrupt("frequency table does not add up to 4096"))?);
+        tables.push(rans::Table::new(&f[..n], count as usize).ok_or_else(|| c.corrupt("frequency table does not add up to 4096"))?);
     }
     let len = c.count(bytes.len() as u64, "stream bytes")?;
     let stream = bytes.get(c.pos..c.pos + len).ok_or_else(|| c.corrupt("rANS stream beyond the chunk"))?;
     c.pos += len;
     let mut d = rans::Decoder::new(stream).map_err(|e| c.corrupt(e))?;
-    let (tx, ty, tz) = (&tables[0], &tables[1], &tables[2]);
+    let mut codes = Vec::with_capacity(count as usize);
+    d.get_triples([&tables[0], &tables[1], &tables[2]], count as usize, &mut codes);
+    // Escapes are read in decoding order, after the stream.
     let mut out = Vec::with_capacity(count as usize);
-    for _ in 0..count {
-        let mut z = [d.get(0, tx), d.get(1, ty), d.get(2, tz)];
+    for mut z in codes {
         for x in &mut z {
             if *x == ESCAPE {
                 *x = c.get()?.checked_add(ESCAPE).ok_or_else(|| c.corrupt("escaped residual beyond 32 bits"))?;

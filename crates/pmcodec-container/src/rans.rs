@@ -60,26 +60,55 @@ pub fn write_table(out: &mut Vec<u8>, freqs: &[u32]) {
 
 /// A decoding table: for each of the M slots, its symbol (bits 25..30), its symbol's
 /// frequency (bits 0..12) and its offset in the symbol's range (bits 13..24), packed so that
-/// decoding a symbol is one look-up.
+/// decoding a symbol is one look-up. Filling the 4096 slots costs more than decoding a small
+/// band, so small bands keep only the cumulative frequencies and search them.
 pub struct Table {
-    slot: Box<[u32; M as usize]>,
+    slot: Option<Box<[u32; M as usize]>>,
+    /// `cum[s]..cum[s + 1]` is symbol s's range; unused entries stay at M.
+    cum: [u32; SYMBOLS + 1],
 }
 
 impl Table {
-    /// From stored frequencies; they must add up to exactly M.
-    pub fn new(freqs: &[u32]) -> Option<Table> {
+    /// From stored frequencies; they must add up to exactly M. `symbols` is how many symbols
+    /// the table will decode (it picks the look-up or the search).
+    pub fn new(freqs: &[u32], symbols: usize) -> Option<Table> {
         if freqs.is_empty() || freqs.len() > SYMBOLS || freqs.iter().map(|&f| f as u64).sum::<u64>() != M as u64 {
             return None;
         }
-        let mut t = Table { slot: Box::new([0u32; M as usize]) };
+        let mut cum = [M; SYMBOLS + 1];
         let mut at = 0u32;
         for (s, &f) in freqs.iter().enumerate() {
-            for k in 0..f {
-                t.slot[(at + k) as usize] = f | (k << 13) | ((s as u32) << 25);
-            }
+            cum[s] = at;
             at += f;
         }
-        Some(t)
+        let mut slot = None;
+        if symbols >= 2048 {
+            let mut t = Box::new([0u32; M as usize]);
+            for (s, &f) in freqs.iter().enumerate() {
+                for k in 0..f {
+                    t[(cum[s] + k) as usize] = f | (k << 13) | ((s as u32) << 25);
+                }
+            }
+            slot = Some(t);
+        }
+        Some(Table { slot, cum })
+    }
+
+    /// The packed entry of a slot.
+    #[inline(always)]
+    fn entry(&self, slot: u32) -> u32 {
+        match &self.slot {
+            Some(t) => t[slot as usize],
+            None => {
+                // The last symbol whose range starts at or below the slot and is not empty.
+                let mut s = 0usize;
+                while s + 1 < SYMBOLS && self.cum[s + 1] <= slot {
+                    s += 1;
+                }
+                let f = self.cum[s + 1] - self.cum[s];
+                f | ((slot - self.cum[s]) << 13) | ((s as u32) << 25)
+            }
+        }
     }
 }
 
@@ -150,7 +179,7 @@ impl<'a> Decoder<'a> {
     #[inline(always)]
     pub fn get(&mut self, way: usize, t: &Table) -> u32 {
         let x = self.x[way];
-        let e = t.slot[(x & (M - 1)) as usize];
+        let e = t.entry(x & (M - 1));
         let mut x = (e & 0x1FFF) * (x >> SCALE_BITS) + ((e >> 13) & 0xFFF);
         while x < L {
             let b = match self.bytes.get(self.pos) {
@@ -167,6 +196,57 @@ impl<'a> Decoder<'a> {
         }
         self.x[way] = x;
         e >> 25
+    }
+
+    /// Decodes `count` triples, symbol `3 i + a` with state and table `a`, appending the
+    /// symbols to `out`. The same as calling [`Decoder::get`] in turn, with the states held in
+    /// registers (the three chains then overlap, which is what the interleaving is for).
+    pub fn get_triples(&mut self, tables: [&Table; 3], count: usize, out: &mut Vec<[u32; 3]>) {
+        let [mut x0, mut x1, mut x2] = self.x;
+        let bytes = self.bytes;
+        let mut pos = self.pos;
+        let mut overrun = false;
+        #[inline(always)]
+        fn step(x: &mut u32, e: u32, bytes: &[u8], pos: &mut usize, overrun: &mut bool) {
+            let mut y = (e & 0x1FFF) * (*x >> SCALE_BITS) + ((e >> 13) & 0xFFF);
+            while y < L {
+                match bytes.get(*pos) {
+                    Some(&b) => {
+                        *pos += 1;
+                        y = (y << 8) | b as u32;
+                    }
+                    None => {
+                        *overrun = true;
+                        y = L;
+                    }
+                }
+            }
+            *x = y;
+        }
+        if let (Some(t0), Some(t1), Some(t2)) = (&tables[0].slot, &tables[1].slot, &tables[2].slot) {
+            for _ in 0..count {
+                let e0 = t0[(x0 & (M - 1)) as usize];
+                let e1 = t1[(x1 & (M - 1)) as usize];
+                let e2 = t2[(x2 & (M - 1)) as usize];
+                step(&mut x0, e0, bytes, &mut pos, &mut overrun);
+                step(&mut x1, e1, bytes, &mut pos, &mut overrun);
+                step(&mut x2, e2, bytes, &mut pos, &mut overrun);
+                out.push([e0 >> 25, e1 >> 25, e2 >> 25]);
+            }
+        } else {
+            for _ in 0..count {
+                let e0 = tables[0].entry(x0 & (M - 1));
+                step(&mut x0, e0, bytes, &mut pos, &mut overrun);
+                let e1 = tables[1].entry(x1 & (M - 1));
+                step(&mut x1, e1, bytes, &mut pos, &mut overrun);
+                let e2 = tables[2].entry(x2 & (M - 1));
+                step(&mut x2, e2, bytes, &mut pos, &mut overrun);
+                out.push([e0 >> 25, e1 >> 25, e2 >> 25]);
+            }
+        }
+        self.x = [x0, x1, x2];
+        self.pos = pos;
+        self.overrun |= overrun;
     }
 
     /// A valid stream is consumed exactly and leaves every state where the encoder began.
@@ -199,7 +279,11 @@ mod tests {
         }
         let f = normalize(&counts);
         assert_eq!(f.iter().sum::<u32>(), M);
-        let t = Table::new(&f).unwrap();
+        let t = Table::new(&f, 1 << 20).unwrap();
+        let small = Table::new(&f, 1).unwrap();
+        for slot in 0..M {
+            assert_eq!(t.entry(slot), small.entry(slot));
+        }
         let start: Vec<u32> = f.iter().scan(0, |a, &x| { let s = *a; *a += x; Some(s) }).collect();
         let mut e = Encoder::default();
         for (i, &s) in symbols.iter().enumerate().rev() {
@@ -211,6 +295,15 @@ mod tests {
             assert_eq!(d.get(i % WAYS, &t), s);
         }
         d.finish().unwrap();
+        // The batched decoder agrees with the one-symbol decoder, with slots or searching.
+        for table in [&t, &small] {
+            let mut d = Decoder::new(&bytes).unwrap();
+            let mut out = Vec::new();
+            d.get_triples([table, table, table], symbols.len() / 3, &mut out);
+            for (i, tr) in out.iter().enumerate() {
+                assert_eq!(*tr, [symbols[3 * i], symbols[3 * i + 1], symbols[3 * i + 2]]);
+            }
+        }
         // Skewed counts with rare symbols keep every used symbol codable.
         let mut c = [0u64; SYMBOLS];
         c[0] = 1_000_000;
@@ -227,7 +320,7 @@ mod tests {
                 let _ = d.finish();
             }
         }
-        assert!(Table::new(&[4095]).is_none());
-        assert!(Table::new(&[]).is_none());
+        assert!(Table::new(&[4095], 1).is_none());
+        assert!(Table::new(&[], 1).is_none());
     }
 }
