@@ -282,13 +282,20 @@ export class Player {
       const what = `frame ${f} band ${j} positions`;
       const { shift, res } = readPositions(await this.c.chunk(this.c.find(ChunkKind.Positions, f, j)), what, h.levelSizes[j]);
       const lower = j === 0 ? this.lower : null;
+      // Motion sums of the band's decoded nodes per parent (inter frames), exact in doubles.
+      const nParents = j < top ? h.levelSizes[j + 1] : 0;
+      const sibSum = new Float64Array(3 * nParents), sibCount = new Uint32Array(nParents);
       for (let v = 0; v < h.levelSizes[j]; v++) {
         const g = r.offsets[j] + v;
-        const parent = j < top ? r.offsets[j + 1] + r.parent[j][v] : -1;
+        const local = j < top ? r.parent[j][v] : -1;
+        const parent = j < top ? r.offsets[j + 1] + local : -1;
         const lo = lower ? lower.offsets[v] : 0, hi = lower ? lower.offsets[v + 1] : 0;
+        const sib = !intra && local >= 0 && hi === lo ? sibCount[local] : 0;
         for (let a = 0; a < 3; a++) {
           let pred: number;
-          if (hi > lo) {
+          if (sib > 0) {
+            pred = (prev[3 * g + a] + Math.floor((2 * sibSum[3 * local + a] + sib) / (2 * sib))) | 0;
+          } else if (hi > lo) {
             // Mean over the lower neighbours, rounded half up: floor((2 sum + c) / (2 c)).
             // Sums stay far below 2^53, so double arithmetic is exact here.
             const c = hi - lo, items = lower!.items;
@@ -300,7 +307,9 @@ export class Player {
           } else if (intra) pred = parent >= 0 ? cur[3 * parent + a] : v > 0 ? cur[3 * (g - 1) + a] : 0;
           else pred = parent >= 0 ? prev[3 * g + a] + cur[3 * parent + a] - prev[3 * parent + a] : prev[3 * g + a];
           cur[3 * g + a] = (pred + (res[3 * v + a] << shift)) | 0;
+          if (local >= 0) sibSum[3 * local + a] += cur[3 * g + a] - prev[3 * g + a];
         }
+        if (local >= 0) sibCount[local]++;
       }
     }
   }

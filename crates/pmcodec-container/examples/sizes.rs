@@ -25,6 +25,20 @@ fn main() {
     let nk = (0..s.header.frame_count).filter(|&x| s.header.is_keyframe(x)).count() as f64;
     println!("positions on keyframes {:.2}, other frames {:.2} bits/vertex/frame", key as f64 * 8.0 / (v * nk), inter as f64 * 8.0 / (v * (f - nk)));
     println!("topology deltas: {:.0} B/frame compressed, {:.0} B/frame raw; by band {:?} B/frame", s.delta_bytes_per_frame, s.delta_raw_bytes_per_frame, s.delta_bytes.iter().map(|&b| (b as f64 / f).round()).collect::<Vec<_>>());
+    // What the deltas hold, per band: entries per frame of each kind.
+    let levels = s.header.levels();
+    let (mut mv, mut dg, mut co) = (vec![0usize; levels], vec![0usize; levels], vec![0usize; levels]);
+    for e in reader.index().chunks.iter().filter(|e| e.kind == pmcodec_container::ChunkKind::Delta) {
+        let raw = reader.read_chunk(e).expect("chunk");
+        let h = &s.header;
+        let d = pmcodec_container::payload::read_delta(&raw, "d", &h.level_sizes, e.band as usize, h.triangle_count, h.node_count() as u32).expect("delta");
+        let b = e.band as usize;
+        mv[b] += d.moves.len();
+        dg[b] += d.degenerate.len();
+        co[b] += d.corners.len();
+    }
+    let per = |x: &Vec<usize>| x.iter().map(|&c| (c as f64 / f).round()).collect::<Vec<_>>();
+    println!("delta entries per frame by band: moves {:?}, degenerate {:?}, corners {:?}", per(&mv), per(&dg), per(&co));
     println!("keyframes: {:?} B per band in all", s.key_bytes);
     println!("bytes per frame for a client stopping at level L: {:?}", s.bytes_per_frame_to_level.iter().map(|x| x.round()).collect::<Vec<_>>());
     // Speed: full-resolution playback of every frame, best of 5, and random seeks.

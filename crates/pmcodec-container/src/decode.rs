@@ -1,7 +1,7 @@
 //! Decoding: replaying keyframes and deltas down to a finest level L, reconstructing the
 //! quantized node positions, and extracting meshes at any cut.
 
-use crate::predict::{LowerNeighbours, predict};
+use crate::predict::{LowerNeighbours, Siblings, predict};
 use crate::format::ChunkKind;
 use crate::payload;
 use crate::{ByteSource, ContainerError, Reader};
@@ -34,6 +34,8 @@ pub struct Decoder<S> {
     triangles: Option<Vec<[u32; 3]>>,
     /// Level-0 lower neighbours (from the triangles; empty when level 0 is not decoded).
     lower: LowerNeighbours,
+    /// Scratch for the sibling-motion prediction.
+    siblings: Siblings,
     /// Quantized positions of every node (global ids; only levels >= min_level are decoded).
     current: Vec<[i32; 3]>,
     previous: Vec<[i32; 3]>,
@@ -47,7 +49,7 @@ impl<S: ByteSource> Decoder<S> {
             return Err(ContainerError::Options(format!("level {min_level}: the file has levels 0..{}", h.levels() - 1)));
         }
         let total = h.node_count() as usize;
-        Ok(Decoder { reader, min_level, replay: None, frame: None, triangles: None, lower: LowerNeighbours::default(), current: vec![[0; 3]; total], previous: vec![[0; 3]; total] })
+        Ok(Decoder { reader, min_level, replay: None, frame: None, triangles: None, lower: LowerNeighbours::default(), siblings: Siblings::default(), current: vec![[0; 3]; total], previous: vec![[0; 3]; total] })
     }
 
     pub fn frame(&self) -> Option<u32> {
@@ -205,19 +207,25 @@ impl<S: ByteSource> Decoder<S> {
             }
             let base = offsets[j] as usize;
             let parents = replay.h.parent.get(j).map(Vec::as_slice).unwrap_or(&[]);
-            let up = offsets.get(j + 1).map(|&o| o as usize);
+            // Parents exist below the top band only (offsets has one entry more than sizes).
+            let up = if j + 1 < sizes.len() { offsets.get(j + 1).map(|&o| o as usize) } else { None };
+            self.siblings.reset(sizes.get(j + 1).map_or(0, |&n| n as usize));
             for (v, r) in residuals.iter().enumerate() {
                 let g = base + v;
                 let parent = match (up, parents.get(v)) {
-                    (Some(o), Some(&p)) => Some(o + p as usize),
+                    (Some(o), Some(&p)) => Some((o + p as usize, p as usize)),
                     _ => None,
                 };
-                let p = predict(j, v, g, parent, &self.lower, intra, &self.current, &self.previous);
-                self.current[g] = [
+                let p = predict(j, v, g, parent, &self.lower, &self.siblings, intra, &self.current, &self.previous);
+                let q = [
                     p[0].wrapping_add(r[0].wrapping_shl(shift)),
                     p[1].wrapping_add(r[1].wrapping_shl(shift)),
                     p[2].wrapping_add(r[2].wrapping_shl(shift)),
                 ];
+                self.current[g] = q;
+                if let Some((_, local)) = parent {
+                    self.siblings.add(local, q, self.previous[g]);
+                }
             }
         }
         Ok(())

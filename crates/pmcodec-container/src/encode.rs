@@ -4,7 +4,7 @@
 use crate::ContainerError;
 use crate::format::*;
 use crate::payload::{self, DeltaBand};
-use crate::predict::{LowerNeighbours, coarse_shift, predict};
+use crate::predict::{LowerNeighbours, Siblings, coarse_shift, predict};
 use pmcodec_hierarchy::base::{BaseOptions, PoseSet, VertexWeights, base_quadrics};
 use pmcodec_hierarchy::progressive::{Encoder, FrameDelta, degenerate_band};
 use pmcodec_hierarchy::recluster::ReclusterOptions;
@@ -195,6 +195,7 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
     let mut previous = vec![[0i32; 3]; total];
     let mut current = vec![[0i32; 3]; total];
     let mut residuals: Vec<[i32; 3]> = Vec::new();
+    let mut siblings = Siblings::default();
     for (f, frame) in seq.frames.iter().enumerate() {
         let (delta, _) = enc.encode_frame(frame);
         let h = enc.hierarchy();
@@ -212,13 +213,17 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
             push(ChunkKind::Delta, f as u32, j as u32, payload::write_delta(&delta_band(h, &delta, j)))?;
             residuals.clear();
             let shift = shifts[j];
+            siblings.reset(if j + 1 < levels { sizes[j + 1] as usize } else { 0 });
             for v in 0..sizes[j] as usize {
                 let g = offsets[j] as usize + v;
-                let parent = (j + 1 < levels).then(|| (offsets[j + 1] + h.parent[j][v]) as usize);
-                let p = predict(j, v, g, parent, &lower, intra, &current, &previous);
+                let parent = (j + 1 < levels).then(|| ((offsets[j + 1] + h.parent[j][v]) as usize, h.parent[j][v] as usize));
+                let p = predict(j, v, g, parent, &lower, &siblings, intra, &current, &previous);
                 let t = truth(g);
                 let (q, r) = if j == 0 { choose(t, p, SLACK2) } else { on_grid(t, p, shift) };
                 current[g] = q;
+                if let Some((_, local)) = parent {
+                    siblings.add(local, q, previous[g]);
+                }
                 residuals.push(r);
             }
             push(ChunkKind::Positions, f as u32, j as u32, payload::write_positions(shift, &residuals))?;

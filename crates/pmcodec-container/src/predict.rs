@@ -80,17 +80,49 @@ fn mean(sum: i64, count: i64) -> i64 {
     }
 }
 
-/// The prediction of node `v` of band `j`. `parent` is its parent's global id in the current
-/// frame's hierarchy (None for the top band), `lower` the level-0 lower neighbours (used for
-/// band 0 only), `intra` for keyframes.
+/// Running motion of the nodes of a band decoded so far, per parent: on inter frames a node
+/// whose siblings (same parent, smaller index) are decoded moves as their mean does. That is
+/// better than the parent's motion, which carries the parent's coarser quantization.
+#[derive(Clone, Debug, Default)]
+pub struct Siblings {
+    sum: Vec<[i64; 3]>,
+    count: Vec<u32>,
+}
+
+impl Siblings {
+    /// Clears the sums for a band whose parents number `parents`.
+    pub fn reset(&mut self, parents: usize) {
+        self.sum.clear();
+        self.sum.resize(parents, [0; 3]);
+        self.count.clear();
+        self.count.resize(parents, 0);
+    }
+
+    /// Records the decoded node `q` (previous position `prev`) under its parent's local id.
+    #[inline(always)]
+    pub fn add(&mut self, parent: usize, q: [i32; 3], prev: [i32; 3]) {
+        if let (Some(s), Some(c)) = (self.sum.get_mut(parent), self.count.get_mut(parent)) {
+            for a in 0..3 {
+                s[a] += q[a] as i64 - prev[a] as i64;
+            }
+            *c += 1;
+        }
+    }
+}
+
+/// The prediction of node `v` (global id `g`) of band `j`. `parent` is its parent as (global
+/// id, local id at level j+1) in the current frame's hierarchy (None for the top band),
+/// `lower` the level-0 lower neighbours (used for band 0 only), `siblings` the motion of the
+/// band's decoded nodes (inter frames), `intra` for keyframes.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub fn predict(
     j: usize,
     v: usize,
     g: usize,
-    parent: Option<usize>,
+    parent: Option<(usize, usize)>,
     lower: &LowerNeighbours,
+    siblings: &Siblings,
     intra: bool,
     cur: &[[i32; 3]],
     prev: &[[i32; 3]],
@@ -119,6 +151,15 @@ pub fn predict(
             return [(p[0] as i64 + mean(s[0], c)) as i32, (p[1] as i64 + mean(s[1], c)) as i32, (p[2] as i64 + mean(s[2], c)) as i32];
         }
     }
+    if let (false, Some((_, local))) = (intra, parent) {
+        if let (Some(&c), Some(s)) = (siblings.count.get(local), siblings.sum.get(local)) {
+            if c > 0 {
+                let (p, c) = (prev[g], c as i64);
+                return [(p[0] as i64 + mean(s[0], c)) as i32, (p[1] as i64 + mean(s[1], c)) as i32, (p[2] as i64 + mean(s[2], c)) as i32];
+            }
+        }
+    }
+    let parent = parent.map(|(p, _)| p);
     let mut out = [0i32; 3];
     for a in 0..3 {
         out[a] = match (intra, parent) {
