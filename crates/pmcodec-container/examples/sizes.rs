@@ -1,13 +1,14 @@
 //! Container sizes beside the references of the issue: raw float positions, every frame
 //! compressed on its own with zstd, and the paper's per-frame figures.
-//! `cargo run --release -p pmcodec-container --example sizes -- ../shared/data/horse-gallop [bits]`
+//! `cargo run --release -p pmcodec-container --example sizes -- ../shared/data/horse-gallop [bits] [coarse grid k]`
 use pmcodec_container::{EncodeOptions, QuantizationChoice, Reader, encode, summary};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let seq = pmcodec_mesh::obj::load_obj_sequence(std::path::Path::new(&args[1]), 30.0).expect("load");
     let bits: u8 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(12);
-    let opts = EncodeOptions { quantization: QuantizationChoice::Bits(bits), ..Default::default() };
+    let coarse_grid: Option<u32> = args.get(3).and_then(|s| s.parse().ok());
+    let opts = EncodeOptions { quantization: QuantizationChoice::Bits(bits), coarse_grid, ..Default::default() };
     let t = std::time::Instant::now();
     let bytes = encode(&seq, &opts, |_| {}).expect("encode");
     let secs = t.elapsed().as_secs_f64();
@@ -41,6 +42,21 @@ fn main() {
     println!("delta entries per frame by band: moves {:?}, degenerate {:?}, corners {:?}", per(&mv), per(&dg), per(&co));
     println!("keyframes: {:?} B per band in all", s.key_bytes);
     println!("bytes per frame for a client stopping at level L: {:?}", s.bytes_per_frame_to_level.iter().map(|x| x.round()).collect::<Vec<_>>());
+    // A reader at 10% of the triangles: the coarsest finest-level whose budget cut reaches
+    // (95% of) that many triangles, and its share of the stream's chunk bytes (keys included).
+    let budget = s.header.triangle_count / 10;
+    let mid = s.header.frame_count / 2;
+    let all: u64 = reader.index().chunks.iter().map(|e| e.stored_len as u64).sum();
+    for l in (0..s.header.levels()).rev() {
+        let mut d = pmcodec_container::Decoder::new(reader.borrowed(), l).expect("decoder");
+        d.seek(mid).expect("seek");
+        let shown = d.mesh(pmcodec_container::MeshTarget::Triangles(budget)).expect("mesh").triangles.len();
+        if shown as f64 >= 0.95 * budget as f64 {
+            let part: u64 = reader.index().chunks.iter().filter(|e| e.kind != pmcodec_container::ChunkKind::Triangles && e.band as usize >= l).map(|e| e.stored_len as u64).sum();
+            println!("10% of the triangles ({budget}, frame {mid}) needs levels >= {l} ({shown} shown): {:.1}% of the chunk bytes", part as f64 * 100.0 / all as f64);
+            break;
+        }
+    }
     // Speed: full-resolution playback of every frame, best of 5, and random seeks.
     let mut best = f64::INFINITY;
     for _ in 0..5 {

@@ -31,6 +31,9 @@ pub struct EncodeOptions {
     /// A keyframe every this many frames (0: only frame 0).
     pub keyframe_interval: u32,
     pub quantization: QuantizationChoice,
+    /// Coarser nodes on a grid of `2^(level + k)` quanta (see [`crate::coarse_shift`]): fewer
+    /// bits, coarser cuts. None (the default) keeps every stored position within the bound.
+    pub coarse_grid: Option<u32>,
 }
 
 impl Default for EncodeOptions {
@@ -41,6 +44,7 @@ impl Default for EncodeOptions {
             recluster: ReclusterOptions::default(),
             keyframe_interval: 16,
             quantization: QuantizationChoice::MaxError(1e-4),
+            coarse_grid: None,
         }
     }
 }
@@ -71,11 +75,12 @@ fn choose(t: [f64; 3], p: [i32; 3], radius2: f64) -> ([i32; 3], [i32; 3]) {
     (q, [0, 1, 2].map(|a| q[a].wrapping_sub(p[a])))
 }
 
-/// A coarse node's stored position: the prediction plus the nearest multiple of `2^shift`
-/// quanta to the true offset.
-fn on_grid(t: [f64; 3], p: [i32; 3], shift: u32) -> ([i32; 3], [i32; 3]) {
+/// A coarse node's stored position: the prediction plus a multiple of `2^shift` quanta per
+/// axis, chosen as input vertices are (the smallest residuals within `sqrt(radius2)` grid
+/// steps of the true offset), so its error stays within what rounding to the grid gives.
+fn on_grid(t: [f64; 3], p: [i32; 3], shift: u32, radius2: f64) -> ([i32; 3], [i32; 3]) {
     let unit = (1u64 << shift) as f64;
-    let r = [0, 1, 2].map(|a| ((t[a] - p[a] as f64) / unit).round() as i32);
+    let (r, _) = choose([0, 1, 2].map(|a| (t[a] - p[a] as f64) / unit), [0; 3], radius2);
     ([0, 1, 2].map(|a| p[a].wrapping_add(r[a].wrapping_shl(shift))), r)
 }
 
@@ -186,7 +191,7 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
 
     let total = *offsets.last().unwrap_or(&0) as usize;
     let lower = LowerNeighbours::new(seq.vertex_count(), &seq.triangles);
-    let shifts: Vec<u32> = (0..levels).map(|j| coarse_shift(&header, j)).collect();
+    let shifts: Vec<u32> = (0..levels).map(|j| coarse_shift(&header, j, opts.coarse_grid)).collect();
     // The radius (in quanta) input vertices may move from their true position: the bound the
     // quantization states, |error| <= sqrt(3)/2 step (the farthest rounding goes), less a
     // margin for the f32 arithmetic of dequantization.
@@ -219,7 +224,7 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
                 let parent = (j + 1 < levels).then(|| ((offsets[j + 1] + h.parent[j][v]) as usize, h.parent[j][v] as usize));
                 let p = predict(j, v, g, parent, &lower, &siblings, intra, &current, &previous);
                 let t = truth(g);
-                let (q, r) = if j == 0 { choose(t, p, SLACK2) } else { on_grid(t, p, shift) };
+                let (q, r) = if j == 0 { choose(t, p, SLACK2) } else { on_grid(t, p, shift, SLACK2) };
                 current[g] = q;
                 if let Some((_, local)) = parent {
                     siblings.add(local, q, previous[g]);

@@ -53,7 +53,7 @@ fn round_trip(seq: &Sequence, opts: &EncodeOptions) -> Vec<u8> {
         // Coarser nodes sit on a grid of 2^shift quanta around their prediction.
         for g in seq.vertex_count()..pos.len() {
             let (k, _) = enc.hierarchy().local(g as u32);
-            let s = pmcodec_container::coarse_shift(h, k);
+            let s = pmcodec_container::coarse_shift(h, k, opts.coarse_grid);
             let b = if s == 0 { bound } else { h.quantization.step * (1u32 << s) as f32 * 0.5 * 3f32.sqrt() * 1.0001 };
             assert!((pos[g] - enc.recluster.nodes.positions[g]).length() <= b, "frame {f} node {g}");
         }
@@ -92,6 +92,8 @@ fn horse_gallop_round_trips() {
 fn samba_and_cat_round_trip() {
     if let Some(seq) = data("samba-60", 6) {
         round_trip(&seq, &EncodeOptions { quantization: QuantizationChoice::Bits(12), keyframe_interval: 4, ..Default::default() });
+        // Coarse nodes on a grid: residual shifts, coarse nodes within half a grid step.
+        round_trip(&seq, &EncodeOptions { quantization: QuantizationChoice::Bits(12), keyframe_interval: 4, coarse_grid: Some(2), ..Default::default() });
     }
     if let Some(seq) = data("cat-poses", 4) {
         round_trip(&seq, &EncodeOptions { keyframe_interval: 0, ..Default::default() });
