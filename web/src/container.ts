@@ -1,5 +1,6 @@
 // A decoder of the .pmc container written from proto/container.md: preamble, postcard header
-// and index, zstd chunks with CRC-32, varint payloads, and position prediction. Byte access is
+// and index, zstd chunks with CRC-32, varint payloads, rANS-coded position residuals and
+// position prediction. Byte access is
 // a callback, so the same code reads a file in Node or HTTP ranges in a browser.
 
 import { decompress } from "fzstd";
@@ -7,6 +8,8 @@ import { BELOW, DecodeError, FrameDelta, KeyBand, NONE, Replay } from "./replay.
 
 export const MAGIC = [0x89, 0x50, 0x4d, 0x43, 0x0d, 0x0a, 0x1a, 0x0a];
 export const PREAMBLE_LEN = 32;
+/** The format version this decoder reads. */
+export const VERSION = 2;
 
 export enum ChunkKind { Triangles = 0, Key = 1, Delta = 2, Positions = 3 }
 
@@ -105,7 +108,7 @@ export class Container {
     for (let i = 0; i < 8; i++) if (pre[i] !== MAGIC[i]) throw new DecodeError("not a .pmc file (bad magic number)");
     const dv = new DataView(pre.buffer, pre.byteOffset, pre.byteLength);
     const version = dv.getUint16(8, true);
-    if (version !== 1) throw new DecodeError(`container version ${version} is not supported`);
+    if (version !== VERSION) throw new DecodeError(`container version ${version} is not supported`);
     const headerLen = dv.getUint32(12, true), indexLen = dv.getUint32(16, true);
     const headerCrc = dv.getUint32(20, true), indexCrc = dv.getUint32(24, true);
     const dataStart = PREAMBLE_LEN + headerLen + indexLen;
@@ -212,6 +215,8 @@ export class Player {
   current: Int32Array;
   previous: Int32Array;
   private triangles: Uint32Array | null = null;
+  /** Level-0 lower neighbours (proto/container.md, "Positions, band j"). */
+  private lower: LowerNeighbours | null = null;
 
   constructor(readonly c: Container, readonly minLevel: number) {
     const h = c.header;
@@ -247,6 +252,7 @@ export class Player {
       for (let i = 0; i < 3 * n; i++) tris[i] = p.id(h.vertexCount, "vertex");
       p.finish();
       this.triangles = tris;
+      this.lower = lowerNeighbours(h.vertexCount, tris);
     }
     this.replay.loadKeyframe(bands, this.triangles ?? undefined);
     await this.decodePositions(k, true);
@@ -266,24 +272,45 @@ export class Player {
     this.frame = f;
   }
 
-  /** Positions of bands top..minLevel (proto/container.md, "Positions"). */
+  /** Positions of bands top..minLevel (proto/container.md, "Positions, band j"). */
   private async decodePositions(f: number, fromKey: boolean): Promise<void> {
     const h = this.c.header, r = this.replay;
     const intra = fromKey || this.c.isKeyframe(f);
     const cur = this.current, prev = this.previous;
-    for (let j = h.levelSizes.length - 1; j >= this.minLevel; j--) {
-      const p = new Payload(await this.c.chunk(this.c.find(ChunkKind.Positions, f, j)), `frame ${f} band ${j} positions`);
+    const top = h.levelSizes.length - 1;
+    for (let j = top; j >= this.minLevel; j--) {
+      const what = `frame ${f} band ${j} positions`;
+      const { shift, res } = readPositions(await this.c.chunk(this.c.find(ChunkKind.Positions, f, j)), what, h.levelSizes[j]);
+      const lower = j === 0 ? this.lower : null;
+      // Motion sums of the band's decoded nodes per parent (inter frames), exact in doubles.
+      const nParents = j < top ? h.levelSizes[j + 1] : 0;
+      const sibSum = new Float64Array(3 * nParents), sibCount = new Uint32Array(nParents);
       for (let v = 0; v < h.levelSizes[j]; v++) {
         const g = r.offsets[j] + v;
-        const parent = j < h.levelSizes.length - 1 ? r.offsets[j + 1] + r.parent[j][v] : -1;
+        const local = j < top ? r.parent[j][v] : -1;
+        const parent = j < top ? r.offsets[j + 1] + local : -1;
+        const lo = lower ? lower.offsets[v] : 0, hi = lower ? lower.offsets[v + 1] : 0;
+        const sib = !intra && local >= 0 && hi === lo ? sibCount[local] : 0;
         for (let a = 0; a < 3; a++) {
           let pred: number;
-          if (intra) pred = parent >= 0 ? cur[3 * parent + a] : v > 0 ? cur[3 * (g - 1) + a] : 0;
+          if (sib > 0) {
+            pred = (prev[3 * g + a] + Math.floor((2 * sibSum[3 * local + a] + sib) / (2 * sib))) | 0;
+          } else if (hi > lo) {
+            // Mean over the lower neighbours, rounded half up: floor((2 sum + c) / (2 c)).
+            // Sums stay far below 2^53, so double arithmetic is exact here.
+            const c = hi - lo, items = lower!.items;
+            let sum = 0;
+            if (intra) for (let i = lo; i < hi; i++) sum += cur[3 * items[i] + a];
+            else for (let i = lo; i < hi; i++) sum += cur[3 * items[i] + a] - prev[3 * items[i] + a];
+            const mean = Math.floor((2 * sum + c) / (2 * c));
+            pred = intra ? mean | 0 : (prev[3 * g + a] + mean) | 0;
+          } else if (intra) pred = parent >= 0 ? cur[3 * parent + a] : v > 0 ? cur[3 * (g - 1) + a] : 0;
           else pred = parent >= 0 ? prev[3 * g + a] + cur[3 * parent + a] - prev[3 * parent + a] : prev[3 * g + a];
-          cur[3 * g + a] = (pred + p.zigzag()) | 0;
+          cur[3 * g + a] = (pred + (res[3 * v + a] << shift)) | 0;
+          if (local >= 0) sibSum[3 * local + a] += cur[3 * g + a] - prev[3 * g + a];
         }
+        if (local >= 0) sibCount[local]++;
       }
-      p.finish();
     }
   }
 
@@ -315,3 +342,90 @@ export class Player {
 }
 
 export { BELOW };
+
+/** For each input vertex, the distinct vertices u < v sharing a triangle with it (rows sorted). */
+export interface LowerNeighbours { offsets: Uint32Array; items: Uint32Array }
+
+export function lowerNeighbours(n: number, tris: Uint32Array): LowerNeighbours {
+  const counts = new Uint32Array(n + 1);
+  const pairs = (f: (hi: number, lo: number) => void) => {
+    for (let t = 0; t + 2 < tris.length; t += 3) {
+      for (let k = 0; k < 3; k++) {
+        const a = tris[t + k], b = tris[t + ((k + 1) % 3)];
+        if (a !== b && a < n && b < n) f(Math.max(a, b), Math.min(a, b));
+      }
+    }
+  };
+  pairs((hi) => { counts[hi + 1]++; });
+  for (let i = 0; i < n; i++) counts[i + 1] += counts[i];
+  const fill = counts.slice();
+  const items = new Uint32Array(counts[n]);
+  pairs((hi, lo) => { items[fill[hi]++] = lo; });
+  const offsets = new Uint32Array(n + 1);
+  let w = 0;
+  for (let v = 0; v < n; v++) {
+    const row = items.subarray(counts[v], counts[v + 1]).sort();
+    const start = w;
+    for (let i = 0; i < row.length; i++) if (w === start || items[w - 1] !== row[i]) items[w++] = row[i];
+    offsets[v + 1] = w;
+  }
+  return { offsets, items: items.slice(0, w) };
+}
+
+// rANS (proto/container.md, "Positions, band j"): 12-bit frequencies, states in [2^23, 2^31),
+// three interleaved states. Every product freq * (x >>> 12) is below 2^31, so plain JS
+// numbers and 32-bit operators compute it exactly.
+const RANS_M = 4096, RANS_L = 1 << 23, RANS_SYMBOLS = 32, RANS_ESCAPE = 31, MAX_SHIFT = 16;
+
+/** A positions chunk: its residual shift and 3 residuals per node (units of 2^shift quanta). */
+export function readPositions(raw: Uint8Array, what: string, count: number): { shift: number; res: Int32Array } {
+  const p = new Payload(raw, what);
+  const shift = p.get();
+  if (shift > MAX_SHIFT) throw new DecodeError(`${what}: residual shift ${shift} beyond ${MAX_SHIFT}`);
+  const tables: Uint32Array[] = [];
+  for (let a = 0; a < 3; a++) {
+    const n = p.count(RANS_SYMBOLS, "symbols");
+    const freqs: number[] = [];
+    let sum = 0;
+    for (let s = 0; s < n; s++) { const f = p.get(); freqs.push(f); sum += f; }
+    if (n === 0 || sum !== RANS_M) throw new DecodeError(`${what}: frequency table does not add up to 4096`);
+    // Per slot: frequency (bits 0..12), offset in the symbol's range (13..24), symbol (25..29).
+    const t = new Uint32Array(RANS_M);
+    let at = 0;
+    for (let s = 0; s < n; s++) { for (let k = 0; k < freqs[s]; k++) t[at + k] = freqs[s] | (k << 13) | (s << 25); at += freqs[s]; }
+    tables.push(t);
+  }
+  const len = p.count(raw.length, "stream bytes");
+  if (p.pos + len > raw.length) throw new DecodeError(`${what}: rANS stream beyond the chunk`);
+  const stream = raw.subarray(p.pos, p.pos + len);
+  p.pos += len;
+  if (len < 12) throw new DecodeError(`${what}: rANS stream shorter than its states`);
+  const x = [0, 0, 0];
+  for (let w = 0; w < 3; w++) {
+    x[w] = ((stream[4 * w] << 24) >>> 0) + (stream[4 * w + 1] << 16) + (stream[4 * w + 2] << 8) + stream[4 * w + 3];
+    if (x[w] < RANS_L || x[w] >= 2 ** 31) throw new DecodeError(`${what}: rANS state out of range`);
+  }
+  let pos = 12, overrun = false;
+  const res = new Int32Array(3 * count);
+  for (let i = 0; i < 3 * count; i++) {
+    const w = i % 3, t = tables[w];
+    let s = x[w];
+    const e = t[s & (RANS_M - 1)];
+    s = (e & 0x1fff) * (s >>> 12) + ((e >>> 13) & 0xfff);
+    while (s < RANS_L) {
+      if (pos >= len) { overrun = true; s = RANS_L; break; }
+      s = (s << 8) | stream[pos++];
+    }
+    x[w] = s;
+    let z = e >>> 25;
+    if (z === RANS_ESCAPE) {
+      z = p.get() + RANS_ESCAPE;
+      if (z > 0xffffffff) throw new DecodeError(`${what}: escaped residual beyond 32 bits`);
+    }
+    res[i] = (z >>> 1) ^ -(z & 1);
+  }
+  if (overrun) throw new DecodeError(`${what}: rANS stream ends early`);
+  if (pos !== len || x[0] !== RANS_L || x[1] !== RANS_L || x[2] !== RANS_L) throw new DecodeError(`${what}: rANS stream does not end where it should`);
+  p.finish();
+  return { shift, res };
+}

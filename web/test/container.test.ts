@@ -17,7 +17,8 @@ function fixtures(): { dir: string; pmc: string } {
   const dir = mkdtempSync(join(tmpdir(), "pmc-ts-"));
   execFileSync(bin, ["sample", "twisting-tube", "-o", join(dir, "frames"), "--frames", "20"]);
   const pmc = join(dir, "tube.pmc");
-  execFileSync(bin, ["encode", "-q", join(dir, "frames"), "-o", pmc, "--keyframe-interval", "8", "--quant-bits", "14"]);
+  // Coarse nodes on a grid, so residual shifts are exercised too.
+  execFileSync(bin, ["encode", "-q", join(dir, "frames"), "-o", pmc, "--keyframe-interval", "8", "--quant-bits", "14", "--coarse-grid", "1"]);
   return { dir, pmc };
 }
 

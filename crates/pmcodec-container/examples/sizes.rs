@@ -1,13 +1,14 @@
 //! Container sizes beside the references of the issue: raw float positions, every frame
 //! compressed on its own with zstd, and the paper's per-frame figures.
-//! `cargo run --release -p pmcodec-container --example sizes -- ../shared/data/horse-gallop [bits]`
+//! `cargo run --release -p pmcodec-container --example sizes -- ../shared/data/horse-gallop [bits] [coarse grid k]`
 use pmcodec_container::{EncodeOptions, QuantizationChoice, Reader, encode, summary};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let seq = pmcodec_mesh::obj::load_obj_sequence(std::path::Path::new(&args[1]), 30.0).expect("load");
     let bits: u8 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(12);
-    let opts = EncodeOptions { quantization: QuantizationChoice::Bits(bits), ..Default::default() };
+    let coarse_grid: Option<u32> = args.get(3).and_then(|s| s.parse().ok());
+    let opts = EncodeOptions { quantization: QuantizationChoice::Bits(bits), coarse_grid, ..Default::default() };
     let t = std::time::Instant::now();
     let bytes = encode(&seq, &opts, |_| {}).expect("encode");
     let secs = t.elapsed().as_secs_f64();
@@ -17,9 +18,86 @@ fn main() {
     println!("{}: {} vertices, {} frames, levels {:?}; encoded in {secs:.2} s", args[1], v, f, s.header.level_sizes);
     println!("total .pmc: {} bytes ({:.1} KB/frame)", s.file_bytes, s.file_bytes as f64 / f / 1024.0);
     println!("positions ({bits}-bit): {:.2} bits/vertex/frame (all bands)", s.positions_bits_per_vertex_frame);
-    println!("topology deltas: {:.0} B/frame compressed, {:.0} B/frame raw", s.delta_bytes_per_frame, s.delta_raw_bytes_per_frame);
+    println!("positions by band (bits per input vertex per frame): {:?}", s.positions_bytes.iter().map(|&b| format!("{:.2}", b as f64 * 8.0 / (v * f))).collect::<Vec<_>>());
+    let (mut key, mut inter) = (0u64, 0u64);
+    for e in reader.index().chunks.iter().filter(|e| e.kind == pmcodec_container::ChunkKind::Positions) {
+        if s.header.is_keyframe(e.frame) { key += e.stored_len as u64 } else { inter += e.stored_len as u64 }
+    }
+    let nk = (0..s.header.frame_count).filter(|&x| s.header.is_keyframe(x)).count() as f64;
+    println!("positions on keyframes {:.2}, other frames {:.2} bits/vertex/frame", key as f64 * 8.0 / (v * nk), inter as f64 * 8.0 / (v * (f - nk)));
+    println!("topology deltas: {:.0} B/frame compressed, {:.0} B/frame raw; by band {:?} B/frame", s.delta_bytes_per_frame, s.delta_raw_bytes_per_frame, s.delta_bytes.iter().map(|&b| (b as f64 / f).round()).collect::<Vec<_>>());
+    // What the deltas hold, per band: entries per frame of each kind.
+    let levels = s.header.levels();
+    let (mut mv, mut dg, mut co) = (vec![0usize; levels], vec![0usize; levels], vec![0usize; levels]);
+    for e in reader.index().chunks.iter().filter(|e| e.kind == pmcodec_container::ChunkKind::Delta) {
+        let raw = reader.read_chunk(e).expect("chunk");
+        let h = &s.header;
+        let d = pmcodec_container::payload::read_delta(&raw, "d", &h.level_sizes, e.band as usize, h.triangle_count, h.node_count() as u32).expect("delta");
+        let b = e.band as usize;
+        mv[b] += d.moves.len();
+        dg[b] += d.degenerate.len();
+        co[b] += d.corners.len();
+    }
+    let per = |x: &Vec<usize>| x.iter().map(|&c| (c as f64 / f).round()).collect::<Vec<_>>();
+    println!("delta entries per frame by band: moves {:?}, degenerate {:?}, corners {:?}", per(&mv), per(&dg), per(&co));
     println!("keyframes: {:?} B per band in all", s.key_bytes);
     println!("bytes per frame for a client stopping at level L: {:?}", s.bytes_per_frame_to_level.iter().map(|x| x.round()).collect::<Vec<_>>());
+    // A reader at 10% of the triangles: the coarsest finest-level whose budget cut reaches
+    // (95% of) that many triangles, and its share of the stream's chunk bytes (keys included).
+    let budget = s.header.triangle_count / 10;
+    let mid = s.header.frame_count / 2;
+    let all: u64 = reader.index().chunks.iter().map(|e| e.stored_len as u64).sum();
+    for l in (0..s.header.levels()).rev() {
+        let mut d = pmcodec_container::Decoder::new(reader.borrowed(), l).expect("decoder");
+        d.seek(mid).expect("seek");
+        let shown = d.mesh(pmcodec_container::MeshTarget::Triangles(budget)).expect("mesh").triangles.len();
+        if shown as f64 >= 0.95 * budget as f64 {
+            let part: u64 = reader.index().chunks.iter().filter(|e| e.kind != pmcodec_container::ChunkKind::Triangles && e.band as usize >= l).map(|e| e.stored_len as u64).sum();
+            println!("10% of the triangles ({budget}, frame {mid}) needs levels >= {l} ({shown} shown): {:.1}% of the chunk bytes", part as f64 * 100.0 / all as f64);
+            break;
+        }
+    }
+    // Speed: full-resolution playback of every frame, best of 5, and random seeks.
+    let mut best = f64::INFINITY;
+    for _ in 0..5 {
+        let t = std::time::Instant::now();
+        let mut d = pmcodec_container::Decoder::new(reader.borrowed(), 0).expect("decoder");
+        for fr in 0..s.header.frame_count {
+            d.seek(fr).expect("frame");
+        }
+        best = best.min(t.elapsed().as_secs_f64());
+    }
+    println!("decode, full resolution: {:.3} ms/frame = {:.0} frames/s (one core)", best * 1e3 / f, f / best);
+    let mut worst = 0f64;
+    let mut total = 0f64;
+    let n = 50u32;
+    for i in 0..n {
+        let fr = (i.wrapping_mul(2654435761) >> 7) % s.header.frame_count;
+        let t = std::time::Instant::now();
+        let mut d = pmcodec_container::Decoder::new(reader.borrowed(), 0).expect("decoder");
+        d.seek(fr).expect("seek");
+        let e = t.elapsed().as_secs_f64();
+        worst = worst.max(e);
+        total += e;
+    }
+    println!("seek to a random frame from a fresh decoder: mean {:.2} ms, worst {:.2} ms", total * 1e3 / n as f64, worst * 1e3);
+    // An open decoder (triangles read) jumping to random frames, as a player scrubbing does.
+    let mut d = pmcodec_container::Decoder::new(reader.borrowed(), 0).expect("decoder");
+    d.seek(0).expect("seek");
+    let (mut worst, mut total, mut key_total, mut keys) = (0f64, 0f64, 0f64, 0u32);
+    for i in 0..n {
+        let fr = (i.wrapping_mul(2246822519).wrapping_add(12345) >> 9) % s.header.frame_count;
+        let t = std::time::Instant::now();
+        d.seek(fr).expect("seek");
+        let e = t.elapsed().as_secs_f64();
+        worst = worst.max(e);
+        total += e;
+        if s.header.is_keyframe(fr) {
+            key_total += e;
+            keys += 1;
+        }
+    }
+    println!("seek to a random frame with an open decoder: mean {:.2} ms, worst {:.2} ms (to keyframes: mean {:.2} ms)", total * 1e3 / n as f64, worst * 1e3, key_total * 1e3 / keys.max(1) as f64);
     // References.
     println!("raw f32 positions: 96 bits/vertex/frame ({:.0} KB/frame)", v * 12.0 / 1024.0);
     let mut zsum = 0usize;

@@ -1,7 +1,7 @@
 //! Decoding: replaying keyframes and deltas down to a finest level L, reconstructing the
 //! quantized node positions, and extracting meshes at any cut.
 
-use crate::encode::predict;
+use crate::predict::{LowerNeighbours, Siblings, predict};
 use crate::format::ChunkKind;
 use crate::payload;
 use crate::{ByteSource, ContainerError, Reader};
@@ -32,6 +32,10 @@ pub struct Decoder<S> {
     replay: Option<Replay>,
     frame: Option<u32>,
     triangles: Option<Vec<[u32; 3]>>,
+    /// Level-0 lower neighbours (from the triangles; empty when level 0 is not decoded).
+    lower: LowerNeighbours,
+    /// Scratch for the sibling-motion prediction.
+    siblings: Siblings,
     /// Quantized positions of every node (global ids; only levels >= min_level are decoded).
     current: Vec<[i32; 3]>,
     previous: Vec<[i32; 3]>,
@@ -45,7 +49,7 @@ impl<S: ByteSource> Decoder<S> {
             return Err(ContainerError::Options(format!("level {min_level}: the file has levels 0..{}", h.levels() - 1)));
         }
         let total = h.node_count() as usize;
-        Ok(Decoder { reader, min_level, replay: None, frame: None, triangles: None, current: vec![[0; 3]; total], previous: vec![[0; 3]; total] })
+        Ok(Decoder { reader, min_level, replay: None, frame: None, triangles: None, lower: LowerNeighbours::default(), siblings: Siblings::default(), current: vec![[0; 3]; total], previous: vec![[0; 3]; total] })
     }
 
     pub fn frame(&self) -> Option<u32> {
@@ -148,7 +152,9 @@ impl<S: ByteSource> Decoder<S> {
                 ContainerError::Corrupt { what: "index".into(), detail: "no triangles chunk".into() }
             })?;
             let raw = self.reader.read_chunk(e)?;
-            self.triangles = Some(payload::read_triangles(&raw, "triangles chunk", h.triangle_count, h.vertex_count)?);
+            let triangles = payload::read_triangles(&raw, "triangles chunk", h.triangle_count, h.vertex_count)?;
+            self.lower = LowerNeighbours::new(h.vertex_count as usize, &triangles);
+            self.triangles = Some(triangles);
         }
         let replay = Replay::from_keyframe(sizes, h.branching, &key, self.min_level, h.triangle_count as usize, self.triangles.as_deref())
             .map_err(|source| ContainerError::Delta { what: format!("frame {frame} keyframe"), source })?;
@@ -195,16 +201,31 @@ impl<S: ByteSource> Decoder<S> {
         for j in (self.min_level..sizes.len()).rev() {
             let what = format!("frame {frame} band {j} positions");
             let raw = self.chunk(ChunkKind::Positions, frame, j)?;
-            let residuals = payload::read_positions(&raw, &what, sizes[j])?;
+            let (shift, residuals) = payload::read_positions(&raw, &what, sizes[j])?;
             if from_key && !h.is_keyframe(frame) {
                 return Err(ContainerError::Corrupt { what, detail: "keyframe positions on a frame that is not a keyframe".into() });
             }
+            let base = offsets[j] as usize;
+            let parents = replay.h.parent.get(j).map(Vec::as_slice).unwrap_or(&[]);
+            // Parents exist below the top band only (offsets has one entry more than sizes).
+            let up = if j + 1 < sizes.len() { offsets.get(j + 1).map(|&o| o as usize) } else { None };
+            self.siblings.reset(sizes.get(j + 1).map_or(0, |&n| n as usize));
             for (v, r) in residuals.iter().enumerate() {
-                let g = offsets[j] as usize + v;
-                let parent = (j + 1 < sizes.len()).then(|| (offsets[j + 1] + replay.h.parent[j][v]) as usize);
-                let prev_in_level = (v > 0).then(|| g - 1);
-                let p = predict(intra, g, parent, prev_in_level, &self.current, &self.previous);
-                self.current[g] = [0, 1, 2].map(|a| p[a].wrapping_add(r[a]));
+                let g = base + v;
+                let parent = match (up, parents.get(v)) {
+                    (Some(o), Some(&p)) => Some((o + p as usize, p as usize)),
+                    _ => None,
+                };
+                let p = predict(j, v, g, parent, &self.lower, &self.siblings, intra, &self.current, &self.previous);
+                let q = [
+                    p[0].wrapping_add(r[0].wrapping_shl(shift)),
+                    p[1].wrapping_add(r[1].wrapping_shl(shift)),
+                    p[2].wrapping_add(r[2].wrapping_shl(shift)),
+                ];
+                self.current[g] = q;
+                if let Some((_, local)) = parent {
+                    self.siblings.add(local, q, self.previous[g]);
+                }
             }
         }
         Ok(())

@@ -4,7 +4,7 @@
 use crate::ContainerError;
 use crate::format::*;
 use crate::payload::{self, DeltaBand};
-use glam::Vec3;
+use crate::predict::{LowerNeighbours, Siblings, coarse_shift, predict};
 use pmcodec_hierarchy::base::{BaseOptions, PoseSet, VertexWeights, base_quadrics};
 use pmcodec_hierarchy::progressive::{Encoder, FrameDelta, degenerate_band};
 use pmcodec_hierarchy::recluster::ReclusterOptions;
@@ -31,6 +31,9 @@ pub struct EncodeOptions {
     /// A keyframe every this many frames (0: only frame 0).
     pub keyframe_interval: u32,
     pub quantization: QuantizationChoice,
+    /// Coarser nodes on a grid of `2^(level + k)` quanta (see [`crate::coarse_shift`]): fewer
+    /// bits, coarser cuts. None (the default) keeps every stored position within the bound.
+    pub coarse_grid: Option<u32>,
 }
 
 impl Default for EncodeOptions {
@@ -41,35 +44,44 @@ impl Default for EncodeOptions {
             recluster: ReclusterOptions::default(),
             keyframe_interval: 16,
             quantization: QuantizationChoice::MaxError(1e-4),
+            coarse_grid: None,
         }
     }
 }
 
-fn quantize(p: Vec3, lo: Vec3, step: f32) -> [i32; 3] {
-    let q = ((p - lo) / step).round();
-    [q.x as i32, q.y as i32, q.z as i32]
+/// An input vertex's stored position: among the grid points within `sqrt(radius2)` quanta of
+/// its true position `t`, the one whose residuals from the prediction `p` are smallest (they
+/// cost the fewest bits), nearer to `t` on ties; the nearest grid point if none is closer.
+/// Returns the point and its residuals.
+fn choose(t: [f64; 3], p: [i32; 3], radius2: f64) -> ([i32; 3], [i32; 3]) {
+    let near = t.map(|x| x.round() as i32);
+    let mut best = (u64::MAX, f64::INFINITY, near);
+    for dx in -1..=1 {
+        for dy in -1..=1 {
+            for dz in -1..=1 {
+                let q = [near[0] + dx, near[1] + dy, near[2] + dz];
+                let d2: f64 = (0..3).map(|a| (q[a] as f64 - t[a]).powi(2)).sum();
+                if d2 > radius2 && (dx, dy, dz) != (0, 0, 0) {
+                    continue;
+                }
+                let cost: u64 = (0..3).map(|a| q[a].wrapping_sub(p[a]).unsigned_abs() as u64).sum();
+                if (cost, d2) < (best.0, best.1) {
+                    best = (cost, d2, q);
+                }
+            }
+        }
+    }
+    let q = best.2;
+    (q, [0, 1, 2].map(|a| q[a].wrapping_sub(p[a])))
 }
 
-/// Prediction of a node's quantized position (proto/container.md, "Positions"). `parent` is
-/// the node's parent in H_f (global id), `prev` the previous frame's quantized positions.
-pub(crate) fn predict(
-    intra: bool,
-    g: usize,
-    parent: Option<usize>,
-    prev_in_level: Option<usize>,
-    current: &[[i32; 3]],
-    previous: &[[i32; 3]],
-) -> [i32; 3] {
-    let mut out = [0i32; 3];
-    for a in 0..3 {
-        out[a] = match (intra, parent) {
-            (true, Some(p)) => current[p][a],
-            (true, None) => prev_in_level.map_or(0, |i| current[i][a]),
-            (false, Some(p)) => previous[g][a].wrapping_add(current[p][a].wrapping_sub(previous[p][a])),
-            (false, None) => previous[g][a],
-        };
-    }
-    out
+/// A coarse node's stored position: the prediction plus a multiple of `2^shift` quanta per
+/// axis, chosen as input vertices are (the smallest residuals within `sqrt(radius2)` grid
+/// steps of the true offset), so its error stays within what rounding to the grid gives.
+fn on_grid(t: [f64; 3], p: [i32; 3], shift: u32, radius2: f64) -> ([i32; 3], [i32; 3]) {
+    let unit = (1u64 << shift) as f64;
+    let (r, _) = choose([0, 1, 2].map(|a| (t[a] - p[a] as f64) / unit), [0; 3], radius2);
+    ([0, 1, 2].map(|a| p[a].wrapping_add(r[a].wrapping_shl(shift))), r)
 }
 
 /// Net parent changes of one level from a frame's swaps: (node, new parent) where the last
@@ -178,15 +190,25 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
     push(ChunkKind::Triangles, 0, 0, payload::write_triangles(&seq.triangles))?;
 
     let total = *offsets.last().unwrap_or(&0) as usize;
+    let lower = LowerNeighbours::new(seq.vertex_count(), &seq.triangles);
+    let shifts: Vec<u32> = (0..levels).map(|j| coarse_shift(&header, j, opts.coarse_grid)).collect();
+    // The radius (in quanta) input vertices may move from their true position: the bound the
+    // quantization states, |error| <= sqrt(3)/2 step (the farthest rounding goes), less a
+    // margin for the f32 arithmetic of dequantization.
+    const SLACK2: f64 = 0.72;
+    let inv = 1.0 / step as f64;
     let mut previous = vec![[0i32; 3]; total];
     let mut current = vec![[0i32; 3]; total];
+    let mut residuals: Vec<[i32; 3]> = Vec::new();
+    let mut siblings = Siblings::default();
     for (f, frame) in seq.frames.iter().enumerate() {
         let (delta, _) = enc.encode_frame(frame);
         let h = enc.hierarchy();
         let positions = &enc.recluster.nodes.positions;
-        for g in 0..total {
-            current[g] = quantize(if g < frame.len() { frame[g] } else { positions[g] }, lo, step);
-        }
+        let truth = |g: usize| {
+            let p = if g < frame.len() { frame[g] } else { positions[g] } - lo;
+            [p.x as f64 * inv, p.y as f64 * inv, p.z as f64 * inv]
+        };
         let intra = header.is_keyframe(f as u32);
         let key = intra.then(|| enc.keyframe());
         for j in (0..levels).rev() {
@@ -194,15 +216,22 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
                 push(ChunkKind::Key, f as u32, j as u32, payload::write_key(&k.bands[j]))?;
             }
             push(ChunkKind::Delta, f as u32, j as u32, payload::write_delta(&delta_band(h, &delta, j)))?;
-            let mut residuals = Vec::with_capacity(sizes[j] as usize);
-            for v in 0..sizes[j] {
-                let g = (offsets[j] + v) as usize;
-                let parent = (j + 1 < levels).then(|| (offsets[j + 1] + h.parent[j][v as usize]) as usize);
-                let prev_in_level = (v > 0).then(|| g - 1);
-                let p = predict(intra, g, parent, prev_in_level, &current, &previous);
-                residuals.push([0, 1, 2].map(|a| current[g][a].wrapping_sub(p[a])));
+            residuals.clear();
+            let shift = shifts[j];
+            siblings.reset(if j + 1 < levels { sizes[j + 1] as usize } else { 0 });
+            for v in 0..sizes[j] as usize {
+                let g = offsets[j] as usize + v;
+                let parent = (j + 1 < levels).then(|| ((offsets[j + 1] + h.parent[j][v]) as usize, h.parent[j][v] as usize));
+                let p = predict(j, v, g, parent, &lower, &siblings, intra, &current, &previous);
+                let t = truth(g);
+                let (q, r) = if j == 0 { choose(t, p, SLACK2) } else { on_grid(t, p, shift, SLACK2) };
+                current[g] = q;
+                if let Some((_, local)) = parent {
+                    siblings.add(local, q, previous[g]);
+                }
+                residuals.push(r);
             }
-            push(ChunkKind::Positions, f as u32, j as u32, payload::write_positions(&residuals))?;
+            push(ChunkKind::Positions, f as u32, j as u32, payload::write_positions(shift, &residuals))?;
         }
         std::mem::swap(&mut previous, &mut current);
         progress(f);

@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 /// transfers and truncating tools fail loudly, as in PNG's signature.
 pub const MAGIC: [u8; 8] = *b"\x89PMC\r\n\x1a\n";
 /// Format version this crate writes and reads.
-pub const VERSION: u16 = 1;
+pub const VERSION: u16 = 2;
 /// Size of the fixed preamble.
 pub const PREAMBLE_LEN: usize = 32;
 /// Upper bound on the header and index sizes a reader accepts (protects allocations).

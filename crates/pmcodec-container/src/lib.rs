@@ -12,11 +12,14 @@ mod decode;
 mod encode;
 pub mod format;
 pub mod payload;
+pub mod predict;
+pub mod rans;
 mod read;
 
 pub use decode::{Decoder, MeshTarget};
 pub use encode::{EncodeOptions, QuantizationChoice, encode, write_file};
 pub use format::{ChunkEntry, ChunkKind, Header, Index};
+pub use predict::coarse_shift;
 pub use read::{ByteSource, FileSource, Reader};
 
 use serde::Serialize;

@@ -238,25 +238,88 @@ pub fn read_delta(bytes: &[u8], what: &str, sizes: &[u32], band: usize, triangle
     Ok(d)
 }
 
-/// POSITIONS band j: three zigzag residuals per level-j node, in node order.
-pub fn write_positions(residuals: &[[i32; 3]]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(residuals.len() * 4);
+/// Largest residual step a positions chunk may use (units of 2^shift quanta).
+pub const MAX_SHIFT: u32 = 16;
+
+/// POSITIONS band j: `shift`, three rANS frequency tables (x, y, z), the rANS stream of the
+/// residuals' zigzag codes (x y z per node; codes from `rans::ESCAPE` up are escaped), then
+/// the escaped codes minus `ESCAPE` as varints, in decoding order. Residuals are in units of
+/// `2^shift` quanta.
+pub fn write_positions(shift: u32, residuals: &[[i32; 3]]) -> Vec<u8> {
+    use crate::rans::{self, ESCAPE, SYMBOLS};
+    let sym = |r: i32| zigzag(r).min(ESCAPE);
+    let mut counts = [[0u64; SYMBOLS]; 3];
+    for r in residuals {
+        for a in 0..3 {
+            counts[a][sym(r[a]) as usize] += 1;
+        }
+    }
+    let freqs: Vec<Vec<u32>> = counts.iter().map(|c| rans::normalize(c)).collect();
+    let starts: Vec<Vec<u32>> = freqs
+        .iter()
+        .map(|f| f.iter().scan(0u32, |acc, &x| { let s = *acc; *acc += x; Some(s) }).collect())
+        .collect();
+    let mut out = Vec::with_capacity(residuals.len() + 64);
+    put(&mut out, shift);
+    for f in &freqs {
+        rans::write_table(&mut out, f);
+    }
+    let mut e = rans::Encoder::default();
+    for r in residuals.iter().rev() {
+        for a in (0..3).rev() {
+            let s = sym(r[a]) as usize;
+            e.put(a, starts[a][s], freqs[a][s]);
+        }
+    }
+    let stream = e.finish();
+    put(&mut out, stream.len() as u32);
+    out.extend_from_slice(&stream);
     for r in residuals {
         for &x in r {
-            put(&mut out, zigzag(x));
+            if zigzag(x) >= ESCAPE {
+                put(&mut out, zigzag(x) - ESCAPE);
+            }
         }
     }
     out
 }
 
-pub fn read_positions(bytes: &[u8], what: &str, count: u32) -> Result<Vec<[i32; 3]>, ContainerError> {
+/// Reads a positions chunk of `count` nodes: (shift, residuals in units of 2^shift quanta).
+pub fn read_positions(bytes: &[u8], what: &str, count: u32) -> Result<(u32, Vec<[i32; 3]>), ContainerError> {
+    use crate::rans::{self, ESCAPE, SYMBOLS};
     let mut c = Cursor::new(bytes, what);
-    let mut out = Vec::with_capacity(count as usize);
-    for _ in 0..count {
-        out.push([unzigzag(c.get()?), unzigzag(c.get()?), unzigzag(c.get()?)]);
+    let shift = c.get()?;
+    if shift > MAX_SHIFT {
+        return Err(c.corrupt(format!("residual shift {shift} beyond {MAX_SHIFT}")));
     }
+    let mut tables = Vec::with_capacity(3);
+    for _ in 0..3 {
+        let n = c.count(SYMBOLS as u64, "symbols")?;
+        let mut f = [0u32; SYMBOLS];
+        for x in f.iter_mut().take(n) {
+            *x = c.get()?;
+        }
+        tables.push(rans::Table::new(&f[..n], count as usize).ok_or_else(|| c.corrupt("frequency table does not add up to 4096"))?);
+    }
+    let len = c.count(bytes.len() as u64, "stream bytes")?;
+    let stream = bytes.get(c.pos..c.pos + len).ok_or_else(|| c.corrupt("rANS stream beyond the chunk"))?;
+    c.pos += len;
+    let mut d = rans::Decoder::new(stream).map_err(|e| c.corrupt(e))?;
+    let mut codes = Vec::with_capacity(count as usize);
+    d.get_triples([&tables[0], &tables[1], &tables[2]], count as usize, &mut codes);
+    // Escapes are read in decoding order, after the stream.
+    let mut out = Vec::with_capacity(count as usize);
+    for mut z in codes {
+        for x in &mut z {
+            if *x == ESCAPE {
+                *x = c.get()?.checked_add(ESCAPE).ok_or_else(|| c.corrupt("escaped residual beyond 32 bits"))?;
+            }
+        }
+        out.push([unzigzag(z[0]), unzigzag(z[1]), unzigzag(z[2])]);
+    }
+    d.finish().map_err(|e| c.corrupt(e))?;
     c.finish()?;
-    Ok(out)
+    Ok((shift, out))
 }
 
 #[cfg(test)]
@@ -280,6 +343,15 @@ mod tests {
         }
         assert!(Cursor::new(&[0x80], "x").get().is_err());
         assert!(Cursor::new(&[0xff, 0xff, 0xff, 0xff, 0x7f], "x").get().is_err());
+    }
+
+    #[test]
+    fn positions_round_trip() {
+        let r: Vec<[i32; 3]> = (0..500i32).map(|i| [i % 7 - 3, (i * 37) % 101 - 50, if i % 50 == 0 { i32::MIN } else { 0 }]).collect();
+        let bytes = write_positions(3, &r);
+        assert_eq!(read_positions(&bytes, "t", 500).unwrap(), (3, r.clone()));
+        assert!(read_positions(&bytes, "t", 499).is_err());
+        assert!(read_positions(&bytes[..bytes.len() - 1], "t", 500).is_err());
     }
 
     #[test]

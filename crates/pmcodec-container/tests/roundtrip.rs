@@ -50,8 +50,12 @@ fn round_trip(seq: &Sequence, opts: &EncodeOptions) -> Vec<u8> {
         for (v, p) in frame.iter().enumerate() {
             assert!((pos[v] - *p).length() <= bound, "frame {f} vertex {v}: {} > {bound}", (pos[v] - *p).length());
         }
+        // Coarser nodes sit on a grid of 2^shift quanta around their prediction.
         for g in seq.vertex_count()..pos.len() {
-            assert!((pos[g] - enc.recluster.nodes.positions[g]).length() <= bound, "frame {f} node {g}");
+            let (k, _) = enc.hierarchy().local(g as u32);
+            let s = pmcodec_container::coarse_shift(h, k, opts.coarse_grid);
+            let b = if s == 0 { bound } else { h.quantization.step * (1u32 << s) as f32 * 0.5 * 3f32.sqrt() * 1.0001 };
+            assert!((pos[g] - enc.recluster.nodes.positions[g]).length() <= b, "frame {f} node {g}");
         }
     }
     // Level 0 is the input, in input order.
@@ -88,6 +92,8 @@ fn horse_gallop_round_trips() {
 fn samba_and_cat_round_trip() {
     if let Some(seq) = data("samba-60", 6) {
         round_trip(&seq, &EncodeOptions { quantization: QuantizationChoice::Bits(12), keyframe_interval: 4, ..Default::default() });
+        // Coarse nodes on a grid: residual shifts, coarse nodes within half a grid step.
+        round_trip(&seq, &EncodeOptions { quantization: QuantizationChoice::Bits(12), keyframe_interval: 4, coarse_grid: Some(2), ..Default::default() });
     }
     if let Some(seq) = data("cat-poses", 4) {
         round_trip(&seq, &EncodeOptions { keyframe_interval: 0, ..Default::default() });
@@ -207,8 +213,8 @@ fn corruption_is_an_error_naming_the_region() {
 #[test]
 fn header_snapshot() {
     let bytes = encode(&wave(3), &EncodeOptions::default(), |_| {}).unwrap();
-    // Preamble: magic, version 1, flags 0.
-    assert_eq!(&bytes[..12], b"\x89PMC\r\n\x1a\n\x01\x00\x00\x00");
+    // Preamble: magic, version 2, flags 0.
+    assert_eq!(&bytes[..12], b"\x89PMC\r\n\x1a\n\x02\x00\x00\x00");
     let reader = Reader::open(bytes.as_slice()).unwrap();
     let h = reader.header();
     assert_eq!((h.vertex_count, h.triangle_count, h.frame_count), (108, 176, 3));

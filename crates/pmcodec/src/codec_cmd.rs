@@ -36,6 +36,10 @@ pub struct EncodeArgs {
     /// Quantize positions to this many bits per axis of the bounding box instead.
     #[arg(long)]
     pub quant_bits: Option<u8>,
+    /// Store coarser nodes on a grid of 2^(level + K) quanta: fewer bits, coarser cuts (the
+    /// input vertices stay within the error bound).
+    #[arg(long, value_name = "K")]
+    pub coarse_grid: Option<u32>,
     /// Quadrics the base hierarchy is built from: `first`, `all`, or a number of sampled frames.
     #[arg(long, default_value = "first")]
     pub base_poses: String,
@@ -66,7 +70,7 @@ fn parse_poses(s: &str) -> anyhow::Result<PoseSet> {
 
 pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
     let seq = input::load(&args.input, &args.input_args)?;
-    let mut opts = EncodeOptions { keyframe_interval: args.keyframe_interval, ..Default::default() };
+    let mut opts = EncodeOptions { keyframe_interval: args.keyframe_interval, coarse_grid: args.coarse_grid, ..Default::default() };
     opts.build.branching = args.branching;
     opts.base.poses = parse_poses(&args.base_poses).map_err(|e| Exit(2, e))?;
     opts.base.weights = match args.base_weights {
