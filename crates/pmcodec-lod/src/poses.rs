@@ -19,7 +19,7 @@
 use crate::LodError;
 use crate::attrs::VertexAttrs;
 use glam::Mat4;
-use pmcodec_mesh::gltf_input::{AnimatedProperty, Animation, RiggedMesh};
+use pmcodec_mesh::gltf_input::{Animation, RiggedMesh};
 use std::collections::HashMap;
 
 /// Weights of the pose sources. Names not listed weigh `default`.
@@ -138,89 +138,18 @@ pub struct Pose {
 /// Most poses a run may use: the per-pose quadrics cost vertices * poses * 80 bytes.
 pub const MAX_POSES: usize = 1024;
 
-fn unit(q: glam::Quat) -> glam::Quat {
-    let len = q.length();
-    if len.is_finite() && len > 1e-12 { q / len } else { glam::Quat::IDENTITY }
-}
-
-/// The transforms of `animation` at time `t` (the rest pose for `None`), following the same
-/// rules as [`RiggedMesh::pose`]: channels on missing nodes are ignored, a node given as a
-/// matrix keeps it unless animated.
+/// The transforms of `animation` at time `t` (the rest pose for `None`), posed by the same
+/// code as [`RiggedMesh::pose`] ([`RiggedMesh::pose_transforms`]).
 pub fn pose_at(rig: &RiggedMesh, animation: Option<&Animation>, t: f32) -> Pose {
-    let mut local = rig.nodes.clone();
-    let mut animated = vec![false; local.len()];
-    let mut morph: Vec<Vec<f32>> = rig.instances.iter().map(|i| i.default_weights.clone()).collect();
-    for ch in animation.map_or(&[][..], |a| a.channels.as_slice()) {
-        let v = ch.sample(t);
-        if ch.property == AnimatedProperty::MorphWeights {
-            for (inst, w) in rig.instances.iter().zip(morph.iter_mut()) {
-                if inst.node == ch.node {
-                    *w = v.clone();
-                }
-            }
-            continue;
-        }
-        let Some(node) = local.get_mut(ch.node) else { continue };
-        match (ch.property, v.as_slice()) {
-            (AnimatedProperty::Translation, &[x, y, z]) => node.translation = glam::Vec3::new(x, y, z),
-            (AnimatedProperty::Scale, &[x, y, z]) => node.scale = glam::Vec3::new(x, y, z),
-            (AnimatedProperty::Rotation, &[x, y, z, w]) => node.rotation = unit(glam::Quat::from_xyzw(x, y, z, w)),
-            _ => continue,
-        }
-        if let Some(flag) = animated.get_mut(ch.node) {
-            *flag = true;
-        }
-    }
-    let local: Vec<Mat4> = local
-        .iter()
-        .zip(&animated)
-        .map(|(n, &moved)| match n.matrix {
-            Some(m) if !moved => m,
-            _ => Mat4::from_scale_rotation_translation(n.scale, n.rotation, n.translation),
-        })
-        .collect();
-    let world = world_transforms(&rig.parents, &local);
-    let joints = rig
-        .skins
-        .iter()
-        .map(|s| {
-            s.joints
-                .iter()
-                .zip(&s.inverse_bind_matrices)
-                .map(|(&j, ibm)| world.get(j).copied().unwrap_or(Mat4::IDENTITY) * *ibm)
-                .collect()
-        })
-        .collect();
+    let p = rig.pose_transforms(animation, t);
     let label = match animation {
         Some(a) => format!("{}@{t:.3}", animation_key(a)),
         None => "rest".to_string(),
     };
-    Pose { label, weight: 1.0, joints, world, morph }
+    Pose { label, weight: 1.0, joints: p.joints, world: p.world, morph: p.morph }
 }
 
-/// World transform of every node, parents first. The loader already rejected cycles; a node
-/// whose parent chain is broken is treated as a root.
-pub fn world_transforms(parents: &[Option<usize>], local: &[Mat4]) -> Vec<Mat4> {
-    let mut children: Vec<Vec<usize>> = vec![Vec::new(); parents.len()];
-    let mut stack: Vec<usize> = Vec::new();
-    for (c, p) in parents.iter().enumerate() {
-        match p.and_then(|p| children.get_mut(p)) {
-            Some(list) => list.push(c),
-            None => stack.push(c),
-        }
-    }
-    let mut world = vec![Mat4::IDENTITY; parents.len()];
-    let mut visited = vec![false; parents.len()];
-    while let Some(n) = stack.pop() {
-        if std::mem::replace(&mut visited[n], true) {
-            continue;
-        }
-        let parent = parents[n].and_then(|p| world.get(p)).copied().unwrap_or(Mat4::IDENTITY);
-        world[n] = parent * local.get(n).copied().unwrap_or(Mat4::IDENTITY);
-        stack.extend(children[n].iter().copied());
-    }
-    world
-}
+pub use pmcodec_mesh::gltf_input::world_transforms;
 
 /// The example poses of a rig: rest, every morph target alone at full weight, and
 /// `per_animation` frames of every animation, each with its source's weight. Poses of weight 0

@@ -150,6 +150,17 @@ fn gltf_error(message: impl Into<String>) -> MeshError {
 // The rigged mesh
 // ------------------------------------------------------------------------------------------------
 
+/// The transforms of one pose of a [`RiggedMesh`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct PoseTransforms {
+    /// World transform of every node.
+    pub world: Vec<Mat4>,
+    /// Per skin, its joint matrices (joint world transform times inverse bind matrix).
+    pub joints: Vec<Vec<Mat4>>,
+    /// Morph weights of every instance.
+    pub morph: Vec<Vec<f32>>,
+}
+
 /// Everything needed to pose the merged mesh at any time of any of the file's animations: the
 /// authored vertices with their skin and morph data, the node hierarchy, the skins and the
 /// animations. [`RiggedMesh::to_sequence`] samples it; a writer that keeps skins and morphs can
@@ -412,16 +423,21 @@ impl RiggedMesh {
         out
     }
 
-    /// Positions of every vertex at time `t` (seconds) of `animation`, or in the rest pose for
-    /// `None`. Channels naming nodes this mesh does not have are ignored.
-    pub fn pose(&self, animation: Option<&Animation>, t: f32) -> Vec<Vec3> {
+    /// The transforms of `animation` at time `t` (seconds), or of the rest pose for `None`:
+    /// channels naming nodes this mesh does not have are ignored, and a node given as a matrix
+    /// keeps it unless a channel animates it.
+    pub fn pose_transforms(&self, animation: Option<&Animation>, t: f32) -> PoseTransforms {
         let mut local: Vec<NodeTransform> = self.nodes.clone();
         let mut animated = vec![false; local.len()];
-        let mut weights: HashMap<usize, Vec<f32>> = HashMap::new();
+        let mut morph: Vec<Vec<f32>> = self.instances.iter().map(|i| i.default_weights.clone()).collect();
         for ch in animation.map_or(&[][..], |a| a.channels.as_slice()) {
             let v = ch.sample(t);
             if ch.property == AnimatedProperty::MorphWeights {
-                weights.insert(ch.node, v);
+                for (inst, w) in self.instances.iter().zip(morph.iter_mut()) {
+                    if inst.node == ch.node {
+                        w.clone_from(&v);
+                    }
+                }
                 continue;
             }
             let Some(node) = local.get_mut(ch.node) else { continue };
@@ -444,16 +460,21 @@ impl RiggedMesh {
             })
             .collect();
         let world = world_transforms(&self.parents, &local_matrices);
-        let world_of = |n: usize| world.get(n).copied().unwrap_or(Mat4::IDENTITY);
-        let joint_matrices: Vec<Vec<Mat4>> = self
+        let joints = self
             .skins
             .iter()
-            .map(|s| s.joints.iter().zip(&s.inverse_bind_matrices).map(|(&j, ibm)| world_of(j) * *ibm).collect())
+            .map(|s| s.joints.iter().zip(&s.inverse_bind_matrices).map(|(&j, ibm)| world.get(j).copied().unwrap_or(Mat4::IDENTITY) * *ibm).collect())
             .collect();
+        PoseTransforms { world, joints, morph }
+    }
 
+    /// Positions of every vertex at time `t` (seconds) of `animation`, or in the rest pose for
+    /// `None`. Channels naming nodes this mesh does not have are ignored.
+    pub fn pose(&self, animation: Option<&Animation>, t: f32) -> Vec<Vec3> {
+        let PoseTransforms { world, joints: joint_matrices, morph: weights } = self.pose_transforms(animation, t);
+        let world_of = |n: usize| world.get(n).copied().unwrap_or(Mat4::IDENTITY);
         let mut out = vec![Vec3::ZERO; self.vertex_count()];
-        for inst in &self.instances {
-            let morph = weights.get(&inst.node).unwrap_or(&inst.default_weights);
+        for (inst, morph) in self.instances.iter().zip(&weights) {
             let rigid = world_of(inst.node);
             let skin = inst.skin.and_then(|s| joint_matrices.get(s));
             for (i, v) in inst.vertices.clone().enumerate() {
@@ -833,7 +854,7 @@ fn unit_quat(q: Quat) -> Quat {
 }
 
 /// World transform of every node: parents before children, from the roots down.
-fn world_transforms(parents: &[Option<usize>], local: &[Mat4]) -> Vec<Mat4> {
+pub fn world_transforms(parents: &[Option<usize>], local: &[Mat4]) -> Vec<Mat4> {
     let mut children: Vec<Vec<usize>> = vec![Vec::new(); parents.len()];
     let mut stack: Vec<usize> = Vec::new();
     for (c, p) in parents.iter().enumerate() {
