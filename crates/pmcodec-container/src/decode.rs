@@ -25,7 +25,9 @@ pub enum MeshTarget {
 }
 
 /// Plays a container frame by frame down to a finest level. It owns its [`Reader`]; use
-/// [`Reader::borrowed`] to decode from a reader you keep.
+/// [`Reader::borrowed`] to decode from a reader you keep. A clone is an independent decoder
+/// at the same frame (servers keep states per frame and step clones forward).
+#[derive(Clone)]
 pub struct Decoder<S> {
     reader: Reader<S>,
     min_level: usize,

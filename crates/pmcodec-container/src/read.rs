@@ -74,6 +74,7 @@ impl ByteSource for FileSource {
 }
 
 /// An opened container: header and index checked, chunks on demand.
+#[derive(Clone)]
 pub struct Reader<S> {
     source: S,
     header: Header,

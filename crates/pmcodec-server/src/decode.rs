@@ -1,10 +1,11 @@
 //! LOD on demand: decode worker threads, each owning an LRU of decoder states.
 //!
-//! A decoder state is a [`Decoder`] positioned at some frame of one asset, at one finest level,
-//! inside one keyframe interval. A request for frame f goes to the state of the keyframe at or
-//! before f: it steps forward from where that state is, or reloads the keyframe when f lies
-//! behind it. Playback-order requests thus cost one frame's deltas each, and random ones at most
-//! one keyframe interval.
+//! A decoder state is a [`Decoder`] positioned at one frame of one asset, at one finest level.
+//! A request for frame f uses the state at f when there is one (then only the cut and the
+//! encoding cost anything); otherwise it clones the nearest state at a frame before f in the same
+//! keyframe interval and steps the clone forward, or starts from the keyframe. The new state is
+//! kept too, so once an asset is warm, random frames cost no replay at all; the LRU bounds the
+//! memory. Every request of one keyframe interval goes to the same worker (see `route`).
 //!
 //! The container's `Decoder` owns its `Reader`, which counts bytes in a `Cell`, so a state is
 //! `Send` but not `Sync`. Each state lives on one worker thread for its whole life (requests are
@@ -85,6 +86,7 @@ pub struct DecodePool {
     pub stats: Arc<DecodeStats>,
 }
 
+/// (asset version, finest level, frame).
 type Key = (String, usize, u32);
 
 impl DecodePool {
@@ -123,6 +125,8 @@ impl DecodePool {
             MeshTarget::Level(l) => l,
             _ => 0,
         };
+        // Routed by keyframe interval, so that the states a request can start from are all on
+        // the worker that gets it.
         let key = (asset.version.clone(), min_level, asset.header.keyframe_before(req.frame));
         let (tx, rx) = tokio::sync::oneshot::channel();
         self.stats.requests.fetch_add(1, Ordering::Relaxed);
@@ -165,13 +169,16 @@ fn worker(w: usize, rx: Receiver<Msg>, capacity: u64, stats: &DecodeStats) {
                 if job.reply.is_closed() {
                     continue;
                 }
-                let key = (job.asset.version.clone(), job.min_level, job.asset.header.keyframe_before(job.req.frame));
-                let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run(&mut cache, &key, &job, stats)))
-                    .unwrap_or_else(|_| {
-                        // The state that panicked was taken out of the cache before use, so
-                        // nothing half-updated stays behind.
+                let key = (job.asset.version.clone(), job.min_level, job.req.frame);
+                let result = match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run(&mut cache, &key, &job, stats))) {
+                    Ok(r) => r,
+                    Err(_) => {
+                        // The state in use may be half-updated: drop it. (A new state enters
+                        // the cache only after it decoded.)
+                        drop(cache.remove(&key));
                         Err(ApiError::Internal(format!("decoder panicked on {} frame {}", job.asset.id, job.req.frame)))
-                    });
+                    }
+                };
                 let _ = job.reply.send(result);
             }
         }
@@ -184,23 +191,35 @@ fn run(cache: &mut Lru<Key, DecoderCell>, key: &Key, job: &Job, stats: &DecodeSt
     let t0 = Instant::now();
     let asset = &job.asset;
     let fail = |e: ContainerError| ApiError::Internal(format!("asset {} frame {}: {e}", asset.id, job.req.frame));
-    let mut cell = match cache.remove(key) {
-        Some(c) => {
-            stats.hits.fetch_add(1, Ordering::Relaxed);
-            c
+    let mesh = if let Some(state) = cache.get(key) {
+        stats.hits.fetch_add(1, Ordering::Relaxed);
+        // Already at the frame; a cut leaves the state at this frame.
+        match state.mesh(job.req.target) {
+            Ok(mesh) => mesh,
+            Err(e) => {
+                // A failed cut may leave the state anywhere: it goes.
+                drop(cache.remove(key));
+                return Err(fail(e));
+            }
         }
-        None => {
-            stats.misses.fetch_add(1, Ordering::Relaxed);
-            let reader = Reader::open(AssetSource(asset.bytes.clone())).map_err(fail)?;
-            Decoder::new(reader, job.min_level).map_err(fail)?
+    } else {
+        stats.misses.fetch_add(1, Ordering::Relaxed);
+        let (version, level, frame) = key.clone();
+        let keyframe = asset.header.keyframe_before(frame);
+        // The nearest earlier state of this keyframe interval, cloned (it stays for others).
+        let start = (keyframe..frame).rev().find_map(|g| cache.get(&(version.clone(), level, g)).map(|d| d.clone()));
+        let mut state = match start {
+            Some(d) => d,
+            None => Decoder::new(Reader::open(AssetSource(asset.bytes.clone())).map_err(fail)?, level).map_err(fail)?,
+        };
+        state.seek(frame).map_err(fail)?;
+        let mesh = state.mesh(job.req.target).map_err(fail)?;
+        // Only a state that decoded without error is kept.
+        for evicted in cache.insert(key.clone(), state, state_weight(asset)) {
+            drop(evicted);
         }
+        mesh
     };
-    let mesh = cell.seek(job.req.frame).and_then(|()| cell.mesh(job.req.target));
-    // A failed decode may leave the state anywhere: only a successful one goes back.
-    let mesh = mesh.map_err(fail)?;
-    for evicted in cache.insert(key.clone(), cell, state_weight(asset)) {
-        drop(evicted);
-    }
     let body = encode_mesh(&mesh, job.req.format);
     Ok(MeshOutput { body, vertices: mesh.positions.len(), triangles: mesh.triangles.len(), micros: t0.elapsed().as_micros() as u64 })
 }
