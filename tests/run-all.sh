@@ -22,7 +22,7 @@ echo "== cargo test"
 cargo test --workspace --locked --no-fail-fast 2>&1
 
 echo "== viewer unit tests and build"
-(cd web && npm ci --no-audit --no-fund && npm test && npm run build)
+(cd web && npm ci --no-audit --no-fund && PMCODEC_BIN="$PWD/../target/debug/pmcodec" npm test && npm run build)
 
 echo "== end to end"
 if ! command -v chromium >/dev/null 2>&1; then

@@ -5,11 +5,22 @@ import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
 import { existsSync, mkdtempSync, readFileSync } from "node:fs";
 import { tmpdir } from "node:os";
-import { join } from "node:path";
+import { dirname, join } from "node:path";
 import { Container, Player } from "../src/container.js";
 import { DecodeError } from "../src/replay.js";
 
-const root = join(import.meta.dirname, "../..");
+// The repository root: the nearest folder above this file (compiled into build-test/ or not)
+// that holds the workspace's Cargo.toml.
+function repoRoot(): string {
+  let dir = import.meta.dirname;
+  while (!existsSync(join(dir, "Cargo.toml")) || !existsSync(join(dir, "web"))) {
+    const up = dirname(dir);
+    if (up === dir) throw new Error(`no repository root above ${import.meta.dirname}`);
+    dir = up;
+  }
+  return dir;
+}
+const root = repoRoot();
 const bin = process.env.PMCODEC_BIN ?? join(root, "target/debug/pmcodec");
 
 function fixtures(): { dir: string; pmc: string } {
