@@ -76,7 +76,7 @@ fn main() {
                     let mut preds = vec![pm];
                     if k == 0 {
                         let nb: Vec<usize> = adj.neighbours(v as u32).iter().map(|&u| u as usize).filter(|&u| u < v).collect();
-                        let nm = if nb.is_empty() { pm } else { [0, 1, 2].map(|a| prev[v][a] + (nb.iter().map(|&u| (cur[u][a] - prev[u][a])).sum::<i32>() as f64 / nb.len() as f64).round() as i32) };
+                        let nm = if nb.is_empty() { pm } else { [0, 1, 2].map(|a| prev[v][a] + (nb.iter().map(|&u| cur[u][a] - prev[u][a]).sum::<i32>() as f64 / nb.len() as f64).round() as i32) };
                         let mm = [0, 1, 2].map(|a| ((pm[a] + nm[a]) as f64 / 2.0).round() as i32);
                         preds.push(nm);
                         preds.push(mm);

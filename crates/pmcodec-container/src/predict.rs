@@ -151,14 +151,12 @@ pub fn predict(
             return [(p[0] as i64 + mean(s[0], c)) as i32, (p[1] as i64 + mean(s[1], c)) as i32, (p[2] as i64 + mean(s[2], c)) as i32];
         }
     }
-    if let (false, Some((_, local))) = (intra, parent) {
-        if let (Some(&c), Some(s)) = (siblings.count.get(local), siblings.sum.get(local)) {
-            if c > 0 {
+    if let (false, Some((_, local))) = (intra, parent)
+        && let (Some(&c), Some(s)) = (siblings.count.get(local), siblings.sum.get(local))
+            && c > 0 {
                 let (p, c) = (prev[g], c as i64);
                 return [(p[0] as i64 + mean(s[0], c)) as i32, (p[1] as i64 + mean(s[1], c)) as i32, (p[2] as i64 + mean(s[2], c)) as i32];
             }
-        }
-    }
     let parent = parent.map(|(p, _)| p);
     let mut out = [0i32; 3];
     for a in 0..3 {
