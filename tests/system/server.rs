@@ -215,6 +215,18 @@ async fn bad_uploads_and_requests_fail_cleanly_and_leave_nothing() {
     assert_eq!(last["state"], "failed");
     assert!(last["message"].as_str().unwrap().to_lowercase().contains("obj"), "{last}");
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "nothing is left in the store");
+    // An asset that appears while a job without replace=true encodes (as an upload through
+    // another server sharing the store would) is kept, and the job fails saying so. The file
+    // is written right after the 202; the job's parse and encode take far longer.
+    let r = post("id=dup", "application/zip", zip_of(&obj_frames("horse-gallop", 10)), Some(TOKEN)).await.unwrap();
+    assert_eq!(r.status(), 202);
+    let job: Value = r.json().await.unwrap();
+    std::fs::write(dir.path().join("dup.pmc"), b"another server's asset").unwrap();
+    let last = wait_job(&http, &base, &job).await;
+    assert_eq!(last["state"], "failed", "{last}");
+    assert!(last["message"].as_str().unwrap().contains("replace=true"), "{last}");
+    assert_eq!(std::fs::read(dir.path().join("dup.pmc")).unwrap(), b"another server's asset");
+    std::fs::remove_file(dir.path().join("dup.pmc")).unwrap();
     let r = http.get(format!("{base}/v1/assets/mixed")).send().await.unwrap();
     assert_eq!(r.status(), 404);
     server.stop().await.unwrap();

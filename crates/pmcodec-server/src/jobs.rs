@@ -181,6 +181,7 @@ async fn run(app: AppState, tx: watch::Sender<JobStatus>, asset: AssetId, body: 
     });
     let encode_opts = EncodeOptions { keyframe_interval: app.config.keyframe_interval, ..EncodeOptions::default() };
     let progress_tx = tx.clone();
+    let replace = opts.replace;
     let work = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, String> {
         let seq = body.into_sequence(&opts)?;
         let frames = seq.frame_count() as u32;
@@ -200,6 +201,12 @@ async fn run(app: AppState, tx: watch::Sender<JobStatus>, asset: AssetId, body: 
     .await;
     drop(permit);
     let result = match work {
+        // Without replace=true, an asset that appeared while the job ran (an upload through
+        // another server sharing the store) is kept, and the job fails saying so. (A store
+        // write racing this check can still win; the stores have no create-only write here.)
+        Ok(Ok(_)) if !replace && matches!(app.store.head(&asset).await, Ok(Some(_))) => {
+            Err(format!("asset {asset} was created while this job ran; upload again with replace=true to replace it"))
+        }
         Ok(Ok(bytes)) => {
             tx.send_modify(|s| s.stage = "storing");
             // The one write of the job: atomic in every store, so the asset appears whole.

@@ -260,7 +260,7 @@ async fn upload(State(app): State<AppState>, _: WriteAccess, Q(q): Q<UploadQuery
         return Err(ApiError::Conflict(format!("an encode job for asset {id} is already queued or running")));
     }
     let body = UploadBody::read(&headers, body, app.config.limits.upload_bytes).await?;
-    let opts = UploadOptions { frame_rate, animation, unpacked_limit: app.config.limits.unpacked_bytes };
+    let opts = UploadOptions { frame_rate, animation, unpacked_limit: app.config.limits.unpacked_bytes, replace: q.replace.unwrap_or(false) };
     let status = app.jobs.submit(&app, id, body, opts)?;
     let location = header_value(&status.status_url)?;
     Ok((StatusCode::ACCEPTED, [(header::LOCATION, location)], Json(status)).into_response())

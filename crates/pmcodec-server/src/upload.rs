@@ -28,6 +28,8 @@ pub struct UploadOptions {
     pub animation: Option<AnimationSelector>,
     /// Largest total of unpacked zip members.
     pub unpacked_limit: u64,
+    /// Whether the job may replace an asset of the same id that exists when it stores.
+    pub replace: bool,
 }
 
 /// Parts of a multipart upload beyond this are refused (frames of one sequence).
