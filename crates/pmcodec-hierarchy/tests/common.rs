@@ -4,14 +4,14 @@
 use pmcodec_mesh::Sequence;
 use std::path::PathBuf;
 
-/// `../shared/data` beside the repository, or None (with a message) where it is absent.
+/// `../shared/data` beside the repository; the test fails with a message where it is absent
+/// (always `Some`: the Option is kept for the callers' `let ... else`).
 pub fn data_dir() -> Option<PathBuf> {
     let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data"));
     if dir.is_dir() {
         Some(dir)
     } else {
-        eprintln!("SKIP: {} is absent; real-mesh tests need ../shared/data beside the repository", dir.display());
-        None
+        panic!("{} is absent; real-mesh tests need ../shared/data beside the repository", dir.display());
     }
 }
 
