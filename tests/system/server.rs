@@ -42,7 +42,8 @@ fn zip_of(files: &[(String, Vec<u8>)]) -> Vec<u8> {
 }
 
 async fn local_server(dir: &Path) -> RunningServer {
-    let mut config = Config { store: StoreConfig::Local { path: dir.to_path_buf() }, listen: "127.0.0.1:0".parse().unwrap(), ..Default::default() };
+    let mut config =
+        Config { store: StoreConfig::Local { path: dir.to_path_buf() }, listen: "127.0.0.1:0".parse().unwrap(), ..Default::default() };
     config.auth.write_token = Some(Secret(TOKEN.into()));
     pmcodec_server::start(config).await.expect("server starts")
 }
@@ -118,7 +119,13 @@ async fn uploaded_obj_sequence_is_served_bit_for_bit_and_plays_through_the_clien
     // LOD on demand equals decoding the served container here, bit for bit.
     let client = Client::new(&base).unwrap();
     let mut local = Decoder::new(Reader::open(file.as_slice()).unwrap(), 0).unwrap();
-    for (frame, target) in [(7, MeshTarget::Triangles(1600)), (2, MeshTarget::Triangles(300)), (9, MeshTarget::Level(2)), (0, MeshTarget::Level(0)), (5, MeshTarget::MaxError(0.01))] {
+    for (frame, target) in [
+        (7, MeshTarget::Triangles(1600)),
+        (2, MeshTarget::Triangles(300)),
+        (9, MeshTarget::Level(2)),
+        (0, MeshTarget::Level(0)),
+        (5, MeshTarget::MaxError(0.01)),
+    ] {
         let served = client.mesh("horse", frame, target).await.unwrap();
         local.seek(frame).unwrap();
         assert_eq!(served, local.mesh(target).unwrap(), "frame {frame} {target:?}");
@@ -138,7 +145,14 @@ async fn uploaded_obj_sequence_is_served_bit_for_bit_and_plays_through_the_clien
     assert!(share < 0.5, "a 10% session downloaded {:.0}% of the file", share * 100.0);
 
     // Replacing needs replace=true; deleting removes the file.
-    let r = http.post(format!("{base}/v1/assets?id=horse")).bearer_auth(TOKEN).header("content-type", "application/zip").body(zip_of(&frames[..2])).send().await.unwrap();
+    let r = http
+        .post(format!("{base}/v1/assets?id=horse"))
+        .bearer_auth(TOKEN)
+        .header("content-type", "application/zip")
+        .body(zip_of(&frames[..2]))
+        .send()
+        .await
+        .unwrap();
     assert_eq!(r.status(), 409);
     let r = http.delete(format!("{base}/v1/assets/horse")).bearer_auth(TOKEN).send().await.unwrap();
     assert_eq!(r.status(), 204);
@@ -306,7 +320,12 @@ fn s3s_fs() -> S3Server {
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())
         .spawn()
-        .unwrap_or_else(|e| panic!("{}: {e}; install it with `cargo install s3s-fs@0.14.1 --features binary --locked` (./tests/run-all.sh does)", exe.display()));
+        .unwrap_or_else(|e| {
+            panic!(
+                "{}: {e}; install it with `cargo install s3s-fs@0.14.1 --features binary --locked` (./tests/run-all.sh does)",
+                exe.display()
+            )
+        });
     // Owned at once, so that the child is killed and waited for on every path.
     let server = S3Server { child, port, _root: root };
     for _ in 0..100 {

@@ -221,7 +221,9 @@ impl Session {
         if pre.len() < 32 {
             return Err(ClientError::Protocol("short preamble".into()));
         }
-        let tables = 32 + u32::from_le_bytes([pre[12], pre[13], pre[14], pre[15]]) as u64 + u32::from_le_bytes([pre[16], pre[17], pre[18], pre[19]]) as u64;
+        let tables = 32
+            + u32::from_le_bytes([pre[12], pre[13], pre[14], pre[15]]) as u64
+            + u32::from_le_bytes([pre[16], pre[17], pre[18], pre[19]]) as u64;
         if tables > info.summary.bytes {
             return Err(ClientError::Protocol("header and index beyond the file".into()));
         }
@@ -265,14 +267,9 @@ impl Session {
         let last = (frame + self.ahead).min(h.frame_count - 1);
         let mut wanted: Vec<ChunkEntry> = self.decoder.chunks_for(frame);
         let level = self.decoder.min_level() as u32;
-        wanted.extend(
-            self.decoder
-                .reader()
-                .index()
-                .chunks
-                .iter()
-                .filter(|e| e.frame > frame && e.frame <= last && e.band >= level && matches!(e.kind, ChunkKind::Delta | ChunkKind::Positions)),
-        );
+        wanted.extend(self.decoder.reader().index().chunks.iter().filter(|e| {
+            e.frame > frame && e.frame <= last && e.band >= level && matches!(e.kind, ChunkKind::Delta | ChunkKind::Positions)
+        }));
         let start = self.decoder.reader().data_start();
         let mut spans: Vec<(u64, u64)> = wanted
             .iter()

@@ -18,21 +18,34 @@ fn main() {
     println!("{}: {} vertices, {} frames, levels {:?}; encoded in {secs:.2} s", args[1], v, f, s.header.level_sizes);
     println!("total .pmc: {} bytes ({:.1} KB/frame)", s.file_bytes, s.file_bytes as f64 / f / 1024.0);
     println!("positions ({bits}-bit): {:.2} bits/vertex/frame (all bands)", s.positions_bits_per_vertex_frame);
-    println!("positions by band (bits per input vertex per frame): {:?}", s.positions_bytes.iter().map(|&b| format!("{:.2}", b as f64 * 8.0 / (v * f))).collect::<Vec<_>>());
+    println!(
+        "positions by band (bits per input vertex per frame): {:?}",
+        s.positions_bytes.iter().map(|&b| format!("{:.2}", b as f64 * 8.0 / (v * f))).collect::<Vec<_>>()
+    );
     let (mut key, mut inter) = (0u64, 0u64);
     for e in reader.index().chunks.iter().filter(|e| e.kind == pmcodec_container::ChunkKind::Positions) {
         if s.header.is_keyframe(e.frame) { key += e.stored_len as u64 } else { inter += e.stored_len as u64 }
     }
     let nk = (0..s.header.frame_count).filter(|&x| s.header.is_keyframe(x)).count() as f64;
-    println!("positions on keyframes {:.2}, other frames {:.2} bits/vertex/frame", key as f64 * 8.0 / (v * nk), inter as f64 * 8.0 / (v * (f - nk)));
-    println!("topology deltas: {:.0} B/frame compressed, {:.0} B/frame raw; by band {:?} B/frame", s.delta_bytes_per_frame, s.delta_raw_bytes_per_frame, s.delta_bytes.iter().map(|&b| (b as f64 / f).round()).collect::<Vec<_>>());
+    println!(
+        "positions on keyframes {:.2}, other frames {:.2} bits/vertex/frame",
+        key as f64 * 8.0 / (v * nk),
+        inter as f64 * 8.0 / (v * (f - nk))
+    );
+    println!(
+        "topology deltas: {:.0} B/frame compressed, {:.0} B/frame raw; by band {:?} B/frame",
+        s.delta_bytes_per_frame,
+        s.delta_raw_bytes_per_frame,
+        s.delta_bytes.iter().map(|&b| (b as f64 / f).round()).collect::<Vec<_>>()
+    );
     // What the deltas hold, per band: entries per frame of each kind.
     let levels = s.header.levels();
     let (mut mv, mut dg, mut co) = (vec![0usize; levels], vec![0usize; levels], vec![0usize; levels]);
     for e in reader.index().chunks.iter().filter(|e| e.kind == pmcodec_container::ChunkKind::Delta) {
         let raw = reader.read_chunk(e).expect("chunk");
         let h = &s.header;
-        let d = pmcodec_container::payload::read_delta(&raw, "d", &h.level_sizes, e.band as usize, h.triangle_count, h.node_count() as u32).expect("delta");
+        let d = pmcodec_container::payload::read_delta(&raw, "d", &h.level_sizes, e.band as usize, h.triangle_count, h.node_count() as u32)
+            .expect("delta");
         let b = e.band as usize;
         mv[b] += d.moves.len();
         dg[b] += d.degenerate.len();
@@ -41,7 +54,10 @@ fn main() {
     let per = |x: &Vec<usize>| x.iter().map(|&c| (c as f64 / f).round()).collect::<Vec<_>>();
     println!("delta entries per frame by band: moves {:?}, degenerate {:?}, corners {:?}", per(&mv), per(&dg), per(&co));
     println!("keyframes: {:?} B per band in all", s.key_bytes);
-    println!("bytes per frame for a client stopping at level L: {:?}", s.bytes_per_frame_to_level.iter().map(|x| x.round()).collect::<Vec<_>>());
+    println!(
+        "bytes per frame for a client stopping at level L: {:?}",
+        s.bytes_per_frame_to_level.iter().map(|x| x.round()).collect::<Vec<_>>()
+    );
     // A reader at 10% of the triangles: the coarsest finest-level whose budget cut reaches
     // (95% of) that many triangles, and its share of the stream's chunk bytes (keys included).
     let budget = s.header.triangle_count / 10;
@@ -52,8 +68,17 @@ fn main() {
         d.seek(mid).expect("seek");
         let shown = d.mesh(pmcodec_container::MeshTarget::Triangles(budget)).expect("mesh").triangles.len();
         if shown as f64 >= 0.95 * budget as f64 {
-            let part: u64 = reader.index().chunks.iter().filter(|e| e.kind != pmcodec_container::ChunkKind::Triangles && e.band as usize >= l).map(|e| e.stored_len as u64).sum();
-            println!("10% of the triangles ({budget}, frame {mid}) needs levels >= {l} ({shown} shown): {:.1}% of the chunk bytes", part as f64 * 100.0 / all as f64);
+            let part: u64 = reader
+                .index()
+                .chunks
+                .iter()
+                .filter(|e| e.kind != pmcodec_container::ChunkKind::Triangles && e.band as usize >= l)
+                .map(|e| e.stored_len as u64)
+                .sum();
+            println!(
+                "10% of the triangles ({budget}, frame {mid}) needs levels >= {l} ({shown} shown): {:.1}% of the chunk bytes",
+                part as f64 * 100.0 / all as f64
+            );
             break;
         }
     }
@@ -97,7 +122,12 @@ fn main() {
             keys += 1;
         }
     }
-    println!("seek to a random frame with an open decoder: mean {:.2} ms, worst {:.2} ms (to keyframes: mean {:.2} ms)", total * 1e3 / n as f64, worst * 1e3, key_total * 1e3 / keys.max(1) as f64);
+    println!(
+        "seek to a random frame with an open decoder: mean {:.2} ms, worst {:.2} ms (to keyframes: mean {:.2} ms)",
+        total * 1e3 / n as f64,
+        worst * 1e3,
+        key_total * 1e3 / keys.max(1) as f64
+    );
     // References.
     println!("raw f32 positions: 96 bits/vertex/frame ({:.0} KB/frame)", v * 12.0 / 1024.0);
     let mut zsum = 0usize;

@@ -1,14 +1,14 @@
 //! Decoding: replaying keyframes and deltas down to a finest level L, reconstructing the
 //! quantized node positions, and extracting meshes at any cut.
 
-use crate::predict::{LowerNeighbours, Siblings, predict};
 use crate::format::ChunkKind;
 use crate::payload;
+use crate::predict::{LowerNeighbours, Siblings, predict};
 use crate::{ByteSource, ContainerError, Reader};
 use glam::Vec3;
+use pmcodec_hierarchy::NONE;
 use pmcodec_hierarchy::progressive::{CornerUpdate, DegenerateDelta, FrameDelta, KeyBand, Keyframe, Replay};
 use pmcodec_hierarchy::recluster::Swap;
-use pmcodec_hierarchy::NONE;
 use pmcodec_mesh::TriMesh;
 
 /// Which cut a decoded mesh shows.
@@ -51,7 +51,17 @@ impl<S: ByteSource> Decoder<S> {
             return Err(ContainerError::Options(format!("level {min_level}: the file has levels 0..{}", h.levels() - 1)));
         }
         let total = h.node_count() as usize;
-        Ok(Decoder { reader, min_level, replay: None, frame: None, triangles: None, lower: LowerNeighbours::default(), siblings: Siblings::default(), current: vec![[0; 3]; total], previous: vec![[0; 3]; total] })
+        Ok(Decoder {
+            reader,
+            min_level,
+            replay: None,
+            frame: None,
+            triangles: None,
+            lower: LowerNeighbours::default(),
+            siblings: Siblings::default(),
+            current: vec![[0; 3]; total],
+            previous: vec![[0; 3]; total],
+        })
     }
 
     pub fn frame(&self) -> Option<u32> {
@@ -150,9 +160,13 @@ impl<S: ByteSource> Decoder<S> {
             key.bands[j] = payload::read_key(&raw, &what, sizes, j, h.triangle_count)?;
         }
         if self.min_level == 0 && self.triangles.is_none() {
-            let e = self.reader.index().chunks.iter().find(|e| e.kind == ChunkKind::Triangles).ok_or_else(|| {
-                ContainerError::Corrupt { what: "index".into(), detail: "no triangles chunk".into() }
-            })?;
+            let e = self
+                .reader
+                .index()
+                .chunks
+                .iter()
+                .find(|e| e.kind == ChunkKind::Triangles)
+                .ok_or_else(|| ContainerError::Corrupt { what: "index".into(), detail: "no triangles chunk".into() })?;
             let raw = self.reader.read_chunk(e)?;
             let triangles = payload::read_triangles(&raw, "triangles chunk", h.triangle_count, h.vertex_count)?;
             self.lower = LowerNeighbours::new(h.vertex_count as usize, &triangles);
@@ -173,10 +187,10 @@ impl<S: ByteSource> Decoder<S> {
         let mut delta = FrameDelta::default();
         for j in (self.min_level..sizes.len()).rev() {
             let what = format!("frame {frame} band {j} delta");
-            let e = self.reader.find(ChunkKind::Delta, frame, j as u32).ok_or_else(|| ContainerError::Corrupt {
-                what: what.clone(),
-                detail: "missing from the index".into(),
-            })?;
+            let e = self
+                .reader
+                .find(ChunkKind::Delta, frame, j as u32)
+                .ok_or_else(|| ContainerError::Corrupt { what: what.clone(), detail: "missing from the index".into() })?;
             let raw = self.reader.read_chunk(e)?;
             let band = payload::read_delta(&raw, &what, &sizes, j, triangles, nodes)?;
             for (v, to) in band.moves {

@@ -141,10 +141,7 @@ pub fn verify<S: ByteSource>(reader: &Reader<S>) -> Result<VerifyReport, Contain
         let mut fresh = Decoder::new(reader.borrowed(), 0)?;
         fresh.seek(frames - 1)?;
         if fresh.replay().map(|r| &r.h) != d.replay().map(|r| &r.h) {
-            return Err(ContainerError::Corrupt {
-                what: format!("frame {}", frames - 1),
-                detail: "keyframe and deltas disagree".into(),
-            });
+            return Err(ContainerError::Corrupt { what: format!("frame {}", frames - 1), detail: "keyframe and deltas disagree".into() });
         }
     }
     Ok(VerifyReport { chunks: reader.index().chunks.len(), frames, bytes: reader.file_len() })

@@ -88,19 +88,18 @@ impl<'a> Cursor<'a> {
     }
 
     pub fn finish(&self) -> Result<(), ContainerError> {
-        if self.pos == self.bytes.len() {
-            Ok(())
-        } else {
-            Err(self.corrupt(format!("{} bytes left over", self.bytes.len() - self.pos)))
-        }
+        if self.pos == self.bytes.len() { Ok(()) } else { Err(self.corrupt(format!("{} bytes left over", self.bytes.len() - self.pos))) }
     }
 }
 
 fn put_ascending(out: &mut Vec<u8>, prev: &mut Option<u32>, v: u32) {
-    put(out, match *prev {
-        None => v,
-        Some(p) => v - p - 1,
-    });
+    put(
+        out,
+        match *prev {
+            None => v,
+            Some(p) => v - p - 1,
+        },
+    );
     *prev = Some(v);
 }
 
@@ -257,7 +256,15 @@ pub fn write_positions(shift: u32, residuals: &[[i32; 3]]) -> Vec<u8> {
     let freqs: Vec<Vec<u32>> = counts.iter().map(|c| rans::normalize(c)).collect();
     let starts: Vec<Vec<u32>> = freqs
         .iter()
-        .map(|f| f.iter().scan(0u32, |acc, &x| { let s = *acc; *acc += x; Some(s) }).collect())
+        .map(|f| {
+            f.iter()
+                .scan(0u32, |acc, &x| {
+                    let s = *acc;
+                    *acc += x;
+                    Some(s)
+                })
+                .collect()
+        })
         .collect();
     let mut out = Vec::with_capacity(residuals.len() + 64);
     put(&mut out, shift);

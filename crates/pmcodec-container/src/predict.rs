@@ -15,7 +15,10 @@ pub struct LowerNeighbours {
 impl LowerNeighbours {
     pub fn new(n: usize, triangles: &[[u32; 3]]) -> Self {
         let pairs = || {
-            triangles.iter().flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])]).filter(move |&(a, b)| a != b && (a as usize) < n && (b as usize) < n)
+            triangles
+                .iter()
+                .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+                .filter(move |&(a, b)| a != b && (a as usize) < n && (b as usize) < n)
         };
         let mut offsets = vec![0u32; n + 1];
         for (a, b) in pairs() {
@@ -67,15 +70,17 @@ fn mean(sum: i64, count: i64) -> i64 {
     // Small counts are spelled out so that the compiler divides by constants (a multiply).
     let n = 2 * sum + count;
     match i32::try_from(n) {
-        Ok(n) => (match count {
-            1 => n.div_euclid(2),
-            2 => n.div_euclid(4),
-            3 => n.div_euclid(6),
-            4 => n.div_euclid(8),
-            5 => n.div_euclid(10),
-            6 => n.div_euclid(12),
-            c => n.div_euclid(2 * c as i32),
-        }) as i64,
+        Ok(n) => {
+            (match count {
+                1 => n.div_euclid(2),
+                2 => n.div_euclid(4),
+                3 => n.div_euclid(6),
+                4 => n.div_euclid(8),
+                5 => n.div_euclid(10),
+                6 => n.div_euclid(12),
+                c => n.div_euclid(2 * c as i32),
+            }) as i64
+        }
         Err(_) => n.div_euclid(2 * count),
     }
 }
@@ -153,16 +158,23 @@ pub fn predict(
     }
     if let (false, Some((_, local))) = (intra, parent)
         && let (Some(&c), Some(s)) = (siblings.count.get(local), siblings.sum.get(local))
-            && c > 0 {
-                let (p, c) = (prev[g], c as i64);
-                return [(p[0] as i64 + mean(s[0], c)) as i32, (p[1] as i64 + mean(s[1], c)) as i32, (p[2] as i64 + mean(s[2], c)) as i32];
-            }
+        && c > 0
+    {
+        let (p, c) = (prev[g], c as i64);
+        return [(p[0] as i64 + mean(s[0], c)) as i32, (p[1] as i64 + mean(s[1], c)) as i32, (p[2] as i64 + mean(s[2], c)) as i32];
+    }
     let parent = parent.map(|(p, _)| p);
     let mut out = [0i32; 3];
     for a in 0..3 {
         out[a] = match (intra, parent) {
             (true, Some(p)) => cur[p][a],
-            (true, None) => if v > 0 { cur[g - 1][a] } else { 0 },
+            (true, None) => {
+                if v > 0 {
+                    cur[g - 1][a]
+                } else {
+                    0
+                }
+            }
             (false, Some(p)) => prev[g][a].wrapping_add(cur[p][a].wrapping_sub(prev[p][a])),
             (false, None) => prev[g][a],
         };

@@ -33,10 +33,8 @@ pub fn normalize(counts: &[u64]) -> Vec<u32> {
         f[0] = M;
         return f;
     }
-    let mut f: Vec<u32> = counts[..used]
-        .iter()
-        .map(|&c| if c == 0 { 0 } else { ((c as u128 * M as u128 / total as u128) as u32).max(1) })
-        .collect();
+    let mut f: Vec<u32> =
+        counts[..used].iter().map(|&c| if c == 0 { 0 } else { ((c as u128 * M as u128 / total as u128) as u32).max(1) }).collect();
     // Fix the sum on the largest entry (it loses the least by the change). An excess comes
     // only from rare symbols raised to 1, at most 31, while the largest entry is then above
     // M / 32 = 128, so it stays positive.
@@ -284,7 +282,14 @@ mod tests {
         for slot in 0..M {
             assert_eq!(t.entry(slot), small.entry(slot));
         }
-        let start: Vec<u32> = f.iter().scan(0, |a, &x| { let s = *a; *a += x; Some(s) }).collect();
+        let start: Vec<u32> = f
+            .iter()
+            .scan(0, |a, &x| {
+                let s = *a;
+                *a += x;
+                Some(s)
+            })
+            .collect();
         let mut e = Encoder::default();
         for (i, &s) in symbols.iter().enumerate().rev() {
             e.put(i % WAYS, start[s as usize], f[s as usize]);

@@ -22,7 +22,9 @@ impl ByteSource for [u8] {
     fn read_at(&self, offset: u64, len: usize) -> Result<Vec<u8>, ContainerError> {
         let start = usize::try_from(offset).map_err(|_| ContainerError::Io("offset beyond memory".into()))?;
         let end = start.checked_add(len).ok_or_else(|| ContainerError::Io("length overflow".into()))?;
-        self.get(start..end).map(<[u8]>::to_vec).ok_or_else(|| ContainerError::Io(format!("read of {len} bytes at {offset} beyond the end")))
+        self.get(start..end)
+            .map(<[u8]>::to_vec)
+            .ok_or_else(|| ContainerError::Io(format!("read of {len} bytes at {offset} beyond the end")))
     }
 }
 
@@ -107,14 +109,14 @@ impl<S: ByteSource> Reader<S> {
         if crc32fast::hash(&hb) != pre.header_crc {
             return Err(ContainerError::Checksum { what: "header".into() });
         }
-        let header: Header = postcard::from_bytes(&hb)
-            .map_err(|e| ContainerError::Corrupt { what: "header".into(), detail: e.to_string() })?;
+        let header: Header =
+            postcard::from_bytes(&hb).map_err(|e| ContainerError::Corrupt { what: "header".into(), detail: e.to_string() })?;
         let ib = source.read_at(PREAMBLE_LEN as u64 + pre.header_len as u64, pre.index_len as usize)?;
         if crc32fast::hash(&ib) != pre.index_crc {
             return Err(ContainerError::Checksum { what: "index".into() });
         }
-        let index: Index = postcard::from_bytes(&ib)
-            .map_err(|e| ContainerError::Corrupt { what: "index".into(), detail: e.to_string() })?;
+        let index: Index =
+            postcard::from_bytes(&ib).map_err(|e| ContainerError::Corrupt { what: "index".into(), detail: e.to_string() })?;
         check_header(&header)?;
         let reader = Reader { source, header, index, data_start, file_len, bytes_read: Cell::new(data_start) };
         reader.check_index()?;

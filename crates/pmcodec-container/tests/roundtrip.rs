@@ -92,7 +92,10 @@ fn samba_and_cat_round_trip() {
     if let Some(seq) = data("samba-60", 6) {
         round_trip(&seq, &EncodeOptions { quantization: QuantizationChoice::Bits(12), keyframe_interval: 4, ..Default::default() });
         // Coarse nodes on a grid: residual shifts, coarse nodes within half a grid step.
-        round_trip(&seq, &EncodeOptions { quantization: QuantizationChoice::Bits(12), keyframe_interval: 4, coarse_grid: Some(2), ..Default::default() });
+        round_trip(
+            &seq,
+            &EncodeOptions { quantization: QuantizationChoice::Bits(12), keyframe_interval: 4, coarse_grid: Some(2), ..Default::default() },
+        );
     }
     if let Some(seq) = data("cat-poses", 4) {
         round_trip(&seq, &EncodeOptions { keyframe_interval: 0, ..Default::default() });
@@ -107,7 +110,10 @@ fn gltf_round_trips() {
     }
     let mut seq = pmcodec_mesh::gltf_input::load_gltf(&path, &Default::default()).unwrap();
     seq.frames.truncate(10);
-    round_trip(&seq, &EncodeOptions { build: pmcodec_hierarchy::BuildOptions { min_coarsest: 4, ..Default::default() }, ..Default::default() });
+    round_trip(
+        &seq,
+        &EncodeOptions { build: pmcodec_hierarchy::BuildOptions { min_coarsest: 4, ..Default::default() }, ..Default::default() },
+    );
 }
 
 /// Counts the bytes a reader fetches.
@@ -145,7 +151,13 @@ fn level_limited_decoding_reads_only_its_bands() {
     }
     // Everything fetched: preamble, header, index and chunks of bands >= level only.
     let allowed: u64 = reader.data_start()
-        + reader.index().chunks.iter().filter(|e| e.band as usize >= level && e.kind != ChunkKind::Triangles).map(|e| e.stored_len as u64).sum::<u64>();
+        + reader
+            .index()
+            .chunks
+            .iter()
+            .filter(|e| e.band as usize >= level && e.kind != ChunkKind::Triangles)
+            .map(|e| e.stored_len as u64)
+            .sum::<u64>();
     assert!(src.fetched.get() <= allowed, "{} > {allowed}", src.fetched.get());
     assert!(src.fetched.get() * 4 < bytes.len() as u64, "a level-{level} client read {} of {} bytes", src.fetched.get(), bytes.len());
     let m = part.mesh(MeshTarget::Triangles(1000)).unwrap();

@@ -115,9 +115,8 @@ impl SurfaceIndex {
             })
             .collect();
 
-        let bounds = |items: &[Item]| {
-            items.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), it| (lo.min(it.lo), hi.max(it.hi)))
-        };
+        let bounds =
+            |items: &[Item]| items.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), it| (lo.min(it.lo), hi.max(it.hi)));
         let (root_lo, root_hi) = bounds(&items);
         let mut pairs: Vec<Pair> = Vec::with_capacity(items.len().div_ceil(LEAF_SIZE));
         // Pending subtrees: where to write the finished `Child`, and their range of `items`.

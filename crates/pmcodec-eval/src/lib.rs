@@ -190,10 +190,8 @@ pub fn symmetric_indexed(
 ) -> Result<Distance, EvalError> {
     validate(a, "first")?;
     validate(b, "second")?;
-    let (ab, ba) = rayon::join(
-        || one_sided_stats(a, b_index, opts.seed, opts),
-        || one_sided_stats(b, a_index, second_seed(opts.seed), opts),
-    );
+    let (ab, ba) =
+        rayon::join(|| one_sided_stats(a, b_index, opts.seed, opts), || one_sided_stats(b, a_index, second_seed(opts.seed), opts));
     Ok(ab.merge(ba).distance())
 }
 

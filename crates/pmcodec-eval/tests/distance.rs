@@ -3,8 +3,8 @@
 
 use glam::{DVec3, Vec3};
 use pmcodec_eval::{
-    Distance, EvalError, SampleOptions, SurfaceIndex, one_sided, one_sided_indexed, sample_points, symmetric,
-    symmetric_indexed, symmetric_relative, triangle,
+    Distance, EvalError, SampleOptions, SurfaceIndex, one_sided, one_sided_indexed, sample_points, symmetric, symmetric_indexed,
+    symmetric_relative, triangle,
 };
 use pmcodec_mesh::TriMesh;
 use proptest::prelude::*;
@@ -144,10 +144,7 @@ fn random_mesh() -> impl Strategy<Value = TriMesh> {
             // Any corners, repeated ones included: degenerate triangles must be handled too.
             prop::collection::vec([0..n as u32, 0..n as u32, 0..n as u32], 1..150),
         )
-            .prop_map(|(p, triangles)| TriMesh {
-                positions: p.into_iter().map(|(x, y, z)| Vec3::new(x, y, z)).collect(),
-                triangles,
-            })
+            .prop_map(|(p, triangles)| TriMesh { positions: p.into_iter().map(|(x, y, z)| Vec3::new(x, y, z)).collect(), triangles })
     })
 }
 
@@ -356,10 +353,7 @@ fn bad_meshes_are_errors_not_panics() {
 
     let mut bad_index = square(0.0);
     bad_index.triangles[1][2] = 9;
-    assert_eq!(
-        symmetric(&bad_index, &ok, &o),
-        Err(EvalError::BadIndex { which: "first", triangle: 1, index: 9, vertex_count: 4 })
-    );
+    assert_eq!(symmetric(&bad_index, &ok, &o), Err(EvalError::BadIndex { which: "first", triangle: 1, index: 9, vertex_count: 4 }));
 
     let point = TriMesh { positions: vec![Vec3::ONE], triangles: vec![[0, 0, 0]] };
     assert_eq!(symmetric_relative(&point, &ok, &o), Err(EvalError::ZeroExtent { which: "reference" }));

@@ -30,6 +30,13 @@ fn main() {
         let t2 = t.elapsed();
         let h = build(&topo, &q, &BuildOptions::default()).expect("build");
         let t3 = t.elapsed();
-        println!("{} tris: topology {:?}, quadrics {:?}, build {:?}; levels {:?}", seq.triangles.len(), t1, t2 - t1, t3 - t2, h.level_sizes);
+        println!(
+            "{} tris: topology {:?}, quadrics {:?}, build {:?}; levels {:?}",
+            seq.triangles.len(),
+            t1,
+            t2 - t1,
+            t3 - t2,
+            h.level_sizes
+        );
     }
 }

@@ -29,7 +29,12 @@ fn main() {
     }
     let kb = |bytes: usize| bytes as f64 / n as f64 / 1024.0;
     println!("branching {branching}, levels {:?}", enc.hierarchy().level_sizes);
-    println!("per frame: {:.0} swaps, {:.0} degenerate-set changes, {:.0} corner updates", swaps as f64 / n as f64, degen as f64 / n as f64, corners as f64 / n as f64);
+    println!(
+        "per frame: {:.0} swaps, {:.0} degenerate-set changes, {:.0} corner updates",
+        swaps as f64 / n as f64,
+        degen as f64 / n as f64,
+        corners as f64 / n as f64
+    );
     println!("raw swaps (2 x u32): {:.2} KB/frame   (paper: 2.2 KB)", kb(8 * swaps));
     println!("raw swaps + degenerate sets (2 x u32 each): {:.2} KB/frame   (paper: 18.5 KB)", kb(8 * (swaps + degen)));
     println!("full hierarchy per frame: {:.1} KB   (paper: 103.4 KB)", full as f64 / 1024.0);

@@ -1,9 +1,9 @@
 //! Development probe: per-frame swaps, time and level QEM error of reclustering vs static.
 //! `cargo run --release -p pmcodec-hierarchy --example probe -- ../shared/data/horse-gallop 800`
+use pmcodec_hierarchy::FineTopology;
 use pmcodec_hierarchy::approx::anchored_build;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
 use pmcodec_hierarchy::recluster::{ReclusterOptions, Reclusterer};
-use pmcodec_hierarchy::FineTopology;
 use std::time::Instant;
 
 fn level_error(rc: &Reclusterer, level: usize) -> f64 {
@@ -39,7 +39,11 @@ fn main() {
         ratio_sum += er / es;
         println!(
             "frame {f:3}: {:5} swaps {:3} passes {:7} cands {:6} invalid {dt:7.2} ms  static {es:.3e} recluster {er:.3e} ratio {:.3}",
-            s.swaps, s.passes, s.candidates, s.rejected_invalid, er / es
+            s.swaps,
+            s.passes,
+            s.candidates,
+            s.rejected_invalid,
+            er / es
         );
     }
     println!("mean {:.2} ms/frame, mean QEM ratio {:.3}", total / seq.frame_count() as f64, ratio_sum / seq.frame_count() as f64);

@@ -151,11 +151,7 @@ pub fn build(topo: &FineTopology, quadrics: &[Quadric], opts: &BuildOptions) -> 
             let k = (3 * limit as usize).min(edges.len());
             scratch.clear();
             scratch.extend_from_slice(&cost);
-            let threshold = if k < scratch.len() {
-                *scratch.select_nth_unstable_by(k, f32::total_cmp).1
-            } else {
-                f32::INFINITY
-            };
+            let threshold = if k < scratch.len() { *scratch.select_nth_unstable_by(k, f32::total_cmp).1 } else { f32::INFINITY };
             order.clear();
             order.extend((0..edges.len() as u32).filter(|&i| cost[i as usize] <= threshold));
             order.sort_unstable_by(|&x, &y| cost[x as usize].total_cmp(&cost[y as usize]).then(x.cmp(&y)));
@@ -224,8 +220,7 @@ pub fn build(topo: &FineTopology, quadrics: &[Quadric], opts: &BuildOptions) -> 
                 reps.push(v as u32);
             }
         }
-        let parent: Vec<u32> =
-            prev_reps.iter().map(|&r| level_index[crate::hierarchy::find(&mut merged_into, r) as usize]).collect();
+        let parent: Vec<u32> = prev_reps.iter().map(|&r| level_index[crate::hierarchy::find(&mut merged_into, r) as usize]).collect();
         parents.push(parent);
         prev_reps = reps;
         if live > target {

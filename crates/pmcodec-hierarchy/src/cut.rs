@@ -6,10 +6,10 @@
 //! nodes. By the degenerate-set rule (see [`crate::degenerate`]) the shown triangles are the
 //! never-degenerating ones plus D_a of every expanded node a.
 
+use crate::Hierarchy;
 use crate::degenerate::DegenerateSets;
 use crate::hierarchy::NONE;
 use crate::nodes::NodeState;
-use crate::Hierarchy;
 use glam::Vec3;
 use pmcodec_mesh::TriMesh;
 use std::cmp::Ordering;
@@ -116,9 +116,7 @@ pub fn select(h: &Hierarchy, d: &DegenerateSets, children: &ChildIndex, nodes: &
                 }
             }
         }
-        CutTarget::Triangles(budget) => {
-            greedy(&mut cut, h, d, children, nodes, |c, g| c.triangles + d.size(g) <= budget)
-        }
+        CutTarget::Triangles(budget) => greedy(&mut cut, h, d, children, nodes, |c, g| c.triangles + d.size(g) <= budget),
         CutTarget::Vertices(budget) => {
             greedy(&mut cut, h, d, children, nodes, |c, g| c.vertices + children.of(g).len() as u32 - 1 <= budget)
         }
@@ -134,14 +132,7 @@ fn expand(cut: &mut Cut, d: &DegenerateSets, children: &ChildIndex, g: u32) {
 }
 
 /// Expands the highest-error cut node that still fits, until none does.
-fn greedy(
-    cut: &mut Cut,
-    h: &Hierarchy,
-    d: &DegenerateSets,
-    children: &ChildIndex,
-    nodes: &NodeState,
-    fits: impl Fn(&Cut, u32) -> bool,
-) {
+fn greedy(cut: &mut Cut, h: &Hierarchy, d: &DegenerateSets, children: &ChildIndex, nodes: &NodeState, fits: impl Fn(&Cut, u32) -> bool) {
     let top = h.top();
     let n0 = h.level_sizes[0];
     let mut heap: BinaryHeap<ByError> =
@@ -186,26 +177,15 @@ pub fn cut_nodes_from(h: &Hierarchy, expanded: &[bool], min_level: usize) -> Vec
 
 /// Fine triangles a cut shows, ascending.
 pub fn shown_triangles(d: &DegenerateSets, cut: &Cut) -> Vec<u32> {
-    let mut out: Vec<u32> = d
-        .node_of
-        .iter()
-        .enumerate()
-        .filter(|&(_, &g)| g == NONE || cut.expanded[g as usize])
-        .map(|(t, _)| t as u32)
-        .collect();
+    let mut out: Vec<u32> =
+        d.node_of.iter().enumerate().filter(|&(_, &g)| g == NONE || cut.expanded[g as usize]).map(|(t, _)| t as u32).collect();
     out.sort_unstable();
     out
 }
 
 /// The indexed triangle mesh a cut shows, with node positions from `positions` (global ids).
 /// Also returns, for each output vertex, the global id of its node.
-pub fn extract(
-    h: &Hierarchy,
-    d: &DegenerateSets,
-    fine_triangles: &[[u32; 3]],
-    cut: &Cut,
-    positions: &[Vec3],
-) -> (TriMesh, Vec<u32>) {
+pub fn extract(h: &Hierarchy, d: &DegenerateSets, fine_triangles: &[[u32; 3]], cut: &Cut, positions: &[Vec3]) -> (TriMesh, Vec<u32>) {
     let rep = cut_nodes(h, cut);
     let mut index_of = vec![NONE; h.node_count()];
     let mut nodes = Vec::new();

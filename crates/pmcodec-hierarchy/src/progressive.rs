@@ -115,12 +115,8 @@ impl Encoder {
     pub fn new(base: Hierarchy, topo: FineTopology, triangles: Vec<[u32; 3]>, opts: ReclusterOptions) -> Self {
         let mut node_of = Vec::new();
         degeneration_nodes(&base, &triangles, &mut node_of);
-        let mut enc = Encoder {
-            recluster: Reclusterer::new(base, topo, triangles, opts),
-            node_of,
-            corners: Vec::new(),
-            scratch: Vec::new(),
-        };
+        let mut enc =
+            Encoder { recluster: Reclusterer::new(base, topo, triangles, opts), node_of, corners: Vec::new(), scratch: Vec::new() };
         enc.corners = enc.current_corners();
         enc
     }
@@ -482,11 +478,7 @@ impl Replay {
             if k < self.min_level {
                 continue;
             }
-            if k + 1 >= levels
-                || s.v >= self.h.level_sizes[k]
-                || s.to >= self.h.level_sizes[k + 1]
-                || s.from >= self.h.level_sizes[k + 1]
-            {
+            if k + 1 >= levels || s.v >= self.h.level_sizes[k] || s.to >= self.h.level_sizes[k + 1] || s.from >= self.h.level_sizes[k + 1] {
                 return Err(DeltaError::SwapOutOfRange { index, level: s.level, v: s.v, to: s.to });
             }
             let actual = self.h.parent[k][s.v as usize];
@@ -604,11 +596,8 @@ impl Replay {
             .map(|g| Item(errors.get(g as usize).copied().unwrap_or(0.0), g))
             .collect();
         while let Some(Item(_, g)) = heap.pop() {
-            let cost = if vertices {
-                (self.children[g as usize].len() as u32).saturating_sub(1)
-            } else {
-                self.sets[g as usize].len() as u32
-            };
+            let cost =
+                if vertices { (self.children[g as usize].len() as u32).saturating_sub(1) } else { self.sets[g as usize].len() as u32 };
             if used + cost > budget {
                 continue;
             }

@@ -35,14 +35,7 @@ impl Quadric {
     #[inline]
     pub fn plane(n: DVec3, d: f64, weight: f64) -> Self {
         Quadric {
-            a: [
-                weight * n.x * n.x,
-                weight * n.x * n.y,
-                weight * n.x * n.z,
-                weight * n.y * n.y,
-                weight * n.y * n.z,
-                weight * n.z * n.z,
-            ],
+            a: [weight * n.x * n.x, weight * n.x * n.y, weight * n.x * n.z, weight * n.y * n.y, weight * n.y * n.z, weight * n.z * n.z],
             b: [weight * d * n.x, weight * d * n.y, weight * d * n.z],
             c: weight * d * d,
             area: weight,
@@ -56,11 +49,7 @@ impl Quadric {
     #[inline]
     pub fn eval(&self, x: DVec3) -> f64 {
         let [a00, a01, a02, a11, a12, a22] = self.a;
-        let ax = DVec3::new(
-            a00 * x.x + a01 * x.y + a02 * x.z,
-            a01 * x.x + a11 * x.y + a12 * x.z,
-            a02 * x.x + a12 * x.y + a22 * x.z,
-        );
+        let ax = DVec3::new(a00 * x.x + a01 * x.y + a02 * x.z, a01 * x.x + a11 * x.y + a12 * x.z, a02 * x.x + a12 * x.y + a22 * x.z);
         x.dot(ax) + 2.0 * x.dot(DVec3::from_array(self.b)) + self.c
     }
 

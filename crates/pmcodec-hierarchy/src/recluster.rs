@@ -101,13 +101,7 @@ impl Reclusterer {
     /// Starts from H_0 (`h`, built for the sequence's first frame or poses).
     pub fn new(h: Hierarchy, topo: FineTopology, triangles: Vec<[u32; 3]>, opts: ReclusterOptions) -> Self {
         let weight_step = (0..h.levels())
-            .map(|j| {
-                if j + 1 < h.levels() {
-                    (h.level_sizes[j + 1] as f64 / h.level_sizes[j] as f64).powf(opts.beta)
-                } else {
-                    0.0
-                }
-            })
+            .map(|j| if j + 1 < h.levels() { (h.level_sizes[j + 1] as f64 / h.level_sizes[j] as f64).powf(opts.beta) } else { 0.0 })
             .collect();
         Reclusterer {
             h,
@@ -163,14 +157,7 @@ impl Reclusterer {
     }
 
     /// Passes of best-first independent sets of valid beneficial swaps at level k.
-    fn improve_level(
-        &mut self,
-        k: usize,
-        adj: &LevelAdjacency,
-        swaps: &mut Vec<Swap>,
-        stats: &mut FrameStats,
-        budget: &mut u32,
-    ) {
+    fn improve_level(&mut self, k: usize, adj: &LevelAdjacency, swaps: &mut Vec<Swap>, stats: &mut FrameStats, budget: &mut u32) {
         let n = self.h.level_sizes[k] as usize;
         self.locked.clear();
         self.locked.resize(n, false);
@@ -357,9 +344,8 @@ impl Reclusterer {
             if c == b {
                 continue;
             }
-            let touches = nbrs.iter().any(|&u| {
-                parent[u as usize] == b && nbrs.iter().any(|&z| parent[z as usize] == c && adj.adjacent(u, z))
-            });
+            let touches =
+                nbrs.iter().any(|&u| parent[u as usize] == b && nbrs.iter().any(|&z| parent[z as usize] == c && adj.adjacent(u, z)));
             if !touches {
                 return false;
             }

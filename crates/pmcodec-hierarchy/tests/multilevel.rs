@@ -22,7 +22,6 @@ fn build_seq(seq: pmcodec_mesh::Sequence, opts: &BuildOptions) -> Built {
     Built { seq, topo, h, d }
 }
 
-
 /// The degenerate-set rule against brute force: t is shown iff its corners map to three
 /// distinct cut nodes.
 fn check_degenerate_sets(b: &Built, seed: u64, cuts: usize) {
@@ -79,11 +78,7 @@ fn budget_cuts_are_exact_and_full() {
     let Some(seq) = load("horse-gallop", 1) else { return };
     let b = build_seq(seq, &BuildOptions::default());
     let children = ChildIndex::new(&b.h);
-    let nodes = NodeState::compute(
-        &b.h,
-        &base_quadrics(&b.seq, &b.topo, &BaseOptions::default()),
-        &b.seq.frames[0],
-    );
+    let nodes = NodeState::compute(&b.h, &base_quadrics(&b.seq, &b.topo, &BaseOptions::default()), &b.seq.frames[0]);
     let max_d = (0..b.h.node_count() as u32).map(|g| b.d.size(g)).max().unwrap_or(0);
     for budget in [100, 1600, 2000, 5000, 16000] {
         let c = cut::select(&b.h, &b.d, &children, &nodes, CutTarget::Triangles(budget));

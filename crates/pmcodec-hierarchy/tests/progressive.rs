@@ -143,8 +143,8 @@ fn level_limited_replay_matches(seq: &pmcodec_mesh::Sequence, key_frame: usize, 
             None if f == key_frame => {
                 let key = enc.keyframe();
                 let tris = (min_level == 0).then_some(&seq.triangles[..]);
-                let mut r = Replay::from_keyframe(&h.level_sizes, h.branching, &key, min_level, seq.triangles.len(), tris)
-                    .expect("keyframe");
+                let mut r =
+                    Replay::from_keyframe(&h.level_sizes, h.branching, &key, min_level, seq.triangles.len(), tris).expect("keyframe");
                 // Expand everything above min_level: the finest cut this client can show.
                 let all: Vec<bool> = (0..h.node_count()).map(|g| g as u32 >= h.offsets[min_level + 1]).collect();
                 r.set_cut(&all);

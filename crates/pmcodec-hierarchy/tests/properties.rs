@@ -29,21 +29,16 @@ fn random_sequence(seed: u64, w: u32, h: u32, drop_percent: u64, frames: usize) 
     if tris.is_empty() {
         tris.push([0, 1, w]);
     }
-    let base: Vec<Vec3> = (0..w * h)
-        .map(|i| Vec3::new((i % w) as f32 + 0.3 * rng.unit(), (i / w) as f32 + 0.3 * rng.unit(), rng.unit()))
-        .collect();
+    let base: Vec<Vec3> =
+        (0..w * h).map(|i| Vec3::new((i % w) as f32 + 0.3 * rng.unit(), (i / w) as f32 + 0.3 * rng.unit(), rng.unit())).collect();
     let mut seq = Sequence { triangles: tris, frame_rate: 30.0, ..Default::default() };
     for f in 0..frames {
         let (a, b) = (rng.unit() * 2.0, rng.unit() * 3.0);
-        seq.frames.push(
-            base.iter()
-                .map(|p| Vec3::new(p.x, p.y, p.z + a * (0.3 * p.x + f as f32 * 0.5).sin() + b * (0.2 * p.y).cos()))
-                .collect(),
-        );
+        seq.frames
+            .push(base.iter().map(|p| Vec3::new(p.x, p.y, p.z + a * (0.3 * p.x + f as f32 * 0.5).sin() + b * (0.2 * p.y).cos())).collect());
     }
     seq
 }
-
 
 fn brute_shown(h: &Hierarchy, tris: &[[u32; 3]], c: &Cut) -> Vec<u32> {
     let rep = cut::cut_nodes(h, c);

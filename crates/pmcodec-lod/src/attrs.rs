@@ -61,12 +61,7 @@ impl VertexAttrs {
                     classes.len() as u32 - 1
                 }),
                 skin => {
-                    classes.push(ClassInfo {
-                        instance: i,
-                        node: inst.node,
-                        skin,
-                        morph_count: inst.morph_targets.len(),
-                    });
+                    classes.push(ClassInfo { instance: i, node: inst.node, skin, morph_count: inst.morph_targets.len() });
                     classes.len() as u32 - 1
                 }
             };
@@ -85,11 +80,7 @@ impl VertexAttrs {
             }
         }
         if verts.len() != rig.vertex_count() {
-            return Err(crate::LodError::BadRig(format!(
-                "instances cover {} of {} vertices",
-                verts.len(),
-                rig.vertex_count()
-            )));
+            return Err(crate::LodError::BadRig(format!("instances cover {} of {} vertices", verts.len(), rig.vertex_count())));
         }
         let rest = verts.iter().map(|v| v.rest).collect();
         Ok(VertexAttrs { verts, classes, rest })

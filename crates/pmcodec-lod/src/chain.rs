@@ -147,7 +147,8 @@ pub fn validate_rig(rig: &RiggedMesh) -> Result<(), LodError> {
         }
         for v in inst.vertices.clone() {
             let (j, w) = (rig.joints.get(v).copied().unwrap_or_default(), rig.weights.get(v).copied().unwrap_or_default());
-            if j.iter().zip(&w).any(|(&j, &w)| w != 0.0 && j as usize >= skin.joints.len()) || !w.iter().all(|x| x.is_finite() && *x >= 0.0) {
+            if j.iter().zip(&w).any(|(&j, &w)| w != 0.0 && j as usize >= skin.joints.len()) || !w.iter().all(|x| x.is_finite() && *x >= 0.0)
+            {
                 return Err(LodError::BadRig(format!("vertex {v}: joints {j:?} weights {w:?} do not fit skin {s}")));
             }
         }
@@ -187,9 +188,10 @@ pub fn build_chain(input: RiggedMesh, targets: &[usize], opts: &LodOptions) -> R
         let mut table = Vec::with_capacity(levels[k].ids.len());
         for &(c, id) in &levels[k].ids {
             let r = rep.get(id as usize).copied().unwrap_or(id);
-            let to = exact.get(&(c, r)).or_else(|| any.get(&r)).copied().ok_or_else(|| {
-                LodError::Internal(format!("level {k} vertex {id} merged into {r}, which level {} does not use", k + 1))
-            })?;
+            let to =
+                exact.get(&(c, r)).or_else(|| any.get(&r)).copied().ok_or_else(|| {
+                    LodError::Internal(format!("level {k} vertex {id} merged into {r}, which level {} does not use", k + 1))
+                })?;
             table.push(to);
         }
         levels[k].to_coarser = table;

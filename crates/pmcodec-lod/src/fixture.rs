@@ -123,4 +123,3 @@ pub fn bending_tube_and_face(rings: usize, around: usize) -> RiggedMesh {
     }];
     rig
 }
-

@@ -181,27 +181,23 @@ pub fn chain_glb(chain: &LodChain, placement: &str) -> Result<Vec<u8>, LodError>
         let mut level_meshes = Vec::new();
         for (i, inst) in rig.instances.iter().enumerate() {
             let range = inst.vertices.clone();
-            let tris: Vec<[u32; 3]> = rig
-                .triangles
-                .iter()
-                .filter(|t| range.contains(&(t[0] as usize)))
-                .map(|t| t.map(|x| x - range.start as u32))
-                .collect();
+            let tris: Vec<[u32; 3]> =
+                rig.triangles.iter().filter(|t| range.contains(&(t[0] as usize))).map(|t| t.map(|x| x - range.start as u32)).collect();
             let (skin, bind) = match inst.skin {
                 Some(s) => (s, Mat4::IDENTITY),
                 None => match rigid_skin.get(&inst.node) {
-                        Some(e) => *e,
-                        None => {
-                            let w = rest_world.get(inst.node).copied().unwrap_or(Mat4::IDENTITY);
-                            if !(w.determinant().abs() > 1e-30) || !w.is_finite() {
-                                return Err(LodError::Write(format!("node {} has a singular rest transform", inst.node)));
-                            }
-                            let acc = b.floats(&affine(w.inverse()).to_cols_array(), None, "MAT4", 16, false);
-                            skins.push(json!({"joints": [inst.node], "inverseBindMatrices": acc}));
-                            let e = (skins.len() - 1, w);
-                            rigid_skin.insert(inst.node, e);
-                            e
+                    Some(e) => *e,
+                    None => {
+                        let w = rest_world.get(inst.node).copied().unwrap_or(Mat4::IDENTITY);
+                        if !(w.determinant().abs() > 1e-30) || !w.is_finite() {
+                            return Err(LodError::Write(format!("node {} has a singular rest transform", inst.node)));
                         }
+                        let acc = b.floats(&affine(w.inverse()).to_cols_array(), None, "MAT4", 16, false);
+                        skins.push(json!({"joints": [inst.node], "inverseBindMatrices": acc}));
+                        let e = (skins.len() - 1, w);
+                        rigid_skin.insert(inst.node, e);
+                        e
+                    }
                 },
             };
             let rigid = inst.skin.is_none();

@@ -99,14 +99,7 @@ pub fn meshopt_baseline(rig: &RiggedMesh, target: usize) -> RiggedMesh {
     let rest = rig.pose(None, 0.0);
     let positions: Vec<[f32; 3]> = rest.iter().map(|p| p.to_array()).collect();
     let indices: Vec<u32> = rig.triangles.iter().flatten().copied().collect();
-    let out = meshopt::simplify_decoder(
-        &indices,
-        &positions,
-        target * 3,
-        f32::MAX,
-        meshopt::SimplifyOptions::Regularize,
-        None,
-    );
+    let out = meshopt::simplify_decoder(&indices, &positions, target * 3, f32::MAX, meshopt::SimplifyOptions::Regularize, None);
     let mut lod = rig.clone();
     lod.triangles = out.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
     lod

@@ -80,11 +80,7 @@ impl Q {
     #[inline]
     fn mul(&self, x: DVec3) -> DVec3 {
         let [a00, a01, a02, a11, a12, a22] = self.a;
-        DVec3::new(
-            a00 * x.x + a01 * x.y + a02 * x.z,
-            a01 * x.x + a11 * x.y + a12 * x.z,
-            a02 * x.x + a12 * x.y + a22 * x.z,
-        )
+        DVec3::new(a00 * x.x + a01 * x.y + a02 * x.z, a01 * x.x + a11 * x.y + a12 * x.z, a02 * x.x + a12 * x.y + a22 * x.z)
     }
 
     #[inline]

@@ -46,14 +46,8 @@ impl PoseWeights {
     pub fn parse(items: &[String]) -> Result<Self, LodError> {
         let mut w = PoseWeights::default();
         for item in items {
-            let (name, value) = item.rsplit_once('=').ok_or_else(|| LodError::BadPoseWeight {
-                name: item.clone(),
-                weight: f32::NAN,
-            })?;
-            let weight: f32 = value
-                .trim()
-                .parse()
-                .map_err(|_| LodError::BadPoseWeight { name: name.to_string(), weight: f32::NAN })?;
+            let (name, value) = item.rsplit_once('=').ok_or_else(|| LodError::BadPoseWeight { name: item.clone(), weight: f32::NAN })?;
+            let weight: f32 = value.trim().parse().map_err(|_| LodError::BadPoseWeight { name: name.to_string(), weight: f32::NAN })?;
             match name.trim() {
                 "rest" => w.rest = weight,
                 "morph" => w.morph = weight,

@@ -110,8 +110,7 @@ impl State<'_> {
 
     /// Topological and fold checks for collapsing `u`, `v` into a vertex at `posed_new`.
     fn allowed(&self, u: u32, v: u32, posed_new: &[Vec3]) -> bool {
-        let shared: Vec<u32> =
-            self.vert_tris[u as usize].iter().copied().filter(|t| self.tris[*t as usize].contains(&v)).collect();
+        let shared: Vec<u32> = self.vert_tris[u as usize].iter().copied().filter(|t| self.tris[*t as usize].contains(&v)).collect();
         if shared.is_empty() {
             return false;
         }

@@ -12,8 +12,8 @@ fn every_placement_gives_a_valid_chain() {
     let rig = bending_tube_and_face(16, 12);
     let total = rig.triangles.len();
     for placement in Placement::ALL {
-        let chain = build_chain(rig.clone(), &[total / 2, total / 4, total / 10], &LodOptions { placement, ..Default::default() })
-            .expect("chain");
+        let chain =
+            build_chain(rig.clone(), &[total / 2, total / 4, total / 10], &LodOptions { placement, ..Default::default() }).expect("chain");
         assert_eq!(chain.levels.len(), 4);
         for (level, target) in chain.levels[1..].iter().zip([total / 2, total / 4, total / 10]) {
             assert!(level.rig.triangles.len() <= target, "{placement:?}: reached {target}");
@@ -26,13 +26,12 @@ fn every_placement_gives_a_valid_chain() {
 fn endpoint_keeps_authored_influences() {
     let rig = bending_tube_and_face(16, 12);
     let total = rig.triangles.len();
-    let chain = build_chain(rig.clone(), &[total / 4], &LodOptions { placement: Placement::Endpoint, ..Default::default() })
-        .expect("chain");
+    let chain =
+        build_chain(rig.clone(), &[total / 4], &LodOptions { placement: Placement::Endpoint, ..Default::default() }).expect("chain");
     let lod = &chain.levels[1].rig;
     for v in 0..lod.positions.len() {
-        let found = (0..rig.positions.len()).any(|u| {
-            rig.positions[u] == lod.positions[v] && rig.joints[u] == lod.joints[v] && rig.weights[u] == lod.weights[v]
-        });
+        let found = (0..rig.positions.len())
+            .any(|u| rig.positions[u] == lod.positions[v] && rig.joints[u] == lod.joints[v] && rig.weights[u] == lod.weights[v]);
         assert!(found, "vertex {v} is an input vertex with its influences");
     }
 }

@@ -116,10 +116,7 @@ pub fn list_animations_bytes(bytes: &[u8]) -> Result<Vec<AnimationInfo>, MeshErr
 
 fn animation_infos(file: &GltfFile) -> Result<Vec<AnimationInfo>, MeshError> {
     let targets = morph_target_counts(&file.root);
-    Ok(read_animations(file, &targets)?
-        .into_iter()
-        .map(|a| AnimationInfo { index: a.index, name: a.name, duration: a.duration })
-        .collect())
+    Ok(read_animations(file, &targets)?.into_iter().map(|a| AnimationInfo { index: a.index, name: a.name, duration: a.duration }).collect())
 }
 
 fn file_to_sequence(file: &GltfFile, opts: &GltfOptions) -> Result<Sequence, MeshError> {
@@ -353,9 +350,7 @@ impl RiggedMesh {
     pub fn find_animation(&self, selector: &AnimationSelector) -> Result<usize, MeshError> {
         let found = match selector {
             AnimationSelector::Index(i) => (*i < self.animations.len()).then_some(*i),
-            AnimationSelector::Name(name) => {
-                self.animations.iter().position(|a| a.name.as_deref() == Some(name.as_str()))
-            }
+            AnimationSelector::Name(name) => self.animations.iter().position(|a| a.name.as_deref() == Some(name.as_str())),
         };
         found.ok_or_else(|| MeshError::NoSuchAnimation {
             wanted: match selector {
@@ -385,17 +380,10 @@ impl RiggedMesh {
         let n = self.vertex_count();
         let count = if last.is_finite() && last < MAX_FRAMES as f32 { last as usize + 1 } else { usize::MAX };
         if count > MAX_FRAMES || count.saturating_mul(n + channels) > MAX_POSITIONS {
-            return Err(MeshError::TooLarge {
-                what: format!("{duration} s at {frame_rate} frames per second for {n} vertices"),
-            });
+            return Err(MeshError::TooLarge { what: format!("{duration} s at {frame_rate} frames per second for {n} vertices") });
         }
         let label = anim.map_or_else(|| "rest".to_string(), Animation::label);
-        let mut seq = Sequence {
-            triangles: self.triangles.clone(),
-            frame_rate,
-            source: self.source.clone(),
-            ..Default::default()
-        };
+        let mut seq = Sequence { triangles: self.triangles.clone(), frame_rate, source: self.source.clone(), ..Default::default() };
         for i in 0..count {
             let t = i as f32 / frame_rate;
             seq.frames.push(self.pose(anim, t));
@@ -463,7 +451,13 @@ impl RiggedMesh {
         let joints = self
             .skins
             .iter()
-            .map(|s| s.joints.iter().zip(&s.inverse_bind_matrices).map(|(&j, ibm)| world.get(j).copied().unwrap_or(Mat4::IDENTITY) * *ibm).collect())
+            .map(|s| {
+                s.joints
+                    .iter()
+                    .zip(&s.inverse_bind_matrices)
+                    .map(|(&j, ibm)| world.get(j).copied().unwrap_or(Mat4::IDENTITY) * *ibm)
+                    .collect()
+            })
             .collect();
         PoseTransforms { world, joints, morph }
     }
@@ -573,10 +567,7 @@ impl RiggedMesh {
         self.positions = gather(&self.positions, keep);
         self.joints = gather(&self.joints, keep);
         self.weights = gather(&self.weights, keep);
-        self.source = keep
-            .iter()
-            .map(|&o| self.source.get(o).copied().unwrap_or(SourceVertex { primitive: 0, index: 0 }))
-            .collect();
+        self.source = keep.iter().map(|&o| self.source.get(o).copied().unwrap_or(SourceVertex { primitive: 0, index: 0 })).collect();
         for inst in &mut self.instances {
             // `keep` is increasing and instances occupy increasing ranges, so each instance's
             // surviving vertices are again one contiguous range.
@@ -688,8 +679,7 @@ impl RiggedMesh {
         if let Some(name) = mode_name {
             return Err(MeshError::Unsupported(format!("{what} has mode {name}; only triangle modes make a mesh")));
         }
-        let positions_at =
-            attribute(Semantic::Positions).ok_or_else(|| gltf_error(format!("{what} has no POSITION")))?;
+        let positions_at = attribute(Semantic::Positions).ok_or_else(|| gltf_error(format!("{what} has no POSITION")))?;
         let positions = to_vec3(&file.read_floats(positions_at, 3, ANY_NUMBER, &format!("{what} POSITION"))?);
         let n = positions.len();
         let records = n.saturating_mul(1 + inst.morph_targets.len());
@@ -697,12 +687,7 @@ impl RiggedMesh {
             what: format!("{what} brings the scene past {MAX_ELEMENTS} vertex records (vertices times morph targets)"),
         })?;
         let indices: Vec<u32> = match prim.indices.map(|i| i.value()) {
-            Some(at) => file.read_uints(
-                at,
-                1,
-                &[ComponentType::U8, ComponentType::U16, ComponentType::U32],
-                &format!("{what} indices"),
-            )?,
+            Some(at) => file.read_uints(at, 1, &[ComponentType::U8, ComponentType::U16, ComponentType::U32], &format!("{what} indices"))?,
             None => (0..n as u32).collect(),
         };
         if let Some(&bad) = indices.iter().find(|&&i| i as usize >= n) {
@@ -710,21 +695,16 @@ impl RiggedMesh {
         }
         // Topology per §3.7.2.1: strips alternate winding, fans pivot on the first vertex.
         let triangles: Vec<[u32; 3]> = match mode {
-            Mode::TriangleStrip => indices
-                .windows(3)
-                .enumerate()
-                .map(|(i, w)| if i % 2 == 0 { [w[0], w[1], w[2]] } else { [w[0], w[2], w[1]] })
-                .collect(),
+            Mode::TriangleStrip => {
+                indices.windows(3).enumerate().map(|(i, w)| if i % 2 == 0 { [w[0], w[1], w[2]] } else { [w[0], w[2], w[1]] }).collect()
+            }
             Mode::TriangleFan => match indices.split_first() {
                 Some((&first, rest)) => rest.windows(2).map(|w| [w[0], w[1], first]).collect(),
                 None => Vec::new(),
             },
             _ => {
                 if !indices.len().is_multiple_of(3) {
-                    return Err(gltf_error(format!(
-                        "{what}: {} indices is not a whole number of triangles",
-                        indices.len()
-                    )));
+                    return Err(gltf_error(format!("{what}: {} indices is not a whole number of triangles", indices.len())));
                 }
                 indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
             }
@@ -738,17 +718,12 @@ impl RiggedMesh {
         let targets = prim.targets.as_deref().unwrap_or_default();
         for (k, slot) in inst.morph_targets.iter_mut().enumerate() {
             let deltas = match targets.get(k).and_then(|t| t.positions).map(|a| a.value()) {
-                Some(at) => {
-                    to_vec3(&file.read_floats(at, 3, ANY_NUMBER, &format!("{what} morph target {k} POSITION"))?)
-                }
+                Some(at) => to_vec3(&file.read_floats(at, 3, ANY_NUMBER, &format!("{what} morph target {k} POSITION"))?),
                 // A primitive without this target (or without its POSITION) does not move.
                 None => vec![Vec3::ZERO; n],
             };
             if deltas.len() != n {
-                return Err(gltf_error(format!(
-                    "{what}: morph target {k} has {} positions for {n} vertices",
-                    deltas.len()
-                )));
+                return Err(gltf_error(format!("{what}: morph target {k} has {} positions for {n} vertices", deltas.len())));
             }
             slot.extend(deltas);
         }
@@ -758,9 +733,7 @@ impl RiggedMesh {
         self.joints.extend(joints);
         self.weights.extend(weights);
         self.source.extend((0..n as u32).map(|index| SourceVertex { primitive: number, index }));
-        self.triangles.extend(
-            triangles.into_iter().filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]).map(|t| t.map(|i| i + base)),
-        );
+        self.triangles.extend(triangles.into_iter().filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]).map(|t| t.map(|i| i + base)));
         Ok(())
     }
 }
@@ -782,14 +755,9 @@ fn read_influences(
     let mut sets: Vec<(Vec<u32>, Vec<f32>)> = Vec::new();
     for set in 0u32.. {
         let (Some(j), Some(w)) = (attribute(Semantic::Joints(set)), attribute(Semantic::Weights(set))) else { break };
-        let joints =
-            file.read_uints(j, 4, &[ComponentType::U8, ComponentType::U16], &format!("{what} JOINTS_{set}"))?;
-        let weights = file.read_floats(
-            w,
-            4,
-            &[ComponentType::F32, ComponentType::U8, ComponentType::U16],
-            &format!("{what} WEIGHTS_{set}"),
-        )?;
+        let joints = file.read_uints(j, 4, &[ComponentType::U8, ComponentType::U16], &format!("{what} JOINTS_{set}"))?;
+        let weights =
+            file.read_floats(w, 4, &[ComponentType::F32, ComponentType::U8, ComponentType::U16], &format!("{what} WEIGHTS_{set}"))?;
         if joints.len() != 4 * n || weights.len() != 4 * n {
             return Err(gltf_error(format!("{what}: JOINTS_{set}/WEIGHTS_{set} do not have one entry per vertex")));
         }
@@ -814,9 +782,7 @@ fn read_influences(
                     continue;
                 }
                 if j as usize >= joint_count {
-                    return Err(gltf_error(format!(
-                        "{what}: vertex {v} uses joint {j}, but the skin has {joint_count}"
-                    )));
+                    return Err(gltf_error(format!("{what}: vertex {v} uses joint {j}, but the skin has {joint_count}")));
                 }
                 match influences.iter_mut().find(|(k, _)| *k == j) {
                     Some(existing) => existing.1 += w,
@@ -917,9 +883,7 @@ fn node_parents(root: &json::Root) -> Result<Vec<Option<usize>>, MeshError> {
     let mut parents: Vec<Option<usize>> = vec![None; n];
     for (p, node) in root.nodes.iter().enumerate() {
         for c in node.children.iter().flatten().map(|c| c.value()) {
-            let slot = parents
-                .get_mut(c)
-                .ok_or_else(|| gltf_error(format!("node {p} has child {c}, which does not exist")))?;
+            let slot = parents.get_mut(c).ok_or_else(|| gltf_error(format!("node {p} has child {c}, which does not exist")))?;
             if let Some(other) = *slot {
                 return Err(gltf_error(format!("node {c} is a child of both node {other} and node {p}")));
             }
@@ -996,17 +960,10 @@ fn read_skin(file: &GltfFile, index: usize, skin: &json::Skin) -> Result<Skin, M
         None => vec![Mat4::IDENTITY; joints.len()],
         Some(at) => {
             let flat = file.read_floats(at, 16, &[ComponentType::F32], &format!("skin {index} inverseBindMatrices"))?;
-            let matrices: Vec<Mat4> = flat
-                .chunks_exact(16)
-                .filter_map(|c| c.try_into().ok())
-                .map(|a: [f32; 16]| Mat4::from_cols_array(&a))
-                .collect();
+            let matrices: Vec<Mat4> =
+                flat.chunks_exact(16).filter_map(|c| c.try_into().ok()).map(|a: [f32; 16]| Mat4::from_cols_array(&a)).collect();
             if matrices.len() < joints.len() {
-                return Err(gltf_error(format!(
-                    "skin {index} has {} inverse bind matrices for {} joints",
-                    matrices.len(),
-                    joints.len()
-                )));
+                return Err(gltf_error(format!("skin {index} has {} inverse bind matrices for {} joints", matrices.len(), joints.len())));
             }
             if matrices.iter().any(|m| !m.is_finite()) {
                 return Err(gltf_error(format!("skin {index}: an inverse bind matrix is not finite")));
@@ -1051,9 +1008,10 @@ fn read_animations(file: &GltfFile, morph_targets: &[usize]) -> Result<Vec<Anima
             if node >= morph_targets.len() {
                 return Err(gltf_error(format!("{what} targets node {node}, which does not exist")));
             }
-            let sampler = anim.samplers.get(ch.sampler.value()).ok_or_else(|| {
-                gltf_error(format!("{what} uses sampler {}, which does not exist", ch.sampler.value()))
-            })?;
+            let sampler = anim
+                .samplers
+                .get(ch.sampler.value())
+                .ok_or_else(|| gltf_error(format!("{what} uses sampler {}, which does not exist", ch.sampler.value())))?;
             let (property, width, dims) = match ch.target.path {
                 Checked::Valid(Property::Translation) => (AnimatedProperty::Translation, 3, 3),
                 Checked::Valid(Property::Rotation) => (AnimatedProperty::Rotation, 4, 4),
@@ -1085,11 +1043,7 @@ fn read_animations(file: &GltfFile, morph_targets: &[usize]) -> Result<Vec<Anima
             let values = file.read_floats(sampler.output.value(), dims, ANY_NUMBER, &format!("{what} output"))?;
             let per_key = if interpolation == Interpolation::CubicSpline { 3 * width } else { width };
             if values.len() < times.len() * per_key {
-                return Err(gltf_error(format!(
-                    "{what}: {} output values for {} keyframes of {per_key}",
-                    values.len(),
-                    times.len()
-                )));
+                return Err(gltf_error(format!("{what}: {} output values for {} keyframes of {per_key}", values.len(), times.len())));
             }
             if values.iter().any(|v| !v.is_finite()) {
                 return Err(gltf_error(format!("{what}: an output value is not finite")));
@@ -1126,8 +1080,7 @@ impl Channel {
         } else {
             // first < t < last, so 1 <= partition point <= n - 1 (saturating only for NaN).
             let k = self.times.partition_point(|&x| x <= t).saturating_sub(1);
-            let (t0, t1) =
-                (self.times.get(k).copied().unwrap_or(first), self.times.get(k + 1).copied().unwrap_or(last));
+            let (t0, t1) = (self.times.get(k).copied().unwrap_or(first), self.times.get(k + 1).copied().unwrap_or(last));
             let dt = t1 - t0;
             let u = if dt > 0.0 { (t - t0) / dt } else { 1.0 };
             match self.interpolation {
@@ -1199,14 +1152,8 @@ struct GltfFile {
     buffers: Vec<Option<Vec<u8>>>,
 }
 
-const ANY_NUMBER: &[ComponentType] = &[
-    ComponentType::F32,
-    ComponentType::I8,
-    ComponentType::U8,
-    ComponentType::I16,
-    ComponentType::U16,
-    ComponentType::U32,
-];
+const ANY_NUMBER: &[ComponentType] =
+    &[ComponentType::F32, ComponentType::I8, ComponentType::U8, ComponentType::I16, ComponentType::U16, ComponentType::U32];
 
 /// Extensions that do not change how positions, skins, morphs or animations are stored, and
 /// KHR_mesh_quantization, whose integer attributes the accessor reader decodes. Any other
@@ -1239,14 +1186,12 @@ impl GltfFile {
             // A UTF-8 byte order mark is not allowed (§3.2) but harmless; skip it.
             (bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes), None)
         };
-        let root: json::Root =
-            serde_json::from_slice(json_bytes).map_err(|e| gltf_error(format!("not a glTF 2.0 document: {e}")))?;
+        let root: json::Root = serde_json::from_slice(json_bytes).map_err(|e| gltf_error(format!("not a glTF 2.0 document: {e}")))?;
         let major = root.asset.version.split('.').next().unwrap_or_default();
         if major != "2" {
             return Err(MeshError::Unsupported(format!("glTF version {} (only 2.x is read)", root.asset.version)));
         }
-        let unsupported: Vec<&str> =
-            root.extensions_required.iter().map(String::as_str).filter(|e| !extension_is_supported(e)).collect();
+        let unsupported: Vec<&str> = root.extensions_required.iter().map(String::as_str).filter(|e| !extension_is_supported(e)).collect();
         if !unsupported.is_empty() {
             return Err(MeshError::Unsupported(format!("required extension {}", unsupported.join(", "))));
         }
@@ -1273,9 +1218,7 @@ impl GltfFile {
             }
             let mut data = match buffer.uri.as_deref() {
                 // The GLB BIN chunk is the first buffer, the one without a URI (§4.4.3.3).
-                None if i == 0 => {
-                    bin.ok_or_else(|| gltf_error("buffer 0 has no URI and there is no GLB BIN chunk"))?.to_vec()
-                }
+                None if i == 0 => bin.ok_or_else(|| gltf_error("buffer 0 has no URI and there is no GLB BIN chunk"))?.to_vec(),
                 None => return Err(gltf_error(format!("buffer {i} has no URI"))),
                 Some(uri) => read_uri(uri, base, i)?,
             };
@@ -1292,26 +1235,22 @@ impl GltfFile {
 
     /// The bytes of a buffer view and its stride (if it declares one).
     fn view(&self, index: usize, what: &str) -> Result<(&[u8], Option<usize>), MeshError> {
-        let view = self
-            .root
-            .buffer_views
-            .get(index)
-            .ok_or_else(|| gltf_error(format!("{what}: bufferView {index} does not exist")))?;
+        let view = self.root.buffer_views.get(index).ok_or_else(|| gltf_error(format!("{what}: bufferView {index} does not exist")))?;
         let buffer = view.buffer.value();
-        let data = self.buffers.get(buffer).and_then(Option::as_deref).ok_or_else(|| {
-            gltf_error(format!("{what}: bufferView {index} uses buffer {buffer}, which does not exist"))
-        })?;
+        let data = self
+            .buffers
+            .get(buffer)
+            .and_then(Option::as_deref)
+            .ok_or_else(|| gltf_error(format!("{what}: bufferView {index} uses buffer {buffer}, which does not exist")))?;
         let start = view.byte_offset.map_or(0, |o| o.0);
         let end = start.checked_add(view.byte_length.0);
-        let slice = end.and_then(|end| data.get(usize::try_from(start).ok()?..usize::try_from(end).ok()?)).ok_or_else(
-            || {
-                gltf_error(format!(
-                    "{what}: bufferView {index} (bytes {start}..{}) lies outside buffer {buffer} ({} bytes)",
-                    start.saturating_add(view.byte_length.0),
-                    data.len()
-                ))
-            },
-        )?;
+        let slice = end.and_then(|end| data.get(usize::try_from(start).ok()?..usize::try_from(end).ok()?)).ok_or_else(|| {
+            gltf_error(format!(
+                "{what}: bufferView {index} (bytes {start}..{}) lies outside buffer {buffer} ({} bytes)",
+                start.saturating_add(view.byte_length.0),
+                data.len()
+            ))
+        })?;
         Ok((slice, view.byte_stride.map(|s| s.0)))
     }
 
@@ -1344,9 +1283,7 @@ impl GltfFile {
             Checked::Invalid => return Err(gltf_error(format!("{what}: unknown component type"))),
         };
         if actual_dims != dims || !allowed.contains(&ct) {
-            return Err(gltf_error(format!(
-                "{what} is {ty:?} of {ct:?}; expected {dims} components of one of {allowed:?}"
-            )));
+            return Err(gltf_error(format!("{what} is {ty:?} of {ct:?}; expected {dims} components of one of {allowed:?}")));
         }
         let size = component_size(ct);
         let element = size * dims;
@@ -1369,16 +1306,11 @@ impl GltfFile {
             let (bytes, stride) = self.view(view.value(), &what)?;
             let stride = stride.unwrap_or(element);
             if stride < element {
-                return Err(gltf_error(format!(
-                    "{what}: byteStride {stride} is less than its {element}-byte elements"
-                )));
+                return Err(gltf_error(format!("{what}: byteStride {stride} is less than its {element}-byte elements")));
             }
             let offset = usize::try_from(acc.byte_offset.map_or(0, |o| o.0)).map_err(|_| outside())?;
             if count > 0 {
-                let end = (count - 1)
-                    .checked_mul(stride)
-                    .and_then(|x| x.checked_add(offset))
-                    .and_then(|x| x.checked_add(element));
+                let end = (count - 1).checked_mul(stride).and_then(|x| x.checked_add(offset)).and_then(|x| x.checked_add(element));
                 if end.is_none_or(|end| end > bytes.len()) {
                     return Err(outside());
                 }
@@ -1393,9 +1325,7 @@ impl GltfFile {
                 return Err(gltf_error(format!("{what}: {n} sparse values for {count} elements")));
             }
             let index_type = match sparse.indices.component_type {
-                Checked::Valid(IndexComponentType(
-                    c @ (ComponentType::U8 | ComponentType::U16 | ComponentType::U32),
-                )) => c,
+                Checked::Valid(IndexComponentType(c @ (ComponentType::U8 | ComponentType::U16 | ComponentType::U32))) => c,
                 _ => return Err(gltf_error(format!("{what}: sparse indices are not unsigned integers"))),
             };
             let (index_bytes, _) = self.view(sparse.indices.buffer_view.value(), &what)?;
@@ -1405,17 +1335,13 @@ impl GltfFile {
             let sparse_outside = || gltf_error(format!("{what}: sparse data runs past the end of its bufferView"));
             let index_size = component_size(index_type);
             for s in 0..n {
-                let at =
-                    s.checked_mul(index_size).and_then(|x| x.checked_add(index_offset)).ok_or_else(sparse_outside)?;
-                let target = index_bytes
-                    .get(at..at.saturating_add(index_size))
-                    .map(|b| component_u32(index_type, b))
-                    .ok_or_else(sparse_outside)? as usize;
+                let at = s.checked_mul(index_size).and_then(|x| x.checked_add(index_offset)).ok_or_else(sparse_outside)?;
+                let target =
+                    index_bytes.get(at..at.saturating_add(index_size)).map(|b| component_u32(index_type, b)).ok_or_else(sparse_outside)?
+                        as usize;
                 let slot = out
                     .get_mut(target.saturating_mul(dims)..target.saturating_mul(dims).saturating_add(dims))
-                    .ok_or_else(|| {
-                    gltf_error(format!("{what}: sparse index {target} is beyond its {count} elements"))
-                })?;
+                    .ok_or_else(|| gltf_error(format!("{what}: sparse index {target} is beyond its {count} elements")))?;
                 // Sparse values are tightly packed (§3.6.2.3).
                 let at = s.checked_mul(element).and_then(|x| x.checked_add(value_offset)).ok_or_else(sparse_outside)?;
                 read_element(slot, value_bytes, at).ok_or_else(sparse_outside)?;
@@ -1425,24 +1351,12 @@ impl GltfFile {
     }
 
     /// Components as floats; normalised integers map to [0, 1] or [-1, 1] (§3.11).
-    fn read_floats(
-        &self,
-        index: usize,
-        dims: usize,
-        allowed: &[ComponentType],
-        what: &str,
-    ) -> Result<Vec<f32>, MeshError> {
+    fn read_floats(&self, index: usize, dims: usize, allowed: &[ComponentType], what: &str) -> Result<Vec<f32>, MeshError> {
         self.decode(index, dims, allowed, what, component_f32)
     }
 
     /// Components as unsigned integers (indices, joints).
-    fn read_uints(
-        &self,
-        index: usize,
-        dims: usize,
-        allowed: &[ComponentType],
-        what: &str,
-    ) -> Result<Vec<u32>, MeshError> {
+    fn read_uints(&self, index: usize, dims: usize, allowed: &[ComponentType], what: &str) -> Result<Vec<u32>, MeshError> {
         self.decode(index, dims, allowed, what, |ct, _, b| component_u32(ct, b))
     }
 }
@@ -1503,10 +1417,7 @@ fn split_glb(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>), MeshError> {
     }
     let length = word(8).ok_or_else(|| gltf_error("GLB header is truncated"))? as usize;
     if length < 12 || length > bytes.len() {
-        return Err(gltf_error(format!(
-            "GLB header says {length} bytes but there are {}: truncated or corrupt",
-            bytes.len()
-        )));
+        return Err(gltf_error(format!("GLB header says {length} bytes but there are {}: truncated or corrupt", bytes.len())));
     }
     let mut at = 12;
     let mut json = None;
@@ -1534,11 +1445,9 @@ fn split_glb(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>), MeshError> {
 /// Bytes of a buffer URI: a base64 `data:` URI, or with a base folder a relative path inside it.
 fn read_uri(uri: &str, base: Option<&Path>, index: usize) -> Result<Vec<u8>, MeshError> {
     if let Some(rest) = uri.strip_prefix("data:") {
-        let (_, payload) = rest
-            .split_once(";base64,")
-            .ok_or_else(|| MeshError::Unsupported(format!("buffer {index}: a data URI that is not base64")))?;
-        return decode_base64(payload)
-            .ok_or_else(|| gltf_error(format!("buffer {index}: invalid base64 in its data URI")));
+        let (_, payload) =
+            rest.split_once(";base64,").ok_or_else(|| MeshError::Unsupported(format!("buffer {index}: a data URI that is not base64")))?;
+        return decode_base64(payload).ok_or_else(|| gltf_error(format!("buffer {index}: invalid base64 in its data URI")));
     }
     let Some(base) = base else {
         return Err(gltf_error(format!(
@@ -1550,12 +1459,9 @@ fn read_uri(uri: &str, base: Option<&Path>, index: usize) -> Result<Vec<u8>, Mes
     // folder: a file from elsewhere must not make us read arbitrary local files.
     let decoded = percent_decode(uri).ok_or_else(|| gltf_error(format!("buffer {index}: URI {uri:?} is not valid")))?;
     let relative = PathBuf::from(&decoded);
-    let inside =
-        !uri.contains(':') && relative.components().all(|c| matches!(c, Component::Normal(_) | Component::CurDir));
+    let inside = !uri.contains(':') && relative.components().all(|c| matches!(c, Component::Normal(_) | Component::CurDir));
     if !inside {
-        return Err(MeshError::Unsupported(format!(
-            "buffer {index}: URI {uri:?} (only relative paths inside the file's folder are read)"
-        )));
+        return Err(MeshError::Unsupported(format!("buffer {index}: URI {uri:?} (only relative paths inside the file's folder are read)")));
     }
     let path = base.join(relative);
     std::fs::read(&path).map_err(|source| MeshError::Io { path, source })

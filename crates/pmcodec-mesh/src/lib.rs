@@ -123,10 +123,7 @@ impl Sequence {
             return Err(MeshError::Invalid(format!("frame rate {} is not a positive number", self.frame_rate)));
         }
         if !self.morph_displacement.is_empty() && self.morph_displacement.len() != n {
-            return Err(MeshError::Invalid(format!(
-                "{} morph displacement weights for {n} vertices",
-                self.morph_displacement.len()
-            )));
+            return Err(MeshError::Invalid(format!("{} morph displacement weights for {n} vertices", self.morph_displacement.len())));
         }
         Ok(())
     }
@@ -141,10 +138,7 @@ impl Sequence {
 
     /// Bounding box over all frames.
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
-        self.frames
-            .iter()
-            .filter_map(|f| bounds_of(f))
-            .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)))
+        self.frames.iter().filter_map(|f| bounds_of(f)).reduce(|(a, b), (c, d)| (a.min(c), b.max(d)))
     }
 
     fn frame_label(&self, f: usize) -> String {

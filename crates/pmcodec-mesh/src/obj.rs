@@ -29,12 +29,8 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjFrame, MeshError> {
             Some("v") => {
                 let mut p = [0f32; 3];
                 for (axis, slot) in p.iter_mut().enumerate() {
-                    let word = words
-                        .next()
-                        .ok_or_else(|| err(lineno, format!("vertex has {axis} coordinates, expected 3")))?;
-                    *slot = word
-                        .parse()
-                        .map_err(|_| err(lineno, format!("vertex coordinate {word:?} is not a number")))?;
+                    let word = words.next().ok_or_else(|| err(lineno, format!("vertex has {axis} coordinates, expected 3")))?;
+                    *slot = word.parse().map_err(|_| err(lineno, format!("vertex coordinate {word:?} is not a number")))?;
                 }
                 // An optional fourth (w) or vertex colours may follow: ignored.
                 out.positions.push(Vec3::from_array(p));
@@ -44,9 +40,7 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjFrame, MeshError> {
                 for word in words {
                     // `v`, `v/vt`, `v//vn` or `v/vt/vn`: only the position index matters.
                     let index = word.split('/').next().unwrap_or(word);
-                    let i: i64 = index
-                        .parse()
-                        .map_err(|_| err(lineno, format!("face index {word:?} is not an integer")))?;
+                    let i: i64 = index.parse().map_err(|_| err(lineno, format!("face index {word:?} is not an integer")))?;
                     // OBJ indices are 1-based; negative ones count back from the latest vertex.
                     let resolved = match i {
                         0 => return Err(err(lineno, "face index 0 (OBJ indices start at 1)".into())),
@@ -69,12 +63,7 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjFrame, MeshError> {
         }
     }
     let n = out.positions.len();
-    if let Some((t, &i)) = out
-        .triangles
-        .iter()
-        .enumerate()
-        .find_map(|(t, tri)| tri.iter().find(|&&i| i as usize >= n).map(|i| (t, i)))
-    {
+    if let Some((t, &i)) = out.triangles.iter().enumerate().find_map(|(t, tri)| tri.iter().find(|&&i| i as usize >= n).map(|i| (t, i))) {
         return Err(MeshError::Parse {
             path: path.to_path_buf(),
             line: 0,
@@ -104,15 +93,9 @@ pub fn frame_paths(input: &Path) -> Result<Vec<PathBuf>, MeshError> {
         if dir.to_string_lossy().contains(['*', '?']) {
             return Err(MeshError::NoInput(format!("{text}: wildcards are only supported in the file name")));
         }
-        list_dir(&dir)?
-            .into_iter()
-            .filter(|p| p.file_name().is_some_and(|n| wildcard_match(&name, &n.to_string_lossy())))
-            .collect()
+        list_dir(&dir)?.into_iter().filter(|p| p.file_name().is_some_and(|n| wildcard_match(&name, &n.to_string_lossy()))).collect()
     } else if input.is_dir() {
-        list_dir(input)?
-            .into_iter()
-            .filter(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj")))
-            .collect()
+        list_dir(input)?.into_iter().filter(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"))).collect()
     } else if input.is_file() {
         vec![input.to_path_buf()]
     } else {

@@ -87,10 +87,7 @@ pub fn glb_bytes(mesh: &TriMesh) -> Vec<u8> {
         // One scene holding one node without a mesh: `scene.nodes` may not be an empty array
         // (glTF 2.0 schema, minItems 1), the `gltf` crate rejects a scene without `nodes`, and
         // viewers expect a default scene to exist.
-        (
-            json!({"asset": {"version": "2.0", "generator": "pmcodec"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{}]}),
-            Vec::new(),
-        )
+        (json!({"asset": {"version": "2.0", "generator": "pmcodec"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{}]}), Vec::new())
     } else {
         let mut bin: Vec<u8> = Vec::with_capacity(bin_len(mesh) as usize);
         // Every element is a 4-byte float or u32, so each view starts 4-byte aligned without
@@ -246,10 +243,7 @@ pub fn write_mesh_file(path: &Path, mesh: &TriMesh) -> Result<(), MeshError> {
             v
         }
         Some(other) => {
-            return Err(MeshError::Invalid(format!(
-                "cannot write {}: unknown extension \".{other}\" (use .obj or .glb)",
-                path.display()
-            )));
+            return Err(MeshError::Invalid(format!("cannot write {}: unknown extension \".{other}\" (use .obj or .glb)", path.display())));
         }
         None => {
             return Err(MeshError::Invalid(format!(

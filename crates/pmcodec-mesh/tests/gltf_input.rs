@@ -68,8 +68,7 @@ fn check_animated(seq: &Sequence, rest_diag: f32) {
         let d = diag(frame);
         assert!(d < 3.0 * rest_diag && d > rest_diag / 3.0, "frame {f}: diagonal {d} vs rest {rest_diag}");
     }
-    let moved =
-        |a: &[Vec3], b: &[Vec3]| a.iter().zip(b).filter(|(p, q)| (**p - **q).length() > 1e-3 * rest_diag).count();
+    let moved = |a: &[Vec3], b: &[Vec3]| a.iter().zip(b).filter(|(p, q)| (**p - **q).length() > 1e-3 * rest_diag).count();
     let n = seq.frame_count();
     assert!(n >= 2);
     let m = moved(&seq.frames[0], &seq.frames[n / 2]);
@@ -95,8 +94,7 @@ impl Bin {
         }
         self.views.push(json!({"buffer": 0, "byteOffset": self.bytes.len(), "byteLength": data.len()}));
         self.bytes.extend_from_slice(data);
-        let mut acc =
-            json!({"bufferView": self.views.len() - 1, "componentType": component, "count": count, "type": ty});
+        let mut acc = json!({"bufferView": self.views.len() - 1, "componentType": component, "count": count, "type": ty});
         if normalized {
             acc["normalized"] = json!(true);
         }
@@ -308,8 +306,7 @@ fn robot_merges_nineteen_primitives_of_rigid_skinned_and_morphing_parts() {
         assert!(authored.contains(&(s.primitive, s.index)), "{s:?}");
     }
     for t in &seq.triangles {
-        let nodes: BTreeSet<usize> =
-            t.iter().map(|&v| rig.primitives[seq.source[v as usize].primitive as usize].node).collect();
+        let nodes: BTreeSet<usize> = t.iter().map(|&v| rig.primitives[seq.source[v as usize].primitive as usize].node).collect();
         assert_eq!(nodes.len(), 1, "{t:?}");
     }
     // Morph displacement only where the head's targets move vertices.
@@ -338,11 +335,8 @@ fn robot_merges_nineteen_primitives_of_rigid_skinned_and_morphing_parts() {
     let no = load_gltf(&path, &opts(Some(AnimationSelector::Name("No".into())), 30.0, true)).unwrap();
     let head_vertices: Vec<usize> =
         (0..no.vertex_count()).filter(|&v| rig.primitives[no.source[v].primitive as usize].mesh == head).collect();
-    let max_move = no
-        .frames
-        .iter()
-        .map(|f| head_vertices.iter().map(|&v| (f[v] - no.frames[0][v]).length()).fold(0.0, f32::max))
-        .fold(0.0, f32::max);
+    let max_move =
+        no.frames.iter().map(|f| head_vertices.iter().map(|&v| (f[v] - no.frames[0][v]).length()).fold(0.0, f32::max)).fold(0.0, f32::max);
     assert!(max_move > 0.01 * rest, "the head moves by {max_move}");
 }
 
@@ -794,13 +788,9 @@ fn unsupported_features_are_named() {
         f(&mut d);
         load(&glb(&d, &bin.bytes), 30.0)
     };
-    let e = with(&|d| d["extensionsRequired"] = json!(["KHR_draco_mesh_compression", "EXT_meshopt_compression"]))
-        .unwrap_err();
+    let e = with(&|d| d["extensionsRequired"] = json!(["KHR_draco_mesh_compression", "EXT_meshopt_compression"])).unwrap_err();
     assert!(matches!(e, MeshError::Unsupported(_)), "{e}");
-    assert!(
-        e.to_string().contains("KHR_draco_mesh_compression") && e.to_string().contains("EXT_meshopt_compression"),
-        "{e}"
-    );
+    assert!(e.to_string().contains("KHR_draco_mesh_compression") && e.to_string().contains("EXT_meshopt_compression"), "{e}");
     // Extensions that only touch materials or textures do not stop the geometry being read.
     with(&|d| d["extensionsRequired"] = json!(["KHR_texture_transform", "KHR_materials_unlit"])).unwrap();
     for (mode, name) in [(0, "POINTS"), (1, "LINES"), (2, "LINE_LOOP"), (3, "LINE_STRIP")] {

@@ -131,7 +131,11 @@ impl AppState {
 
     /// Serves on `listener` until `shutdown` completes, then lets open requests finish for at
     /// most the configured grace period.
-    pub async fn serve(self, listener: tokio::net::TcpListener, shutdown: impl Future<Output = ()> + Send + 'static) -> Result<(), ServerError> {
+    pub async fn serve(
+        self,
+        listener: tokio::net::TcpListener,
+        shutdown: impl Future<Output = ()> + Send + 'static,
+    ) -> Result<(), ServerError> {
         let app = router(self.clone());
         let grace = std::time::Duration::from_secs(self.config.limits.shutdown_grace_secs);
         let mut begun = self.shutdown.subscribe();

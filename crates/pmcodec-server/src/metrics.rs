@@ -91,12 +91,22 @@ impl Metrics {
         metric("pmcodec_ready", "gauge", "1 when the server is ready to serve.", u8::from(g.ready).to_string());
         metric("pmcodec_asset_cache_bytes", "gauge", "Container bytes held in the asset LRU.", g.asset_cache_bytes.to_string());
         metric("pmcodec_asset_cache_entries", "gauge", "Assets held in the asset LRU.", g.asset_cache_entries.to_string());
-        metric("pmcodec_decode_state_bytes", "gauge", "Estimated bytes of decoder states held by the decode workers.", g.decode_state_bytes.to_string());
+        metric(
+            "pmcodec_decode_state_bytes",
+            "gauge",
+            "Estimated bytes of decoder states held by the decode workers.",
+            g.decode_state_bytes.to_string(),
+        );
         metric("pmcodec_decode_states", "gauge", "Decoder states held by the decode workers.", g.decode_states.to_string());
         metric("pmcodec_decode_workers", "gauge", "Decode worker threads.", g.decode_workers.to_string());
         metric("pmcodec_decode_requests_total", "counter", "Mesh requests sent to the decode workers.", g.decode_requests.to_string());
         metric("pmcodec_decode_state_hits_total", "counter", "Mesh requests served from a kept decoder state.", g.decode_hits.to_string());
-        metric("pmcodec_decode_state_misses_total", "counter", "Mesh requests that had to load a keyframe into a new state.", g.decode_misses.to_string());
+        metric(
+            "pmcodec_decode_state_misses_total",
+            "counter",
+            "Mesh requests that had to load a keyframe into a new state.",
+            g.decode_misses.to_string(),
+        );
         metric("pmcodec_jobs_pending", "gauge", "Encode jobs queued or running.", g.jobs_pending.to_string());
         let _ = writeln!(
             out,
@@ -105,7 +115,9 @@ impl Metrics {
             self.jobs_failed.load(Ordering::Relaxed)
         );
 
-        out.push_str("# HELP pmcodec_http_requests_total HTTP requests by method, route and status.\n# TYPE pmcodec_http_requests_total counter\n");
+        out.push_str(
+            "# HELP pmcodec_http_requests_total HTTP requests by method, route and status.\n# TYPE pmcodec_http_requests_total counter\n",
+        );
         for ((method, route, status), n) in self.requests.lock().unwrap_or_else(|p| p.into_inner()).iter() {
             let _ = writeln!(out, "pmcodec_http_requests_total{{method=\"{method}\",route=\"{}\",status=\"{status}\"}} {n}", escape(route));
         }

@@ -18,7 +18,9 @@ fn request_id(req: &Request) -> String {
     req.headers()
         .get(&REQUEST_ID)
         .and_then(|v| v.to_str().ok())
-        .filter(|v| !v.is_empty() && v.len() <= 128 && v.bytes().all(|b| b.is_ascii_alphanumeric() || matches!(b, b'-' | b'_' | b'.' | b':')))
+        .filter(|v| {
+            !v.is_empty() && v.len() <= 128 && v.bytes().all(|b| b.is_ascii_alphanumeric() || matches!(b, b'-' | b'_' | b'.' | b':'))
+        })
         .map(str::to_string)
         .unwrap_or_else(|| uuid::Uuid::new_v4().simple().to_string())
 }
@@ -84,7 +86,8 @@ pub async fn read_auth(State(app): State<AppState>, req: Request, next: Next) ->
             same_secret(t, read.expose()) || app.config.auth.write_token.as_ref().is_some_and(|w| same_secret(t, w.expose()))
         });
         if !ok {
-            return ApiError::Unauthorized("this server needs a bearer token for reads: send Authorization: Bearer <token>".into()).into_response();
+            return ApiError::Unauthorized("this server needs a bearer token for reads: send Authorization: Bearer <token>".into())
+                .into_response();
         }
     }
     next.run(req).await
@@ -99,7 +102,9 @@ impl FromRequestParts<AppState> for WriteAccess {
 
     async fn from_request_parts(parts: &mut Parts, app: &AppState) -> Result<Self, ApiError> {
         let Some(token) = &app.config.auth.write_token else {
-            return Err(ApiError::Forbidden("writes are disabled: the server has no write token configured (auth.write_token or PMCODEC_WRITE_TOKEN)".into()));
+            return Err(ApiError::Forbidden(
+                "writes are disabled: the server has no write token configured (auth.write_token or PMCODEC_WRITE_TOKEN)".into(),
+            ));
         };
         match bearer(&parts.headers) {
             Some(t) if same_secret(t, token.expose()) => Ok(WriteAccess),
@@ -125,9 +130,18 @@ impl tower_http::compression::Predicate for CompressWhenItPays {
             return false;
         }
         let ctype = response.headers().get(header::CONTENT_TYPE).and_then(|v| v.to_str().ok()).unwrap_or("");
-        let compressible = ["application/json", "text/plain", "text/html", "text/css", "text/javascript", "application/javascript", "application/yaml", "image/svg+xml"]
-            .iter()
-            .any(|t| ctype.starts_with(t));
+        let compressible = [
+            "application/json",
+            "text/plain",
+            "text/html",
+            "text/css",
+            "text/javascript",
+            "application/javascript",
+            "application/yaml",
+            "image/svg+xml",
+        ]
+        .iter()
+        .any(|t| ctype.starts_with(t));
         let big_enough = response.body().size_hint().exact().is_none_or(|n| n >= 512);
         compressible && big_enough
     }
@@ -144,7 +158,14 @@ pub fn cors(origins: &[String]) -> tower_http::cors::CorsLayer {
     CorsLayer::new()
         .allow_origin(allow)
         .allow_methods([Method::GET, Method::HEAD, Method::POST, Method::DELETE, Method::OPTIONS])
-        .allow_headers([header::AUTHORIZATION, header::RANGE, header::IF_NONE_MATCH, header::IF_RANGE, header::CONTENT_TYPE, REQUEST_ID.clone()])
+        .allow_headers([
+            header::AUTHORIZATION,
+            header::RANGE,
+            header::IF_NONE_MATCH,
+            header::IF_RANGE,
+            header::CONTENT_TYPE,
+            REQUEST_ID.clone(),
+        ])
         .expose_headers([
             header::ETAG,
             header::CONTENT_RANGE,

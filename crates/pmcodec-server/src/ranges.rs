@@ -35,7 +35,8 @@ pub enum RangeRequest {
 /// or starts beyond the end, are errors (416); unsatisfiable members of a set that has some
 /// satisfiable ones are dropped.
 pub fn parse_range(value: &str, len: u64, max_ranges: usize) -> Result<RangeRequest, ApiError> {
-    let unsatisfiable = |why: &str| ApiError::RangeNotSatisfiable { detail: format!("Range {value:?}: {why} (the representation has {len} bytes)"), len };
+    let unsatisfiable =
+        |why: &str| ApiError::RangeNotSatisfiable { detail: format!("Range {value:?}: {why} (the representation has {len} bytes)"), len };
     let Some((unit, set)) = value.split_once('=') else {
         return Err(unsatisfiable("expected bytes=first-last"));
     };

@@ -91,7 +91,11 @@ pub fn router(app: AppState) -> Router {
                 .layer(DefaultBodyLimit::max(usize::try_from(limits.upload_bytes).unwrap_or(usize::MAX)))
                 .layer(axum::middleware::from_fn_with_state(limits.upload_timeout(), middleware::timeout)),
         };
-        let h = if route.class == Class::Write { h } else { h.layer(DefaultBodyLimit::max(usize::try_from(limits.body_bytes).unwrap_or(usize::MAX))) };
+        let h = if route.class == Class::Write {
+            h
+        } else {
+            h.layer(DefaultBodyLimit::max(usize::try_from(limits.body_bytes).unwrap_or(usize::MAX)))
+        };
         api = api.route(route.path, h);
     }
     api.method_not_allowed_fallback(method_not_allowed)
@@ -144,7 +148,11 @@ fn header_value(s: &str) -> Result<HeaderValue, ApiError> {
 /// JSON that may change (metadata by id): validated by ETag, never cached without asking.
 fn json_revalidated<T: serde::Serialize>(req: &HeaderMap, etag: &str, value: &T) -> Result<Response, ApiError> {
     let body = serde_json::to_vec(value).map_err(|e| ApiError::Internal(e.to_string()))?;
-    ranges::serve(req, Representation { bytes: body.into(), etag: etag.into(), content_type: "application/json", cache_control: "no-cache" }, 0)
+    ranges::serve(
+        req,
+        Representation { bytes: body.into(), etag: etag.into(), content_type: "application/json", cache_control: "no-cache" },
+        0,
+    )
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -245,7 +253,13 @@ struct UploadQuery {
 }
 
 /// `POST /v1/assets?id=ID[&fps=F][&animation=A][&replace=true]`: starts an encode job.
-async fn upload(State(app): State<AppState>, _: WriteAccess, Q(q): Q<UploadQuery>, headers: HeaderMap, body: Body) -> Result<Response, ApiError> {
+async fn upload(
+    State(app): State<AppState>,
+    _: WriteAccess,
+    Q(q): Q<UploadQuery>,
+    headers: HeaderMap,
+    body: Body,
+) -> Result<Response, ApiError> {
     let id = AssetId::parse(q.id.as_deref().ok_or_else(|| ApiError::BadRequest("name the asset: POST /v1/assets?id=<id>".into()))?)?;
     let frame_rate = q.fps.unwrap_or(30.0);
     if !(frame_rate.is_finite() && frame_rate > 0.0 && frame_rate <= 1000.0) {
@@ -260,7 +274,8 @@ async fn upload(State(app): State<AppState>, _: WriteAccess, Q(q): Q<UploadQuery
         return Err(ApiError::Conflict(format!("an encode job for asset {id} is already queued or running")));
     }
     let body = UploadBody::read(&headers, body, app.config.limits.upload_bytes).await?;
-    let opts = UploadOptions { frame_rate, animation, unpacked_limit: app.config.limits.unpacked_bytes, replace: q.replace.unwrap_or(false) };
+    let opts =
+        UploadOptions { frame_rate, animation, unpacked_limit: app.config.limits.unpacked_bytes, replace: q.replace.unwrap_or(false) };
     let status = app.jobs.submit(&app, id, body, opts)?;
     let location = header_value(&status.status_url)?;
     Ok((StatusCode::ACCEPTED, [(header::LOCATION, location)], Json(status)).into_response())
@@ -332,11 +347,13 @@ async fn mesh(State(app): State<AppState>, p: Params, Q(q): Q<MeshQuery>, header
     let etag = mesh_etag(&a.version, &req);
     let version = header_value(&a.version)?;
     // Answer a revalidation without decoding anything.
-    let mut resp = if headers.get(header::IF_NONE_MATCH).and_then(|v| v.to_str().ok()).is_some_and(|v| v.split(',').any(|t| {
-        // If-None-Match compares weakly (RFC 9110 13.1.2): a W/ prefix does not matter.
-        let t = t.trim();
-        t == "*" || t.strip_prefix("W/").unwrap_or(t) == etag
-    })) {
+    let mut resp = if headers.get(header::IF_NONE_MATCH).and_then(|v| v.to_str().ok()).is_some_and(|v| {
+        v.split(',').any(|t| {
+            // If-None-Match compares weakly (RFC 9110 13.1.2): a W/ prefix does not matter.
+            let t = t.trim();
+            t == "*" || t.strip_prefix("W/").unwrap_or(t) == etag
+        })
+    }) {
         StatusCode::NOT_MODIFIED.into_response()
     } else {
         let out = app.decoder.mesh(a, req).await?;
@@ -411,7 +428,12 @@ async fn versioned(app: &AppState, p: &Params) -> Result<Arc<LoadedAsset>, ApiEr
 /// `GET /v1/assets/{id}/v/{version}/file`: the container, immutable, with Range.
 async fn file(State(app): State<AppState>, p: Params, headers: HeaderMap) -> Result<Response, ApiError> {
     let a = versioned(&app, &p).await?;
-    let rep = Representation { bytes: a.bytes.clone(), etag: format!("\"{}\"", a.version), content_type: "application/vnd.pmcodec", cache_control: IMMUTABLE };
+    let rep = Representation {
+        bytes: a.bytes.clone(),
+        etag: format!("\"{}\"", a.version),
+        content_type: "application/vnd.pmcodec",
+        cache_control: IMMUTABLE,
+    };
     ranges::serve(&headers, rep, app.config.limits.max_ranges)
 }
 
@@ -462,7 +484,12 @@ async fn index(State(app): State<AppState>, p: Params, Q(q): Q<IndexQuery>, head
         "chunks": chunks, "frames": frames,
     });
     let bytes = serde_json::to_vec(&body).map_err(|e| ApiError::Internal(e.to_string()))?;
-    let rep = Representation { bytes: bytes.into(), etag: format!("\"{}-index-{level}\"", a.version), content_type: "application/json", cache_control: IMMUTABLE };
+    let rep = Representation {
+        bytes: bytes.into(),
+        etag: format!("\"{}-index-{level}\"", a.version),
+        content_type: "application/json",
+        cache_control: IMMUTABLE,
+    };
     ranges::serve(&headers, rep, app.config.limits.max_ranges)
 }
 
@@ -471,7 +498,10 @@ async fn chunk(State(app): State<AppState>, p: Params, headers: HeaderMap) -> Re
     let a = versioned(&app, &p).await?;
     let raw = p.get("n")?;
     let n: usize = raw.parse().map_err(|_| ApiError::BadRequest(format!("chunk {raw:?}: use the chunk's number from the index")))?;
-    let e = a.chunks.get(n).ok_or_else(|| ApiError::NotFound(format!("chunk {n}: asset {} has chunks 0..={}", a.id, a.chunks.len().saturating_sub(1))))?;
+    let e = a
+        .chunks
+        .get(n)
+        .ok_or_else(|| ApiError::NotFound(format!("chunk {n}: asset {} has chunks 0..={}", a.id, a.chunks.len().saturating_sub(1))))?;
     let r = a.chunk_range(e);
     let rep = Representation {
         bytes: a.bytes.slice(r.start as usize..r.end as usize),

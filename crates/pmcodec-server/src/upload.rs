@@ -206,7 +206,12 @@ fn sequence_from_objs(mut files: Vec<(String, Bytes)>, frame_rate: f32) -> Resul
                 return Err(format!("{name}: {} vertices where the first frame has {}", frame.positions.len(), seq.frames[0].len()));
             }
             if frame.triangles != seq.triangles {
-                let t = frame.triangles.iter().zip(&seq.triangles).position(|(a, b)| a != b).unwrap_or(seq.triangles.len().min(frame.triangles.len()));
+                let t = frame
+                    .triangles
+                    .iter()
+                    .zip(&seq.triangles)
+                    .position(|(a, b)| a != b)
+                    .unwrap_or(seq.triangles.len().min(frame.triangles.len()));
                 return Err(format!("{name}: face {t} differs from the first frame's (every frame must have the same faces)"));
             }
         }

@@ -201,7 +201,13 @@ async fn the_stream_is_the_header_then_the_chosen_bands_in_playback_order() {
     let head = reader.data_start() as usize;
     assert_eq!(r.body[..head], whole[..head]);
     let mut at = head;
-    for (_, e) in reader.index().chunks.iter().enumerate().filter(|(_, e)| e.band >= 1 && e.frame >= 4 && e.kind != pmcodec_container::ChunkKind::Triangles) {
+    for (_, e) in reader
+        .index()
+        .chunks
+        .iter()
+        .enumerate()
+        .filter(|(_, e)| e.band >= 1 && e.frame >= 4 && e.kind != pmcodec_container::ChunkKind::Triangles)
+    {
         let start = head + e.offset as usize;
         let piece = &whole[start..start + e.stored_len as usize];
         assert_eq!(&r.body[at..at + piece.len()], piece);

@@ -180,7 +180,13 @@ pub fn decode_cmd(args: DecodeArgs, quiet: bool) -> Result<(), Exit> {
         let mesh = dec.mesh(target)?;
         pmcodec_mesh::write::write_mesh_file(&args.output, &mesh).with_context(|| format!("writing {}", args.output.display()))?;
         if !quiet {
-            eprintln!("{}: frame {}, {} vertices, {} triangles", args.output.display(), args.frame, mesh.positions.len(), mesh.triangles.len());
+            eprintln!(
+                "{}: frame {}, {} vertices, {} triangles",
+                args.output.display(),
+                args.frame,
+                mesh.positions.len(),
+                mesh.triangles.len()
+            );
         }
     }
     Ok(())

@@ -82,9 +82,7 @@ fn parse_targets(items: &[String], total: usize) -> Result<Vec<usize>, Exit> {
 }
 
 pub fn run(args: LodArgs, quiet: bool) -> Result<(), Exit> {
-    let mut rig = RiggedMesh::from_path(&args.input)
-        .with_context(|| format!("reading {}", args.input.display()))
-        .map_err(bad_input)?;
+    let mut rig = RiggedMesh::from_path(&args.input).with_context(|| format!("reading {}", args.input.display())).map_err(bad_input)?;
     rig.weld();
     let targets = parse_targets(&args.triangles, rig.triangles.len())?;
     let placement = match args.placement {
@@ -98,10 +96,7 @@ pub fn run(args: LodArgs, quiet: bool) -> Result<(), Exit> {
         WeightingArg::Smooth => VertexWeighting::Smooth,
     };
     let weights = PoseWeights::parse(&args.pose_weights).map_err(bad_input)?;
-    let opts = LodOptions {
-        poses: PoseOptions { per_animation: args.poses_per_animation.max(1), weights, vertex_weighting },
-        placement,
-    };
+    let opts = LodOptions { poses: PoseOptions { per_animation: args.poses_per_animation.max(1), weights, vertex_weighting }, placement };
     let chain = pmcodec_lod::build_chain(rig, &targets, &opts).map_err(|e| match e {
         LodError::Internal(_) | LodError::Write(_) => Exit(crate::EXIT_FAILURE, e.into()),
         e => bad_input(e),

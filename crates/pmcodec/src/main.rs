@@ -4,8 +4,8 @@
 mod codec_cmd;
 mod eval_cmd;
 mod input;
-mod play_cmd;
 mod lod_cmd;
+mod play_cmd;
 mod serve_cmd;
 
 use clap::{Parser, Subcommand};
@@ -58,9 +58,8 @@ struct SampleArgs {
 
 fn sample(args: SampleArgs) -> Result<(), Exit> {
     use anyhow::Context;
-    let mut seq = pmcodec_mesh::samples::by_name(&args.name).ok_or_else(|| {
-        Exit(2, anyhow::anyhow!("no sample {:?}; the samples are {:?}", args.name, pmcodec_mesh::samples::NAMES))
-    })?;
+    let mut seq = pmcodec_mesh::samples::by_name(&args.name)
+        .ok_or_else(|| Exit(2, anyhow::anyhow!("no sample {:?}; the samples are {:?}", args.name, pmcodec_mesh::samples::NAMES)))?;
     if let Some(n) = args.frames {
         seq.frames.truncate(n.max(1));
     }
@@ -90,14 +89,17 @@ impl<E: Into<anyhow::Error>> From<E> for Exit {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_env("PMCODEC_LOG")
-                .unwrap_or_else(|_| {
-                    // The server logs every request at info; other commands stay quiet.
-                    let serving = matches!(cli.command, Command::Serve(_));
-                    tracing_subscriber::EnvFilter::new(if cli.quiet { "error" } else if serving { "info" } else { "warn" })
-                }),
-        )
+        .with_env_filter(tracing_subscriber::EnvFilter::try_from_env("PMCODEC_LOG").unwrap_or_else(|_| {
+            // The server logs every request at info; other commands stay quiet.
+            let serving = matches!(cli.command, Command::Serve(_));
+            tracing_subscriber::EnvFilter::new(if cli.quiet {
+                "error"
+            } else if serving {
+                "info"
+            } else {
+                "warn"
+            })
+        }))
         .with_writer(std::io::stderr)
         // Colour codes only for a person at a terminal, not in log files and collectors.
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))

@@ -45,14 +45,20 @@ async fn play(args: PlayArgs, quiet: bool) -> Result<(), Exit> {
         Some(id) => id,
         None => {
             let list = client.assets().await.with_context(|| format!("listing the assets of {}", args.url))?;
-            list.first().map(|a| a.id.clone()).ok_or_else(|| Exit(crate::EXIT_BAD_INPUT, anyhow::anyhow!("{} serves no assets", args.url)))?
+            list.first()
+                .map(|a| a.id.clone())
+                .ok_or_else(|| Exit(crate::EXIT_BAD_INPUT, anyhow::anyhow!("{} serves no assets", args.url)))?
         }
     };
     let mut session = client.session(&id, args.triangles).await.with_context(|| format!("opening asset {id}"))?;
     let (frame_count, file_bytes, rate) = (session.info.summary.frames, session.info.summary.bytes, session.info.summary.frame_rate);
     let frames = args.frames.unwrap_or(frame_count);
     if !quiet && !args.json {
-        println!("asset {id}: {frame_count} frames at {rate} fps, {file_bytes} bytes; budget {} triangles (reading levels >= {})", args.triangles, session.level());
+        println!(
+            "asset {id}: {frame_count} frames at {rate} fps, {file_bytes} bytes; budget {} triangles (reading levels >= {})",
+            args.triangles,
+            session.level()
+        );
         println!("{:>6} {:>9} {:>12} {:>10}", "frame", "triangles", "downloaded", "decode ms");
     }
     let start = Instant::now();
@@ -70,7 +76,12 @@ async fn play(args: PlayArgs, quiet: bool) -> Result<(), Exit> {
                     "bytes_downloaded": frame.bytes_downloaded, "decode_ms": frame.decode_time.as_secs_f64() * 1e3})
             );
         } else if !quiet {
-            println!("{f:>6} {:>9} {:>12} {:>10.3}", frame.mesh.triangles.len(), frame.bytes_downloaded, frame.decode_time.as_secs_f64() * 1e3);
+            println!(
+                "{f:>6} {:>9} {:>12} {:>10.3}",
+                frame.mesh.triangles.len(),
+                frame.bytes_downloaded,
+                frame.decode_time.as_secs_f64() * 1e3
+            );
         }
         if args.realtime && rate > 0.0 {
             let due = start + Duration::from_secs_f64((i + 1) as f64 / rate as f64);

@@ -56,8 +56,7 @@ pub fn check_chain(chain: &LodChain) {
             let coarse = chain.levels[k + 1].rig.positions.len() as u32;
             assert_eq!(level.to_coarser.len(), rig.positions.len(), "level {k}: one entry per vertex");
             assert!(level.to_coarser.iter().all(|&c| c < coarse), "level {k}: table points into level {}", k + 1);
-            let used: std::collections::HashSet<u32> =
-                chain.levels[k + 1].rig.triangles.iter().flatten().copied().collect();
+            let used: std::collections::HashSet<u32> = chain.levels[k + 1].rig.triangles.iter().flatten().copied().collect();
             assert!(level.to_coarser.iter().all(|c| used.contains(c)), "level {k}: table targets are used vertices");
         } else {
             assert!(level.to_coarser.is_empty());

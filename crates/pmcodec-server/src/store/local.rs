@@ -115,7 +115,9 @@ impl AssetStore for LocalStore {
             .await
             .map_err(|e| StoreError::Io(format!("reading {id}: {e}")))?;
             match result {
-                Ok((meta, buf)) => Ok(Some((StoredObject { id: id.clone(), size: buf.len() as u64, tag: tag_of(&meta) }, Bytes::from(buf)))),
+                Ok((meta, buf)) => {
+                    Ok(Some((StoredObject { id: id.clone(), size: buf.len() as u64, tag: tag_of(&meta) }, Bytes::from(buf))))
+                }
                 Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
                 Err(e) => Err(io("reading", &self.path(id), e)),
             }
