@@ -117,23 +117,7 @@ impl Client {
 
 /// Parses the compact binary mesh of proto/http.md.
 pub fn parse_bin_mesh(b: &[u8]) -> Result<TriMesh, ClientError> {
-    let bad = |m: &str| ClientError::Protocol(format!("binary mesh: {m}"));
-    if b.len() < 16 || &b[..4] != b"PMCM" {
-        return Err(bad("bad magic"));
-    }
-    let u = |i: usize| u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
-    let (v, t) = (u(8) as usize, u(12) as usize);
-    if b.len() != 16 + 12 * v + 12 * t {
-        return Err(bad("length does not match its counts"));
-    }
-    let f = |i: usize| f32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
-    let positions = (0..v).map(|i| glam::Vec3::new(f(16 + 12 * i), f(20 + 12 * i), f(24 + 12 * i))).collect();
-    let base = 16 + 12 * v;
-    let triangles: Vec<[u32; 3]> = (0..t).map(|i| [u(base + 12 * i), u(base + 12 * i + 4), u(base + 12 * i + 8)]).collect();
-    if triangles.iter().flatten().any(|&i| i as usize >= v) {
-        return Err(bad("index out of range"));
-    }
-    Ok(TriMesh { positions, triangles })
+    pmcodec_mesh::binmesh::decode_bin(b).map_err(|e| ClientError::Protocol(e.to_string()))
 }
 
 /// The byte ranges fetched so far: a [`ByteSource`] that serves what was prefetched and

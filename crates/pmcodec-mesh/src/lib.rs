@@ -8,6 +8,7 @@
 // `!(x > 0.0)` is written on purpose: it is also true for NaN, which these checks must reject.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod binmesh;
 pub mod error;
 pub mod gltf_input;
 pub mod obj;
