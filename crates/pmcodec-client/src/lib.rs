@@ -201,13 +201,11 @@ impl Session {
         let source = SharedBytes(Arc::new(Prefetched { len: info.summary.bytes, ..Default::default() }));
         let mut downloaded = 0;
         // Preamble, then header and index (their lengths are in the preamble).
-        let pre = client.get(&info.summary.file, Some((0, 31))).await?.bytes().await?.to_vec();
-        if pre.len() < 32 {
-            return Err(ClientError::Protocol("short preamble".into()));
-        }
-        let tables = 32
-            + u32::from_le_bytes([pre[12], pre[13], pre[14], pre[15]]) as u64
-            + u32::from_le_bytes([pre[16], pre[17], pre[18], pre[19]]) as u64;
+        use pmcodec_container::format::{PREAMBLE_LEN, Preamble};
+        let pre = client.get(&info.summary.file, Some((0, PREAMBLE_LEN as u64 - 1))).await?.bytes().await?.to_vec();
+        // Magic and version are checked before the lengths are trusted.
+        let p = Preamble::parse(&pre)?;
+        let tables = PREAMBLE_LEN as u64 + p.header_len as u64 + p.index_len as u64;
         if tables > info.summary.bytes {
             return Err(ClientError::Protocol("header and index beyond the file".into()));
         }
