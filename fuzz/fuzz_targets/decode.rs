@@ -8,9 +8,12 @@ use pmcodec_container::{Decoder, MeshTarget, Reader, verify};
 fuzz_target!(|data: &[u8]| {
     if let Ok(reader) = Reader::open(data) {
         let _ = verify(&reader);
-        if let Ok(mut d) = Decoder::new(&reader, 0) {
-            if d.seek(reader.header().frame_count.saturating_sub(1)).is_ok() {
-                let _ = d.mesh(MeshTarget::Triangles(100));
+        // Full resolution, and a level-1 client (which reads the faces and corners chunks).
+        for level in [0, 1] {
+            if let Ok(mut d) = Decoder::new(&reader, level) {
+                if d.seek(reader.header().frame_count.saturating_sub(1)).is_ok() {
+                    let _ = d.mesh(MeshTarget::Triangles(100));
+                }
             }
         }
     }

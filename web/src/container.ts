@@ -9,9 +9,20 @@ import { BELOW, DecodeError, FrameDelta, KeyBand, NONE, Replay } from "./replay.
 export const MAGIC = [0x89, 0x50, 0x4d, 0x43, 0x0d, 0x0a, 0x1a, 0x0a];
 export const PREAMBLE_LEN = 32;
 /** The format version this decoder reads. */
-export const VERSION = 2;
+export const VERSION = 3;
 
-export enum ChunkKind { Triangles = 0, Key = 1, Delta = 2, Positions = 3 }
+export enum ChunkKind { Triangles = 0, Key = 1, Delta = 2, Positions = 3, Faces = 4, Corners = 5 }
+
+/**
+ * Whether a client whose finest level is `minLevel` reads chunks of this kind in `band`: every
+ * band from its level up, except faces and corners, which only the band of its finest level
+ * needs (proto/container.md, "Who reads what").
+ */
+export function readAt(kind: ChunkKind, band: number, minLevel: number): boolean {
+  if (kind === ChunkKind.Triangles) return minLevel === 0;
+  if (kind === ChunkKind.Faces || kind === ChunkKind.Corners) return band === minLevel;
+  return band >= minLevel;
+}
 
 export interface Header {
   vertexCount: number; triangleCount: number; frameCount: number; frameRate: number;
@@ -131,7 +142,7 @@ export class Container {
     const q = new Postcard(ib, "index");
     const index = q.seq((): ChunkEntry => {
       const kind = q.varint();
-      if (kind > 3) throw new DecodeError(`index: chunk kind ${kind}`);
+      if (kind > 5) throw new DecodeError(`index: chunk kind ${kind}`);
       return { kind, frame: q.varint(), band: q.varint(), offset: q.varint(), storedLen: q.varint(), rawLen: q.varint(), crc32: q.varint() };
     }, 1 << 24);
     const h = header;
@@ -165,45 +176,39 @@ export function describe(e: ChunkEntry): string {
   return e.kind === ChunkKind.Triangles ? "triangles chunk" : `frame ${e.frame} band ${e.band} ${ChunkKind[e.kind].toLowerCase()}`;
 }
 
-function readKey(raw: Uint8Array, what: string, sizes: number[], band: number, triangles: number): KeyBand {
+function readKey(raw: Uint8Array, what: string, sizes: number[], band: number): Uint32Array {
   const c = new Payload(raw, what);
   const top = sizes.length - 1;
   const n = c.count(sizes[band], "parents");
   if (n !== (band < top ? sizes[band] : 0)) throw new DecodeError(`${what}: ${n} parents`);
   const parent = new Uint32Array(n);
   for (let i = 0; i < n; i++) parent[i] = c.id(sizes[band + 1], "parent");
+  c.finish();
+  return parent;
+}
+
+/** Faces (keyframes) and corner updates (frames) of one band: triangle ascending, 3 corners. */
+function readFaces(raw: Uint8Array, what: string, size: number, triangles: number): KeyBand["faces"] {
+  const c = new Payload(raw, what);
   const m = c.count(triangles, "faces");
   const faces: KeyBand["faces"] = [];
   const prev = { v: null as number | null };
   for (let i = 0; i < m; i++) {
     const t = c.ascending(prev, triangles, "triangle");
-    faces.push({ t, corners: [c.id(sizes[band], "corner"), c.id(sizes[band], "corner"), c.id(sizes[band], "corner")] });
+    faces.push({ t, corners: [c.id(size, "corner"), c.id(size, "corner"), c.id(size, "corner")] });
   }
   c.finish();
-  return { parent, faces };
+  return faces;
 }
 
-function readDelta(raw: Uint8Array, what: string, sizes: number[], band: number, triangles: number, nodes: number, out: FrameDelta): void {
+function readDelta(raw: Uint8Array, what: string, sizes: number[], band: number, out: FrameDelta): void {
   const c = new Payload(raw, what);
   const top = sizes.length - 1;
-  let n = c.count(band < top ? sizes[band] : 0, "moves");
-  let prev = { v: null as number | null };
+  const n = c.count(band < top ? sizes[band] : 0, "moves");
+  const prev = { v: null as number | null };
   for (let i = 0; i < n; i++) {
     const v = c.ascending(prev, sizes[band], "node");
     out.swaps.push({ level: band, v, to: c.id(sizes[band + 1], "parent") });
-  }
-  n = c.count(triangles, "degenerate-set deltas");
-  prev = { v: null };
-  for (let i = 0; i < n; i++) {
-    const t = c.ascending(prev, triangles, "triangle");
-    const g = c.id(nodes + 1, "node");
-    out.degenerate.push({ t, node: g === 0 ? NONE : g - 1 });
-  }
-  n = c.count(triangles, "corner updates");
-  prev = { v: null };
-  for (let i = 0; i < n; i++) {
-    const t = c.ascending(prev, triangles, "triangle");
-    out.corners.push({ level: band, t, corners: [c.id(sizes[band], "corner"), c.id(sizes[band], "corner"), c.id(sizes[band], "corner")] });
   }
   c.finish();
 }
@@ -241,8 +246,10 @@ export class Player {
     const h = this.c.header;
     const bands: KeyBand[] = h.levelSizes.map(() => ({ parent: new Uint32Array(0), faces: [] }));
     for (let j = h.levelSizes.length - 1; j >= this.minLevel; j--) {
-      bands[j] = readKey(await this.c.chunk(this.c.find(ChunkKind.Key, k, j)), `frame ${k} band ${j} keyframe`, h.levelSizes, j, h.triangleCount);
+      bands[j].parent = readKey(await this.c.chunk(this.c.find(ChunkKind.Key, k, j)), `frame ${k} band ${j} keyframe`, h.levelSizes, j);
     }
+    const L = this.minLevel;
+    if (L > 0) bands[L].faces = readFaces(await this.c.chunk(this.c.find(ChunkKind.Faces, k, L)), `frame ${k} band ${L} faces`, h.levelSizes[L], h.triangleCount);
     if (this.minLevel === 0 && !this.triangles) {
       const raw = await this.c.chunk(this.c.find(ChunkKind.Triangles, 0, 0));
       const p = new Payload(raw, "triangles chunk");
@@ -261,10 +268,15 @@ export class Player {
 
   private async step(f: number): Promise<void> {
     const h = this.c.header;
-    const delta: FrameDelta = { swaps: [], degenerate: [], corners: [] };
-    const nodes = this.current.length / 3;
+    const delta: FrameDelta = { swaps: [], corners: [] };
     for (let j = h.levelSizes.length - 1; j >= this.minLevel; j--) {
-      readDelta(await this.c.chunk(this.c.find(ChunkKind.Delta, f, j)), `frame ${f} band ${j} delta`, h.levelSizes, j, h.triangleCount, nodes, delta);
+      readDelta(await this.c.chunk(this.c.find(ChunkKind.Delta, f, j)), `frame ${f} band ${j} delta`, h.levelSizes, j, delta);
+    }
+    const L = this.minLevel;
+    if (L > 0) {
+      for (const u of readFaces(await this.c.chunk(this.c.find(ChunkKind.Corners, f, L)), `frame ${f} band ${L} corners`, h.levelSizes[L], h.triangleCount)) {
+        delta.corners.push({ level: L, t: u.t, corners: u.corners });
+      }
     }
     this.replay.apply(delta);
     [this.previous, this.current] = [this.current, this.previous];

@@ -7,9 +7,9 @@ export const NONE = 0xffffffff;
 export const BELOW = 0xfffffffe;
 
 export interface Swap { level: number; v: number; to: number }
-export interface DegenerateDelta { t: number; node: number }
 export interface CornerUpdate { level: number; t: number; corners: [number, number, number] }
-export interface FrameDelta { swaps: Swap[]; degenerate: DegenerateDelta[]; corners: CornerUpdate[] }
+/** Swaps and corner updates; degenerate-set changes are derived (proto/container.md). */
+export interface FrameDelta { swaps: Swap[]; corners: CornerUpdate[] }
 export interface KeyBand { parent: Uint32Array; faces: { t: number; corners: [number, number, number] }[] }
 
 export class DecodeError extends Error {}
@@ -25,8 +25,12 @@ export class Replay {
   readonly minLevel: number;
   readonly triangleCount: number;
   parent: Uint32Array[]; // parent[k][v], k < top
-  corners: Uint32Array; // 3 per triangle, level-minLevel corners (NONE if not alive)
+  corners: Uint32Array; // 3 per triangle, level-minLevel corners (NONE or a repeated node if not alive)
+  /** Per level-minLevel node (local id): the triangles alive there with a corner at it. */
+  incident: number[][] = [];
   nodeOf: Uint32Array;
+  private marked: Uint8Array;
+  private affected: number[] = [];
   sets: SlotList[];
   slotInSet: Uint32Array;
   children: number[][];
@@ -50,6 +54,7 @@ export class Replay {
     this.children = Array.from({ length: total }, () => []);
     this.expanded = new Uint8Array(total);
     this.slotInShown = new Uint32Array(triangleCount).fill(NONE);
+    this.marked = new Uint8Array(triangleCount);
   }
 
   get top(): number { return this.levelSizes.length - 1; }
@@ -92,20 +97,30 @@ export class Replay {
     this.rebuild();
   }
 
+  private alive(t: number): boolean {
+    const x = this.corners[3 * t], y = this.corners[3 * t + 1], z = this.corners[3 * t + 2];
+    return x !== NONE && x !== y && y !== z && x !== z;
+  }
+
+  /** Where two of t's corners' ancestor chains first meet (NONE: never; BELOW: not alive at minLevel). */
+  private degenerationOf(t: number): number {
+    if (!this.alive(t)) return BELOW;
+    let x = this.corners[3 * t], y = this.corners[3 * t + 1], z = this.corners[3 * t + 2];
+    for (let k = this.minLevel; k < this.top; k++) {
+      const p = this.parent[k];
+      x = p[x]; y = p[y]; z = p[z];
+      if (x === y || x === z) return this.offsets[k + 1] + x;
+      if (y === z) return this.offsets[k + 1] + y;
+    }
+    return NONE;
+  }
+
   private rebuild(): void {
     const L = this.minLevel;
+    for (let t = 0; t < this.triangleCount; t++) this.nodeOf[t] = this.degenerationOf(t);
+    this.incident = Array.from({ length: this.levelSizes[L] }, () => []);
     for (let t = 0; t < this.triangleCount; t++) {
-      let x = this.corners[3 * t], y = this.corners[3 * t + 1], z = this.corners[3 * t + 2];
-      let node = x === NONE || x === y || y === z || x === z ? BELOW : NONE;
-      if (node === NONE) {
-        for (let k = L; k < this.top; k++) {
-          const p = this.parent[k];
-          x = p[x]; y = p[y]; z = p[z];
-          if (x === y || x === z) { node = this.offsets[k + 1] + x; break; }
-          if (y === z) { node = this.offsets[k + 1] + y; break; }
-        }
-      }
-      this.nodeOf[t] = node;
+      if (this.alive(t)) for (let i = 0; i < 3; i++) this.incident[this.corners[3 * t + i]].push(t);
     }
     for (const s of this.sets) s.items.length = 0;
     for (let t = 0; t < this.triangleCount; t++) {
@@ -160,6 +175,7 @@ export class Replay {
   /** Applies one frame's delta (bands >= minLevel). Throws DecodeError on data that does not fit. */
   apply(delta: FrameDelta): void {
     const froms: number[] = [];
+    const moved: number[] = [];
     for (const s of delta.swaps) {
       const k = s.level;
       if (k < this.minLevel) continue;
@@ -173,37 +189,65 @@ export class Replay {
       if (i >= 0) { ch[i] = ch[ch.length - 1]; ch.pop(); }
       this.children[gb].push(gv);
       froms.push(ga);
+      moved.push(gv);
       if (this.expanded[gv] && !this.expanded[gb]) this.collapse(gv);
     }
     for (const ga of froms) if (this.children[ga].length === 0) throw new DecodeError(`swaps left cluster ${ga} empty`);
-    const total = this.nodeCount;
-    const belowLimit = this.offsets[this.minLevel + 1];
-    for (const d of delta.degenerate) {
-      const t = d.t;
-      let g = d.node;
-      if (t >= this.triangleCount || (g !== NONE && g >= total)) throw new DecodeError(`degenerate delta out of range: ${t} -> ${g}`);
-      if (g !== NONE && g < belowLimit) g = BELOW;
-      const old = this.nodeOf[t];
-      if (old === g) continue;
-      if (old !== NONE && old !== BELOW) {
-        const items = this.sets[old].items;
-        const slot = this.slotInSet[t];
-        const last = items.pop()!;
-        if (last !== t && slot < items.length) { items[slot] = last; this.slotInSet[last] = slot; }
-      }
-      if (g !== NONE && g !== BELOW) { this.slotInSet[t] = this.sets[g].items.length; this.sets[g].items.push(t); }
-      else this.slotInSet[t] = NONE;
-      this.nodeOf[t] = g;
-      if (g === NONE || (g !== BELOW && this.expanded[g])) this.show(t); else this.hide(t);
-    }
-    if (this.minLevel > 0) {
-      const size = this.levelSizes[this.minLevel];
+    const L = this.minLevel;
+    if (L > 0) {
+      const size = this.levelSizes[L];
       for (const c of delta.corners) {
-        if (c.level !== this.minLevel) continue;
-        if (c.t >= this.triangleCount || c.corners.some((x) => x >= size)) throw new DecodeError(`corner update out of range: ${c.t}`);
-        this.corners.set(c.corners, c.t * 3);
+        if (c.level !== L) continue;
+        const t = c.t;
+        if (t >= this.triangleCount || c.corners.some((x) => x >= size)) throw new DecodeError(`corner update out of range: ${t}`);
+        if (this.alive(t)) {
+          for (let i = 0; i < 3; i++) {
+            const list = this.incident[this.corners[3 * t + i]];
+            const at = list.indexOf(t);
+            if (at >= 0) { list[at] = list[list.length - 1]; list.pop(); }
+          }
+        }
+        this.corners.set(c.corners, 3 * t);
+        if (this.alive(t)) for (let i = 0; i < 3; i++) this.incident[c.corners[i]].push(t);
+        this.mark(t);
       }
     }
+    // Triangles with a level-L corner under a moved node: their ancestor chains changed.
+    const levelBase = this.offsets[L], below = this.offsets[L + 1];
+    const stack: number[] = [];
+    for (const gv of moved) {
+      stack.push(gv);
+      while (stack.length) {
+        const x = stack.pop()!;
+        if (x < below) { for (const t of this.incident[x - levelBase]) this.mark(t); }
+        else for (const c of this.children[x]) stack.push(c);
+      }
+    }
+    for (const t of this.affected) {
+      this.marked[t] = 0;
+      this.setDegeneration(t, this.degenerationOf(t));
+    }
+    this.affected.length = 0;
+  }
+
+  private mark(t: number): void {
+    if (!this.marked[t]) { this.marked[t] = 1; this.affected.push(t); }
+  }
+
+  /** Moves t into D_g (g may be NONE or BELOW) and shows or hides it. */
+  private setDegeneration(t: number, g: number): void {
+    const old = this.nodeOf[t];
+    if (old === g) return;
+    if (old !== NONE && old !== BELOW) {
+      const items = this.sets[old].items;
+      const slot = this.slotInSet[t];
+      const last = items.pop()!;
+      if (last !== t && slot < items.length) { items[slot] = last; this.slotInSet[last] = slot; }
+    }
+    if (g !== NONE && g !== BELOW) { this.slotInSet[t] = this.sets[g].items.length; this.sets[g].items.push(t); }
+    else this.slotInSet[t] = NONE;
+    this.nodeOf[t] = g;
+    if (g === NONE || (g !== BELOW && this.expanded[g])) this.show(t); else this.hide(t);
   }
 
   /** For every node at minLevel and above, the cut node standing for it (NONE if expanded). */

@@ -7,7 +7,7 @@ import { existsSync, mkdtempSync, readFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { dirname, join } from "node:path";
 import { Container, Player } from "../src/container.js";
-import { DecodeError } from "../src/replay.js";
+import { BELOW, DecodeError, NONE } from "../src/replay.js";
 
 // The repository root: the nearest folder above this file (compiled into build-test/ or not)
 // that holds the workspace's Cargo.toml.
@@ -91,6 +91,27 @@ test("a level-limited player reads fewer bytes and agrees above its level", asyn
   assert.ok(part.bytesRead * 3 < full.bytesRead, `${part.bytesRead} vs ${full.bytesRead}`);
   const off = a.replay.offsets[2] * 3;
   assert.deepEqual(Array.from(b.current.subarray(off)), Array.from(a.current.subarray(off)));
+});
+
+test("level-limited players derive the same degenerate sets as a full one, frame by frame", async () => {
+  for (const level of [1, 2]) {
+    const a = new Player(await open(pmc), 0), b = new Player(await open(pmc), level);
+    const firstAbove = a.replay.offsets[level + 1];
+    let alive = 0;
+    for (let f = 0; f < 20; f++) {
+      await a.seek(f);
+      await b.seek(f);
+      for (let t = 0; t < a.replay.triangleCount; t++) {
+        const g = a.replay.nodeOf[t];
+        // Alive at `level`: its degeneration node lies above it (or it never degenerates).
+        if (g === NONE || g >= firstAbove) {
+          alive++;
+          assert.equal(b.replay.nodeOf[t], g, `level ${level} frame ${f} triangle ${t}`);
+        } else assert.equal(b.replay.nodeOf[t], BELOW, `level ${level} frame ${f} triangle ${t} is not alive`);
+      }
+    }
+    assert.ok(alive > 0);
+  }
 });
 
 test("damaged files are errors, not crashes", async () => {

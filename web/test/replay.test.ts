@@ -44,11 +44,11 @@ test("deltas move triangles and reject bad data", () => {
   r.expand(12);
   const before = r.shown.length;
   // Move vertex 2 from cluster 1 to cluster 0 is invalid (empties cluster 1? no: 5 stays).
-  r.apply({ swaps: [{ level: 0, v: 2, to: 0 }], degenerate: [], corners: [] });
+  r.apply({ swaps: [{ level: 0, v: 2, to: 0 }], corners: [] });
   assert.equal(r.parent[0][2], 0);
   assert.equal(r.shown.length, before);
-  assert.throws(() => r.apply({ swaps: [{ level: 0, v: 99, to: 0 }], degenerate: [], corners: [] }), DecodeError);
-  assert.throws(() => r.apply({ swaps: [{ level: 0, v: 5, to: 0 }], degenerate: [], corners: [] }), DecodeError);
+  assert.throws(() => r.apply({ swaps: [{ level: 0, v: 99, to: 0 }], corners: [] }), DecodeError);
+  assert.throws(() => r.apply({ swaps: [{ level: 0, v: 5, to: 0 }], corners: [] }), DecodeError);
 });
 
 test("geomorph starts refinements at the parent and ends at the target", () => {

@@ -248,9 +248,12 @@ impl Session {
         let h = self.decoder.reader().header();
         let last = (frame + self.ahead).min(h.frame_count - 1);
         let mut wanted: Vec<ChunkEntry> = self.decoder.chunks_for(frame);
-        let level = self.decoder.min_level() as u32;
+        let level = self.decoder.min_level();
         wanted.extend(self.decoder.reader().index().chunks.iter().filter(|e| {
-            e.frame > frame && e.frame <= last && e.band >= level && matches!(e.kind, ChunkKind::Delta | ChunkKind::Positions)
+            e.frame > frame
+                && e.frame <= last
+                && e.kind.read_at(e.band as usize, level)
+                && matches!(e.kind, ChunkKind::Delta | ChunkKind::Positions | ChunkKind::Corners)
         }));
         let start = self.decoder.reader().data_start();
         let mut spans: Vec<(u64, u64)> = wanted

@@ -8,7 +8,14 @@ fn main() {
     let seq = pmcodec_mesh::obj::load_obj_sequence(std::path::Path::new(&args[1]), 30.0).expect("load");
     let bits: u8 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(12);
     let coarse_grid: Option<u32> = args.get(3).and_then(|s| s.parse().ok());
-    let opts = EncodeOptions { quantization: QuantizationChoice::Bits(bits), coarse_grid, ..Default::default() };
+    let mut opts = EncodeOptions { quantization: QuantizationChoice::Bits(bits), coarse_grid, ..Default::default() };
+    // Experiments: PMCODEC_BRANCHING=b, or PMCODEC_LEVELS=n1,n2,... (sizes below |M0|).
+    if let Some(b) = std::env::var("PMCODEC_BRANCHING").ok().and_then(|s| s.parse().ok()) {
+        opts.build.branching = b;
+    }
+    if let Ok(l) = std::env::var("PMCODEC_LEVELS") {
+        opts.build.level_sizes = Some(l.split(',').filter_map(|x| x.parse().ok()).collect());
+    }
     let t = std::time::Instant::now();
     let bytes = encode(&seq, &opts, |_| {}).expect("encode");
     let secs = t.elapsed().as_secs_f64();
@@ -33,26 +40,36 @@ fn main() {
         inter as f64 * 8.0 / (v * (f - nk))
     );
     println!(
-        "topology deltas: {:.0} B/frame compressed, {:.0} B/frame raw; by band {:?} B/frame",
+        "topology deltas (swaps, what a full-resolution client reads): {:.0} B/frame compressed, {:.0} B/frame raw; by band {:?} B/frame",
         s.delta_bytes_per_frame,
         s.delta_raw_bytes_per_frame,
         s.delta_bytes.iter().map(|&b| (b as f64 / f).round()).collect::<Vec<_>>()
     );
     // What the deltas hold, per band: entries per frame of each kind.
     let levels = s.header.levels();
-    let (mut mv, mut dg, mut co) = (vec![0usize; levels], vec![0usize; levels], vec![0usize; levels]);
-    for e in reader.index().chunks.iter().filter(|e| e.kind == pmcodec_container::ChunkKind::Delta) {
-        let raw = reader.read_chunk(e).expect("chunk");
-        let h = &s.header;
-        let d = pmcodec_container::payload::read_delta(&raw, "d", &h.level_sizes, e.band as usize, h.triangle_count, h.node_count() as u32)
-            .expect("delta");
+    let (mut mv, mut co) = (vec![0usize; levels], vec![0usize; levels]);
+    let h = &s.header;
+    for e in &reader.index().chunks {
         let b = e.band as usize;
-        mv[b] += d.moves.len();
-        dg[b] += d.degenerate.len();
-        co[b] += d.corners.len();
+        match e.kind {
+            pmcodec_container::ChunkKind::Delta => {
+                let raw = reader.read_chunk(e).expect("chunk");
+                mv[b] += pmcodec_container::payload::read_delta(&raw, "d", &h.level_sizes, b).expect("delta").len();
+            }
+            pmcodec_container::ChunkKind::Corners => {
+                let raw = reader.read_chunk(e).expect("chunk");
+                co[b] += pmcodec_container::payload::read_faces(&raw, "c", h.level_sizes[b], h.triangle_count).expect("corners").len();
+            }
+            _ => {}
+        }
     }
     let per = |x: &Vec<usize>| x.iter().map(|&c| (c as f64 / f).round()).collect::<Vec<_>>();
-    println!("delta entries per frame by band: moves {:?}, degenerate {:?}, corners {:?}", per(&mv), per(&dg), per(&co));
+    println!("delta entries per frame by band: moves {:?}, corner updates {:?}", per(&mv), per(&co));
+    println!(
+        "corner updates (read only by a client stopping at that band): {:?} B/frame; keyframe faces {:?} B in all",
+        s.corners_bytes.iter().map(|&b| (b as f64 / f).round()).collect::<Vec<_>>(),
+        s.faces_bytes
+    );
     println!("keyframes: {:?} B per band in all", s.key_bytes);
     println!(
         "bytes per frame for a client stopping at level L: {:?}",
@@ -68,15 +85,11 @@ fn main() {
         d.seek(mid).expect("seek");
         let shown = d.mesh(pmcodec_container::MeshTarget::Triangles(budget)).expect("mesh").triangles.len();
         if shown as f64 >= 0.95 * budget as f64 {
-            let part: u64 = reader
-                .index()
-                .chunks
-                .iter()
-                .filter(|e| e.kind != pmcodec_container::ChunkKind::Triangles && e.band as usize >= l)
-                .map(|e| e.stored_len as u64)
-                .sum();
+            let part: u64 = reader.index().chunks.iter().filter(|e| e.kind.read_at(e.band as usize, l)).map(|e| e.stored_len as u64).sum();
+            let full: u64 = reader.index().chunks.iter().filter(|e| e.kind.read_at(e.band as usize, 0)).map(|e| e.stored_len as u64).sum();
             println!(
-                "10% of the triangles ({budget}, frame {mid}) needs levels >= {l} ({shown} shown): {:.1}% of the chunk bytes",
+                "10% of the triangles ({budget}, frame {mid}) needs levels >= {l} ({shown} shown): reads {:.1}% of what a full-resolution reader reads ({:.1}% of all chunk bytes)",
+                part as f64 * 100.0 / full as f64,
                 part as f64 * 100.0 / all as f64
             );
             break;

@@ -7,7 +7,7 @@ use crate::predict::{LowerNeighbours, Siblings, predict};
 use crate::{ByteSource, ContainerError, Reader};
 use glam::Vec3;
 use pmcodec_hierarchy::NONE;
-use pmcodec_hierarchy::progressive::{CornerUpdate, DegenerateDelta, FrameDelta, KeyBand, Keyframe, Replay};
+use pmcodec_hierarchy::progressive::{CornerUpdate, FrameDelta, KeyBand, Keyframe, Replay};
 use pmcodec_hierarchy::recluster::Swap;
 use pmcodec_mesh::TriMesh;
 
@@ -93,11 +93,11 @@ impl<S: ByteSource> Decoder<S> {
         let first_delta = start + if load_key { 1 } else { 0 };
         let first_positions = if load_key { key } else { start };
         let mut out = Vec::new();
-        for e in self.reader.index().chunks.iter().filter(|e| e.band as usize >= self.min_level) {
+        for e in self.reader.index().chunks.iter().filter(|e| e.kind.read_at(e.band as usize, self.min_level)) {
             let take = match e.kind {
-                ChunkKind::Triangles => load_key && self.min_level == 0 && self.triangles.is_none(),
-                ChunkKind::Key => load_key && e.frame == key,
-                ChunkKind::Delta => e.frame >= first_delta && e.frame <= frame,
+                ChunkKind::Triangles => load_key && self.triangles.is_none(),
+                ChunkKind::Key | ChunkKind::Faces => load_key && e.frame == key,
+                ChunkKind::Delta | ChunkKind::Corners => e.frame >= first_delta && e.frame <= frame,
                 ChunkKind::Positions => e.frame >= first_positions && e.frame <= frame,
             };
             if take {
@@ -157,7 +157,12 @@ impl<S: ByteSource> Decoder<S> {
         for j in (self.min_level..h.levels()).rev() {
             let what = format!("frame {frame} band {j} keyframe");
             let raw = self.chunk(ChunkKind::Key, frame, j)?;
-            key.bands[j] = payload::read_key(&raw, &what, sizes, j, h.triangle_count)?;
+            key.bands[j].parent = payload::read_key(&raw, &what, sizes, j)?;
+        }
+        if self.min_level > 0 {
+            let j = self.min_level;
+            let raw = self.chunk(ChunkKind::Faces, frame, j)?;
+            key.bands[j].faces = payload::read_faces(&raw, &format!("frame {frame} band {j} faces"), sizes[j], h.triangle_count)?;
         }
         if self.min_level == 0 && self.triangles.is_none() {
             let e = self
@@ -182,7 +187,7 @@ impl<S: ByteSource> Decoder<S> {
 
     fn step(&mut self, frame: u32) -> Result<(), ContainerError> {
         let h = self.reader.header();
-        let (sizes, triangles, nodes) = (h.level_sizes.clone(), h.triangle_count, h.node_count() as u32);
+        let (sizes, triangles) = (h.level_sizes.clone(), h.triangle_count);
         let replay = self.replay.as_mut().ok_or_else(|| ContainerError::Options("no keyframe loaded".into()))?;
         let mut delta = FrameDelta::default();
         for j in (self.min_level..sizes.len()).rev() {
@@ -192,14 +197,22 @@ impl<S: ByteSource> Decoder<S> {
                 .find(ChunkKind::Delta, frame, j as u32)
                 .ok_or_else(|| ContainerError::Corrupt { what: what.clone(), detail: "missing from the index".into() })?;
             let raw = self.reader.read_chunk(e)?;
-            let band = payload::read_delta(&raw, &what, &sizes, j, triangles, nodes)?;
-            for (v, to) in band.moves {
+            for (v, to) in payload::read_delta(&raw, &what, &sizes, j)? {
                 // `from` is whatever the replay holds: net changes carry no history.
                 let from = replay.h.parent.get(j).and_then(|p| p.get(v as usize)).copied().unwrap_or(NONE);
                 delta.swaps.push(Swap { level: j as u32, v, from, to });
             }
-            delta.degenerate.extend(band.degenerate.into_iter().map(|(t, new)| DegenerateDelta { t, old: NONE, new }));
-            delta.corners.extend(band.corners.into_iter().map(|(t, corners)| CornerUpdate { level: j as u32, t, corners }));
+        }
+        if self.min_level > 0 {
+            let j = self.min_level;
+            let what = format!("frame {frame} band {j} corners");
+            let e = self
+                .reader
+                .find(ChunkKind::Corners, frame, j as u32)
+                .ok_or_else(|| ContainerError::Corrupt { what: what.clone(), detail: "missing from the index".into() })?;
+            let raw = self.reader.read_chunk(e)?;
+            let updates = payload::read_faces(&raw, &what, sizes[j], triangles)?;
+            delta.corners.extend(updates.into_iter().map(|(t, corners)| CornerUpdate { level: j as u32, t, corners }));
         }
         replay.apply(&delta).map_err(|source| ContainerError::Delta { what: format!("frame {frame} delta"), source })?;
         std::mem::swap(&mut self.previous, &mut self.current);

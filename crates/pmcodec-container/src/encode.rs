@@ -3,12 +3,12 @@
 
 use crate::ContainerError;
 use crate::format::*;
-use crate::payload::{self, DeltaBand};
+use crate::payload;
 use crate::predict::{LowerNeighbours, Siblings, coarse_shift, predict};
 use pmcodec_hierarchy::base::{BaseOptions, PoseSet, VertexWeights, base_quadrics};
-use pmcodec_hierarchy::progressive::{Encoder, FrameDelta, degenerate_band};
+use pmcodec_hierarchy::progressive::{Encoder, FrameDelta};
 use pmcodec_hierarchy::recluster::ReclusterOptions;
-use pmcodec_hierarchy::{BuildOptions, FineTopology, Hierarchy, build};
+use pmcodec_hierarchy::{BuildOptions, FineTopology, build};
 use pmcodec_mesh::Sequence;
 use std::collections::HashMap;
 use std::path::Path;
@@ -96,14 +96,6 @@ fn net_moves(delta: &FrameDelta, level: usize) -> Vec<(u32, u32)> {
     let mut moves: Vec<(u32, u32)> = last_to.into_iter().filter(|(v, to)| first_from.get(v) != Some(to)).collect();
     moves.sort_unstable();
     moves
-}
-
-fn delta_band(h: &Hierarchy, delta: &FrameDelta, j: usize) -> DeltaBand {
-    DeltaBand {
-        moves: net_moves(delta, j),
-        degenerate: delta.degenerate.iter().filter(|d| degenerate_band(h, d) == j).map(|d| (d.t, d.new)).collect(),
-        corners: delta.corners.iter().filter(|c| c.level as usize == j).map(|c| (c.t, c.corners)).collect(),
-    }
 }
 
 fn pose_name(p: PoseSet) -> String {
@@ -211,11 +203,22 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
         };
         let intra = header.is_keyframe(f as u32);
         let key = intra.then(|| enc.keyframe());
+        // First what only a client stopping at band j reads (faces on keyframes, corner
+        // updates), finest band first; then the bands every client from there down reads, top
+        // first. So a full-resolution client's part of a frame is one contiguous span, and a
+        // level-j client's span holds only the (smaller) faces and corners of coarser bands.
+        for j in 1..levels {
+            if let Some(k) = &key {
+                push(ChunkKind::Faces, f as u32, j as u32, payload::write_faces(&k.bands[j].faces))?;
+            }
+            let corners: Vec<(u32, [u32; 3])> = delta.corners.iter().filter(|c| c.level as usize == j).map(|c| (c.t, c.corners)).collect();
+            push(ChunkKind::Corners, f as u32, j as u32, payload::write_faces(&corners))?;
+        }
         for j in (0..levels).rev() {
             if let Some(k) = &key {
-                push(ChunkKind::Key, f as u32, j as u32, payload::write_key(&k.bands[j]))?;
+                push(ChunkKind::Key, f as u32, j as u32, payload::write_key(&k.bands[j].parent))?;
             }
-            push(ChunkKind::Delta, f as u32, j as u32, payload::write_delta(&delta_band(h, &delta, j)))?;
+            push(ChunkKind::Delta, f as u32, j as u32, payload::write_delta(&net_moves(&delta, j)))?;
             residuals.clear();
             let shift = shifts[j];
             siblings.reset(if j + 1 < levels { sizes[j + 1] as usize } else { 0 });

@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 /// transfers and truncating tools fail loudly, as in PNG's signature.
 pub const MAGIC: [u8; 8] = *b"\x89PMC\r\n\x1a\n";
 /// Format version this crate writes and reads.
-pub const VERSION: u16 = 2;
+pub const VERSION: u16 = 3;
 /// Size of the fixed preamble.
 pub const PREAMBLE_LEN: usize = 32;
 /// Upper bound on the header and index sizes a reader accepts (protects allocations).
@@ -138,22 +138,40 @@ impl Header {
 pub enum ChunkKind {
     /// The input triangles (band 0 only; one per file).
     Triangles,
-    /// A keyframe's band: parent map and faces alive at that level.
+    /// A keyframe's band: the parent map of that level.
     Key,
-    /// A frame's topology delta for one band: net parent changes, degenerate-set deltas,
-    /// corner updates.
+    /// A frame's swaps for one band: net parent changes of that level's nodes.
     Delta,
     /// A frame's quantized node positions for one band.
     Positions,
+    /// A keyframe's triangles alive at the band's level with their corners there (bands >= 1;
+    /// read only by a client whose finest level is that band).
+    Faces,
+    /// A frame's corner updates at the band's level (bands >= 1; read only by a client whose
+    /// finest level is that band).
+    Corners,
 }
 
 impl ChunkKind {
+    /// Whether a client whose finest level is `min_level` reads chunks of this kind in `band`:
+    /// every band from its level up, except faces and corners, which only the band of its
+    /// finest level needs (finer clients derive them).
+    pub fn read_at(self, band: usize, min_level: usize) -> bool {
+        match self {
+            ChunkKind::Triangles => min_level == 0,
+            ChunkKind::Key | ChunkKind::Delta | ChunkKind::Positions => band >= min_level,
+            ChunkKind::Faces | ChunkKind::Corners => band == min_level,
+        }
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             ChunkKind::Triangles => "triangles",
             ChunkKind::Key => "keyframe",
             ChunkKind::Delta => "delta",
             ChunkKind::Positions => "positions",
+            ChunkKind::Faces => "faces",
+            ChunkKind::Corners => "corners",
         }
     }
 }

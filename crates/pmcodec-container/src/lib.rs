@@ -59,17 +59,22 @@ pub struct Summary {
     pub file_bytes: u64,
     pub preamble_header_index_bytes: u64,
     pub triangles_bytes: u64,
-    /// Per band (index = level): stored bytes of key, delta and positions chunks.
+    /// Per band (index = level): stored bytes of key, delta (swaps), positions, faces and
+    /// corners chunks.
     pub key_bytes: Vec<u64>,
+    pub faces_bytes: Vec<u64>,
+    pub corners_bytes: Vec<u64>,
     pub delta_bytes: Vec<u64>,
     pub positions_bytes: Vec<u64>,
     pub delta_raw_bytes: Vec<u64>,
     /// Positions, all bands, in bits per input vertex per frame.
     pub positions_bits_per_vertex_frame: f64,
-    /// Topology deltas, all bands, per frame (compressed and raw).
+    /// Topology deltas (swaps), all bands, per frame (compressed and raw): what a
+    /// full-resolution client reads.
     pub delta_bytes_per_frame: f64,
     pub delta_raw_bytes_per_frame: f64,
-    /// Bytes a client stopping at each level reads per frame (deltas and positions of bands >= level).
+    /// Bytes a client stopping at each level reads per frame (swaps and positions of bands >=
+    /// level, and the corner updates of its own level).
     pub bytes_per_frame_to_level: Vec<f64>,
 }
 
@@ -82,6 +87,8 @@ pub fn summary<S: ByteSource>(reader: &Reader<S>) -> Summary {
         preamble_header_index_bytes: reader.data_start(),
         triangles_bytes: 0,
         key_bytes: vec![0; levels],
+        faces_bytes: vec![0; levels],
+        corners_bytes: vec![0; levels],
         delta_bytes: vec![0; levels],
         positions_bytes: vec![0; levels],
         delta_raw_bytes: vec![0; levels],
@@ -99,6 +106,8 @@ pub fn summary<S: ByteSource>(reader: &Reader<S>) -> Summary {
         match e.kind {
             ChunkKind::Triangles => s.triangles_bytes += e.stored_len as u64,
             ChunkKind::Key => s.key_bytes[b] += e.stored_len as u64,
+            ChunkKind::Faces => s.faces_bytes[b] += e.stored_len as u64,
+            ChunkKind::Corners => s.corners_bytes[b] += e.stored_len as u64,
             ChunkKind::Delta => {
                 s.delta_bytes[b] += e.stored_len as u64;
                 s.delta_raw_bytes[b] += e.raw_len as u64;
@@ -113,7 +122,7 @@ pub fn summary<S: ByteSource>(reader: &Reader<S>) -> Summary {
     s.delta_raw_bytes_per_frame = s.delta_raw_bytes.iter().sum::<u64>() as f64 / frames;
     for l in 0..levels {
         s.bytes_per_frame_to_level[l] =
-            (s.delta_bytes[l..].iter().sum::<u64>() + s.positions_bytes[l..].iter().sum::<u64>()) as f64 / frames;
+            (s.delta_bytes[l..].iter().sum::<u64>() + s.positions_bytes[l..].iter().sum::<u64>() + s.corners_bytes[l]) as f64 / frames;
     }
     s
 }

@@ -3,8 +3,6 @@
 //! allocating and every id against its range.
 
 use crate::ContainerError;
-use pmcodec_hierarchy::NONE;
-use pmcodec_hierarchy::progressive::KeyBand;
 
 pub fn put(out: &mut Vec<u8>, mut v: u32) {
     while v >= 0x80 {
@@ -129,26 +127,17 @@ pub fn read_triangles(bytes: &[u8], what: &str, triangles: u32, vertices: u32) -
     Ok(out)
 }
 
-/// KEY band j: parent map (|M_j| entries, none for the top band), then the faces alive at
-/// level j (none for band 0) as ascending triangle ids with their three level-j corners.
-pub fn write_key(band: &KeyBand) -> Vec<u8> {
-    let mut out = Vec::new();
-    put(&mut out, band.parent.len() as u32);
-    for &p in &band.parent {
+/// KEY band j: the parent map (|M_j| entries; none for the top band).
+pub fn write_key(parent: &[u32]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(parent.len() * 2 + 4);
+    put(&mut out, parent.len() as u32);
+    for &p in parent {
         put(&mut out, p);
-    }
-    put(&mut out, band.faces.len() as u32);
-    let mut prev = None;
-    for (t, c) in &band.faces {
-        put_ascending(&mut out, &mut prev, *t);
-        for &x in c {
-            put(&mut out, x);
-        }
     }
     out
 }
 
-pub fn read_key(bytes: &[u8], what: &str, sizes: &[u32], band: usize, triangles: u32) -> Result<KeyBand, ContainerError> {
+pub fn read_key(bytes: &[u8], what: &str, sizes: &[u32], band: usize) -> Result<Vec<u32>, ContainerError> {
     let mut c = Cursor::new(bytes, what);
     let top = sizes.len() - 1;
     let n = c.count(sizes[band] as u64, "parents")?;
@@ -161,47 +150,19 @@ pub fn read_key(bytes: &[u8], what: &str, sizes: &[u32], band: usize, triangles:
     for _ in 0..n {
         parent.push(c.id(limit, "parent")?);
     }
-    let m = c.count(triangles as u64, "faces")?;
-    let mut faces = Vec::with_capacity(m);
-    let mut prev = None;
-    for _ in 0..m {
-        let t = c.ascending(&mut prev, triangles, "triangle")?;
-        faces.push((t, [c.id(sizes[band], "corner")?, c.id(sizes[band], "corner")?, c.id(sizes[band], "corner")?]));
-    }
     c.finish()?;
-    Ok(KeyBand { parent, faces })
+    Ok(parent)
 }
 
-/// One band of a frame delta, as stored.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct DeltaBand {
-    /// Net parent changes of level-j nodes: (node, new parent), ascending by node.
-    pub moves: Vec<(u32, u32)>,
-    /// (triangle, new degeneration node as a global id or NONE), ascending by triangle.
-    pub degenerate: Vec<(u32, u32)>,
-    /// (triangle, level-j corners), ascending by triangle.
-    pub corners: Vec<(u32, [u32; 3])>,
-}
-
-/// DELTA band j: moves (node delta-coded, new parent), degenerate-set deltas (triangle
-/// delta-coded, node + 1 with 0 for NONE), corner updates (triangle delta-coded, 3 corners).
-pub fn write_delta(d: &DeltaBand) -> Vec<u8> {
-    let mut out = Vec::new();
-    put(&mut out, d.moves.len() as u32);
+/// FACES and CORNERS band j: a count, then per entry the triangle (ascending, delta-coded) and
+/// its three level-j corners. Faces list the triangles alive at level j on a keyframe; corner
+/// updates list the triangles whose level-j corners changed on a frame (two equal corners:
+/// the triangle stopped being alive at j).
+pub fn write_faces(faces: &[(u32, [u32; 3])]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(faces.len() * 6 + 4);
+    put(&mut out, faces.len() as u32);
     let mut prev = None;
-    for &(v, to) in &d.moves {
-        put_ascending(&mut out, &mut prev, v);
-        put(&mut out, to);
-    }
-    put(&mut out, d.degenerate.len() as u32);
-    let mut prev = None;
-    for &(t, g) in &d.degenerate {
-        put_ascending(&mut out, &mut prev, t);
-        put(&mut out, if g == NONE { 0 } else { g + 1 });
-    }
-    put(&mut out, d.corners.len() as u32);
-    let mut prev = None;
-    for (t, c) in &d.corners {
+    for (t, c) in faces {
         put_ascending(&mut out, &mut prev, *t);
         for &x in c {
             put(&mut out, x);
@@ -210,31 +171,44 @@ pub fn write_delta(d: &DeltaBand) -> Vec<u8> {
     out
 }
 
-pub fn read_delta(bytes: &[u8], what: &str, sizes: &[u32], band: usize, triangles: u32, nodes: u32) -> Result<DeltaBand, ContainerError> {
+pub fn read_faces(bytes: &[u8], what: &str, size: u32, triangles: u32) -> Result<Vec<(u32, [u32; 3])>, ContainerError> {
+    let mut c = Cursor::new(bytes, what);
+    let m = c.count(triangles as u64, "faces")?;
+    let mut faces = Vec::with_capacity(m);
+    let mut prev = None;
+    for _ in 0..m {
+        let t = c.ascending(&mut prev, triangles, "triangle")?;
+        faces.push((t, [c.id(size, "corner")?, c.id(size, "corner")?, c.id(size, "corner")?]));
+    }
+    c.finish()?;
+    Ok(faces)
+}
+
+/// DELTA band j: net parent changes of level-j nodes, a count then (node ascending and
+/// delta-coded, new parent) pairs. Degenerate sets are not stored: decoders derive them.
+pub fn write_delta(moves: &[(u32, u32)]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(moves.len() * 4 + 2);
+    put(&mut out, moves.len() as u32);
+    let mut prev = None;
+    for &(v, to) in moves {
+        put_ascending(&mut out, &mut prev, v);
+        put(&mut out, to);
+    }
+    out
+}
+
+pub fn read_delta(bytes: &[u8], what: &str, sizes: &[u32], band: usize) -> Result<Vec<(u32, u32)>, ContainerError> {
     let mut c = Cursor::new(bytes, what);
     let top = sizes.len() - 1;
-    let mut d = DeltaBand::default();
     let n = c.count(if band < top { sizes[band] as u64 } else { 0 }, "moves")?;
+    let mut moves = Vec::with_capacity(n);
     let mut prev = None;
     for _ in 0..n {
         let v = c.ascending(&mut prev, sizes[band], "node")?;
-        d.moves.push((v, c.id(sizes[band + 1], "parent")?));
-    }
-    let n = c.count(triangles as u64, "degenerate-set deltas")?;
-    let mut prev = None;
-    for _ in 0..n {
-        let t = c.ascending(&mut prev, triangles, "triangle")?;
-        let g = c.id(nodes.saturating_add(1), "node")?;
-        d.degenerate.push((t, if g == 0 { NONE } else { g - 1 }));
-    }
-    let n = c.count(triangles as u64, "corner updates")?;
-    let mut prev = None;
-    for _ in 0..n {
-        let t = c.ascending(&mut prev, triangles, "triangle")?;
-        d.corners.push((t, [c.id(sizes[band], "corner")?, c.id(sizes[band], "corner")?, c.id(sizes[band], "corner")?]));
+        moves.push((v, c.id(sizes[band + 1], "parent")?));
     }
     c.finish()?;
-    Ok(d)
+    Ok(moves)
 }
 
 /// Largest residual step a positions chunk may use (units of 2^shift quanta).
@@ -362,16 +336,21 @@ mod tests {
     }
 
     #[test]
-    fn delta_band_round_trips() {
-        let d = DeltaBand {
-            moves: vec![(0, 3), (5, 1), (6, 0)],
-            degenerate: vec![(2, NONE), (7, 12), (8, 0)],
-            corners: vec![(1, [0, 1, 2]), (9, [3, 4, 5])],
-        };
-        let bytes = write_delta(&d);
-        assert_eq!(read_delta(&bytes, "t", &[10, 4, 1], 0, 10, 15).unwrap(), d);
+    fn delta_faces_and_key_round_trip() {
+        let moves = vec![(0, 3), (5, 1), (6, 0)];
+        let bytes = write_delta(&moves);
+        assert_eq!(read_delta(&bytes, "t", &[10, 4, 1], 0).unwrap(), moves);
         // Out-of-range parent is an error naming it.
-        let e = read_delta(&bytes, "t", &[10, 2, 1], 0, 10, 15).unwrap_err().to_string();
+        let e = read_delta(&bytes, "t", &[10, 2, 1], 0).unwrap_err().to_string();
         assert!(e.contains("parent 3 out of range"), "{e}");
+        let faces = vec![(1, [0, 1, 2]), (9, [3, 4, 3])];
+        let bytes = write_faces(&faces);
+        assert_eq!(read_faces(&bytes, "t", 5, 10).unwrap(), faces);
+        let e = read_faces(&bytes, "t", 4, 10).unwrap_err().to_string();
+        assert!(e.contains("corner 4 out of range"), "{e}");
+        assert!(read_faces(&bytes, "t", 5, 9).is_err());
+        let parent = vec![0, 1, 1, 0];
+        assert_eq!(read_key(&write_key(&parent), "t", &[4, 2, 1], 0).unwrap(), parent);
+        assert!(read_key(&write_key(&parent), "t", &[4, 1], 0).is_err());
     }
 }

@@ -9,6 +9,14 @@ fn exercise(bytes: &[u8]) -> Result<(), String> {
     let mut d = Decoder::new(reader.borrowed(), 0).map_err(|e| e.to_string())?;
     d.seek(reader.header().frame_count - 1).map_err(|e| e.to_string())?;
     d.mesh(MeshTarget::Triangles(50)).map_err(|e| e.to_string())?;
+    // A level-1 client reads the faces and corners chunks a full one skips.
+    if reader.header().levels() > 1 {
+        let mut d = Decoder::new(reader.borrowed(), 1).map_err(|e| e.to_string())?;
+        for f in 0..reader.header().frame_count {
+            d.seek(f).map_err(|e| e.to_string())?;
+        }
+        d.mesh(MeshTarget::Triangles(30)).map_err(|e| e.to_string())?;
+    }
     Ok(())
 }
 

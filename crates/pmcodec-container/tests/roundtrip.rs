@@ -131,6 +131,28 @@ impl ByteSource for Counting<'_> {
     }
 }
 
+/// A full-resolution client reads swaps and positions, never the faces and corners kept for
+/// coarser clients (it derives degenerate sets and corners itself).
+#[test]
+fn full_resolution_decoding_skips_faces_and_corners() {
+    // One keyframe (frame 0): playing through reads every other chunk once.
+    let bytes = encode(&wave(6), &EncodeOptions::default(), |_| {}).unwrap();
+    let src = Counting { bytes: &bytes, fetched: Default::default() };
+    let reader = Reader::open(&src).unwrap();
+    let mut d = Decoder::new(reader.borrowed(), 0).unwrap();
+    for f in 0..6 {
+        d.seek(f).unwrap();
+    }
+    let skipped: u64 =
+        reader.index().chunks.iter().filter(|e| matches!(e.kind, ChunkKind::Faces | ChunkKind::Corners)).map(|e| e.stored_len as u64).sum();
+    // Frame 0's swaps are in its keyframe already.
+    let frame0_swaps: u64 =
+        reader.index().chunks.iter().filter(|e| e.kind == ChunkKind::Delta && e.frame == 0).map(|e| e.stored_len as u64).sum();
+    let chunks: u64 = reader.index().chunks.iter().map(|e| e.stored_len as u64).sum();
+    assert!(skipped > 0);
+    assert_eq!(src.fetched.get() - reader.data_start(), chunks - skipped - frame0_swaps);
+}
+
 #[test]
 fn level_limited_decoding_reads_only_its_bands() {
     let Some(seq) = data("horse-gallop", 10) else { return };
@@ -149,15 +171,14 @@ fn level_limited_decoding_reads_only_its_bands() {
         let off = a.h.offsets[level] as usize;
         assert_eq!(&full.quantized()[off..], &part.quantized()[off..], "frame {f}: positions above level {level}");
     }
-    // Everything fetched: preamble, header, index and chunks of bands >= level only.
+    // Everything fetched: preamble, header, index and chunks of bands >= level only, and of
+    // the faces and corners chunks only those of band `level`.
     let allowed: u64 = reader.data_start()
-        + reader
-            .index()
-            .chunks
-            .iter()
-            .filter(|e| e.band as usize >= level && e.kind != ChunkKind::Triangles)
-            .map(|e| e.stored_len as u64)
-            .sum::<u64>();
+        + reader.index().chunks.iter().filter(|e| e.kind.read_at(e.band as usize, level)).map(|e| e.stored_len as u64).sum::<u64>();
+    assert!(
+        reader.index().chunks.iter().any(|e| e.kind == ChunkKind::Corners && e.band as usize > level),
+        "the file has corner chunks a level-{level} client skips"
+    );
     assert!(src.fetched.get() <= allowed, "{} > {allowed}", src.fetched.get());
     assert!(src.fetched.get() * 4 < bytes.len() as u64, "a level-{level} client read {} of {} bytes", src.fetched.get(), bytes.len());
     let m = part.mesh(MeshTarget::Triangles(1000)).unwrap();
@@ -223,8 +244,8 @@ fn corruption_is_an_error_naming_the_region() {
 #[test]
 fn header_snapshot() {
     let bytes = encode(&wave(3), &EncodeOptions::default(), |_| {}).unwrap();
-    // Preamble: magic, version 2, flags 0.
-    assert_eq!(&bytes[..12], b"\x89PMC\r\n\x1a\n\x02\x00\x00\x00");
+    // Preamble: magic, version 3, flags 0.
+    assert_eq!(&bytes[..12], b"\x89PMC\r\n\x1a\n\x03\x00\x00\x00");
     let reader = Reader::open(bytes.as_slice()).unwrap();
     let h = reader.header();
     assert_eq!((h.vertex_count, h.triangle_count, h.frame_count), (108, 176, 3));
@@ -232,12 +253,15 @@ fn header_snapshot() {
     assert_eq!(h.keyframe_interval, 16);
     // Deterministic output: encoding twice gives the same bytes.
     assert_eq!(bytes, encode(&wave(3), &EncodeOptions::default(), |_| {}).unwrap());
-    // Index order: triangles, then frame 0 bands top..0, each key, delta, positions.
-    let kinds: Vec<(ChunkKind, u32, u32)> = reader.index().chunks.iter().take(7).map(|e| (e.kind, e.frame, e.band)).collect();
+    // Index order: triangles, then frame 0: the faces and corners only a client stopping at
+    // band 1.. reads, then bands top..0, each key, delta, positions.
+    let kinds: Vec<(ChunkKind, u32, u32)> = reader.index().chunks.iter().take(9).map(|e| (e.kind, e.frame, e.band)).collect();
     assert_eq!(
         kinds,
         vec![
             (ChunkKind::Triangles, 0, 0),
+            (ChunkKind::Faces, 0, 1),
+            (ChunkKind::Corners, 0, 1),
             (ChunkKind::Key, 0, 1),
             (ChunkKind::Delta, 0, 1),
             (ChunkKind::Positions, 0, 1),

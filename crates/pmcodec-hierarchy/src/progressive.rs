@@ -1,18 +1,23 @@
 //! The progressive representation (section 5): a keyframe holding a whole hierarchy H_f, then
 //! per frame the swaps and degenerate-set deltas that turn H_{f-1} into H_f. [`Encoder`]
-//! produces it; [`Replay`] plays it back and keeps a cut's shown triangles up to date from the
-//! deltas alone (section 5.1), without re-deriving them.
+//! produces it; [`Replay`] plays it back and keeps a cut's shown triangles up to date
+//! incrementally (section 5.1), without re-deriving them from scratch.
+//!
+//! The degenerate-set deltas are a function of the swaps: a triangle's degeneration node is
+//! where two of its corners' ancestor chains first meet, and a swap of node v changes only the
+//! chains of the triangles with a corner under v. So a replay *derives* them, for just those
+//! triangles, and a stream needs to carry only the swaps (the paper's "swaps only" figure,
+//! section 6). [`FrameDelta::degenerate`] still lists them, for measurement and tests.
 //!
 //! Everything is organised by *band*: band j is what a client needs to refine down to level j.
 //! A client that stops at level L reads bands top..=L only, so what it reads grows with |M_L|:
 //! - swaps of level-j nodes are in band j;
-//! - a degenerate-set delta of triangle t from node `old` to node `new` is in band
-//!   `max(level(old), level(new)) - 1` (level(NONE) = top + 1): exactly the clients for which t
-//!   is, or was, alive see it;
 //! - corner updates: a triangle *alive at level j* (its corners have three distinct level-j
 //!   ancestors) is drawn by a level-j client through its level-j corners; when those change
-//!   (swaps at finer levels, invisible to that client) or the triangle becomes alive at j, band
-//!   j carries the new corners. Level 0 corners are the input triangles and never change.
+//!   (swaps at finer levels, invisible to that client), band j carries the new corners, also
+//!   when the triangle becomes alive at j or stops being alive (then the new corners repeat a
+//!   node). Only a client whose finest level is exactly j needs them. Level-0 corners are the
+//!   input triangles and never change.
 //!
 //! Convention: frame 0 has a delta too (reclustering the built base to fit frame 0), so the
 //! hierarchy of frame f is the base plus the deltas of frames 0..=f; the keyframe of frame f is
@@ -37,7 +42,7 @@ pub struct DegenerateDelta {
     pub new: u32,
 }
 
-/// New level-`level` corners of triangle `t`.
+/// New level-`level` corners of triangle `t` (two equal corners: t is no longer alive there).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct CornerUpdate {
     pub level: u32,
@@ -50,7 +55,8 @@ pub struct CornerUpdate {
 pub struct FrameDelta {
     /// Swaps in the order they were made (coarse levels first).
     pub swaps: Vec<Swap>,
-    /// Triangles whose degeneration node changed, ascending by triangle.
+    /// Triangles whose degeneration node changed, ascending by triangle. Derivable from the
+    /// swaps and corners (see the module docs): a [`Replay`] does not read them.
     pub degenerate: Vec<DegenerateDelta>,
     /// Corner updates, by level then triangle.
     pub corners: Vec<CornerUpdate>,
@@ -106,7 +112,7 @@ pub struct Keyframe {
 pub struct Encoder {
     pub recluster: Reclusterer,
     node_of: Vec<u32>,
-    /// Level-j corners of every triangle alive at j, for j >= 1 (`[NONE; 3]` if not alive).
+    /// Level-j ancestors of every triangle's corners, for j >= 1 (alive at j iff distinct).
     corners: Vec<Vec<[u32; 3]>>,
     scratch: Vec<u32>,
 }
@@ -131,7 +137,7 @@ impl Encoder {
         &self.node_of
     }
 
-    /// Level-j corners of every triangle (`[NONE; 3]` where not alive at j), j >= 1.
+    /// Level-j ancestors of every triangle's corners, j >= 1 (distinct iff alive at j).
     pub fn corners_at(&self, j: usize) -> &[[u32; 3]] {
         &self.corners[j]
     }
@@ -141,13 +147,8 @@ impl Encoder {
         let anc = h.all_ancestors();
         let tris = self.recluster.triangles();
         let mut out = vec![Vec::new()];
-        for (j, anc_j) in anc.iter().enumerate().skip(1) {
-            out.push(
-                tris.iter()
-                    .zip(&self.node_of)
-                    .map(|(t, &g)| if node_level(h, g) > j { t.map(|v| anc_j[v as usize]) } else { [NONE; 3] })
-                    .collect(),
-            );
+        for anc_j in anc.iter().skip(1) {
+            out.push(tris.iter().map(|t| t.map(|v| anc_j[v as usize])).collect());
         }
         out
     }
@@ -166,7 +167,7 @@ impl Encoder {
         let corners = self.current_corners();
         for (j, (now, before)) in corners.iter().zip(&self.corners).enumerate().skip(1) {
             for (t, (c, b)) in now.iter().zip(before).enumerate() {
-                if c != b && c[0] != NONE {
+                if c != b && (distinct(*c) || distinct(*b)) {
                     delta.corners.push(CornerUpdate { level: j as u32, t: t as u32, corners: *c });
                 }
             }
@@ -184,12 +185,18 @@ impl Encoder {
                 faces: if j == 0 {
                     Vec::new()
                 } else {
-                    self.corners[j].iter().enumerate().filter(|(_, c)| c[0] != NONE).map(|(t, c)| (t as u32, *c)).collect()
+                    self.corners[j].iter().enumerate().filter(|(_, c)| distinct(**c)).map(|(t, c)| (t as u32, *c)).collect()
                 },
             })
             .collect();
         Keyframe { bands }
     }
+}
+
+/// Whether three corners are three different nodes (the triangle is alive at their level).
+#[inline]
+pub fn distinct(c: [u32; 3]) -> bool {
+    c[0] != c[1] && c[1] != c[2] && c[0] != c[2]
 }
 
 /// Data that does not fit the hierarchy it is applied to.
@@ -201,8 +208,6 @@ pub enum DeltaError {
     SwapMismatch { index: usize, level: u32, v: u32, from: u32, actual: u32 },
     #[error("swap {index}: cluster {from} of level {} would be left empty", level + 1)]
     EmptyCluster { index: usize, level: u32, from: u32 },
-    #[error("degenerate-set delta {index}: triangle {triangle} or node {node} out of range")]
-    DegenerateOutOfRange { index: usize, triangle: u32, node: u32 },
     #[error("corner update {index}: triangle {triangle} or a corner out of range at level {level}")]
     CornerOutOfRange { index: usize, level: u32, triangle: u32 },
     #[error("keyframe: {0}")]
@@ -213,18 +218,24 @@ pub enum DeltaError {
 ///
 /// The cut is the set of expanded nodes (levels L+1 and up), closed upward. The shown triangles
 /// are kept as a dense list (ready to become an index buffer) with each triangle's slot, so
-/// showing and hiding are O(1). A degenerate-set delta `(t, new)` shows or hides t according to
-/// whether its new node is expanded; a swap that hangs an expanded node under an unexpanded one
-/// collapses that node's subtree so the cut stays closed (section 5.1 leaves the policy open;
-/// collapsing never raises the triangle count).
+/// showing and hiding are O(1). A triangle whose degeneration node changes is shown or hidden
+/// according to whether its new node is expanded; a swap that hangs an expanded node under an
+/// unexpanded one collapses that node's subtree so the cut stays closed (section 5.1 leaves the
+/// policy open; collapsing never raises the triangle count).
 #[derive(Clone, Debug)]
 pub struct Replay {
     pub h: Hierarchy,
     /// Finest level this replay tracks.
     pub min_level: usize,
-    /// Level-L corners of every triangle alive at L (`[NONE; 3]` for others).
+    /// Level-L corners of every triangle (`[NONE; 3]` or a repeated node where not alive).
     corners: Vec<[u32; 3]>,
+    /// For every level-L node (local id), the triangles alive at L with a corner there.
+    incident: Vec<Vec<u32>>,
     node_of: Vec<u32>,
+    /// Scratch of `apply`: triangles whose degeneration node may have changed, and a mark per
+    /// triangle so each is listed once.
+    affected: Vec<u32>,
+    marked: Vec<bool>,
     /// D sets per node (global id), unordered, and each triangle's slot in its set.
     sets: Vec<Vec<u32>>,
     slot_in_set: Vec<u32>,
@@ -306,7 +317,10 @@ impl Replay {
             h,
             min_level,
             corners: vec![[NONE; 3]; triangle_count],
+            incident: Vec::new(),
             node_of: vec![BELOW; triangle_count],
+            affected: Vec::new(),
+            marked: vec![false; triangle_count],
             sets: vec![Vec::new(); total],
             slot_in_set: vec![NONE; triangle_count],
             children: vec![Vec::new(); total],
@@ -316,29 +330,43 @@ impl Replay {
         }
     }
 
-    /// Derives degeneration nodes, D sets and children from corners and parent maps, with the
-    /// coarsest cut.
+    /// Degeneration node of triangle t from its level-L corners and the parent maps: the node
+    /// where two corners' ancestor chains first meet ([`NONE`] if they never do, [`BELOW`] if
+    /// they meet at L already, i.e. t is not alive here).
+    fn degeneration_of(&self, t: usize) -> u32 {
+        let h = &self.h;
+        let [mut x, mut y, mut z] = self.corners[t];
+        if x == NONE || !distinct([x, y, z]) {
+            return BELOW;
+        }
+        for k in self.min_level..h.levels() - 1 {
+            let p = &h.parent[k];
+            (x, y, z) = (p[x as usize], p[y as usize], p[z as usize]);
+            if x == y || x == z {
+                return h.offsets[k + 1] + x;
+            }
+            if y == z {
+                return h.offsets[k + 1] + y;
+            }
+        }
+        NONE
+    }
+
+    /// Derives degeneration nodes, D sets, incidence and children from corners and parent
+    /// maps, with the coarsest cut.
     fn rebuild(&mut self) {
         let h = &self.h;
         let l = self.min_level;
         for t in 0..self.corners.len() {
-            let [mut x, mut y, mut z] = self.corners[t];
-            let mut node = if x == NONE || x == y || y == z || x == z { BELOW } else { NONE };
-            if node == NONE {
-                for k in l..h.levels() - 1 {
-                    let p = &h.parent[k];
-                    (x, y, z) = (p[x as usize], p[y as usize], p[z as usize]);
-                    if x == y || x == z {
-                        node = h.offsets[k + 1] + x;
-                        break;
-                    }
-                    if y == z {
-                        node = h.offsets[k + 1] + y;
-                        break;
-                    }
+            self.node_of[t] = self.degeneration_of(t);
+        }
+        self.incident = vec![Vec::new(); h.level_sizes[l] as usize];
+        for (t, c) in self.corners.iter().enumerate() {
+            if c[0] != NONE && distinct(*c) {
+                for &x in c {
+                    self.incident[x as usize].push(t as u32);
                 }
             }
-            self.node_of[t] = node;
         }
         for s in &mut self.sets {
             s.clear();
@@ -468,14 +496,20 @@ impl Replay {
         crate::cut::cut_nodes_from(&self.h, &self.expanded, self.min_level)
     }
 
-    /// Applies one frame's delta (the bands from `min_level` up; other parts are ignored),
-    /// updating the hierarchy, the degenerate sets, the corners and the shown triangles. On
-    /// error the replay is left partly updated and should be discarded (the stream is corrupt).
+    /// Applies one frame's delta (the bands from `min_level` up; other parts are ignored):
+    /// swaps, then corner updates at `min_level`, then the degeneration nodes of exactly the
+    /// triangles these can have changed (a corner under a moved node, or new corners) are
+    /// derived again, and those triangles move between D sets and are shown or hidden. The
+    /// delta's own `degenerate` list is not read. On error the replay is left partly updated
+    /// and should be discarded (the stream is corrupt).
     pub fn apply(&mut self, delta: &FrameDelta) -> Result<(), DeltaError> {
         let levels = self.h.levels();
+        let l = self.min_level;
+        let level_base = self.h.offsets[l];
+        let mut moved: Vec<u32> = Vec::new();
         for (index, s) in delta.swaps.iter().enumerate() {
             let k = s.level as usize;
-            if k < self.min_level {
+            if k < l {
                 continue;
             }
             if k + 1 >= levels || s.v >= self.h.level_sizes[k] || s.to >= self.h.level_sizes[k + 1] || s.from >= self.h.level_sizes[k + 1] {
@@ -497,60 +531,101 @@ impl Replay {
             if self.expanded[gv as usize] && !self.expanded[gb as usize] {
                 self.collapse(gv);
             }
+            moved.push(gv);
         }
         // A cluster may empty transiently when net parent changes are applied in node order;
         // only the state after all swaps must leave no cluster empty.
         for (index, s) in delta.swaps.iter().enumerate() {
             let k = s.level as usize;
-            if k >= self.min_level && self.children[(self.h.offsets[k + 1] + s.from) as usize].is_empty() {
+            if k >= l && self.children[(self.h.offsets[k + 1] + s.from) as usize].is_empty() {
                 return Err(DeltaError::EmptyCluster { index, level: s.level, from: s.from });
             }
         }
-        let total = self.expanded.len() as u32;
-        let below_limit = self.h.offsets[self.min_level + 1];
-        for (index, d) in delta.degenerate.iter().enumerate() {
-            let (t, g) = (d.t, d.new);
-            if t as usize >= self.node_of.len() || (g != NONE && g >= total) {
-                return Err(DeltaError::DegenerateOutOfRange { index, triangle: t, node: g });
-            }
-            // Nodes at or below min_level are not tracked here.
-            let g = if g != NONE && g < below_limit { BELOW } else { g };
-            let old = self.node_of[t as usize];
-            if old == g {
-                continue;
-            }
-            if old != NONE && old != BELOW {
-                let set = &mut self.sets[old as usize];
-                let slot = self.slot_in_set[t as usize] as usize;
-                if slot < set.len() {
-                    set.swap_remove(slot);
-                    if let Some(&moved) = set.get(slot) {
-                        self.slot_in_set[moved as usize] = slot as u32;
-                    }
-                }
-            }
-            if g != NONE && g != BELOW {
-                self.slot_in_set[t as usize] = self.sets[g as usize].len() as u32;
-                self.sets[g as usize].push(t);
-            } else {
-                self.slot_in_set[t as usize] = NONE;
-            }
-            self.node_of[t as usize] = g;
-            if g == NONE || (g != BELOW && self.expanded[g as usize]) { self.show(t) } else { self.hide(t) }
-        }
-        if self.min_level > 0 {
-            let size = self.h.level_sizes[self.min_level];
+        if l > 0 {
+            let size = self.h.level_sizes[l];
             for (index, c) in delta.corners.iter().enumerate() {
-                if c.level as usize != self.min_level {
+                if c.level as usize != l {
                     continue;
                 }
-                if c.t as usize >= self.corners.len() || c.corners.iter().any(|&x| x >= size) {
+                let t = c.t as usize;
+                if t >= self.corners.len() || c.corners.iter().any(|&x| x >= size) {
                     return Err(DeltaError::CornerOutOfRange { index, level: c.level, triangle: c.t });
                 }
-                self.corners[c.t as usize] = c.corners;
+                let old = self.corners[t];
+                if old[0] != NONE && distinct(old) {
+                    for x in old {
+                        let list = &mut self.incident[x as usize];
+                        if let Some(i) = list.iter().position(|&u| u == c.t) {
+                            list.swap_remove(i);
+                        }
+                    }
+                }
+                self.corners[t] = c.corners;
+                if distinct(c.corners) {
+                    for x in c.corners {
+                        self.incident[x as usize].push(c.t);
+                    }
+                }
+                self.mark(c.t);
             }
         }
+        // Triangles with a level-L corner under a moved node: their ancestor chains changed.
+        let mut stack: Vec<u32> = Vec::new();
+        for gv in moved {
+            stack.push(gv);
+            while let Some(x) = stack.pop() {
+                if x < self.h.offsets[l + 1] {
+                    for i in 0..self.incident[(x - level_base) as usize].len() {
+                        let t = self.incident[(x - level_base) as usize][i];
+                        self.mark(t);
+                    }
+                } else {
+                    stack.extend_from_slice(&self.children[x as usize]);
+                }
+            }
+        }
+        for i in 0..self.affected.len() {
+            let t = self.affected[i];
+            self.marked[t as usize] = false;
+            let g = self.degeneration_of(t as usize);
+            self.set_degeneration(t, g);
+        }
+        self.affected.clear();
         Ok(())
+    }
+
+    #[inline]
+    fn mark(&mut self, t: u32) {
+        if !self.marked[t as usize] {
+            self.marked[t as usize] = true;
+            self.affected.push(t);
+        }
+    }
+
+    /// Moves triangle t into D_g (g may be [`NONE`] or [`BELOW`]) and shows or hides it.
+    fn set_degeneration(&mut self, t: u32, g: u32) {
+        let old = self.node_of[t as usize];
+        if old == g {
+            return;
+        }
+        if old != NONE && old != BELOW {
+            let set = &mut self.sets[old as usize];
+            let slot = self.slot_in_set[t as usize] as usize;
+            if slot < set.len() {
+                set.swap_remove(slot);
+                if let Some(&moved) = set.get(slot) {
+                    self.slot_in_set[moved as usize] = slot as u32;
+                }
+            }
+        }
+        if g != NONE && g != BELOW {
+            self.slot_in_set[t as usize] = self.sets[g as usize].len() as u32;
+            self.sets[g as usize].push(t);
+        } else {
+            self.slot_in_set[t as usize] = NONE;
+        }
+        self.node_of[t as usize] = g;
+        if g == NONE || (g != BELOW && self.expanded[g as usize]) { self.show(t) } else { self.hide(t) }
     }
 }
 

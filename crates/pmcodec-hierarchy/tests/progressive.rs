@@ -6,7 +6,7 @@ mod common;
 use common::*;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
 use pmcodec_hierarchy::cut::{self, ChildIndex, Cut, CutTarget};
-use pmcodec_hierarchy::progressive::{BELOW, DegenerateDelta, DeltaError, Encoder, FrameDelta, Replay, node_level};
+use pmcodec_hierarchy::progressive::{BELOW, CornerUpdate, DeltaError, Encoder, FrameDelta, Replay, node_level};
 use pmcodec_hierarchy::recluster::{ReclusterOptions, Swap};
 use pmcodec_hierarchy::*;
 
@@ -115,20 +115,25 @@ fn corrupt_deltas_are_rejected() {
     let seq = grid(10, 10, 1);
     let (_, base) = encoder_for(&seq, ReclusterOptions::default());
     let mut r = Replay::new(base.clone(), &seq.triangles);
-    let bad = |swaps: Vec<Swap>, degenerate: Vec<(u32, u32)>| FrameDelta {
-        swaps,
-        degenerate: degenerate.into_iter().map(|(t, new)| DegenerateDelta { t, old: NONE, new }).collect(),
-        corners: vec![],
-    };
+    let bad = |swaps: Vec<Swap>, _: Vec<(u32, u32)>| FrameDelta { swaps, degenerate: vec![], corners: vec![] };
     let e = r.apply(&bad(vec![Swap { level: 99, v: 0, from: 0, to: 0 }], vec![])).unwrap_err();
     assert!(matches!(e, DeltaError::SwapOutOfRange { .. }));
     let actual = base.parent[0][0];
     let e = r.apply(&bad(vec![Swap { level: 0, v: 0, from: actual + 1, to: actual }], vec![])).unwrap_err();
     assert!(matches!(e, DeltaError::SwapMismatch { .. }), "{e}");
-    let e = r.apply(&bad(vec![], vec![(u32::MAX - 1, 0)])).unwrap_err();
-    assert!(matches!(e, DeltaError::DegenerateOutOfRange { .. }));
-    let e = r.apply(&bad(vec![], vec![(0, u32::MAX - 1)])).unwrap_err();
-    assert!(matches!(e, DeltaError::DegenerateOutOfRange { .. }));
+    // A level-1 replay rejects corner updates naming a triangle or a node that does not exist.
+    let mut enc =
+        Encoder::new(base.clone(), FineTopology::new(seq.vertex_count() as u32, &seq.triangles), seq.triangles.clone(), Default::default());
+    let key = enc.keyframe();
+    let h = enc.hierarchy().clone();
+    let mut r1 = Replay::from_keyframe(&h.level_sizes, h.branching, &key, 1, seq.triangles.len(), None).expect("keyframe");
+    let corner =
+        |t: u32, corners: [u32; 3]| FrameDelta { swaps: vec![], degenerate: vec![], corners: vec![CornerUpdate { level: 1, t, corners }] };
+    let e = r1.apply(&corner(u32::MAX - 1, [0, 1, 2])).unwrap_err();
+    assert!(matches!(e, DeltaError::CornerOutOfRange { .. }), "{e}");
+    let e = r1.apply(&corner(0, [0, 1, h.level_sizes[1]])).unwrap_err();
+    assert!(matches!(e, DeltaError::CornerOutOfRange { .. }), "{e}");
+    let _ = enc.encode_frame(&seq.frames[0]);
 }
 
 /// A client that stops at level L: it starts from a keyframe's bands L.. and reads only the

@@ -138,13 +138,13 @@ impl LoadedAsset {
     }
 
     /// The chunks a client that draws down to `level` needs, in file order (which is playback
-    /// order): every chunk of the bands `level..=top` of the frames from `from` on, and the
-    /// input triangles when `level` is 0.
+    /// order): the chunks of the bands `level..=top` of the frames from `from` on (faces and
+    /// corners of band `level` only), and the input triangles when `level` is 0.
     pub fn chunks_for(&self, level: usize, from: u32) -> impl Iterator<Item = (usize, &ChunkEntry)> {
-        self.chunks.iter().enumerate().filter(move |(_, e)| match e.kind {
-            ChunkKind::Triangles => level == 0,
-            _ => e.band as usize >= level && e.frame >= from,
-        })
+        self.chunks
+            .iter()
+            .enumerate()
+            .filter(move |(_, e)| e.kind.read_at(e.band as usize, level) && (e.kind == ChunkKind::Triangles || e.frame >= from))
     }
 }
 

@@ -451,8 +451,9 @@ async fn index(State(app): State<AppState>, p: Params, Q(q): Q<IndexQuery>, head
     check_level(&a, level)?;
     let base = format!("/v1/assets/{}/v/{}", a.id, a.version);
     let mut chunks = Vec::new();
-    // Per frame: the first and last byte of its selected chunks (contiguous: bands are stored
-    // top first within a frame, so bands >= L are a prefix of the frame's chunks).
+    // Per frame: the first and last byte of its selected chunks. For level 0 they are
+    // contiguous; for level L > 0 the span also covers the faces and corners of bands above L
+    // (stored before the main bands, and smaller the coarser the band).
     let mut frames: Vec<Option<(u64, u64)>> = vec![None; a.header.frame_count as usize];
     for (n, e) in a.chunks_for(level, 0) {
         let r = a.chunk_range(e);

@@ -206,7 +206,7 @@ async fn the_stream_is_the_header_then_the_chosen_bands_in_playback_order() {
         .chunks
         .iter()
         .enumerate()
-        .filter(|(_, e)| e.band >= 1 && e.frame >= 4 && e.kind != pmcodec_container::ChunkKind::Triangles)
+        .filter(|(_, e)| e.kind.read_at(e.band as usize, 1) && e.frame >= 4 && e.kind != pmcodec_container::ChunkKind::Triangles)
     {
         let start = head + e.offset as usize;
         let piece = &whole[start..start + e.stored_len as usize];
