@@ -177,9 +177,19 @@ impl<S: ByteSource> Decoder<S> {
             self.lower = LowerNeighbours::new(h.vertex_count as usize, &triangles);
             self.triangles = Some(triangles);
         }
-        let replay = Replay::from_keyframe(sizes, h.branching, &key, self.min_level, h.triangle_count as usize, self.triangles.as_deref())
-            .map_err(|source| ContainerError::Delta { what: format!("frame {frame} keyframe"), source })?;
-        self.replay = Some(replay);
+        let fail = |source| ContainerError::Delta { what: format!("frame {frame} keyframe"), source };
+        // A replay of this file is reused (no allocation); a failed load leaves none.
+        match self.replay.take() {
+            Some(mut r) => {
+                r.reload(&key, self.triangles.as_deref()).map_err(fail)?;
+                self.replay = Some(r);
+            }
+            None => {
+                let tris = self.triangles.as_deref();
+                let r = Replay::from_keyframe(sizes, h.branching, &key, self.min_level, h.triangle_count as usize, tris).map_err(fail)?;
+                self.replay = Some(r);
+            }
+        }
         self.decode_positions(frame, true)?;
         self.frame = Some(frame);
         Ok(())

@@ -199,6 +199,52 @@ pub fn distinct(c: [u32; 3]) -> bool {
     c[0] != c[1] && c[1] != c[2] && c[0] != c[2]
 }
 
+/// Triangles by level-L corner: a flat list per node built at a keyframe (CSR), plus the
+/// additions corner updates make until the next keyframe. Removals are not recorded: a reader
+/// checks that the triangle still has that corner. (Thousands of small vectors made keyframe
+/// loads, and so seeks, a tenth slower.)
+#[derive(Clone, Debug, Default)]
+struct Incidence {
+    offsets: Vec<u32>,
+    list: Vec<u32>,
+    extra: std::collections::HashMap<u32, Vec<u32>>,
+}
+
+impl Incidence {
+    /// Over `size` nodes, from every triangle whose corners are distinct.
+    fn new(size: usize, corners: &[[u32; 3]]) -> Self {
+        let alive = |c: &[u32; 3]| c[0] != NONE && distinct(*c);
+        let mut offsets = vec![0u32; size + 1];
+        for c in corners.iter().filter(|c| alive(c)) {
+            for &x in c {
+                offsets[x as usize + 1] += 1;
+            }
+        }
+        for i in 0..size {
+            offsets[i + 1] += offsets[i];
+        }
+        let mut fill = offsets.clone();
+        let mut list = vec![0u32; offsets[size] as usize];
+        for (t, c) in corners.iter().enumerate().filter(|(_, c)| alive(c)) {
+            for &x in c {
+                list[fill[x as usize] as usize] = t as u32;
+                fill[x as usize] += 1;
+            }
+        }
+        Incidence { offsets, list, extra: Default::default() }
+    }
+
+    fn add(&mut self, x: u32, t: u32) {
+        self.extra.entry(x).or_default().push(t);
+    }
+
+    /// Triangles that have, or had, corner x (callers filter stale entries).
+    fn of(&self, x: u32) -> (&[u32], &[u32]) {
+        let (a, b) = (self.offsets[x as usize] as usize, self.offsets[x as usize + 1] as usize);
+        (&self.list[a..b], self.extra.get(&x).map_or(&[], Vec::as_slice))
+    }
+}
+
 /// Data that does not fit the hierarchy it is applied to.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 pub enum DeltaError {
@@ -230,7 +276,7 @@ pub struct Replay {
     /// Level-L corners of every triangle (`[NONE; 3]` or a repeated node where not alive).
     corners: Vec<[u32; 3]>,
     /// For every level-L node (local id), the triangles alive at L with a corner there.
-    incident: Vec<Vec<u32>>,
+    incident: Incidence,
     node_of: Vec<u32>,
     /// Scratch of `apply`: triangles whose degeneration node may have changed, and a mark per
     /// triangle so each is listed once.
@@ -292,23 +338,51 @@ impl Replay {
             }))
             .collect();
         let mut r = Self::empty(h, min_level, triangle_count);
+        r.fill_corners(key, triangles)?;
+        r.rebuild();
+        Ok(r)
+    }
+
+    /// Loads another keyframe of the same file into this replay, reusing its memory (a seek
+    /// that crosses keyframes then allocates almost nothing). Same checks as [`Self::from_keyframe`];
+    /// on error the replay is left unusable until a keyframe loads.
+    pub fn reload(&mut self, key: &Keyframe, triangles: Option<&[[u32; 3]]>) -> Result<(), DeltaError> {
+        let (levels, min_level) = (self.h.levels(), self.min_level);
+        if key.bands.len() != levels {
+            return Err(DeltaError::Keyframe(format!("{} bands for {levels} levels", key.bands.len())));
+        }
+        for j in min_level..levels - 1 {
+            let p = &key.bands[j].parent;
+            if p.len() != self.h.level_sizes[j] as usize || p.iter().any(|&x| x >= self.h.level_sizes[j + 1]) {
+                return Err(DeltaError::Keyframe(format!("band {j}: parent map does not fit the level sizes")));
+            }
+            self.h.parent[j].copy_from_slice(p);
+        }
+        self.corners.iter_mut().for_each(|c| *c = [NONE; 3]);
+        self.fill_corners(key, triangles)?;
+        self.rebuild();
+        Ok(())
+    }
+
+    /// Level-L corners from the input triangles (L = 0) or the keyframe's faces.
+    fn fill_corners(&mut self, key: &Keyframe, triangles: Option<&[[u32; 3]]>) -> Result<(), DeltaError> {
+        let (min_level, triangle_count) = (self.min_level, self.corners.len());
         if min_level == 0 {
             let tris = triangles.ok_or_else(|| DeltaError::Keyframe("level 0 needs the input triangles".into()))?;
-            if tris.len() != triangle_count || tris.iter().flatten().any(|&v| v >= level_sizes[0]) {
+            if tris.len() != triangle_count || tris.iter().flatten().any(|&v| v >= self.h.level_sizes[0]) {
                 return Err(DeltaError::Keyframe("input triangles do not fit the header".into()));
             }
-            r.corners = tris.to_vec();
+            self.corners.copy_from_slice(tris);
         } else {
-            let size = level_sizes[min_level];
+            let size = self.h.level_sizes[min_level];
             for &(t, c) in &key.bands[min_level].faces {
                 if t as usize >= triangle_count || c.iter().any(|&x| x >= size) {
                     return Err(DeltaError::Keyframe(format!("band {min_level}: face of triangle {t} out of range")));
                 }
-                r.corners[t as usize] = c;
+                self.corners[t as usize] = c;
             }
         }
-        r.rebuild();
-        Ok(r)
+        Ok(())
     }
 
     fn empty(h: Hierarchy, min_level: usize, triangle_count: usize) -> Self {
@@ -317,7 +391,7 @@ impl Replay {
             h,
             min_level,
             corners: vec![[NONE; 3]; triangle_count],
-            incident: Vec::new(),
+            incident: Incidence::default(),
             node_of: vec![BELOW; triangle_count],
             affected: Vec::new(),
             marked: vec![false; triangle_count],
@@ -360,14 +434,9 @@ impl Replay {
         for t in 0..self.corners.len() {
             self.node_of[t] = self.degeneration_of(t);
         }
-        self.incident = vec![Vec::new(); h.level_sizes[l] as usize];
-        for (t, c) in self.corners.iter().enumerate() {
-            if c[0] != NONE && distinct(*c) {
-                for &x in c {
-                    self.incident[x as usize].push(t as u32);
-                }
-            }
-        }
+        self.incident = Incidence::new(h.level_sizes[l] as usize, &self.corners);
+        self.affected.clear();
+        self.marked.iter_mut().for_each(|m| *m = false);
         for s in &mut self.sets {
             s.clear();
         }
@@ -506,7 +575,8 @@ impl Replay {
         let levels = self.h.levels();
         let l = self.min_level;
         let level_base = self.h.offsets[l];
-        let mut moved: Vec<u32> = Vec::new();
+        // Moved nodes with their level.
+        let mut moved: Vec<(u32, usize)> = Vec::new();
         for (index, s) in delta.swaps.iter().enumerate() {
             let k = s.level as usize;
             if k < l {
@@ -531,7 +601,7 @@ impl Replay {
             if self.expanded[gv as usize] && !self.expanded[gb as usize] {
                 self.collapse(gv);
             }
-            moved.push(gv);
+            moved.push((gv, k));
         }
         // A cluster may empty transiently when net parent changes are applied in node order;
         // only the state after all swaps must leave no cluster empty.
@@ -551,33 +621,35 @@ impl Replay {
                 if t >= self.corners.len() || c.corners.iter().any(|&x| x >= size) {
                     return Err(DeltaError::CornerOutOfRange { index, level: c.level, triangle: c.t });
                 }
-                let old = self.corners[t];
-                if old[0] != NONE && distinct(old) {
-                    for x in old {
-                        let list = &mut self.incident[x as usize];
-                        if let Some(i) = list.iter().position(|&u| u == c.t) {
-                            list.swap_remove(i);
-                        }
-                    }
-                }
                 self.corners[t] = c.corners;
                 if distinct(c.corners) {
                     for x in c.corners {
-                        self.incident[x as usize].push(c.t);
+                        self.incident.add(x, c.t);
                     }
                 }
                 self.mark(c.t);
             }
         }
-        // Triangles with a level-L corner under a moved node: their ancestor chains changed.
+        // Triangles with a level-L corner under a moved level-k node: their ancestor chains
+        // changed above k. Only those whose corners had not met by level k can change (two
+        // corners that meet at or below k meet under the moved node, wherever it hangs), which
+        // skips most triangles under a coarse node. `node_of` still holds the previous frame's.
         let mut stack: Vec<u32> = Vec::new();
-        for gv in moved {
+        for (gv, k) in moved {
+            let above = self.h.offsets[k + 1];
             stack.push(gv);
             while let Some(x) = stack.pop() {
                 if x < self.h.offsets[l + 1] {
-                    for i in 0..self.incident[(x - level_base) as usize].len() {
-                        let t = self.incident[(x - level_base) as usize][i];
-                        self.mark(t);
+                    let xl = x - level_base;
+                    let (base, extra) = self.incident.of(xl);
+                    for &t in base.iter().chain(extra) {
+                        // Entries go stale when corner updates move a triangle away from xl.
+                        let c = self.corners[t as usize];
+                        let g = self.node_of[t as usize];
+                        if (g == NONE || g >= above) && c.contains(&xl) && distinct(c) && !self.marked[t as usize] {
+                            self.marked[t as usize] = true;
+                            self.affected.push(t);
+                        }
                     }
                 } else {
                     stack.extend_from_slice(&self.children[x as usize]);
