@@ -479,6 +479,12 @@ impl Replay {
         &self.shown
     }
 
+    /// Whether triangle t is shown.
+    #[inline]
+    pub fn is_shown(&self, t: u32) -> bool {
+        self.slot_in_shown.get(t as usize).is_some_and(|&s| s != NONE)
+    }
+
     pub fn expanded(&self) -> &[bool] {
         &self.expanded
     }
