@@ -5,7 +5,9 @@
 //! encoding cost anything); otherwise it clones the nearest state at a frame before f in the same
 //! keyframe interval and steps the clone forward, or starts from the keyframe. The new state is
 //! kept too, so once an asset is warm, random frames cost no replay at all; the LRU bounds the
-//! memory. Every request of one keyframe interval goes to the same worker (see `route`).
+//! memory. Every request for one frame goes to the same worker (the one holding its state);
+//! frames spread over the workers, so a cold frame finds earlier states of its interval on its
+//! own worker about 1/workers of the time.
 //!
 //! The container's `Decoder` owns its `Reader`, which counts bytes in a `Cell`, so a state is
 //! `Send` but not `Sync`. Each state lives on one worker thread for its whole life (requests are
@@ -125,9 +127,10 @@ impl DecodePool {
             MeshTarget::Level(l) => l,
             _ => 0,
         };
-        // Routed by keyframe interval, so that the states a request can start from are all on
-        // the worker that gets it.
-        let key = (asset.version.clone(), min_level, asset.header.keyframe_before(req.frame));
+        // Routed by frame: the worker that holds the frame's state gets it, and a hot asset's
+        // frames spread evenly over the workers (routing by keyframe interval left a worker
+        // idle when an asset has fewer intervals than there are workers).
+        let key = (asset.version.clone(), min_level, req.frame);
         let (tx, rx) = tokio::sync::oneshot::channel();
         self.stats.requests.fetch_add(1, Ordering::Relaxed);
         match self.worker_for(&key).try_send(Msg::Decode(Box::new(Job { asset, req, min_level, reply: tx }))) {
@@ -151,11 +154,12 @@ impl DecodePool {
     }
 }
 
-/// A rough size of a decoder state: per node its parent, positions (current and previous) and
-/// bookkeeping; per triangle its corners and degeneration node; plus the reader's index.
+/// A rough size of a decoder state: per node its parent, positions (current and previous,
+/// dequantized), split priority and bookkeeping; per triangle its corners, incidence and
+/// degeneration node; plus the reader's index.
 fn state_weight(asset: &LoadedAsset) -> u64 {
     let h = &asset.header;
-    64 * h.node_count() + 48 * h.triangle_count as u64 + 32 * asset.chunks.len() as u64 + 4096
+    84 * h.node_count() + 60 * h.triangle_count as u64 + 32 * asset.chunks.len() as u64 + 4096
 }
 
 fn worker(w: usize, rx: Receiver<Msg>, capacity: u64, stats: &DecodeStats) {
