@@ -121,6 +121,22 @@ impl FromRequestParts<AppState> for WriteAccess {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct CompressWhenItPays;
 
+/// Runs outside the compression layer: a compressed body is a different byte sequence from the
+/// identity one, so the representation's strong entity tag (RFC 9110 8.8.1) becomes weak. Its
+/// revalidations still match (If-None-Match compares weakly) and no cache can pair the
+/// compressed bytes with an identity range.
+pub async fn weaken_etag_when_encoded(req: Request, next: Next) -> Response {
+    let mut resp = next.run(req).await;
+    let h = resp.headers_mut();
+    if h.contains_key(header::CONTENT_ENCODING)
+        && let Some(tag) = h.get(header::ETAG).and_then(|v| v.to_str().ok()).filter(|t| !t.starts_with("W/"))
+        && let Ok(weak) = HeaderValue::from_str(&format!("W/{tag}"))
+    {
+        h.insert(header::ETAG, weak);
+    }
+    resp
+}
+
 impl tower_http::compression::Predicate for CompressWhenItPays {
     fn should_compress<B>(&self, response: &axum::http::Response<B>) -> bool
     where

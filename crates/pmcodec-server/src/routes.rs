@@ -102,6 +102,7 @@ pub fn router(app: AppState) -> Router {
         .fallback(fallback)
         .with_state(app.clone())
         .layer(tower_http::compression::CompressionLayer::new().compress_when(CompressWhenItPays))
+        .layer(axum::middleware::from_fn(middleware::weaken_etag_when_encoded))
         .layer(middleware::cors(&app.config.cors.allow_origins))
         .layer(axum::middleware::from_fn_with_state(app.clone(), middleware::request_context))
 }

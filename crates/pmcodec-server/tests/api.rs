@@ -306,3 +306,21 @@ async fn every_mounted_route_answers_with_json_or_data() {
         assert!(!no_route, "{method} {route} is not mounted");
     }
 }
+
+#[tokio::test]
+async fn compressed_json_gets_a_weak_entity_tag_that_still_revalidates() {
+    let (app, _) = app().await;
+    let info = get(&app, "/v1/assets/cloth", &[]).await.json();
+    let index = info["index"].as_str().unwrap().to_string();
+    let plain = get(&app, &index, &[]).await;
+    assert_eq!(plain.status, StatusCode::OK);
+    assert!(plain.headers.get(header::CONTENT_ENCODING).is_none());
+    let strong = plain.header("etag").to_string();
+    assert!(strong.starts_with('"'), "{strong}");
+    let gz = get(&app, &index, &[("accept-encoding", "gzip")]).await;
+    assert_eq!(gz.header("content-encoding"), "gzip");
+    assert_eq!(gz.header("etag"), format!("W/{strong}"));
+    // Revalidating with the weak tag is a 304.
+    let again = get(&app, &index, &[("accept-encoding", "gzip"), ("if-none-match", gz.header("etag"))]).await;
+    assert_eq!(again.status, StatusCode::NOT_MODIFIED);
+}
