@@ -32,19 +32,23 @@ pub struct EncodeOptions {
     pub keyframe_interval: u32,
     pub quantization: QuantizationChoice,
     /// Coarser nodes on a grid of `2^(level + k)` quanta (see [`crate::coarse_shift`]): fewer
-    /// bits, coarser cuts. None (the default) keeps every stored position within the bound.
+    /// bits, coarser cuts. The default, `Some(0)`, stores level j on a grid of about 2^j quanta,
+    /// far below the geometric error of its nodes (horse at 12 bits: 8% fewer bytes, 4% more RMS
+    /// error at 10% of the triangles). None keeps every stored position within the bound.
     pub coarse_grid: Option<u32>,
 }
 
 impl Default for EncodeOptions {
     fn default() -> Self {
         EncodeOptions {
-            build: BuildOptions::default(),
+            // Levels at 25% and 10% of the input, the budgets LOD chains commonly ship, then
+            // every 4x: a client drawing 10% of the triangles reads bands 2.. only.
+            build: BuildOptions { anchors: vec![0.25, 0.10], ..BuildOptions::default() },
             base: BaseOptions::default(),
             recluster: ReclusterOptions::default(),
             keyframe_interval: 16,
             quantization: QuantizationChoice::MaxError(1e-4),
-            coarse_grid: None,
+            coarse_grid: Some(0),
         }
     }
 }

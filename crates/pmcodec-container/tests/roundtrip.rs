@@ -275,25 +275,32 @@ fn header_snapshot() {
     let reader = Reader::open(bytes.as_slice()).unwrap();
     let h = reader.header();
     assert_eq!((h.vertex_count, h.triangle_count, h.frame_count), (108, 176, 3));
-    assert_eq!(h.level_sizes, vec![108, 27]);
+    // Levels anchored at 25% and 10% of the input, then every 4x while above 8.
+    assert_eq!(h.level_sizes, vec![108, 27, 11]);
     assert_eq!(h.keyframe_interval, 16);
     // Deterministic output: encoding twice gives the same bytes.
     assert_eq!(bytes, encode(&wave(3), &EncodeOptions::default(), |_| {}).unwrap());
     // Index order: triangles, then frame 0: the faces and corners only a client stopping at
-    // band 1.. reads, then bands top..0, each key, delta, positions.
-    let kinds: Vec<(ChunkKind, u32, u32)> = reader.index().chunks.iter().take(9).map(|e| (e.kind, e.frame, e.band)).collect();
+    // band 1.. reads (band 1 first), then bands top..0, each key, delta, positions.
+    let kinds: Vec<(ChunkKind, u32, u32)> = reader.index().chunks.iter().take(15).map(|e| (e.kind, e.frame, e.band)).collect();
     assert_eq!(
         kinds,
         vec![
             (ChunkKind::Triangles, 0, 0),
             (ChunkKind::Faces, 0, 1),
             (ChunkKind::Corners, 0, 1),
+            (ChunkKind::Faces, 0, 2),
+            (ChunkKind::Corners, 0, 2),
+            (ChunkKind::Key, 0, 2),
+            (ChunkKind::Delta, 0, 2),
+            (ChunkKind::Positions, 0, 2),
             (ChunkKind::Key, 0, 1),
             (ChunkKind::Delta, 0, 1),
             (ChunkKind::Positions, 0, 1),
             (ChunkKind::Key, 0, 0),
             (ChunkKind::Delta, 0, 0),
-            (ChunkKind::Positions, 0, 0)
+            (ChunkKind::Positions, 0, 0),
+            (ChunkKind::Corners, 1, 1),
         ]
     );
 }

@@ -9,7 +9,7 @@ fn main() {
     let seq = pmcodec_mesh::obj::load_obj_sequence(std::path::Path::new(&args[1]), 30.0).expect("load");
     let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
     let q = base_quadrics(&seq, &topo, &BaseOptions::default());
-    let h = build(&topo, &q, &BuildOptions { branching: 2, min_coarsest: 16, level_sizes: None }).expect("build");
+    let h = build(&topo, &q, &BuildOptions { branching: 2, min_coarsest: 16, level_sizes: None, anchors: Vec::new() }).expect("build");
     let nodes = NodeState::compute(&h, &q, &seq.frames[0]);
     let (mut sx, mut sy, mut sxx, mut sxy, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0);
     for k in 1..h.levels() {

@@ -21,11 +21,16 @@ pub struct BuildOptions {
     /// Explicit level sizes below |M0| (strictly decreasing), overriding `branching`: used to
     /// put a level at exactly the vertex count an evaluation asks for.
     pub level_sizes: Option<Vec<u32>>,
+    /// Levels 1.. at these fractions of |M0| first (decreasing, in (0, 1)), then every
+    /// `branching` times smaller: so that levels fall on the budgets clients ask for (a client
+    /// at a budget reads the bands down to the coarsest level that holds it). Empty: levels
+    /// 1/b, 1/b^2, ... of |M0|.
+    pub anchors: Vec<f64>,
 }
 
 impl Default for BuildOptions {
     fn default() -> Self {
-        BuildOptions { branching: 4, min_coarsest: 8, level_sizes: None }
+        BuildOptions { branching: 4, min_coarsest: 8, level_sizes: None, anchors: Vec::new() }
     }
 }
 
@@ -39,6 +44,8 @@ pub enum BuildError {
     LevelSizes { fine: u32, sizes: Vec<u32> },
     #[error("the mesh has no vertices")]
     Empty,
+    #[error("level anchor {0}: anchors are decreasing fractions of the input vertices, between 0 and 1")]
+    Anchor(f64),
 }
 
 impl BuildOptions {
@@ -57,10 +64,24 @@ impl BuildOptions {
         if !(2..=16).contains(&self.branching) {
             return Err(BuildError::Branching(self.branching));
         }
-        let mut out = Vec::new();
+        let mut out: Vec<u32> = Vec::new();
+        for &f in &self.anchors {
+            if !(f > 0.0 && f < 1.0) {
+                return Err(BuildError::Anchor(f));
+            }
+            let size = (fine as f64 * f).round() as u32;
+            if size >= out.last().copied().unwrap_or(fine) {
+                return Err(BuildError::Anchor(f));
+            }
+            if size < self.min_coarsest.max(1) {
+                return Ok(out);
+            }
+            out.push(size);
+        }
+        let from = out.last().copied().unwrap_or(fine);
         let mut k = 1;
         loop {
-            let size = (fine as f64 / (self.branching as f64).powi(k)).round() as u32;
+            let size = (from as f64 / (self.branching as f64).powi(k)).round() as u32;
             let prev = out.last().copied().unwrap_or(fine);
             if size < self.min_coarsest.max(1) || size >= prev {
                 break;
@@ -239,7 +260,14 @@ mod tests {
         let o = BuildOptions::default();
         assert_eq!(o.targets(8431).unwrap(), vec![2108, 527, 132, 33, 8]);
         assert!(BuildOptions { branching: 1, ..o.clone() }.targets(100).is_err());
-        assert!(BuildOptions { level_sizes: Some(vec![50, 50]), ..o }.targets(100).is_err());
+        assert!(BuildOptions { level_sizes: Some(vec![50, 50]), ..o.clone() }.targets(100).is_err());
+        // Anchored: 25% and 10%, then every 4x, stopping above min_coarsest.
+        let a = BuildOptions { anchors: vec![0.25, 0.1], ..o.clone() };
+        assert_eq!(a.targets(8431).unwrap(), vec![2108, 843, 211, 53, 13]);
+        assert_eq!(a.targets(100).unwrap(), vec![25, 10]);
+        assert_eq!(a.targets(40).unwrap(), vec![10]);
+        assert!(BuildOptions { anchors: vec![0.1, 0.25], ..o.clone() }.targets(1000).is_err());
+        assert!(BuildOptions { anchors: vec![1.5], ..o.clone() }.targets(1000).is_err());
     }
 
     #[test]

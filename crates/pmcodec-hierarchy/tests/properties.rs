@@ -66,7 +66,7 @@ proptest! {
         let seq = random_sequence(seed, w, h, drop, 4);
         let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
         let q = base_quadrics(&seq, &topo, &BaseOptions::default());
-        let hier = build(&topo, &q, &BuildOptions { branching, min_coarsest: 1, level_sizes: None }).unwrap();
+        let hier = build(&topo, &q, &BuildOptions { branching, min_coarsest: 1, level_sizes: None, anchors: Vec::new() }).unwrap();
         prop_assert!(hier.check(&topo).is_ok(), "{:?}", hier.check(&topo));
         let d = DegenerateSets::new(&hier, &seq.triangles);
         let mut rng = Rng(seed ^ 0x55);

@@ -24,9 +24,14 @@ pub struct EncodeArgs {
     pub output: PathBuf,
     #[command(flatten)]
     pub input_args: InputArgs,
-    /// Branching factor: each level has about 1/b of the vertices of the one below (2..=16).
+    /// Branching factor: each level has about 1/b of the vertices of the one below (2..=16),
+    /// from the last level anchor down.
     #[arg(long, default_value_t = 4)]
     pub branching: u32,
+    /// Levels at these shares of the input vertices first (decreasing percentages), so that
+    /// clients at those budgets read only the coarser bands; `none` for 1/b, 1/b^2, ...
+    #[arg(long, default_value = "25%,10%", value_name = "P%,...")]
+    pub level_anchors: String,
     /// A keyframe every K frames (0: only frame 0).
     #[arg(long, default_value_t = 16)]
     pub keyframe_interval: u32,
@@ -36,10 +41,10 @@ pub struct EncodeArgs {
     /// Quantize positions to this many bits per axis of the bounding box instead.
     #[arg(long)]
     pub quant_bits: Option<u8>,
-    /// Store coarser nodes on a grid of 2^(level + K) quanta: fewer bits, coarser cuts (the
-    /// input vertices stay within the error bound).
-    #[arg(long, value_name = "K")]
-    pub coarse_grid: Option<u32>,
+    /// Store level j >= 1 on a grid of 2^(j + K) quanta: fewer bits, coarser cuts (the input
+    /// vertices stay within the error bound); `none` stores every node within the bound.
+    #[arg(long, value_name = "K|none", default_value = "0")]
+    pub coarse_grid: String,
     /// Quadrics the base hierarchy is built from: `first`, `all`, or a number of sampled frames.
     #[arg(long, default_value = "first")]
     pub base_poses: String,
@@ -60,6 +65,23 @@ pub struct EncodeArgs {
     pub homeomorphism: bool,
 }
 
+fn parse_anchors(s: &str) -> anyhow::Result<Vec<f64>> {
+    if s.trim() == "none" || s.trim().is_empty() {
+        return Ok(Vec::new());
+    }
+    let mut out: Vec<f64> = Vec::new();
+    for part in s.split(',') {
+        let p = part.trim();
+        let v: f64 =
+            p.strip_suffix('%').unwrap_or(p).trim().parse().map_err(|_| anyhow!("--level-anchors {p:?}: use percentages like 25%,10%"))?;
+        if !(v > 0.0 && v < 100.0) || out.last().is_some_and(|&last| v / 100.0 >= last) {
+            return Err(anyhow!("--level-anchors {s:?}: percentages must decrease and lie between 0 and 100"));
+        }
+        out.push(v / 100.0);
+    }
+    Ok(out)
+}
+
 fn parse_poses(s: &str) -> anyhow::Result<PoseSet> {
     match s {
         "first" => Ok(PoseSet::FirstFrame),
@@ -70,8 +92,13 @@ fn parse_poses(s: &str) -> anyhow::Result<PoseSet> {
 
 pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
     let seq = input::load(&args.input, &args.input_args)?;
-    let mut opts = EncodeOptions { keyframe_interval: args.keyframe_interval, coarse_grid: args.coarse_grid, ..Default::default() };
+    let coarse_grid = match args.coarse_grid.trim() {
+        "none" => None,
+        k => Some(k.parse::<u32>().map_err(|_| Exit(2, anyhow!("--coarse-grid {k:?}: use a number of levels or none")))?),
+    };
+    let mut opts = EncodeOptions { keyframe_interval: args.keyframe_interval, coarse_grid, ..Default::default() };
     opts.build.branching = args.branching;
+    opts.build.anchors = parse_anchors(&args.level_anchors).map_err(|e| Exit(2, e))?;
     opts.base.poses = parse_poses(&args.base_poses).map_err(|e| Exit(2, e))?;
     opts.base.weights = match args.base_weights {
         WeightsArg::None => VertexWeights::None,
