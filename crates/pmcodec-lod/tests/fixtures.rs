@@ -131,3 +131,21 @@ fn geomorph_targets_are_nearby_in_every_pose() {
         }
     }
 }
+
+#[test]
+fn refit_does_not_increase_the_error() {
+    use pmcodec_eval::SampleOptions;
+    use pmcodec_lod::measure::{MeasureOptions, animation_error};
+    use pmcodec_lod::{RefitOptions, build_chain_with};
+    let rig = bending_tube_and_face(16, 12);
+    let target = rig.triangles.len() / 8;
+    let opts = LodOptions::default();
+    let off = build_chain_with(rig.clone(), &[target], &opts, &RefitOptions { iterations: 0, ..Default::default() }).expect("chain");
+    let on = build_chain_with(rig, &[target], &opts, &RefitOptions::default()).expect("chain");
+    check_chain(&on);
+    assert_eq!(off.levels[1].rig.triangles, on.levels[1].rig.triangles, "the refit keeps the connectivity");
+    let measure = MeasureOptions { frame_rate: 4.0, samples: SampleOptions { samples: 1500, seed: 7 } };
+    let e_off = animation_error(&off.input, &off.levels[1].rig, &measure).expect("error");
+    let e_on = animation_error(&on.input, &on.levels[1].rig, &measure).expect("error");
+    assert!(e_on.mean <= 1.02 * e_off.mean, "refit {} vs collapse positions {}", e_on.mean, e_off.mean);
+}
