@@ -8,7 +8,7 @@
 //! `(cd tests && npm ci) && node tests/draco-decompress.mjs ../shared/data/gltf/Parrot.glb /tmp/Parrot.glb`
 //! and pass the copy. A file that does not load is reported and skipped.
 //! `LOD_WEIGHTING=none|tertiles|smooth` and `LOD_PER_ANIMATION=N` change the pose options;
-//! `LOD_REFIT=N` the refit rounds (0: off).
+//! `LOD_REFIT=N` the refit rounds (0: off), `LOD_REFIT_MORPH=0` keeps morph deltas out of it.
 
 use pmcodec_lod::measure::{MeasureOptions, animation_error, meshopt_baseline};
 use pmcodec_lod::{LodOptions, Placement, RefitOptions, build_chain_with};
@@ -55,6 +55,9 @@ fn main() -> anyhow::Result<()> {
             let mut refit = RefitOptions::default();
             if let Some(n) = std::env::var("LOD_REFIT").ok().and_then(|s| s.parse().ok()) {
                 refit.iterations = n;
+            }
+            if std::env::var("LOD_REFIT_MORPH").as_deref() == Ok("0") {
+                refit.morph = false;
             }
             let chain = build_chain_with(rig.clone(), &targets, &opts, &refit)?;
             eprintln!("{name}: {} built in {:.1?} over {} poses", placement.name(), t0.elapsed(), chain.pose_count);
