@@ -30,6 +30,14 @@ use pmcodec_eval::triangle::closest_point;
 use pmcodec_mesh::TriMesh;
 use std::collections::HashMap;
 
+/// Most 3x3 blocks of the normal equations (72 bytes each) when morph deltas are refitted too;
+/// beyond it (many vertices with many targets) only the rest positions are.
+pub const MAX_BLOCKS: usize = 1 << 21;
+
+/// Most posed input triangles kept over the poses of a round (about 100 bytes each with their
+/// index); beyond it each pose's input is rebuilt in every round.
+pub const MAX_CACHED_TRIANGLES: usize = 1 << 21;
+
 /// How the refit runs.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RefitOptions {
@@ -422,7 +430,14 @@ pub fn refit(
     let m = ids.len();
     let f = poses.len();
     // Unknowns per vertex: the rest position, then its morph deltas when they are refitted.
-    let dim: Vec<usize> = ids.iter().map(|&id| if opts.morph { 1 + verts[id as usize].morph.len() } else { 1 }).collect();
+    // (Positions alone when the deltas' blocks would not fit [`MAX_BLOCKS`].)
+    let mut sys = System::new(m, &tris);
+    let mut dim: Vec<usize> = ids.iter().map(|&id| if opts.morph { 1 + verts[id as usize].morph.len() } else { 1 }).collect();
+    let blocks =
+        dim.iter().map(|d| d * d).sum::<usize>() + sys.pairs.iter().map(|&(i, j)| dim[i as usize] * dim[j as usize]).sum::<usize>();
+    if blocks > MAX_BLOCKS {
+        dim.iter_mut().for_each(|d| *d = 1);
+    }
     // Per LOD vertex and pose, the affine map from its unknowns' combination to the pose
     // (`maps[v * f + k]`), and the combination's coefficients (`coef[v * f + k]`).
     let records: &[Vertex] = verts;
@@ -439,19 +454,25 @@ pub fn refit(
             coef.push((0..dim[v]).map(|s| if s == 0 { 1.0 } else { w.and_then(|w| w.get(s - 1)).map_or(0.0, |&x| x as f64) }).collect());
         }
     }
-    // The input posed in every pose, its surface index and its sample points.
+    // The input posed in every pose and its surface index: kept for all poses when they fit
+    // [`MAX_CACHED_TRIANGLES`], else rebuilt pose by pose in every round.
     let n = attrs.len();
-    let mut inputs: Vec<(TriMesh, SurfaceIndex)> = Vec::with_capacity(f);
-    for pose in &poses {
+    let posed_input = |pose: &Pose| -> Option<(TriMesh, SurfaceIndex)> {
         let positions: Vec<Vec3> = (0..n).map(|v| attrs.posed(v, pose)).collect();
         let mesh = TriMesh { positions, triangles: input_triangles.to_vec() };
-        let Ok(index) = SurfaceIndex::new(&mesh) else { return };
-        inputs.push((mesh, index));
+        let index = SurfaceIndex::new(&mesh).ok()?;
+        Some((mesh, index))
+    };
+    let mut inputs: Vec<(TriMesh, SurfaceIndex)> = Vec::new();
+    if input_triangles.len().saturating_mul(f) <= MAX_CACHED_TRIANGLES {
+        for pose in &poses {
+            let Some(input) = posed_input(pose) else { return };
+            inputs.push(input);
+        }
     }
     let rest_areas: Vec<f64> = input_triangles.iter().map(|t| area(t.map(|i| attrs.rest[i as usize]))).collect();
     let input_samples = sample_bary(input_triangles, &rest_areas, opts.samples, 0x1D0F);
 
-    let mut sys = System::new(m, &tris);
     let mut big = Big::new(&dim, &sys.pairs);
     let mut x: Vec<DVec3> = Vec::with_capacity(big.rhs.len());
     for (v, &id) in ids.iter().enumerate() {
@@ -482,7 +503,15 @@ pub fn refit(
                 .collect();
             let lod_mesh = TriMesh { positions: posed.iter().map(|p| p.as_vec3()).collect(), triangles: tris.clone() };
             let Ok(lod_index) = SurfaceIndex::new(&lod_mesh) else { return };
-            let (input, input_index) = &inputs[k];
+            let owned;
+            let (input, input_index) = match inputs.get(k) {
+                Some(cached) => cached,
+                None => {
+                    let Some(input) = posed_input(pose) else { return };
+                    owned = input;
+                    &owned
+                }
+            };
             // Input points to their closest LOD points.
             for &(t, b) in &input_samples {
                 let tri = input_triangles[t as usize];
