@@ -8,7 +8,8 @@
 //! `(cd tests && npm ci) && node tests/draco-decompress.mjs ../shared/data/gltf/Parrot.glb /tmp/Parrot.glb`
 //! and pass the copy. A file that does not load is reported and skipped.
 //! `LOD_WEIGHTING=none|tertiles|smooth` and `LOD_PER_ANIMATION=N` change the pose options;
-//! `LOD_REFIT=N` the refit rounds (0: off), `LOD_REFIT_MORPH=0` keeps morph deltas out of it.
+//! `LOD_REFIT=N` the refit rounds (0: off), `LOD_REFIT_MORPH=0` and `LOD_REFIT_SKIN=0`
+//! keep morph deltas and skin weights out of it.
 
 use pmcodec_lod::measure::{MeasureOptions, animation_error, meshopt_baseline};
 use pmcodec_lod::{LodOptions, Placement, RefitOptions, build_chain_with};
@@ -58,6 +59,9 @@ fn main() -> anyhow::Result<()> {
             }
             if std::env::var("LOD_REFIT_MORPH").as_deref() == Ok("0") {
                 refit.morph = false;
+            }
+            if std::env::var("LOD_REFIT_SKIN").as_deref() == Ok("0") {
+                refit.skin = false;
             }
             let chain = build_chain_with(rig.clone(), &targets, &opts, &refit)?;
             eprintln!("{name}: {} built in {:.1?} over {} poses", placement.name(), t0.elapsed(), chain.pose_count);

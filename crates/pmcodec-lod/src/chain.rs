@@ -179,7 +179,7 @@ pub fn build_chain_with(input: RiggedMesh, targets: &[usize], opts: &LodOptions,
     // Endpoint placement promises input vertices unchanged (Mohr & Gleicher 4.3): no refit.
     if opts.placement != Placement::Endpoint {
         for snap in &mut snaps {
-            refit(&attrs, &input.triangles, &poses, &mut snap.verts, &snap.triangles, refit_opts);
+            refit(&attrs, &input.triangles, &poses, &mut snap.verts, &snap.triangles, &snap.rep, refit_opts);
         }
     }
 
