@@ -12,8 +12,9 @@
 //!    bone-space translation (4.1).
 //! 4. [`simplify`]: greedy edge collapse over the quadrics summed over poses, snapshotted at
 //!    every triangle target: one run gives a nested LOD chain.
-//! 5. [`refit`]: every level's rest positions refitted by least squares to the input surface
-//!    over all example poses (closest-point correspondences, a few rounds).
+//! 5. [`refit`]: every level's rest positions, morph deltas and skin weights refitted by least
+//!    squares to the input surface over all example poses (closest-point correspondences, a few
+//!    rounds; not for [`Placement::Endpoint`], which keeps input vertices as they are).
 //! 6. [`chain`]: the LOD chain as rigs (per LOD a [`pmcodec_mesh::gltf_input::RiggedMesh`] that
 //!    poses like the input) plus the correspondence tables for geomorphing.
 //! 7. [`gltf_out`]: the GLB writer (skins, morph targets, animations, one scene per LOD, the
