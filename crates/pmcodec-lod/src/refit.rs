@@ -28,7 +28,7 @@
 //!
 //! This is our addition to the seeds. It never increases the sampled objective: an iteration
 //! whose result is worse than the best so far is dropped, and so is the move of any vertex that
-//! would flip one of its triangles in the rest pose.
+//! would flip one of its triangles in any example pose.
 
 use crate::attrs::{Vertex, VertexAttrs};
 use crate::poses::Pose;
@@ -136,6 +136,13 @@ fn sample_bary(triangles: &[[u32; 3]], areas: &[f64], count: usize, seed: u64) -
         }
     }
     out
+}
+
+/// Whether a triangle with a normal before (`before`) points the other way `after`.
+fn flipped(before: [DVec3; 3], after: [DVec3; 3]) -> bool {
+    let n0 = (before[1] - before[0]).cross(before[2] - before[0]);
+    let n1 = (after[1] - after[0]).cross(after[2] - after[0]);
+    n0.length_squared() > 0.0 && !(n0.dot(n1) > 0.0)
 }
 
 fn area(p: [Vec3; 3]) -> f64 {
@@ -559,6 +566,13 @@ pub fn refit(
         x.extend(rec.morph.iter().take(dim[v] - 1).map(|d| d.as_dvec3()));
     }
     let rest_of = |x: &[DVec3], big: &Big, v: usize| x[big.start[v]];
+    // Vertex `v` in pose `k` for unknowns `x` under the affine maps `maps`.
+    let starts = big.start.clone();
+    let pose_with = |maps: &[(DMat3, DVec3)], x: &[DVec3], v: usize, k: usize| {
+        let c = &coef[v * f + k];
+        let u: DVec3 = (0..dim[v]).map(|s| x[starts[v] + s] * c[s]).sum();
+        maps[v * f + k].0 * u + maps[v * f + k].1
+    };
     let mut skin_rounds = opts.skin && cands.iter().any(|c| !c.is_empty());
     let mut best: Option<(f64, Vec<DVec3>, Vec<Skin>)> = None;
     let mut weight_sys: Vec<(Vec<f64>, Vec<f64>)> = cands.iter().map(|c| (vec![0.0; c.len() * c.len()], vec![0.0; c.len()])).collect();
@@ -699,6 +713,8 @@ pub fn refit(
         iteration += 1;
         last_was_skin = skin_now;
         if skin_now {
+            let old_skins = skins.clone();
+            let old_maps = maps.clone();
             for v in 0..m {
                 if cands[v].is_empty() {
                     continue;
@@ -714,24 +730,56 @@ pub fn refit(
                 }
             }
             maps = build_maps(&skins);
+            // Undo the new skin of the corners of any triangle it would flip in an example
+            // pose, until none does (undone skins stay undone, so this ends).
+            loop {
+                let mut undone = false;
+                for t in &tris {
+                    let flips = (0..f).any(|k| {
+                        let before = t.map(|v| pose_with(&old_maps, &x, v as usize, k));
+                        let after = t.map(|v| pose_with(&maps, &x, v as usize, k));
+                        flipped(before, after)
+                    });
+                    if flips {
+                        for &v in t {
+                            if skins[v as usize] != old_skins[v as usize] {
+                                skins[v as usize] = old_skins[v as usize];
+                                undone = true;
+                            }
+                        }
+                    }
+                }
+                if !undone {
+                    break;
+                }
+                maps = build_maps(&skins);
+            }
             continue;
         }
         big.regularise(&x, 1e-3, 1e-6);
         let mut next = x.clone();
         big.solve(&mut next, 300);
-        // Drop the moves of vertices on triangles that flip in the rest pose, until none does.
-        for _ in 0..8 {
+        // Halve, then drop, the moves of vertices on triangles that flip in any example pose,
+        // until none does (the collapses only check the rest pose, see `crate::simplify`; moving vertices
+        // after the fact must not add flips anywhere).
+        // Dropped moves stay dropped, so this ends after at most `m` more rounds, and a
+        // triangle whose corners all stay has not flipped.
+        for round in 0.. {
             let mut reverted = false;
             for t in &tris {
-                let before = t.map(|v| rest_of(&x, &big, v as usize));
-                let after = t.map(|v| rest_of(&next, &big, v as usize));
-                let n0 = (before[1] - before[0]).cross(before[2] - before[0]);
-                let n1 = (after[1] - after[0]).cross(after[2] - after[0]);
-                if n0.length_squared() > 0.0 && !(n0.dot(n1) > 0.0) {
+                let flips = (0..f).any(|k| {
+                    let before = t.map(|v| pose_with(&maps, &x, v as usize, k));
+                    let after = t.map(|v| pose_with(&maps, &next, v as usize, k));
+                    flipped(before, after)
+                });
+                if flips {
                     for &v in t {
                         let range = big.start[v as usize]..big.start[v as usize] + dim[v as usize];
                         if next[range.clone()] != x[range.clone()] {
-                            next[range.clone()].copy_from_slice(&x[range]);
+                            // Halve the move; from the tenth round on, drop it.
+                            for i in range {
+                                next[i] = if round >= 9 { x[i] } else { (x[i] + next[i]) * 0.5 };
+                            }
                             reverted = true;
                         }
                     }
