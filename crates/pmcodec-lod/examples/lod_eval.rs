@@ -7,10 +7,12 @@
 //! Draco-compressed, which our reader does not decode: decode it first with
 //! `(cd tests && npm ci) && node tests/draco-decompress.mjs ../shared/data/gltf/Parrot.glb /tmp/Parrot.glb`
 //! and pass the copy. A file that does not load is reported and skipped.
-//! `LOD_WEIGHTING=none|tertiles|smooth` and `LOD_PER_ANIMATION=N` change the pose options.
+//! `LOD_WEIGHTING=none|tertiles|smooth` and `LOD_PER_ANIMATION=N` change the pose options;
+//! `LOD_REFIT=N` the refit rounds (0: off), `LOD_REFIT_MORPH=0` and `LOD_REFIT_SKIN=0`
+//! keep morph deltas and skin weights out of it.
 
 use pmcodec_lod::measure::{MeasureOptions, animation_error, meshopt_baseline};
-use pmcodec_lod::{LodOptions, Placement, build_chain};
+use pmcodec_lod::{LodOptions, Placement, RefitOptions, build_chain_with};
 use pmcodec_mesh::gltf_input::RiggedMesh;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -51,7 +53,17 @@ fn main() -> anyhow::Result<()> {
             if let Some(n) = std::env::var("LOD_PER_ANIMATION").ok().and_then(|s| s.parse().ok()) {
                 opts.poses.per_animation = n;
             }
-            let chain = build_chain(rig.clone(), &targets, &opts)?;
+            let mut refit = RefitOptions::default();
+            if let Some(n) = std::env::var("LOD_REFIT").ok().and_then(|s| s.parse().ok()) {
+                refit.iterations = n;
+            }
+            if std::env::var("LOD_REFIT_MORPH").as_deref() == Ok("0") {
+                refit.morph = false;
+            }
+            if std::env::var("LOD_REFIT_SKIN").as_deref() == Ok("0") {
+                refit.skin = false;
+            }
+            let chain = build_chain_with(rig.clone(), &targets, &opts, &refit)?;
             eprintln!("{name}: {} built in {:.1?} over {} poses", placement.name(), t0.elapsed(), chain.pose_count);
             ours.push((placement, chain));
         }

@@ -15,8 +15,9 @@
 
 use crate::attrs::{Vertex, VertexAttrs};
 use crate::poses::{displacement, importance, sample_poses};
+use crate::refit::{RefitOptions, refit};
 use crate::simplify::{simplify, thin_poses};
-use crate::{LodError, LodOptions};
+use crate::{LodError, LodOptions, Placement};
 use glam::Vec3;
 use pmcodec_mesh::SourceVertex;
 use pmcodec_mesh::gltf_input::{MeshInstance, PrimitiveRef, RiggedMesh};
@@ -157,8 +158,16 @@ pub fn validate_rig(rig: &RiggedMesh) -> Result<(), LodError> {
 }
 
 /// Builds the chain: level 0 is the welded `input`, then one level per target (decreasing
-/// triangle counts).
+/// triangle counts), every level refitted with the default [`RefitOptions`].
 pub fn build_chain(input: RiggedMesh, targets: &[usize], opts: &LodOptions) -> Result<LodChain, LodError> {
+    build_chain_with(input, targets, opts, &RefitOptions::default())
+}
+
+/// [`build_chain`] with explicit refit options (`iterations: 0` leaves the collapse positions).
+/// [`Placement::Endpoint`] levels are never refitted: that policy keeps input vertices as they
+/// are.
+/// A separate entry point rather than a field of [`LodOptions`], which callers build literally.
+pub fn build_chain_with(input: RiggedMesh, targets: &[usize], opts: &LodOptions, refit_opts: &RefitOptions) -> Result<LodChain, LodError> {
     if targets.is_empty() {
         return Err(LodError::NoTargets);
     }
@@ -166,7 +175,13 @@ pub fn build_chain(input: RiggedMesh, targets: &[usize], opts: &LodOptions) -> R
     let attrs = VertexAttrs::from_rig(&input)?;
     let poses = thin_poses(&sample_poses(&input, &opts.poses)?, attrs.len());
     let weights = importance(&displacement(&attrs, &poses), opts.poses.vertex_weighting);
-    let snaps = simplify(&attrs, &input.triangles, &poses, &weights, opts.placement, targets)?;
+    let mut snaps = simplify(&attrs, &input.triangles, &poses, &weights, opts.placement, targets)?;
+    // Endpoint placement promises input vertices unchanged (Mohr & Gleicher 4.3): no refit.
+    if opts.placement != Placement::Endpoint {
+        for snap in &mut snaps {
+            refit(&attrs, &input.triangles, &poses, &mut snap.verts, &snap.triangles, &snap.rep, refit_opts);
+        }
+    }
 
     let (rig0, ids0) = level_rig(&input, &attrs, &attrs.verts, &input.triangles);
     let mut levels = vec![LodLevel { rig: rig0, target: None, ids: ids0, to_coarser: Vec::new() }];

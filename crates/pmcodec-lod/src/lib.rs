@@ -12,11 +12,14 @@
 //!    bone-space translation (4.1).
 //! 4. [`simplify`]: greedy edge collapse over the quadrics summed over poses, snapshotted at
 //!    every triangle target: one run gives a nested LOD chain.
-//! 5. [`chain`]: the LOD chain as rigs (per LOD a [`pmcodec_mesh::gltf_input::RiggedMesh`] that
+//! 5. [`refit`]: every level's rest positions, morph deltas and skin weights refitted by least
+//!    squares to the input surface over all example poses (closest-point correspondences, a few
+//!    rounds; not for [`Placement::Endpoint`], which keeps input vertices as they are).
+//! 6. [`chain`]: the LOD chain as rigs (per LOD a [`pmcodec_mesh::gltf_input::RiggedMesh`] that
 //!    poses like the input) plus the correspondence tables for geomorphing.
-//! 6. [`gltf_out`]: the GLB writer (skins, morph targets, animations, one scene per LOD, the
+//! 7. [`gltf_out`]: the GLB writer (skins, morph targets, animations, one scene per LOD, the
 //!    chain described in `extras`, see `proto/lod.md`).
-//! 7. [`measure`]: per-frame error over every animation, and the meshoptimizer baseline.
+//! 8. [`measure`]: per-frame error over every animation, and the meshoptimizer baseline.
 
 // `!(x > 0.0)` is written on purpose: it is also true for NaN, which these checks must reject.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -29,12 +32,14 @@ pub mod gltf_out;
 pub mod measure;
 pub mod placement;
 pub mod poses;
+pub mod refit;
 pub mod simplify;
 
-pub use chain::{LodChain, LodLevel, build_chain};
+pub use chain::{LodChain, LodLevel, build_chain, build_chain_with};
 pub use error::LodError;
 pub use placement::Placement;
 pub use poses::{PoseOptions, PoseWeights, VertexWeighting};
+pub use refit::RefitOptions;
 
 /// Everything [`build_chain`] needs besides the rig and the targets.
 #[derive(Clone, Debug, Default)]

@@ -131,3 +131,35 @@ fn geomorph_targets_are_nearby_in_every_pose() {
         }
     }
 }
+
+#[test]
+fn refit_does_not_increase_the_error() {
+    use pmcodec_eval::SampleOptions;
+    use pmcodec_lod::measure::{MeasureOptions, animation_error};
+    use pmcodec_lod::{RefitOptions, build_chain_with};
+    let rig = bending_tube_and_face(16, 12);
+    let target = rig.triangles.len() / 8;
+    let opts = LodOptions::default();
+    let off = build_chain_with(rig.clone(), &[target], &opts, &RefitOptions { iterations: 0, ..Default::default() }).expect("chain");
+    let on = build_chain_with(rig, &[target], &opts, &RefitOptions::default()).expect("chain");
+    check_chain(&on);
+    assert_eq!(off.levels[1].rig.triangles, on.levels[1].rig.triangles, "the refit keeps the connectivity");
+    let measure = MeasureOptions { frame_rate: 4.0, samples: SampleOptions { samples: 1500, seed: 7 } };
+    let e_off = animation_error(&off.input, &off.levels[1].rig, &measure).expect("error");
+    let e_on = animation_error(&on.input, &on.levels[1].rig, &measure).expect("error");
+    assert!(e_on.mean <= 1.02 * e_off.mean, "refit {} vs collapse positions {}", e_on.mean, e_off.mean);
+    // No triangle turns over in an example pose (the animation's first and last frames are).
+    let (a, b) = (&off.levels[1].rig, &on.levels[1].rig);
+    let duration = a.animations[0].duration;
+    for t in [0.0, duration] {
+        let (pa, pb) = (a.pose(Some(&a.animations[0]), t), b.pose(Some(&b.animations[0]), t));
+        for tri in &a.triangles {
+            let normal = |p: &[glam::Vec3]| {
+                let [x, y, z] = tri.map(|i| p[i as usize]);
+                (y - x).cross(z - x)
+            };
+            let (n0, n1) = (normal(&pa), normal(&pb));
+            assert!(n0.length_squared() == 0.0 || n0.dot(n1) > 0.0, "t = {t}: triangle {tri:?} flipped by the refit");
+        }
+    }
+}
