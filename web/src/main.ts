@@ -79,10 +79,13 @@ function rangeReader(url: string) {
   };
 }
 
-/** The coarsest level whose whole mesh still has at least `budget` triangles. */
+/**
+ * The coarsest level whose whole mesh has at least `budget` triangles, less 2% (as the Rust
+ * client's LEVEL_SLACK: anchored levels come out a few triangles short of round shares).
+ */
 function levelFor(info: AssetInfo, budget: number): number {
   let level = 0;
-  for (let l = 0; l < info.triangles_per_level.length; l++) if (info.triangles_per_level[l] >= budget) level = l;
+  for (let l = 0; l < info.triangles_per_level.length; l++) if (info.triangles_per_level[l] >= budget * 0.98) level = l;
   return level;
 }
 

@@ -191,9 +191,16 @@ pub struct Session {
     bytes_downloaded: u64,
 }
 
-/// The coarsest level whose whole mesh still has at least `budget` triangles.
+/// A level whose whole mesh falls short of the budget by at most this share still serves it:
+/// levels are anchored at round shares of the input's vertices (25%, 10%), whose meshes come
+/// out a few triangles short of the same share of its triangles, and the next finer band is
+/// about 2.5 times larger.
+pub const LEVEL_SLACK: f64 = 0.02;
+
+/// The coarsest level whose whole mesh has at least `budget` triangles, less [`LEVEL_SLACK`].
 fn level_for(info: &AssetInfo, budget: u32) -> usize {
-    info.triangles_per_level.iter().rposition(|&t| t >= budget as usize).unwrap_or(0)
+    let need = budget as f64 * (1.0 - LEVEL_SLACK);
+    info.triangles_per_level.iter().rposition(|&t| t as f64 >= need).unwrap_or(0)
 }
 
 impl Session {

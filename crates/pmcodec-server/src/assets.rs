@@ -86,10 +86,13 @@ impl LoadedAsset {
         for l in 0..levels {
             triangles_per_level.push(d.mesh(MeshTarget::Level(l)).map_err(|e| e.to_string())?.triangles.len());
         }
-        let bytes_per_level: Vec<u64> = (0..levels).map(|l| s.key_bytes[l] + s.delta_bytes[l] + s.positions_bytes[l]).collect();
+        // Every stored byte of a band; a client stopping at level l reads the key, delta and
+        // positions chunks of bands l.. and the faces and corners of band l only.
+        let shared: Vec<u64> = (0..levels).map(|l| s.key_bytes[l] + s.delta_bytes[l] + s.positions_bytes[l]).collect();
+        let bytes_per_level: Vec<u64> = (0..levels).map(|l| shared[l] + s.faces_bytes[l] + s.corners_bytes[l]).collect();
         let bytes_to_level = (0..levels)
             .map(|l| {
-                let bands: u64 = bytes_per_level[l..].iter().sum();
+                let bands: u64 = shared[l..].iter().sum::<u64>() + s.faces_bytes[l] + s.corners_bytes[l];
                 reader.data_start() + bands + if l == 0 { s.triangles_bytes } else { 0 }
             })
             .collect();
