@@ -204,31 +204,26 @@ impl<S: ByteSource> Decoder<S> {
     fn step(&mut self, frame: u32) -> Result<(), ContainerError> {
         let h = self.reader.header();
         let (sizes, triangles) = (h.level_sizes.clone(), h.triangle_count);
-        let replay = self.replay.as_mut().ok_or_else(|| ContainerError::Options("no keyframe loaded".into()))?;
-        let mut delta = FrameDelta::default();
+        // Read everything first: the replay changes only once the frame's data is known good.
+        let mut moves = Vec::with_capacity(sizes.len());
         for j in (self.min_level..sizes.len()).rev() {
-            let what = format!("frame {frame} band {j} delta");
-            let e = self
-                .reader
-                .find(ChunkKind::Delta, frame, j as u32)
-                .ok_or_else(|| ContainerError::Corrupt { what: what.clone(), detail: "missing from the index".into() })?;
-            let raw = self.reader.read_chunk(e)?;
-            for (v, to) in payload::read_delta(&raw, &what, &sizes, j)? {
+            let raw = self.chunk(ChunkKind::Delta, frame, j)?;
+            moves.push((j, payload::read_delta(&raw, &format!("frame {frame} band {j} delta"), &sizes, j)?));
+        }
+        let mut delta = FrameDelta::default();
+        if self.min_level > 0 {
+            let j = self.min_level;
+            let raw = self.chunk(ChunkKind::Corners, frame, j)?;
+            let updates = payload::read_faces(&raw, &format!("frame {frame} band {j} corners"), sizes[j], triangles)?;
+            delta.corners.extend(updates.into_iter().map(|(t, corners)| CornerUpdate { level: j as u32, t, corners }));
+        }
+        let replay = self.replay.as_mut().ok_or_else(|| ContainerError::Options("no keyframe loaded".into()))?;
+        for (j, band) in moves {
+            for (v, to) in band {
                 // `from` is whatever the replay holds: net changes carry no history.
                 let from = replay.h.parent.get(j).and_then(|p| p.get(v as usize)).copied().unwrap_or(NONE);
                 delta.swaps.push(Swap { level: j as u32, v, from, to });
             }
-        }
-        if self.min_level > 0 {
-            let j = self.min_level;
-            let what = format!("frame {frame} band {j} corners");
-            let e = self
-                .reader
-                .find(ChunkKind::Corners, frame, j as u32)
-                .ok_or_else(|| ContainerError::Corrupt { what: what.clone(), detail: "missing from the index".into() })?;
-            let raw = self.reader.read_chunk(e)?;
-            let updates = payload::read_faces(&raw, &what, sizes[j], triangles)?;
-            delta.corners.extend(updates.into_iter().map(|(t, corners)| CornerUpdate { level: j as u32, t, corners }));
         }
         replay.apply(&delta).map_err(|source| ContainerError::Delta { what: format!("frame {frame} delta"), source })?;
         std::mem::swap(&mut self.previous, &mut self.current);

@@ -573,6 +573,10 @@ pub fn refit(
         let u: DVec3 = (0..dim[v]).map(|s| x[starts[v] + s] * c[s]).sum();
         maps[v * f + k].0 * u + maps[v * f + k].1
     };
+    // Whether triangle t flips in some example pose between two states (skins, unknowns).
+    let flips_somewhere = |t: &[u32; 3], (maps_a, x_a): (&[(DMat3, DVec3)], &[DVec3]), (maps_b, x_b): (&[(DMat3, DVec3)], &[DVec3])| {
+        (0..f).any(|k| flipped(t.map(|v| pose_with(maps_a, x_a, v as usize, k)), t.map(|v| pose_with(maps_b, x_b, v as usize, k))))
+    };
     let mut skin_rounds = opts.skin && cands.iter().any(|c| !c.is_empty());
     let mut best: Option<(f64, Vec<DVec3>, Vec<Skin>)> = None;
     let mut weight_sys: Vec<(Vec<f64>, Vec<f64>)> = cands.iter().map(|c| (vec![0.0; c.len() * c.len()], vec![0.0; c.len()])).collect();
@@ -735,12 +739,7 @@ pub fn refit(
             loop {
                 let mut undone = false;
                 for t in &tris {
-                    let flips = (0..f).any(|k| {
-                        let before = t.map(|v| pose_with(&old_maps, &x, v as usize, k));
-                        let after = t.map(|v| pose_with(&maps, &x, v as usize, k));
-                        flipped(before, after)
-                    });
-                    if flips {
+                    if flips_somewhere(t, (&old_maps, &x), (&maps, &x)) {
                         for &v in t {
                             if skins[v as usize] != old_skins[v as usize] {
                                 skins[v as usize] = old_skins[v as usize];
@@ -767,12 +766,7 @@ pub fn refit(
         for round in 0.. {
             let mut reverted = false;
             for t in &tris {
-                let flips = (0..f).any(|k| {
-                    let before = t.map(|v| pose_with(&maps, &x, v as usize, k));
-                    let after = t.map(|v| pose_with(&maps, &next, v as usize, k));
-                    flipped(before, after)
-                });
-                if flips {
+                if flips_somewhere(t, (&maps, &x), (&maps, &next)) {
                     for &v in t {
                         let range = big.start[v as usize]..big.start[v as usize] + dim[v as usize];
                         if next[range.clone()] != x[range.clone()] {
