@@ -6,7 +6,8 @@
 #   2. the viewer: TypeScript unit tests (node's test runner) and the production build;
 #   3. end to end: `pmcodec serve` with the built-in samples and the viewer, driven by headless
 #      Chromium (Debian's package) through playwright-core;
-#   4. `pmcodec lod` output checked by the Khronos glTF validator (npm `gltf-validator`).
+#   4. `pmcodec lod` output checked by the Khronos glTF validator (npm `gltf-validator`), and
+#      every level of it played by three.js's glTF loader in headless Chromium (web/lod.html).
 # Benchmarks and long fuzzing are not part of it (see README.md).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -54,4 +55,9 @@ if [ -f "$models/Parrot.glb" ]; then
   "$bin" -q lod "$lod_out/Parrot-plain.glb" --triangles 25%,10% -o "$lod_out/Parrot-lod.glb"
 fi
 node tests/gltf-validate.mjs "$lod_out"/*.glb
+# Every level of every chain plays in three.js's stock glTF loader (web/lod.html in headless
+# Chromium): loads, skins or morphs, animates, draws, and has fewer triangles than the last.
+echo "== three.js plays pmcodec lod output"
+bin_abs="$(cd "$(dirname "$bin")" && pwd)/$(basename "$bin")"
+(cd web && PMCODEC_BIN="$bin_abs" node test/lod-e2e.mjs "$lod_out"/*-lod.glb)
 # ---- end of glTF validator block --------------------------------------------------------------

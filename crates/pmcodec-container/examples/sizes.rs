@@ -1,14 +1,19 @@
 //! Container sizes beside the references of the issue: raw float positions, every frame
 //! compressed on its own with zstd, and the paper's per-frame figures.
-//! `cargo run --release -p pmcodec-container --example sizes -- ../shared/data/horse-gallop [bits] [coarse grid k]`
+//! `cargo run --release -p pmcodec-container --example sizes -- ../shared/data/horse-gallop [bits] [coarse grid k|none]`
 use pmcodec_container::{EncodeOptions, QuantizationChoice, Reader, encode, summary};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let seq = pmcodec_mesh::obj::load_obj_sequence(std::path::Path::new(&args[1]), 30.0).expect("load");
     let bits: u8 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(12);
-    let coarse_grid: Option<u32> = args.get(3).and_then(|s| s.parse().ok());
-    let mut opts = EncodeOptions { quantization: QuantizationChoice::Bits(bits), coarse_grid, ..Default::default() };
+    let mut opts = EncodeOptions { quantization: QuantizationChoice::Bits(bits), ..Default::default() };
+    // The coarse grid: the encoder's default unless given (`none`, or k).
+    match args.get(3).map(String::as_str) {
+        Some("none") => opts.coarse_grid = None,
+        Some(k) => opts.coarse_grid = Some(k.parse().expect("coarse grid: a number or none")),
+        None => {}
+    }
     // Experiments: PMCODEC_BRANCHING=b, or PMCODEC_LEVELS=n1,n2,... (sizes below |M0|).
     if let Some(b) = std::env::var("PMCODEC_BRANCHING").ok().and_then(|s| s.parse().ok()) {
         opts.build.branching = b;

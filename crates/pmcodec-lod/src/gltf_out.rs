@@ -160,15 +160,23 @@ pub fn chain_glb(chain: &LodChain, placement: &str) -> Result<Vec<u8>, LodError>
     }
     let roots: Vec<usize> = (0..node_count).filter(|&n| input.parents.get(n).is_none_or(|p| p.is_none())).collect();
 
+    // The input's skins' inverse bind matrices, written once and shared by every level's copy.
+    let ibm_accessors: Vec<usize> = input
+        .skins
+        .iter()
+        .map(|s| {
+            let ibm: Vec<f32> = s.inverse_bind_matrices.iter().flat_map(|m| affine(*m).to_cols_array()).collect();
+            b.floats(&ibm, None, "MAT4", 16, false)
+        })
+        .collect();
     let mut skins: Vec<Value> = Vec::new();
-    for s in &input.skins {
-        let ibm: Vec<f32> = s.inverse_bind_matrices.iter().flat_map(|m| affine(*m).to_cols_array()).collect();
-        let acc = b.floats(&ibm, None, "MAT4", 16, false);
-        skins.push(json!({"joints": s.joints, "inverseBindMatrices": acc}));
-    }
     let rest_world = pose_at(input, None, 0.0).world;
-    // One-joint skins for rigid parts, one per node, created on demand.
-    let mut rigid_skin: std::collections::HashMap<usize, (usize, Mat4)> = std::collections::HashMap::new();
+    // One-joint skins for rigid parts, one per (level, node), created on demand.
+    let mut rigid_skin: std::collections::HashMap<(usize, usize), (usize, Mat4)> = std::collections::HashMap::new();
+    // Per level: the first node of its copy of the input's nodes (0 for level 0, which uses the
+    // input's own), and its skins for the input's skins.
+    let mut skeletons: Vec<usize> = Vec::new();
+    let input_nodes = nodes.clone();
 
     let mut meshes: Vec<Value> = Vec::new();
     let mut levels_json: Vec<Value> = Vec::new();
@@ -177,6 +185,33 @@ pub fn chain_glb(chain: &LodChain, placement: &str) -> Result<Vec<u8>, LodError>
     let mut morph_nodes: Vec<(usize, usize)> = Vec::new();
     for (k, level) in chain.levels.iter().enumerate() {
         let rig = &level.rig;
+        // Level k's skeleton: the input's nodes for level 0, a copy of them (same names,
+        // transforms and hierarchy, children renumbered) for the others. glTF lets scenes share
+        // nodes, but loaders that instance each scene separately (three.js clones shared
+        // roots) would then animate a copy the skins do not follow.
+        let off = if k == 0 { 0 } else { nodes.len() };
+        if k > 0 {
+            for n in &input_nodes {
+                let mut n = n.clone();
+                if let Some(Value::Array(children)) = n.get_mut("children") {
+                    for c in children.iter_mut() {
+                        *c = json!(c.as_u64().unwrap_or(0) as usize + off);
+                    }
+                }
+                nodes.push(n);
+            }
+        }
+        skeletons.push(off);
+        let level_skins: Vec<usize> = input
+            .skins
+            .iter()
+            .zip(&ibm_accessors)
+            .map(|(s, &acc)| {
+                let joints: Vec<usize> = s.joints.iter().map(|&j| j + off).collect();
+                skins.push(json!({"joints": joints, "inverseBindMatrices": acc}));
+                skins.len() - 1
+            })
+            .collect();
         let mut level_nodes = Vec::new();
         let mut level_meshes = Vec::new();
         for (i, inst) in rig.instances.iter().enumerate() {
@@ -184,8 +219,10 @@ pub fn chain_glb(chain: &LodChain, placement: &str) -> Result<Vec<u8>, LodError>
             let tris: Vec<[u32; 3]> =
                 rig.triangles.iter().filter(|t| range.contains(&(t[0] as usize))).map(|t| t.map(|x| x - range.start as u32)).collect();
             let (skin, bind) = match inst.skin {
-                Some(s) => (s, Mat4::IDENTITY),
-                None => match rigid_skin.get(&inst.node) {
+                Some(s) => {
+                    (level_skins.get(s).copied().ok_or_else(|| LodError::Write(format!("skin {s} is not in the input")))?, Mat4::IDENTITY)
+                }
+                None => match rigid_skin.get(&(k, inst.node)) {
                     Some(e) => *e,
                     None => {
                         let w = rest_world.get(inst.node).copied().unwrap_or(Mat4::IDENTITY);
@@ -193,9 +230,9 @@ pub fn chain_glb(chain: &LodChain, placement: &str) -> Result<Vec<u8>, LodError>
                             return Err(LodError::Write(format!("node {} has a singular rest transform", inst.node)));
                         }
                         let acc = b.floats(&affine(w.inverse()).to_cols_array(), None, "MAT4", 16, false);
-                        skins.push(json!({"joints": [inst.node], "inverseBindMatrices": acc}));
+                        skins.push(json!({"joints": [inst.node + off], "inverseBindMatrices": acc}));
                         let e = (skins.len() - 1, w);
-                        rigid_skin.insert(inst.node, e);
+                        rigid_skin.insert((k, inst.node), e);
                         e
                     }
                 },
@@ -235,6 +272,7 @@ pub fn chain_glb(chain: &LodChain, placement: &str) -> Result<Vec<u8>, LodError>
             let mut prim = json!({
                 "attributes": {"POSITION": pos_acc, "NORMAL": nrm_acc, "JOINTS_0": jnt_acc, "WEIGHTS_0": wgt_acc},
                 "indices": idx_acc,
+                "material": 0,
                 "mode": 4,
             });
             let mut mesh = json!({"name": format!("lod{k}_mesh{i}")});
@@ -254,11 +292,12 @@ pub fn chain_glb(chain: &LodChain, placement: &str) -> Result<Vec<u8>, LodError>
             level_meshes.push(meshes.len() - 1);
         }
         let table = if level.to_coarser.is_empty() { Value::Null } else { json!(b.u32s(&level.to_coarser, None)) };
-        let mut scene_nodes: Vec<usize> = roots.clone();
+        let mut scene_nodes: Vec<usize> = roots.iter().map(|&r| r + off).collect();
         scene_nodes.extend(&level_nodes);
         scenes.push(json!({"name": format!("lod{k}"), "nodes": scene_nodes}));
         levels_json.push(json!({
             "scene": k,
+            "skeleton": off,
             "nodes": level_nodes,
             "meshes": level_meshes,
             "triangles": rig.triangles.len(),
@@ -292,9 +331,10 @@ pub fn chain_glb(chain: &LodChain, placement: &str) -> Result<Vec<u8>, LodError>
                 AnimatedProperty::MorphWeights => {
                     morph_nodes.iter().filter(|(n, _)| *n == ch.node).map(|&(_, out)| (out, "weights")).collect()
                 }
-                AnimatedProperty::Translation => vec![(ch.node, "translation")],
-                AnimatedProperty::Rotation => vec![(ch.node, "rotation")],
-                AnimatedProperty::Scale => vec![(ch.node, "scale")],
+                // Every level's copy of the node moves alike (one sampler, a channel each).
+                AnimatedProperty::Translation => skeletons.iter().map(|&o| (ch.node + o, "translation")).collect(),
+                AnimatedProperty::Rotation => skeletons.iter().map(|&o| (ch.node + o, "rotation")).collect(),
+                AnimatedProperty::Scale => skeletons.iter().map(|&o| (ch.node + o, "scale")).collect(),
             };
             if targets.is_empty() || ch.node >= node_count {
                 continue;
@@ -327,12 +367,15 @@ pub fn chain_glb(chain: &LodChain, placement: &str) -> Result<Vec<u8>, LodError>
         "scenes": scenes,
         "nodes": nodes,
         "meshes": meshes,
+        // The input's materials are not carried; one plain, non-metallic material keeps viewers
+        // from drawing glTF's default (fully metallic: black without an environment map).
+        "materials": [{"name": "pmcodec plain", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.8}}],
         "skins": skins,
         "accessors": b.accessors,
         "bufferViews": b.views,
         "buffers": [{"byteLength": b.bin.len()}],
         "extras": {"pmcodec_lod": {
-            "version": 1,
+            "version": 2,
             "placement": placement,
             "poses": chain.pose_count,
             "levels": levels_json,
