@@ -169,6 +169,10 @@ pub struct AssetCache {
     store: Arc<dyn AssetStore>,
     lru: Mutex<Lru<AssetId, Cached>>,
     infos: Mutex<HashMap<AssetId, (String, Arc<AssetInfo>)>>,
+    /// Objects that did not load (a corrupt file, another format version), by id with the tag
+    /// of the bytes that failed and why: until the object changes, requests get that answer
+    /// without fetching and parsing it again.
+    unreadable: Mutex<HashMap<AssetId, (String, String)>>,
     revalidate: Duration,
     /// Told the version of every asset that leaves the cache because it changed or went away,
     /// so decoder states of it can go too.
@@ -180,7 +184,14 @@ const MAX_INFOS: usize = 100_000;
 
 impl AssetCache {
     pub fn new(store: Arc<dyn AssetStore>, capacity: u64, revalidate: Duration, on_stale: Box<dyn Fn(&str) + Send + Sync>) -> Self {
-        AssetCache { store, lru: Mutex::new(Lru::new(capacity)), infos: Mutex::new(HashMap::new()), revalidate, on_stale }
+        AssetCache {
+            store,
+            lru: Mutex::new(Lru::new(capacity)),
+            infos: Mutex::new(HashMap::new()),
+            unreadable: Mutex::new(HashMap::new()),
+            revalidate,
+            on_stale,
+        }
     }
 
     pub fn store(&self) -> &Arc<dyn AssetStore> {
@@ -194,6 +205,15 @@ impl AssetCache {
 
     fn infos(&self) -> std::sync::MutexGuard<'_, HashMap<AssetId, (String, Arc<AssetInfo>)>> {
         self.infos.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    fn unreadable(&self) -> std::sync::MutexGuard<'_, HashMap<AssetId, (String, String)>> {
+        self.unreadable.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// The remembered failure of exactly these bytes (same tag), if they failed before.
+    fn known_unreadable(&self, id: &AssetId, tag: &str) -> Option<ApiError> {
+        self.unreadable().get(id).filter(|(t, _)| t == tag).map(|(_, why)| ApiError::Internal(why.clone()))
     }
 
     /// Bytes and entries held.
@@ -220,6 +240,9 @@ impl AssetCache {
             c.checked = Instant::now();
             return Ok(c.asset.clone());
         }
+        if let Some(e) = self.known_unreadable(id, &obj.tag) {
+            return Err(e);
+        }
         self.load(id).await
     }
 
@@ -230,6 +253,9 @@ impl AssetCache {
         {
             return Ok(info.clone());
         }
+        if let Some(e) = self.known_unreadable(&obj.id, &obj.tag) {
+            return Err(e);
+        }
         Ok(self.load(&obj.id).await?.info.clone())
     }
 
@@ -239,10 +265,25 @@ impl AssetCache {
             return Err(ApiError::NotFound(format!("no asset {id}")));
         };
         let weight = bytes.len() as u64;
-        let asset = tokio::task::spawn_blocking(move || LoadedAsset::new(&obj, bytes))
+        let tag = obj.tag.clone();
+        let loaded = tokio::task::spawn_blocking(move || LoadedAsset::new(&obj, bytes))
             .await
-            .map_err(|e| ApiError::Internal(format!("loading {id}: {e}")))?
-            .map_err(|e| ApiError::Internal(format!("asset {id} in the store is not a readable container: {e}")))?;
+            .map_err(|e| ApiError::Internal(format!("loading {id}: {e}")))?;
+        let asset = match loaded {
+            Ok(a) => {
+                self.unreadable().remove(id);
+                a
+            }
+            Err(e) => {
+                let why = format!("asset {id} in the store is not a readable container: {e}");
+                let mut bad = self.unreadable();
+                if bad.len() >= MAX_INFOS {
+                    bad.clear();
+                }
+                bad.insert(id.clone(), (tag, why.clone()));
+                return Err(ApiError::Internal(why));
+            }
+        };
         let asset = Arc::new(asset);
         let evicted = {
             let mut infos = self.infos();
@@ -263,6 +304,7 @@ impl AssetCache {
     /// Drops an asset that changed or went away.
     pub fn forget(&self, id: &AssetId) {
         self.infos().remove(id);
+        self.unreadable().remove(id);
         let old = self.lru().remove(id);
         if let Some(old) = old {
             (self.on_stale)(&old.asset.version);

@@ -324,3 +324,68 @@ async fn compressed_json_gets_a_weak_entity_tag_that_still_revalidates() {
     let again = get(&app, &index, &[("accept-encoding", "gzip"), ("if-none-match", gz.header("etag"))]).await;
     assert_eq!(again.status, StatusCode::NOT_MODIFIED);
 }
+
+/// A memory store that counts whole-object reads.
+struct CountingStore {
+    inner: MemoryStore,
+    gets: std::sync::atomic::AtomicUsize,
+}
+
+impl AssetStore for CountingStore {
+    fn describe(&self) -> String {
+        "counting memory store".into()
+    }
+    fn list(&self) -> futures_util::future::BoxFuture<'_, Result<Vec<pmcodec_server::store::StoredObject>, pmcodec_server::StoreError>> {
+        self.inner.list()
+    }
+    fn head<'a>(
+        &'a self,
+        id: &'a AssetId,
+    ) -> futures_util::future::BoxFuture<'a, Result<Option<pmcodec_server::store::StoredObject>, pmcodec_server::StoreError>> {
+        self.inner.head(id)
+    }
+    fn get<'a>(
+        &'a self,
+        id: &'a AssetId,
+    ) -> futures_util::future::BoxFuture<'a, Result<Option<(pmcodec_server::store::StoredObject, bytes::Bytes)>, pmcodec_server::StoreError>>
+    {
+        self.gets.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.inner.get(id)
+    }
+    fn put<'a>(
+        &'a self,
+        id: &'a AssetId,
+        bytes: bytes::Bytes,
+    ) -> futures_util::future::BoxFuture<'a, Result<pmcodec_server::store::StoredObject, pmcodec_server::StoreError>> {
+        self.inner.put(id, bytes)
+    }
+    fn delete<'a>(&'a self, id: &'a AssetId) -> futures_util::future::BoxFuture<'a, Result<bool, pmcodec_server::StoreError>> {
+        self.inner.delete(id)
+    }
+    fn check(&self) -> futures_util::future::BoxFuture<'_, Result<(), pmcodec_server::StoreError>> {
+        self.inner.check()
+    }
+}
+
+#[tokio::test]
+async fn an_unreadable_object_is_read_once_until_it_changes() {
+    let store = Arc::new(CountingStore { inner: MemoryStore::default(), gets: Default::default() });
+    let id = AssetId::parse("broken").unwrap();
+    store.put(&id, bytes::Bytes::from_static(b"not a container at all")).await.unwrap();
+    let state = AppState::new(Config::default(), store.clone()).unwrap();
+    state.set_ready(true);
+    let app = router(state);
+    for _ in 0..3 {
+        let r = get(&app, "/v1/assets/broken", &[]).await;
+        assert_eq!(r.status, StatusCode::INTERNAL_SERVER_ERROR);
+        // Internal errors say no more to clients; the server log names the asset and why.
+        assert_eq!(r.json()["error"], "internal");
+        // The listing leaves it out and does not fetch it again either.
+        assert_eq!(get(&app, "/v1/assets", &[]).await.json()["assets"].as_array().map(Vec::len), Some(0));
+    }
+    assert_eq!(store.gets.load(std::sync::atomic::Ordering::Relaxed), 1, "the failed bytes were fetched again");
+    // New bytes under the same id are read (and now load).
+    store.put(&id, cloth_bytes().into()).await.unwrap();
+    assert_eq!(get(&app, "/v1/assets/broken", &[]).await.status, StatusCode::OK);
+    assert_eq!(store.gets.load(std::sync::atomic::Ordering::Relaxed), 2);
+}
