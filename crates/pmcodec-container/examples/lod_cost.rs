@@ -1,6 +1,6 @@
 //! Development probe: the cost of `Decoder::mesh` at triangle budgets on a decoded frame (what
 //! the server's LOD endpoint spends per request on a warm state).
-//! `cargo run --release -p pmcodec-container --example lod_cost -- FILE.pmc`
+//! `cargo run --release -p pmcodec-container --example lod_cost -- FILE.pmc [budget]`
 use pmcodec_container::{Decoder, MeshTarget, Reader};
 
 fn main() {
@@ -9,7 +9,11 @@ fn main() {
     let reader = Reader::open(bytes.as_slice()).expect("open");
     let mut d = Decoder::new(reader.borrowed(), 0).expect("decoder");
     d.seek(reader.header().frame_count / 2).expect("seek");
-    for budget in [500u32, 2000, 8000, 16000] {
+    let budgets: Vec<u32> = match args.get(2) {
+        Some(b) => vec![b.parse().expect("budget")],
+        None => vec![500, 2000, 8000, 16000],
+    };
+    for budget in budgets {
         let n = 200;
         let t = std::time::Instant::now();
         let mut tris = 0;

@@ -328,17 +328,32 @@ impl<S: ByteSource> Decoder<S> {
 }
 
 /// The current cut's mesh with triangles in input order and vertices in node order, so equal
-/// cuts give byte-identical meshes. Linear in triangles and nodes: a pass over the triangles
-/// picks the shown ones in order, a mark per node numbers the used ones in order (no sorting;
-/// sorting was two thirds of a large LOD request).
+/// cuts give byte-identical meshes. A corner's cut node is found by walking up from it; a
+/// small cut sorts its shown triangles and used nodes, a large one finds them with a pass over
+/// the triangles and a mark per node (so neither costs more than the cut or a linear pass).
 pub fn ordered_mesh(replay: &Replay, positions: &[Vec3]) -> TriMesh {
-    let rep = replay.cut_nodes();
-    let base = replay.h.offsets[replay.min_level];
-    let nodes = rep.len();
-    // Corners map to cut nodes; a node id beyond the hierarchy (a corrupt state) maps to one
-    // slot past the end, drawn at the origin.
-    let node_of = |c: u32| rep.get((base + c) as usize).copied().filter(|&g| (g as usize) < nodes).unwrap_or(nodes as u32);
-    let mut corners: Vec<[u32; 3]> = Vec::with_capacity(replay.shown().len());
+    let nodes = replay.h.node_count();
+    let size = replay.h.level_sizes[replay.min_level];
+    // A corner beyond the level (a corrupt state) stands for one slot past the end, drawn at
+    // the origin.
+    let node_of = |c: u32| if c < size { replay.cut_node_of(c) } else { nodes as u32 };
+    let position = |g: u32| positions.get(g as usize).copied().unwrap_or(Vec3::ZERO);
+    let shown = replay.shown();
+    let triangle_count = replay.corners().len();
+    if shown.len() * 16 < triangle_count {
+        let mut order = shown.to_vec();
+        order.sort_unstable();
+        let corners: Vec<[u32; 3]> = order.iter().map(|&t| replay.corners()[t as usize].map(node_of)).collect();
+        let mut used: Vec<u32> = corners.iter().flatten().copied().collect();
+        used.sort_unstable();
+        used.dedup();
+        let index_of = |g: u32| used.binary_search(&g).map_or(0, |i| i as u32);
+        return TriMesh {
+            positions: used.iter().map(|&g| position(g)).collect(),
+            triangles: corners.iter().map(|c| c.map(index_of)).collect(),
+        };
+    }
+    let mut corners: Vec<[u32; 3]> = Vec::with_capacity(shown.len());
     let mut index = vec![NONE; nodes + 1];
     for (t, c) in replay.corners().iter().enumerate() {
         if replay.is_shown(t as u32) {
@@ -353,7 +368,7 @@ pub fn ordered_mesh(replay: &Replay, positions: &[Vec3]) -> TriMesh {
     for (g, slot) in index.iter_mut().enumerate() {
         if *slot == 0 {
             *slot = out.len() as u32;
-            out.push(positions.get(g).copied().unwrap_or(Vec3::ZERO));
+            out.push(position(g as u32));
         }
     }
     TriMesh { positions: out, triangles: corners.iter().map(|c| c.map(|g| index[g as usize])).collect() }

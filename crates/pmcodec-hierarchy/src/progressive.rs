@@ -729,12 +729,33 @@ impl Replay {
         err
     }
 
+    /// Collapses the whole cut, in time proportional to it: the cut is closed upward, so every
+    /// expanded node lies under an expanded top-level node.
     fn collapse_all(&mut self) {
-        for g in 0..self.expanded.len() as u32 {
+        let top = self.h.top();
+        for g in self.h.offsets[top]..self.h.offsets[top + 1] {
             if self.expanded[g as usize] {
                 self.collapse(g);
             }
         }
+        debug_assert!(!self.expanded.iter().any(|&e| e), "the cut was not closed upward");
+    }
+
+    /// The cut node standing for level-L node `v` (local id): its highest ancestor (itself
+    /// included) whose parent is expanded, or its top-level ancestor. Walks up the local
+    /// parent maps, so its cost is the node's depth below the cut.
+    #[inline]
+    pub fn cut_node_of(&self, v: u32) -> u32 {
+        let h = &self.h;
+        let (mut k, mut v) = (self.min_level, v);
+        while k < h.top() {
+            let p = h.parent[k][v as usize];
+            if self.expanded[(h.offsets[k + 1] + p) as usize] {
+                break;
+            }
+            (k, v) = (k + 1, p);
+        }
+        h.offsets[k] + v
     }
 
     /// The largest cut (greedy by priority, ties to the smaller id) with at most `budget`
