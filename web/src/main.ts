@@ -102,10 +102,21 @@ async function openAsset(summary: AssetSummary): Promise<void> {
   await showFrame(0);
 }
 
-/** Decodes frame f (reading finer bands first if the budget needs them), cuts it, starts a morph. */
+/** A frame asked for while another was decoding: shown as soon as that one is done. */
+let pendingFrame: number | null = null;
+
+/**
+ * Decodes frame f (reading finer bands first if the budget needs them), cuts it, starts a morph.
+ * A request that arrives while a decode runs (a budget or frame change during playback, or
+ * just after pausing) is kept and served when it ends, not dropped.
+ */
 async function showFrame(f: number): Promise<void> {
   const s = session;
-  if (!s || s.busy) return;
+  if (!s) return;
+  if (s.busy) {
+    pendingFrame = f;
+    return;
+  }
   s.busy = true;
   try {
     const budget = Number(budgetSlider.value);
@@ -132,6 +143,11 @@ async function showFrame(f: number): Promise<void> {
     showError(String(e));
   } finally {
     s.busy = false;
+    if (pendingFrame !== null && session === s) {
+      const next = pendingFrame;
+      pendingFrame = null;
+      void showFrame(next);
+    }
   }
 }
 
