@@ -12,6 +12,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export CARGO_TERM_COLOR=never
+# One build per run: incremental caches would only double target/'s size on a fresh clone.
+export CARGO_INCREMENTAL="${CARGO_INCREMENTAL:-0}"
+disk() { echo "-- disk: $(df -h . | awk 'NR==2 {print $4 " free"}'), target/ $(du -sh target 2>/dev/null | cut -f1)"; }
+disk
 
 echo "== S3-compatible server for the S3 store tests (s3s-fs, checks request signatures)"
 if ! command -v s3s-fs >/dev/null 2>&1 && [ ! -x "$HOME/.cargo/bin/s3s-fs" ]; then
@@ -21,6 +25,7 @@ fi
 
 echo "== cargo test"
 cargo test --workspace --locked --no-fail-fast 2>&1
+disk
 
 echo "== viewer unit tests and build"
 (cd web && npm ci --no-audit --no-fund && PMCODEC_BIN="$PWD/../target/debug/pmcodec" npm test && npm run build)
@@ -61,3 +66,4 @@ echo "== three.js plays pmcodec lod output"
 bin_abs="$(cd "$(dirname "$bin")" && pwd)/$(basename "$bin")"
 (cd web && PMCODEC_BIN="$bin_abs" node test/lod-e2e.mjs "$lod_out"/*-lod.glb)
 # ---- end of glTF validator block --------------------------------------------------------------
+disk
