@@ -379,4 +379,14 @@ async fn two_servers_share_one_s3_bucket() {
     assert_eq!(r.status(), 204);
     let list: Value = http.get(format!("{}/v1/assets", a.url())).send().await.unwrap().json().await.unwrap();
     assert_eq!(list["assets"].as_array().unwrap().len(), 0, "{list}");
+
+    // Create-only writes straight to the bucket: s3s-fs honours `If-None-Match: *`, so a second
+    // create of one key is refused and leaves the first object's bytes.
+    use pmcodec_server::{AssetId, AssetStore, PutMode, StoreError};
+    let store = pmcodec_server::store::S3Store::new(&s3_config).unwrap();
+    let dog = AssetId::parse("dog").unwrap();
+    store.put(&dog, b"first".to_vec().into(), PutMode::Create).await.unwrap();
+    let r = store.put(&dog, b"second".to_vec().into(), PutMode::Create).await;
+    assert!(matches!(r, Err(StoreError::AlreadyExists(_))), "{r:?}");
+    assert_eq!(&store.get(&dog).await.unwrap().unwrap().1[..], b"first");
 }

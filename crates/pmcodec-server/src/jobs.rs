@@ -1,13 +1,15 @@
 //! Encode jobs: an upload becomes a job that parses and encodes on a blocking thread, then
 //! stores the container in one atomic write. Until that write the asset does not exist; a job
-//! that fails anywhere before it writes nothing.
+//! that fails anywhere before it writes nothing. Without `replace=true` that write is
+//! create-only, so it never replaces an asset another server created while the job ran.
 //!
 //! Jobs live in the memory of the server that accepted the upload (the asset itself goes to the
 //! shared store): behind a load balancer, job URLs need that server (sticky routing), or a
 //! client polls `GET /v1/assets/{id}` on any server until the asset appears.
 
+use crate::store::PutMode;
 use crate::upload::{UploadBody, UploadOptions};
-use crate::{ApiError, AppState, AssetId};
+use crate::{ApiError, AppState, AssetId, StoreError};
 use pmcodec_container::{EncodeOptions, encode};
 use serde::Serialize;
 use std::collections::{HashMap, HashSet, VecDeque};
@@ -171,6 +173,10 @@ impl Jobs {
     }
 }
 
+fn created_meanwhile(asset: &AssetId) -> String {
+    format!("asset {asset} was created while this job ran; upload again with replace=true to replace it")
+}
+
 async fn run(app: AppState, tx: watch::Sender<JobStatus>, asset: AssetId, body: UploadBody, opts: UploadOptions) {
     let job_id = tx.borrow().id.clone();
     // The semaphore is never closed, so acquiring only waits for a free slot.
@@ -202,19 +208,20 @@ async fn run(app: AppState, tx: watch::Sender<JobStatus>, asset: AssetId, body: 
     drop(permit);
     let result = match work {
         // Without replace=true, an asset that appeared while the job ran (an upload through
-        // another server sharing the store) is kept, and the job fails saying so. (A store
-        // write racing this check can still win; the stores have no create-only write here.)
-        Ok(Ok(_)) if !replace && matches!(app.store.head(&asset).await, Ok(Some(_))) => {
-            Err(format!("asset {asset} was created while this job ran; upload again with replace=true to replace it"))
-        }
+        // another server sharing the store) is kept, and the job fails saying so. This check
+        // only saves the write; the create-only write below is what keeps the asset when
+        // another server creates it after this check.
+        Ok(Ok(_)) if !replace && matches!(app.store.head(&asset).await, Ok(Some(_))) => Err(created_meanwhile(&asset)),
         Ok(Ok(bytes)) => {
             tx.send_modify(|s| s.stage = "storing");
             // The one write of the job: atomic in every store, so the asset appears whole.
-            match app.store.put(&asset, bytes.into()).await {
+            let mode = if replace { PutMode::Overwrite } else { PutMode::Create };
+            match app.store.put(&asset, bytes.into(), mode).await {
                 Ok(_) => {
                     app.assets.forget(&asset);
                     Ok(())
                 }
+                Err(StoreError::AlreadyExists(_)) => Err(created_meanwhile(&asset)),
                 Err(e) => {
                     tracing::error!(error = %e, "storing the encoded asset failed");
                     Err("storing the asset failed; the server log has the details".to_string())

@@ -33,7 +33,7 @@ pub use error::{ApiError, ServerError};
 pub use id::AssetId;
 pub use meshfmt::{MESH_MAGIC, MeshFormat, decode_bin, encode_bin};
 pub use routes::{mounted_routes, router};
-pub use store::{AssetStore, StoreError};
+pub use store::{AssetStore, PutMode, StoreError};
 
 use assets::AssetCache;
 use decode::DecodePool;
@@ -123,7 +123,7 @@ impl AppState {
             .collect();
         for t in tasks {
             let (id, bytes) = t.await.map_err(|e| ServerError::Samples(e.to_string()))?.map_err(ServerError::Samples)?;
-            self.store.put(&id, bytes.into()).await?;
+            self.store.put(&id, bytes.into(), PutMode::Overwrite).await?;
             tracing::info!(asset = %id, "built-in sample ready");
         }
         Ok(())

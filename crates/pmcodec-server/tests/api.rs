@@ -8,7 +8,7 @@ use http_body_util::BodyExt;
 use pmcodec_container::{Decoder, MeshTarget, Reader};
 use pmcodec_server::config::Secret;
 use pmcodec_server::store::MemoryStore;
-use pmcodec_server::{AppState, AssetId, AssetStore, Config, mounted_routes, router};
+use pmcodec_server::{AppState, AssetId, AssetStore, Config, PutMode, StoreError, mounted_routes, router};
 use std::sync::Arc;
 use tower::ServiceExt;
 
@@ -21,7 +21,7 @@ fn cloth_bytes() -> Vec<u8> {
 async fn app_with(config: Config) -> (axum::Router, Vec<u8>) {
     let store: Arc<dyn AssetStore> = Arc::new(MemoryStore::default());
     let bytes = cloth_bytes();
-    store.put(&AssetId::parse("cloth").unwrap(), bytes.clone().into()).await.unwrap();
+    store.put(&AssetId::parse("cloth").unwrap(), bytes.clone().into(), PutMode::Overwrite).await.unwrap();
     let state = AppState::new(config, store).unwrap();
     state.set_ready(true);
     (router(state), bytes)
@@ -356,8 +356,9 @@ impl AssetStore for CountingStore {
         &'a self,
         id: &'a AssetId,
         bytes: bytes::Bytes,
+        mode: PutMode,
     ) -> futures_util::future::BoxFuture<'a, Result<pmcodec_server::store::StoredObject, pmcodec_server::StoreError>> {
-        self.inner.put(id, bytes)
+        self.inner.put(id, bytes, mode)
     }
     fn delete<'a>(&'a self, id: &'a AssetId) -> futures_util::future::BoxFuture<'a, Result<bool, pmcodec_server::StoreError>> {
         self.inner.delete(id)
@@ -371,7 +372,7 @@ impl AssetStore for CountingStore {
 async fn an_unreadable_object_is_read_once_until_it_changes() {
     let store = Arc::new(CountingStore { inner: MemoryStore::default(), gets: Default::default() });
     let id = AssetId::parse("broken").unwrap();
-    store.put(&id, bytes::Bytes::from_static(b"not a container at all")).await.unwrap();
+    store.put(&id, bytes::Bytes::from_static(b"not a container at all"), PutMode::Overwrite).await.unwrap();
     let state = AppState::new(Config::default(), store.clone()).unwrap();
     state.set_ready(true);
     let app = router(state);
@@ -385,7 +386,94 @@ async fn an_unreadable_object_is_read_once_until_it_changes() {
     }
     assert_eq!(store.gets.load(std::sync::atomic::Ordering::Relaxed), 1, "the failed bytes were fetched again");
     // New bytes under the same id are read (and now load).
-    store.put(&id, cloth_bytes().into()).await.unwrap();
+    store.put(&id, cloth_bytes().into(), PutMode::Overwrite).await.unwrap();
     assert_eq!(get(&app, "/v1/assets/broken", &[]).await.status, StatusCode::OK);
     assert_eq!(store.gets.load(std::sync::atomic::Ordering::Relaxed), 2);
+}
+
+/// A memory store whose `head` never sees an asset: as if another server sharing the store
+/// created it just after each existence check, so only the job's final write can notice.
+struct LateCreatorStore {
+    inner: MemoryStore,
+}
+
+impl AssetStore for LateCreatorStore {
+    fn describe(&self) -> String {
+        "memory store with a late creator".into()
+    }
+    fn list(&self) -> futures_util::future::BoxFuture<'_, Result<Vec<pmcodec_server::store::StoredObject>, StoreError>> {
+        self.inner.list()
+    }
+    fn head<'a>(
+        &'a self,
+        _: &'a AssetId,
+    ) -> futures_util::future::BoxFuture<'a, Result<Option<pmcodec_server::store::StoredObject>, StoreError>> {
+        Box::pin(async { Ok(None) })
+    }
+    fn get<'a>(
+        &'a self,
+        id: &'a AssetId,
+    ) -> futures_util::future::BoxFuture<'a, Result<Option<(pmcodec_server::store::StoredObject, bytes::Bytes)>, StoreError>> {
+        self.inner.get(id)
+    }
+    fn put<'a>(
+        &'a self,
+        id: &'a AssetId,
+        bytes: bytes::Bytes,
+        mode: PutMode,
+    ) -> futures_util::future::BoxFuture<'a, Result<pmcodec_server::store::StoredObject, StoreError>> {
+        self.inner.put(id, bytes, mode)
+    }
+    fn delete<'a>(&'a self, id: &'a AssetId) -> futures_util::future::BoxFuture<'a, Result<bool, StoreError>> {
+        self.inner.delete(id)
+    }
+    fn check(&self) -> futures_util::future::BoxFuture<'_, Result<(), StoreError>> {
+        self.inner.check()
+    }
+}
+
+/// Uploads a one-frame GLB and polls the job until it ends; returns its last status.
+async fn upload_and_wait(app: &axum::Router, query: &str) -> serde_json::Value {
+    let mesh = pmcodec_mesh::samples::waving_cloth(8, 6, 1).frame_mesh(0).expect("a frame");
+    let glb = pmcodec_mesh::write::glb_bytes(&mesh);
+    let headers = [("content-type", "model/gltf-binary"), ("authorization", "Bearer w")];
+    let r = send(app, Method::POST, &format!("/v1/assets?{query}"), &headers, glb).await;
+    assert_eq!(r.status, StatusCode::ACCEPTED, "{}", String::from_utf8_lossy(&r.body));
+    let url = r.json()["status_url"].as_str().expect("a status url").to_string();
+    // Bounded: the job is one small frame.
+    for _ in 0..600 {
+        let status = get(app, &url, &[]).await.json();
+        if status["state"] == "succeeded" || status["state"] == "failed" {
+            return status;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(100)).await;
+    }
+    panic!("the job did not finish within a minute");
+}
+
+#[tokio::test]
+async fn a_job_without_replace_never_overwrites_an_asset_created_while_it_ran() {
+    let store = Arc::new(LateCreatorStore { inner: MemoryStore::default() });
+    let id = AssetId::parse("cloth").unwrap();
+    let theirs = cloth_bytes();
+    store.inner.put(&id, theirs.clone().into(), PutMode::Overwrite).await.unwrap();
+    let mut config = Config::default();
+    config.auth.write_token = Some(Secret("w".into()));
+    let state = AppState::new(config, store.clone()).unwrap();
+    state.set_ready(true);
+    let app = router(state);
+
+    // Both existence checks miss the asset; the create-only write finds it and keeps it.
+    let status = upload_and_wait(&app, "id=cloth").await;
+    assert_eq!(status["state"], "failed", "{status}");
+    assert_eq!(status["message"], "asset cloth was created while this job ran; upload again with replace=true to replace it", "{status}");
+    assert_eq!(&store.inner.get(&id).await.unwrap().unwrap().1[..], &theirs[..], "the existing asset was overwritten");
+
+    // A new id is created; replace=true replaces.
+    let status = upload_and_wait(&app, "id=fresh").await;
+    assert_eq!(status["state"], "succeeded", "{status}");
+    assert!(store.inner.get(&AssetId::parse("fresh").unwrap()).await.unwrap().is_some());
+    let status = upload_and_wait(&app, "id=cloth&replace=true").await;
+    assert_eq!(status["state"], "succeeded", "{status}");
+    assert_ne!(&store.inner.get(&id).await.unwrap().unwrap().1[..], &theirs[..], "replace=true did not replace");
 }

@@ -4,8 +4,15 @@
 //! atomic), are flushed to disk, then renamed over the final name: readers see the old file or
 //! the new one, and a crash leaves at worst a dot-file that no id can name and that the next
 //! start removes.
+//!
+//! A create-only write publishes the temporary file with a hard link to the final name instead
+//! of a rename: creating the link fails atomically when the name exists (also when another
+//! server sharing the folder made it a moment ago), and the existing file is left untouched.
+//! The temporary name is then removed. So the folder must be on a file system with hard links
+//! (any local Unix file system, NTFS, NFS); where linking is not supported, create-only writes
+//! fail with an error rather than fall back to a check that could race.
 
-use super::{AssetStore, StoreError, StoredObject};
+use super::{AssetStore, PutMode, StoreError, StoredObject};
 use crate::AssetId;
 use bytes::Bytes;
 use futures_util::future::BoxFuture;
@@ -52,6 +59,21 @@ fn tag_of(meta: &std::fs::Metadata) -> String {
     #[cfg(not(unix))]
     let ino = 0u64;
     format!("{ino:x}-{mtime:x}-{:x}", meta.len())
+}
+
+/// Writes `bytes` to the new file `tmp`, syncs it, and gives it the name `dest`: a rename over
+/// whatever is there, or (create-only) a hard link that fails with `AlreadyExists` when `dest`
+/// exists. Leaves `tmp` behind for the caller to remove.
+fn publish(tmp: &Path, dest: &Path, bytes: &[u8], mode: PutMode) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut f = std::fs::OpenOptions::new().write(true).create_new(true).open(tmp)?;
+    f.write_all(bytes)?;
+    f.sync_all()?;
+    drop(f);
+    match mode {
+        PutMode::Overwrite => std::fs::rename(tmp, dest),
+        PutMode::Create => std::fs::hard_link(tmp, dest),
+    }
 }
 
 impl AssetStore for LocalStore {
@@ -124,29 +146,35 @@ impl AssetStore for LocalStore {
         })
     }
 
-    fn put<'a>(&'a self, id: &'a AssetId, bytes: Bytes) -> BoxFuture<'a, Result<StoredObject, StoreError>> {
+    fn put<'a>(&'a self, id: &'a AssetId, bytes: Bytes, mode: PutMode) -> BoxFuture<'a, Result<StoredObject, StoreError>> {
         Box::pin(async move {
             let root = self.root.clone();
             let final_path = self.path(id);
             let id = id.clone();
             tokio::task::spawn_blocking(move || -> Result<StoredObject, StoreError> {
-                use std::io::Write;
                 let tmp = root.join(format!("{TMP_PREFIX}{}", uuid::Uuid::new_v4().simple()));
-                let write = || -> std::io::Result<()> {
-                    let mut f = std::fs::File::create(&tmp)?;
-                    f.write_all(&bytes)?;
-                    f.sync_all()?;
-                    std::fs::rename(&tmp, &final_path)?;
-                    // Make the rename itself durable (best effort: not every platform can
-                    // open a folder for syncing).
-                    if let Ok(d) = std::fs::File::open(&root) {
-                        let _ = d.sync_all();
+                let published = publish(&tmp, &final_path, &bytes, mode);
+                // The temporary name goes on every path: after a rename it no longer exists,
+                // after a link or a failure it does.
+                if mode == PutMode::Create || published.is_err() {
+                    match std::fs::remove_file(&tmp) {
+                        Ok(()) => {}
+                        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                        // The asset itself is fine; the next start removes the leftover.
+                        Err(e) => tracing::warn!(file = %tmp.display(), error = %e, "removing a temporary upload file failed"),
                     }
-                    Ok(())
-                };
-                if let Err(e) = write() {
-                    let _ = std::fs::remove_file(&tmp);
-                    return Err(io("writing", &final_path, e));
+                }
+                match published {
+                    Ok(()) => {}
+                    Err(e) if mode == PutMode::Create && e.kind() == std::io::ErrorKind::AlreadyExists => {
+                        return Err(StoreError::AlreadyExists(id));
+                    }
+                    Err(e) => return Err(io("writing", &final_path, e)),
+                }
+                // Make the new name durable (best effort: not every platform can open a folder
+                // for syncing).
+                if let Ok(d) = std::fs::File::open(&root) {
+                    let _ = d.sync_all();
                 }
                 let meta = std::fs::metadata(&final_path).map_err(|e| io("reading", &final_path, e))?;
                 Ok(StoredObject { id, size: meta.len(), tag: tag_of(&meta) })
@@ -175,5 +203,68 @@ impl AssetStore for LocalStore {
                 Err(e) => Err(io("reading", &self.root, e)),
             }
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn names(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+        v.sort();
+        v
+    }
+
+    #[tokio::test]
+    async fn create_keeps_an_existing_file_and_leaves_no_temporary_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = LocalStore::open(dir.path()).unwrap();
+        let id = AssetId::parse("a").unwrap();
+        store.put(&id, Bytes::from_static(b"first"), PutMode::Overwrite).await.unwrap();
+        let before = store.head(&id).await.unwrap().unwrap();
+
+        let r = store.put(&id, Bytes::from_static(b"second, longer"), PutMode::Create).await;
+        assert!(matches!(r, Err(StoreError::AlreadyExists(ref x)) if *x == id), "{r:?}");
+        assert_eq!(std::fs::read(dir.path().join("a.pmc")).unwrap(), b"first");
+        assert_eq!(store.head(&id).await.unwrap().unwrap(), before, "the refused write touched the file");
+        assert_eq!(names(dir.path()), ["a.pmc"]);
+
+        // A new id is created, whole, under its own name only.
+        let b = AssetId::parse("b").unwrap();
+        let created = store.put(&b, Bytes::from_static(b"bee"), PutMode::Create).await.unwrap();
+        assert_eq!(std::fs::read(dir.path().join("b.pmc")).unwrap(), b"bee");
+        assert_eq!(created, store.head(&b).await.unwrap().unwrap());
+        assert_eq!(created.size, 3);
+        assert_eq!(names(dir.path()), ["a.pmc", "b.pmc"]);
+
+        // Overwrite still replaces, and leaves nothing behind either.
+        store.put(&id, Bytes::from_static(b"third"), PutMode::Overwrite).await.unwrap();
+        assert_eq!(std::fs::read(dir.path().join("a.pmc")).unwrap(), b"third");
+        assert_eq!(names(dir.path()), ["a.pmc", "b.pmc"]);
+    }
+
+    #[tokio::test]
+    async fn of_concurrent_creates_exactly_one_wins() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = std::sync::Arc::new(LocalStore::open(dir.path()).unwrap());
+        let id = AssetId::parse("race").unwrap();
+        let tasks: Vec<_> = (0..8u8)
+            .map(|i| {
+                let (store, id) = (store.clone(), id.clone());
+                tokio::spawn(async move { store.put(&id, Bytes::from(vec![i; 4096]), PutMode::Create).await.map(|_| i) })
+            })
+            .collect();
+        let mut winners = Vec::new();
+        for t in tasks {
+            match t.await.unwrap() {
+                Ok(i) => winners.push(i),
+                Err(StoreError::AlreadyExists(_)) => {}
+                Err(e) => panic!("{e}"),
+            }
+        }
+        assert_eq!(winners.len(), 1, "{winners:?}");
+        assert_eq!(std::fs::read(dir.path().join("race.pmc")).unwrap(), vec![winners[0]; 4096]);
+        assert_eq!(names(dir.path()), ["race.pmc"]);
     }
 }

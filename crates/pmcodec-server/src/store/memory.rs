@@ -1,6 +1,6 @@
 //! Assets in memory: the built-in samples, tests, throwaway servers.
 
-use super::{AssetStore, StoreError, StoredObject};
+use super::{AssetStore, PutMode, StoreError, StoredObject};
 use crate::AssetId;
 use bytes::Bytes;
 use futures_util::future::BoxFuture;
@@ -48,9 +48,13 @@ impl AssetStore for MemoryStore {
         Box::pin(async move { Ok(self.lock()?.objects.get(id).map(|(b, g)| (Self::object(id, b, *g), b.clone()))) })
     }
 
-    fn put<'a>(&'a self, id: &'a AssetId, bytes: Bytes) -> BoxFuture<'a, Result<StoredObject, StoreError>> {
+    fn put<'a>(&'a self, id: &'a AssetId, bytes: Bytes, mode: PutMode) -> BoxFuture<'a, Result<StoredObject, StoreError>> {
         Box::pin(async move {
+            // Check and insert under one lock: no other put can come between.
             let mut inner = self.lock()?;
+            if mode == PutMode::Create && inner.objects.contains_key(id) {
+                return Err(StoreError::AlreadyExists(id.clone()));
+            }
             inner.generation += 1;
             let g = inner.generation;
             let obj = Self::object(id, &bytes, g);
@@ -65,5 +69,25 @@ impl AssetStore for MemoryStore {
 
     fn check(&self) -> BoxFuture<'_, Result<(), StoreError>> {
         Box::pin(async { Ok(()) })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[tokio::test]
+    async fn create_keeps_an_existing_asset_and_creates_a_new_one() {
+        let store = MemoryStore::default();
+        let id = AssetId::parse("a").unwrap();
+        let first = store.put(&id, Bytes::from_static(b"first"), PutMode::Create).await.unwrap();
+        let r = store.put(&id, Bytes::from_static(b"second"), PutMode::Create).await;
+        assert!(matches!(r, Err(StoreError::AlreadyExists(ref x)) if *x == id), "{r:?}");
+        let (obj, bytes) = store.get(&id).await.unwrap().unwrap();
+        assert_eq!(&bytes[..], b"first");
+        assert_eq!(obj, first, "the refused write changed the tag");
+        // Overwrite still replaces.
+        store.put(&id, Bytes::from_static(b"third"), PutMode::Overwrite).await.unwrap();
+        assert_eq!(&store.get(&id).await.unwrap().unwrap().1[..], b"third");
     }
 }

@@ -2,6 +2,11 @@
 //! bucket, memory). Every implementation stores one object per asset, `<id>.pmc`, and makes a
 //! new object visible only when it is complete, so a reader on any server sees the old asset,
 //! the new one, or none, never a part.
+//!
+//! A write either replaces what is there or creates only ([`PutMode`]). A create-only write is
+//! a single check-and-write step in the store itself (a hard link that fails on an existing
+//! name, an S3 `If-None-Match: *` PUT, an insert under a lock), so that of two servers creating
+//! the same asset at once at most one wins and the other gets [`StoreError::AlreadyExists`].
 
 mod local;
 mod memory;
@@ -25,10 +30,23 @@ pub struct StoredObject {
     pub tag: String,
 }
 
+/// What [`AssetStore::put`] does when the asset exists.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PutMode {
+    /// Replace it.
+    Overwrite,
+    /// Leave it as it is and fail with [`StoreError::AlreadyExists`]. The existence check and
+    /// the write are one atomic step in the store, not a read followed by a write.
+    Create,
+}
+
 #[derive(Debug, thiserror::Error)]
 pub enum StoreError {
     #[error("no asset {0}")]
     NotFound(AssetId),
+    /// A [`PutMode::Create`] write found the asset there; nothing was written.
+    #[error("asset {0} exists")]
+    AlreadyExists(AssetId),
     #[error("{0}")]
     Io(String),
     #[error("{0}")]
@@ -46,8 +64,10 @@ pub trait AssetStore: Send + Sync + 'static {
     fn head<'a>(&'a self, id: &'a AssetId) -> BoxFuture<'a, Result<Option<StoredObject>, StoreError>>;
     /// The whole container with the size and tag of exactly those bytes.
     fn get<'a>(&'a self, id: &'a AssetId) -> BoxFuture<'a, Result<Option<(StoredObject, Bytes)>, StoreError>>;
-    /// Stores (or replaces) an asset atomically.
-    fn put<'a>(&'a self, id: &'a AssetId, bytes: Bytes) -> BoxFuture<'a, Result<StoredObject, StoreError>>;
+    /// Stores an asset atomically: readers see the whole new object or what was there before.
+    /// An existing asset is replaced ([`PutMode::Overwrite`]) or kept, failing the write with
+    /// [`StoreError::AlreadyExists`] ([`PutMode::Create`]).
+    fn put<'a>(&'a self, id: &'a AssetId, bytes: Bytes, mode: PutMode) -> BoxFuture<'a, Result<StoredObject, StoreError>>;
     /// Removes an asset; `false` when there was none.
     fn delete<'a>(&'a self, id: &'a AssetId) -> BoxFuture<'a, Result<bool, StoreError>>;
     /// Whether the store answers at all (readiness).

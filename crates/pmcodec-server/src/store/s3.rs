@@ -5,15 +5,25 @@
 //! S3 makes an object visible only once its upload has completed, so the PUT itself is the
 //! atomic "put final" step (a temporary key plus a server-side copy would add two requests and
 //! no safety). Containers are bounded by the upload limit, well inside a single PUT's 5 GiB.
+//!
+//! A create-only write is a conditional PUT (`If-None-Match: *`, `object_store`'s
+//! `PutMode::Create`): the store itself refuses it when the key exists (412), so two servers
+//! creating one asset cannot both win. AWS may also answer 409 while another conditional write
+//! to the key is in flight; `object_store` reports that as AlreadyExists too, so there both
+//! writes can fail (the job says so; uploading again works). AWS S3, MinIO and R2 support it, and so does s3s-fs (the test server), though it
+//! checks the key and then writes, so two truly simultaneous creates can both pass there.
+//! `object_store` sends the header unless conditional puts are switched off
+//! (`AWS_CONDITIONAL_PUT=disabled`), in which case create-only writes fail with a
+//! configuration error instead of falling back to a check that could race.
 
-use super::{AssetStore, StoreError, StoredObject};
+use super::{AssetStore, PutMode, StoreError, StoredObject};
 use crate::AssetId;
 use crate::config::S3Config;
 use bytes::Bytes;
 use futures_util::future::BoxFuture;
-use object_store::aws::AmazonS3Builder;
+use object_store::aws::{AmazonS3Builder, AmazonS3ConfigKey};
 use object_store::path::Path as ObjectPath;
-use object_store::{ClientOptions, ObjectMeta, ObjectStore, ObjectStoreExt, RetryConfig};
+use object_store::{ClientOptions, ObjectMeta, ObjectStore, ObjectStoreExt, PutOptions, RetryConfig};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -38,6 +48,12 @@ impl S3Store {
         b = b.with_region(c.region.clone().unwrap_or_else(|| "us-east-1".into()));
         if let (Some(k), Some(s)) = (&c.access_key_id, &c.secret_access_key) {
             b = b.with_access_key_id(k.expose()).with_secret_access_key(s.expose());
+        }
+        if b.get_config_value(&AmazonS3ConfigKey::ConditionalPut).is_some_and(|v| v.trim() == "disabled") {
+            tracing::warn!(
+                bucket = %c.bucket,
+                "conditional puts are disabled (AWS_CONDITIONAL_PUT): uploads without replace=true will fail to store"
+            );
         }
         // Requests must fail within a request's own time budget rather than retry for minutes.
         let retry = RetryConfig { max_retries: 2, retry_timeout: Duration::from_secs(15), ..RetryConfig::default() };
@@ -120,10 +136,32 @@ impl AssetStore for S3Store {
         })
     }
 
-    fn put<'a>(&'a self, id: &'a AssetId, bytes: Bytes) -> BoxFuture<'a, Result<StoredObject, StoreError>> {
+    fn put<'a>(&'a self, id: &'a AssetId, bytes: Bytes, mode: PutMode) -> BoxFuture<'a, Result<StoredObject, StoreError>> {
         Box::pin(async move {
             let size = bytes.len() as u64;
-            let r = self.store.put(&self.key(id), bytes.into()).await.map_err(|e| self.err("put", e))?;
+            let opts = PutOptions {
+                mode: match mode {
+                    PutMode::Overwrite => object_store::PutMode::Overwrite,
+                    PutMode::Create => object_store::PutMode::Create,
+                },
+                ..PutOptions::default()
+            };
+            let r = match self.store.put_opts(&self.key(id), bytes.into(), opts).await {
+                Ok(r) => r,
+                // object_store turns a refused `If-None-Match: *` (412, or 304 from some
+                // stores) and a 409 into AlreadyExists; a bare Precondition (412) is taken to
+                // mean the same, should a store or a later object_store report it that way.
+                Err(object_store::Error::AlreadyExists { .. } | object_store::Error::Precondition { .. }) if mode == PutMode::Create => {
+                    return Err(StoreError::AlreadyExists(id.clone()));
+                }
+                Err(e @ object_store::Error::NotImplemented { .. }) => {
+                    return Err(StoreError::Config(format!(
+                        "s3 bucket {}: a create-only put needs conditional puts, which are disabled (AWS_CONDITIONAL_PUT): {e}",
+                        self.bucket
+                    )));
+                }
+                Err(e) => return Err(self.err("put", e)),
+            };
             // Some stores answer a PUT without an ETag; ask once so that the tag matches what
             // a listing or a HEAD will report.
             let tag = match r.e_tag {
