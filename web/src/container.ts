@@ -335,21 +335,28 @@ export class Player {
     return out;
   }
 
-  /** The mesh of the current cut, ordered as the Rust decoder orders it (triangles by input id, vertices by node id). */
+  /**
+   * The mesh of the cut the last `selectTriangles` chose, ordered as the Rust decoder orders a
+   * budget cut: triangles in order of appearance, vertices in order of first use.
+   */
   orderedMesh(positions: Float32Array): { positions: Float32Array; indices: Uint32Array; nodes: Uint32Array } {
     const r = this.replay;
     const rep = r.cutNodes();
     const base = r.offsets[r.minLevel];
-    const shown = [...r.shown].sort((a, b) => a - b);
-    const corners = new Uint32Array(shown.length * 3);
-    shown.forEach((t, i) => { for (let c = 0; c < 3; c++) corners[3 * i + c] = rep[base + r.corners[3 * t + c]]; });
-    const nodes = Uint32Array.from(new Set(corners)).sort();
+    const indices = new Uint32Array(r.appearing.length * 3);
     const indexOf = new Map<number, number>();
-    nodes.forEach((g, i) => indexOf.set(g, i));
-    const indices = corners.map((g) => indexOf.get(g)!);
+    const nodes: number[] = [];
+    r.appearing.forEach((t, i) => {
+      for (let c = 0; c < 3; c++) {
+        const g = rep[base + r.corners[3 * t + c]];
+        let slot = indexOf.get(g);
+        if (slot === undefined) { slot = nodes.length; indexOf.set(g, slot); nodes.push(g); }
+        indices[3 * i + c] = slot;
+      }
+    });
     const pos = new Float32Array(nodes.length * 3);
     nodes.forEach((g, i) => pos.set(positions.subarray(3 * g, 3 * g + 3), 3 * i));
-    return { positions: pos, indices, nodes };
+    return { positions: pos, indices, nodes: Uint32Array.from(nodes) };
   }
 }
 

@@ -283,18 +283,30 @@ export class Replay {
     return err;
   }
 
-  /** Replaces the cut by the greedy one for a triangle budget: largest cut with at most `budget` shown triangles. */
+  /**
+   * Triangles in the order the last `selectTriangles` made them appear: those shown at the
+   * coarsest cut (ascending), then each split's degenerate set (ascending). Meshes listed in
+   * this order are the Rust decoder's (proto/container.md, "Cuts").
+   */
+  appearing: number[] = [];
+
+  /**
+   * Replaces the cut by the longest prefix of the frame's split order (greedy by priority) that
+   * shows at most `budget` triangles: splits are taken until the first one that does not fit.
+   */
   selectTriangles(budget: number, errors: Float64Array): void {
     for (let g = 0; g < this.nodeCount; g++) if (this.expanded[g]) this.collapse(g);
+    this.appearing = [...this.shown].sort((a, b) => a - b);
     let used = this.shown.length;
     const heap = new MaxHeap();
     for (let g = this.offsets[this.top]; g < this.offsets[this.top + 1]; g++) if (this.expandable(g)) heap.push(errors[g], g);
     while (heap.size > 0) {
       const g = heap.pop();
-      const cost = this.sets[g].items.length;
-      if (used + cost > budget) continue;
+      const set = this.sets[g].items;
+      if (used + set.length > budget) break;
       this.expand(g);
-      used += cost;
+      used += set.length;
+      for (const t of [...set].sort((a, b) => a - b)) this.appearing.push(t);
       for (const c of this.children[g]) if (this.expandable(c)) heap.push(errors[c], c);
     }
   }

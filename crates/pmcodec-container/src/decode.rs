@@ -9,14 +9,16 @@ use glam::Vec3;
 use pmcodec_hierarchy::NONE;
 use pmcodec_hierarchy::progressive::{CornerUpdate, FrameDelta, KeyBand, Keyframe, Replay};
 use pmcodec_hierarchy::recluster::Swap;
+use pmcodec_hierarchy::split_order::{PrefixTarget, SplitOrder};
 use pmcodec_mesh::TriMesh;
 
 /// Which cut a decoded mesh shows.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum MeshTarget {
-    /// The largest cut with at most this many triangles (greedy by split priority).
+    /// The longest prefix of the frame's split order (greedy by split priority) showing at
+    /// most this many triangles.
     Triangles(u32),
-    /// The largest cut with at most this many vertices.
+    /// The longest prefix of the split order with at most this many vertices.
     Vertices(u32),
     /// Every node of this level (0 = the input mesh, vertices in input order).
     Level(usize),
@@ -41,9 +43,18 @@ pub struct Decoder<S> {
     /// Quantized positions of every node (global ids; only levels >= min_level are decoded).
     current: Vec<[i32; 3]>,
     previous: Vec<[i32; 3]>,
-    /// Dequantized positions and split priorities of the current frame, computed by the first
-    /// [`Decoder::mesh`] after a seek (a server cuts one decoded frame at many budgets).
-    derived: Option<(Vec<Vec3>, Vec<f64>)>,
+    /// Dequantized positions, split priorities and split order of the current frame, computed
+    /// by the first [`Decoder::mesh`] after a seek (a server cuts one decoded frame at many
+    /// budgets).
+    derived: Option<Derived>,
+}
+
+/// What meshes of one decoded frame are cut from.
+#[derive(Clone)]
+struct Derived {
+    positions: Vec<Vec3>,
+    errors: Vec<f64>,
+    order: SplitOrder,
 }
 
 impl<S: ByteSource> Decoder<S> {
@@ -289,41 +300,47 @@ impl<S: ByteSource> Decoder<S> {
     /// (with a full-resolution decoder) gives every input vertex in input order and the input
     /// triangles in input order.
     pub fn mesh(&mut self, target: MeshTarget) -> Result<TriMesh, ContainerError> {
-        if self.replay.is_none() {
+        let Some(replay) = self.replay.as_ref() else {
             return Err(ContainerError::Options("seek to a frame first".into()));
-        }
-        let (positions, errors) = match self.derived.take() {
+        };
+        let mut derived = match self.derived.take() {
             Some(d) => d,
             None => {
                 let positions = self.positions();
-                let errors = self.replay.as_ref().map(|r| r.node_errors(&positions)).unwrap_or_default();
-                (positions, errors)
+                let errors = replay.node_errors(&positions);
+                let order = SplitOrder::new(replay, &errors);
+                Derived { positions, errors, order }
             }
         };
-        let mesh = self.cut(target, &positions, &errors);
-        self.derived = Some((positions, errors));
+        let mesh = self.cut(target, &mut derived);
+        self.derived = Some(derived);
         mesh
     }
 
-    fn cut(&mut self, target: MeshTarget, positions: &[Vec3], errors: &[f64]) -> Result<TriMesh, ContainerError> {
+    fn cut(&mut self, target: MeshTarget, d: &mut Derived) -> Result<TriMesh, ContainerError> {
         let diag = {
             let h = self.reader.header();
             (Vec3::from_array(h.bbox_max) - Vec3::from_array(h.bbox_min)).length() as f64
         };
         let min_level = self.min_level;
         let replay = self.replay.as_mut().ok_or_else(|| ContainerError::Options("seek to a frame first".into()))?;
-        if let (MeshTarget::Level(0), 0) = (target, min_level) {
-            let n0 = replay.h.level_sizes[0] as usize;
-            let triangles = self.triangles.clone().unwrap_or_default();
-            return Ok(TriMesh { positions: positions[..n0].to_vec(), triangles });
-        }
-        match target {
-            MeshTarget::Triangles(n) => replay.select_budget(n, false, errors),
-            MeshTarget::Vertices(n) => replay.select_budget(n, true, errors),
-            MeshTarget::Level(l) => replay.select_level(l),
-            MeshTarget::MaxError(e) => replay.select_max_error(e * diag, errors),
-        }
-        Ok(ordered_mesh(replay, positions))
+        let prefix = match target {
+            MeshTarget::Triangles(n) => PrefixTarget::Triangles(n),
+            MeshTarget::Vertices(n) => PrefixTarget::Vertices(n),
+            MeshTarget::MaxError(e) => PrefixTarget::MaxError(e * diag),
+            MeshTarget::Level(0) if min_level == 0 => {
+                let n0 = replay.h.level_sizes[0] as usize;
+                let triangles = self.triangles.clone().unwrap_or_default();
+                return Ok(TriMesh { positions: d.positions[..n0].to_vec(), triangles });
+            }
+            MeshTarget::Level(l) => {
+                replay.select_level(l);
+                return Ok(ordered_mesh(replay, &d.positions));
+            }
+        };
+        // Budgets and error bounds are prefixes of the split order: no change to the replay.
+        let k = d.order.prefix(replay, &d.errors, prefix);
+        Ok(d.order.mesh(replay, &d.positions, k))
     }
 }
 

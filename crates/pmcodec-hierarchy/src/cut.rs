@@ -74,7 +74,7 @@ impl ChildIndex {
 }
 
 /// A heap item ordered by error, ties to the smaller node id (so cuts are deterministic).
-#[derive(PartialEq)]
+#[derive(PartialEq, Clone, Copy, Debug)]
 pub(crate) struct ByError(pub f64, pub u32);
 impl Eq for ByError {}
 impl PartialOrd for ByError {

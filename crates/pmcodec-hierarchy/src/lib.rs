@@ -19,6 +19,7 @@ pub mod nodes;
 pub mod progressive;
 pub mod quadric;
 pub mod recluster;
+pub mod split_order;
 pub mod topology;
 
 pub use build::{BuildError, BuildOptions, build};

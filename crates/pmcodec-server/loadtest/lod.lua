@@ -21,15 +21,4 @@ function request()
   return wrk.format("GET", "/v1/assets/" .. asset .. "/mesh?frame=" .. f .. "&triangles=" .. t .. "&format=bin")
 end
 
-local errors = 0
-function response(status, headers, body)
-  if status ~= 200 then errors = errors + 1 end
-end
-
-function done(summary, latency, requests)
-  io.write(string.format("non-2xx responses: %d, socket errors: connect %d read %d write %d timeout %d\n",
-    summary.errors.status, summary.errors.connect, summary.errors.read, summary.errors.write, summary.errors.timeout))
-  for _, p in ipairs({50, 90, 99, 99.9}) do
-    io.write(string.format("p%g: %.2f ms\n", p, latency:percentile(p) / 1000))
-  end
-end
+dofile((os.getenv("LOADTEST_DIR") or ".") .. "/report.lua")

@@ -8,6 +8,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 secs=${1:-20}
+export LOADTEST_DIR=crates/pmcodec-server/loadtest
 command -v wrk >/dev/null || { apt-get update -qq && apt-get install -y -qq wrk >/dev/null; }
 cargo build --release --locked -q -p pmcodec
 bin=target/release/pmcodec

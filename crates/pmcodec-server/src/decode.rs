@@ -155,11 +155,11 @@ impl DecodePool {
 }
 
 /// A rough size of a decoder state: per node its parent, positions (current and previous,
-/// dequantized), split priority and bookkeeping; per triangle its corners, incidence and
-/// degeneration node; plus the reader's index.
+/// dequantized), split priority, split rank and bookkeeping; per triangle its corners,
+/// incidence, degeneration node and place in the split order; plus the reader's index.
 fn state_weight(asset: &LoadedAsset) -> u64 {
     let h = &asset.header;
-    84 * h.node_count() + 60 * h.triangle_count as u64 + 32 * asset.chunks.len() as u64 + 4096
+    108 * h.node_count() + 76 * h.triangle_count as u64 + 32 * asset.chunks.len() as u64 + 4096
 }
 
 fn worker(w: usize, rx: Receiver<Msg>, capacity: u64, stats: &DecodeStats) {

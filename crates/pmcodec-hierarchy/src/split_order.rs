@@ -1,0 +1,223 @@
+//! A frame's split order: the greedy refinement of the cut by split priority (Kircher & Garland
+//! section 5.1's cut, grown from the coarsest one), recorded once so that the cut for any
+//! triangle budget, vertex budget or error bound is a *prefix* of it.
+//!
+//! Split priorities are monotone (a node's is at least each child's, see
+//! [`Replay::node_errors`]), so popping the frontier by priority visits nodes in non-increasing
+//! priority: "every node above an error bound" is a prefix, and so is "as many splits as fit a
+//! budget". The order grows lazily (a server asked for 500 triangles never orders the fine
+//! levels), and a mesh for a prefix is read off in time proportional to the mesh: a triangle
+//! appears with its degeneration node's split and never leaves, so the shown triangles are a
+//! prefix of the triangles in order of appearance, and a corner's cut node is found by walking
+//! up from it while the parent is not split.
+//!
+//! The order is a pure function of the hierarchy, the degenerate sets and the priorities:
+//! ties go to the smaller node id and each split's triangles are taken in ascending order, so
+//! two decoders at the same frame produce byte-identical meshes whatever their history.
+
+use crate::NONE;
+use crate::cut::ByError;
+use crate::progressive::Replay;
+use glam::Vec3;
+use pmcodec_mesh::TriMesh;
+use std::collections::BinaryHeap;
+
+/// What a prefix is chosen by.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PrefixTarget {
+    /// The longest prefix showing at most this many triangles.
+    Triangles(u32),
+    /// The longest prefix with at most this many cut nodes.
+    Vertices(u32),
+    /// Every split whose priority exceeds this bound (in model units).
+    MaxError(f64),
+}
+
+/// The split order of one frame (see the module docs). Built from a [`Replay`] and that
+/// frame's priorities; it must be rebuilt when the replay moves to another frame.
+#[derive(Clone, Debug, Default)]
+pub struct SplitOrder {
+    /// Frontier of the greedy refinement not yet ordered.
+    heap: BinaryHeap<ByError>,
+    /// Position in the order of each split node (global id); NONE while not (yet) ordered.
+    rank: Vec<u32>,
+    /// Priority of the i-th split (non-increasing for monotone priorities).
+    priority: Vec<f64>,
+    /// Shown triangles and cut nodes after the first i splits (one entry more than splits).
+    shown_after: Vec<u32>,
+    nodes_after: Vec<u32>,
+    /// Triangles in order of appearance: those shown at the coarsest cut, then each split's.
+    appearing: Vec<u32>,
+    /// Their level-L corners, in the same order (read sequentially by `mesh`).
+    appearing_corners: Vec<[u32; 3]>,
+    /// Scratch of `mesh`: output index of each node, and of each level-L corner (a corner is
+    /// walked up once per mesh however many triangles share it); NONE between calls.
+    index: Vec<u32>,
+    corner_index: Vec<u32>,
+}
+
+impl SplitOrder {
+    /// The order's start: the coarsest cut (nothing split) of `replay`'s current frame.
+    pub fn new(replay: &Replay, errors: &[f64]) -> SplitOrder {
+        let h = &replay.h;
+        let top = h.top();
+        let nodes = h.node_count();
+        let mut appearing: Vec<u32> =
+            replay.degeneration().iter().enumerate().filter(|&(_, &g)| g == NONE).map(|(t, _)| t as u32).collect();
+        appearing.reserve(64);
+        let corners = replay.corners();
+        let appearing_corners = appearing.iter().map(|&t| corners[t as usize]).collect();
+        let heap = (h.offsets[top]..h.offsets[top + 1])
+            .filter(|&g| replay.expandable(g))
+            .map(|g| ByError(errors.get(g as usize).copied().unwrap_or(0.0), g))
+            .collect();
+        SplitOrder {
+            heap,
+            rank: vec![NONE; nodes],
+            priority: Vec::new(),
+            shown_after: vec![appearing.len() as u32],
+            nodes_after: vec![h.level_sizes[top]],
+            appearing,
+            appearing_corners,
+            index: vec![NONE; nodes + 1],
+            corner_index: vec![NONE; h.level_sizes[replay.min_level] as usize],
+        }
+    }
+
+    /// Splits ordered so far.
+    pub fn len(&self) -> usize {
+        self.priority.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.priority.is_empty()
+    }
+
+    /// Position of node `g` in the order, if it has been ordered.
+    pub fn rank(&self, g: u32) -> Option<u32> {
+        self.rank.get(g as usize).copied().filter(|&r| r != NONE)
+    }
+
+    /// Orders one more split (false when every splittable node is ordered).
+    fn grow(&mut self, replay: &Replay, errors: &[f64]) -> bool {
+        let Some(ByError(priority, g)) = self.heap.pop() else { return false };
+        let i = self.priority.len() as u32;
+        self.rank[g as usize] = i;
+        self.priority.push(priority);
+        let set = replay.degenerate_set(g);
+        let start = self.appearing.len();
+        self.appearing.extend_from_slice(set);
+        // D sets are kept unordered by the replay; ascending order makes the mesh canonical.
+        self.appearing[start..].sort_unstable();
+        let corners = replay.corners();
+        for i in start..self.appearing.len() {
+            let t = self.appearing[i] as usize;
+            self.appearing_corners.push(corners.get(t).copied().unwrap_or([NONE; 3]));
+        }
+        let children = replay.children_of(g);
+        let (shown, cut) = (self.shown_after[i as usize], self.nodes_after[i as usize]);
+        self.shown_after.push(shown + set.len() as u32);
+        self.nodes_after.push(cut + (children.len() as u32).saturating_sub(1));
+        for &c in children {
+            if replay.expandable(c) {
+                self.heap.push(ByError(errors.get(c as usize).copied().unwrap_or(0.0), c));
+            }
+        }
+        true
+    }
+
+    /// The length of the prefix `target` selects, ordering more splits as needed.
+    pub fn prefix(&mut self, replay: &Replay, errors: &[f64], target: PrefixTarget) -> usize {
+        // The prefix is known once the order reaches past it (or ends): grow until the next
+        // split would break the target.
+        let fits = |o: &SplitOrder, i: usize| match target {
+            PrefixTarget::Triangles(n) => o.shown_after[i + 1] <= n,
+            PrefixTarget::Vertices(n) => o.nodes_after[i + 1] <= n,
+            PrefixTarget::MaxError(e) => o.priority[i] > e,
+        };
+        let mut k = 0;
+        loop {
+            if k == self.priority.len() && !self.grow(replay, errors) {
+                return k;
+            }
+            if !fits(self, k) {
+                return k;
+            }
+            k += 1;
+        }
+    }
+
+    /// Triangles shown after the first `k` splits.
+    pub fn shown(&self, k: usize) -> &[u32] {
+        let k = k.min(self.priority.len());
+        &self.appearing[..self.shown_after[k] as usize]
+    }
+
+    /// The cut node standing for level-L node `v` (local id) after the first `k` splits: its
+    /// highest ancestor whose parent is split, or its top-level ancestor.
+    #[inline]
+    pub fn cut_node_of(&self, replay: &Replay, v: u32, k: usize) -> u32 {
+        cut_node_of(&self.rank, replay, v, k)
+    }
+
+    /// The mesh after the first `k` splits: triangles in order of appearance (coarse first),
+    /// vertices in order of first use, positions from `positions` (global ids).
+    pub fn mesh(&mut self, replay: &Replay, positions: &[Vec3], k: usize) -> TriMesh {
+        let k = k.min(self.priority.len());
+        let shown = &self.appearing_corners[..self.shown_after[k] as usize];
+        let size = replay.h.level_sizes[replay.min_level];
+        let nodes = self.index.len() as u32 - 1;
+        let mut mesh = TriMesh { positions: Vec::with_capacity(shown.len() / 2 + 3), triangles: Vec::with_capacity(shown.len()) };
+        let mut used: Vec<u32> = Vec::with_capacity(shown.len() / 2 + 3);
+        let mut seen: Vec<u32> = Vec::with_capacity(shown.len() / 2 + 3);
+        for c in shown {
+            let mut tri = [0u32; 3];
+            for (slot, &x) in tri.iter_mut().zip(c) {
+                // Most corners were met in an earlier triangle of this mesh.
+                *slot = match self.corner_index.get(x as usize) {
+                    Some(&s) if s != NONE => s,
+                    _ => {
+                        // A corner beyond the level (a corrupt state) stands for one slot past
+                        // the end, drawn at the origin.
+                        let g = if x < size { cut_node_of(&self.rank, replay, x, k) } else { nodes };
+                        let s = &mut self.index[g as usize];
+                        if *s == NONE {
+                            *s = used.len() as u32;
+                            used.push(g);
+                            mesh.positions.push(positions.get(g as usize).copied().unwrap_or(Vec3::ZERO));
+                        }
+                        let s = *s;
+                        if let Some(c) = self.corner_index.get_mut(x as usize) {
+                            *c = s;
+                            seen.push(x);
+                        }
+                        s
+                    }
+                };
+            }
+            mesh.triangles.push(tri);
+        }
+        for g in used {
+            self.index[g as usize] = NONE;
+        }
+        for x in seen {
+            self.corner_index[x as usize] = NONE;
+        }
+        mesh
+    }
+}
+
+/// See [`SplitOrder::cut_node_of`]: walks up while the parent's rank is not below `k`.
+#[inline]
+fn cut_node_of(rank: &[u32], replay: &Replay, v: u32, k: usize) -> u32 {
+    let h = &replay.h;
+    let (mut level, mut v) = (replay.min_level, v);
+    while level < h.top() {
+        let p = h.parent[level][v as usize];
+        if (rank[(h.offsets[level + 1] + p) as usize] as usize) < k {
+            break;
+        }
+        (level, v) = (level + 1, p);
+    }
+    h.offsets[level] + v
+}

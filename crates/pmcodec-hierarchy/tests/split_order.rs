@@ -1,0 +1,119 @@
+//! The split order on real sequences: budget and error cuts are prefixes that are maximal for
+//! their target, closed upward, and show exactly the mesh the replay shows for the same cut.
+
+mod common;
+use common::*;
+use glam::Vec3;
+use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
+use pmcodec_hierarchy::progressive::{Encoder, Replay};
+use pmcodec_hierarchy::split_order::{PrefixTarget, SplitOrder};
+use pmcodec_hierarchy::*;
+use pmcodec_mesh::TriMesh;
+
+/// A mesh as a sorted list of triangles, each its three corner positions (bit patterns)
+/// rotated so the smallest comes first (orientation kept): equal iff the same triangles.
+fn canonical(m: &TriMesh) -> Vec<[[u32; 3]; 3]> {
+    let key = |p: Vec3| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()];
+    let mut out: Vec<[[u32; 3]; 3]> = m
+        .triangles
+        .iter()
+        .map(|t| {
+            let c = t.map(|i| key(m.positions[i as usize]));
+            let r = (0..3).min_by_key(|&i| c[i]).unwrap_or(0);
+            [c[r], c[(r + 1) % 3], c[(r + 2) % 3]]
+        })
+        .collect();
+    out.sort_unstable();
+    out
+}
+
+/// Runs the encoder over `seq` and checks the split order of every `every`-th frame.
+fn check_sequence(seq: &pmcodec_mesh::Sequence, every: usize, budgets: &[u32]) {
+    let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
+    let q = base_quadrics(seq, &topo, &BaseOptions::default());
+    let h = build(&topo, &q, &BuildOptions::default()).expect("build");
+    let mut enc = Encoder::new(h.clone(), topo, seq.triangles.clone(), Default::default());
+    let mut replay = Replay::new(h, &seq.triangles);
+    let n0 = seq.vertex_count();
+    for (f, frame) in seq.frames.iter().enumerate() {
+        let (delta, _) = enc.encode_frame(frame);
+        replay.apply(&delta).unwrap_or_else(|e| panic!("frame {f}: {e}"));
+        if f % every != 0 {
+            continue;
+        }
+        let positions: Vec<Vec3> =
+            (0..replay.h.node_count()).map(|g| if g < n0 { frame[g] } else { enc.recluster.nodes.positions[g] }).collect();
+        let errors = replay.node_errors(&positions);
+        let mut order = SplitOrder::new(&replay, &errors);
+        for &n in budgets {
+            let k = order.prefix(&replay, &errors, PrefixTarget::Triangles(n));
+            let shown = order.shown(k).len();
+            // At most the budget, and the next split would break it (or there is none).
+            assert!(shown as u32 <= n || k == 0, "frame {f} budget {n}: {shown} triangles after {k} splits");
+            assert!(order.len() == k || order.shown(k + 1).len() as u32 > n, "frame {f} budget {n}: prefix {k} not maximal");
+            // The same cut through the replay shows the same triangles and the same mesh.
+            let expanded: Vec<bool> = (0..replay.h.node_count() as u32).map(|g| order.rank(g).is_some_and(|r| (r as usize) < k)).collect();
+            for g in 0..expanded.len() as u32 {
+                let p = replay.h.parent_global(g);
+                assert!(!expanded[g as usize] || p == NONE || expanded[p as usize], "frame {f} budget {n}: not closed at {g}");
+            }
+            replay.set_cut(&expanded);
+            let mut want = replay.shown().to_vec();
+            want.sort_unstable();
+            let mut got = order.shown(k).to_vec();
+            got.sort_unstable();
+            assert_eq!(got, want, "frame {f} budget {n}: shown triangles");
+            let mesh = order.mesh(&replay, &positions, k);
+            assert_eq!(mesh.triangles.len(), shown);
+            assert!(mesh.triangles.iter().flatten().all(|&i| (i as usize) < mesh.positions.len()));
+            assert_eq!(canonical(&mesh), canonical(&replay.mesh(&positions).0), "frame {f} budget {n}: mesh");
+        }
+        // Error bounds: every split in the prefix is above the bound, the next is not.
+        let diag = (seq.bounds().map(|(lo, hi)| (hi - lo).length()).unwrap_or(1.0)) as f64;
+        for e in [0.05, 0.01, 0.002, 0.0] {
+            let bound = e * diag;
+            let k = order.prefix(&replay, &errors, PrefixTarget::MaxError(bound));
+            let mut all = SplitOrder::new(&replay, &errors);
+            let full = all.prefix(&replay, &errors, PrefixTarget::Triangles(u32::MAX));
+            assert!(k <= full);
+            for g in 0..replay.h.node_count() as u32 {
+                if let Some(r) = all.rank(g) {
+                    let p = errors[g as usize];
+                    assert_eq!((r as usize) < k, p > bound, "frame {f} bound {bound}: node {g} priority {p} rank {r} prefix {k}");
+                }
+            }
+        }
+        // Vertex budgets count cut nodes.
+        for n in [100, 1000, 4000] {
+            let k = order.prefix(&replay, &errors, PrefixTarget::Vertices(n));
+            let mesh = order.mesh(&replay, &positions, k);
+            assert!(mesh.positions.len() as u32 <= n, "frame {f}: {} vertices for a budget of {n}", mesh.positions.len());
+        }
+        // An order grown lazily by small requests gives what one grown at once gives.
+        let mut fresh = SplitOrder::new(&replay, &errors);
+        for &n in budgets.iter().rev() {
+            let a = fresh.prefix(&replay, &errors, PrefixTarget::Triangles(n));
+            let b = order.prefix(&replay, &errors, PrefixTarget::Triangles(n));
+            assert_eq!(a, b);
+            assert_eq!(fresh.mesh(&replay, &positions, a), order.mesh(&replay, &positions, b), "frame {f} budget {n}");
+        }
+    }
+}
+
+#[test]
+fn horse_gallop_budget_cuts_are_prefixes() {
+    let Some(seq) = load("horse-gallop", 12) else { return };
+    check_sequence(&seq, 5, &[0, 1, 50, 500, 1684, 2000, 8000, 16000, u32::MAX]);
+}
+
+#[test]
+fn samba_budget_cuts_are_prefixes() {
+    let Some(seq) = load("samba-60", 6) else { return };
+    check_sequence(&seq, 5, &[20, 777, 5000, 19938]);
+}
+
+#[test]
+fn generated_wave_budget_cuts_are_prefixes() {
+    let seq = grid(30, 20, 6);
+    check_sequence(&seq, 2, &[0, 3, 40, 300, 1000, 2000]);
+}
