@@ -1,6 +1,6 @@
 //! Encode and decode speed of the container on the horse gallop.
 //! `cargo bench -p pmcodec-container --bench container`
-use pmcodec_container::{Decoder, EncodeOptions, Reader, encode};
+use pmcodec_container::{Decoder, EncodeOptions, MeshTarget, Reader, encode};
 use std::sync::OnceLock;
 
 fn main() {
@@ -33,4 +33,29 @@ fn decode_horse_48_frames() -> u32 {
         d.seek(f).expect("frame");
     }
     d.frame().unwrap_or(0)
+}
+
+/// Playback at a budget: every frame decoded and cut at 2,000 triangles (a full-resolution
+/// decoder, and one that reads only the bands a 2,000-triangle cut needs, as clients do).
+#[divan::bench(sample_count = 10, args = [0, 1])]
+fn decode_and_cut_2000_horse_48_frames(min_level: usize) -> usize {
+    let reader = Reader::open(file().as_slice()).expect("open");
+    let mut d = Decoder::new(reader.borrowed(), min_level).expect("decoder");
+    let mut shown = 0;
+    for f in 0..reader.header().frame_count {
+        d.seek(f).expect("frame");
+        shown += d.mesh(MeshTarget::Triangles(2000)).expect("mesh").triangles.len();
+    }
+    shown
+}
+
+/// LOD on demand on a warm frame (what the server spends per request once a frame's state is
+/// cached): one cut at a budget, the split order already recorded.
+#[divan::bench(args = [500, 2000, 8000, 16000])]
+fn lod_cut_warm_frame(bencher: divan::Bencher, budget: u32) {
+    let reader = Reader::open(file().as_slice()).expect("open");
+    let mut d = Decoder::new(reader.borrowed(), 0).expect("decoder");
+    d.seek(24).expect("frame");
+    d.mesh(MeshTarget::Triangles(u32::MAX)).expect("warm-up");
+    bencher.bench_local(|| d.mesh(MeshTarget::Triangles(budget)).expect("mesh").triangles.len());
 }

@@ -50,8 +50,10 @@ pub struct Decoder<S> {
 }
 
 /// What meshes of one decoded frame are cut from.
-#[derive(Clone)]
+#[derive(Clone, Default)]
 struct Derived {
+    /// The frame these were computed for.
+    frame: Option<u32>,
     positions: Vec<Vec3>,
     errors: Vec<f64>,
     order: SplitOrder,
@@ -141,7 +143,7 @@ impl<S: ByteSource> Decoder<S> {
     /// Brings the decoder to `frame`: from the current frame when that is on the way, else
     /// from the keyframe at or before it.
     pub fn seek(&mut self, frame: u32) -> Result<(), ContainerError> {
-        self.derived = None;
+        self.invalidate_derived();
         let h = self.reader.header();
         if frame >= h.frame_count {
             return Err(ContainerError::NoSuchFrame { frame, frames: h.frame_count });
@@ -208,7 +210,7 @@ impl<S: ByteSource> Decoder<S> {
         }
         self.decode_positions(frame, true)?;
         self.frame = Some(frame);
-        self.derived = None;
+        self.invalidate_derived();
         Ok(())
     }
 
@@ -240,7 +242,7 @@ impl<S: ByteSource> Decoder<S> {
         std::mem::swap(&mut self.previous, &mut self.current);
         self.decode_positions(frame, false)?;
         self.frame = Some(frame);
-        self.derived = None;
+        self.invalidate_derived();
         Ok(())
     }
 
@@ -290,10 +292,25 @@ impl<S: ByteSource> Decoder<S> {
 
     /// Dequantized positions of every node (global ids).
     pub fn positions(&self) -> Vec<Vec3> {
+        let mut out = Vec::new();
+        self.positions_into(&mut out);
+        out
+    }
+
+    fn positions_into(&self, out: &mut Vec<Vec3>) {
         let h = self.reader.header();
         let lo = Vec3::from_array(h.bbox_min);
         let step = h.quantization.step;
-        self.current.iter().map(|q| lo + Vec3::new(q[0] as f32, q[1] as f32, q[2] as f32) * step).collect()
+        out.clear();
+        out.extend(self.current.iter().map(|q| lo + Vec3::new(q[0] as f32, q[1] as f32, q[2] as f32) * step));
+    }
+
+    /// Marks the derived data stale (the decoder moved, or may have failed half-way), keeping
+    /// its buffers for the next frame.
+    fn invalidate_derived(&mut self) {
+        if let Some(d) = self.derived.as_mut() {
+            d.frame = None;
+        }
     }
 
     /// Chooses the cut for `target` on the current frame and returns its mesh. `Level(0)`
@@ -304,12 +321,15 @@ impl<S: ByteSource> Decoder<S> {
             return Err(ContainerError::Options("seek to a frame first".into()));
         };
         let mut derived = match self.derived.take() {
-            Some(d) => d,
-            None => {
-                let positions = self.positions();
-                let errors = replay.node_errors(&positions);
-                let order = SplitOrder::new(replay, &errors);
-                Derived { positions, errors, order }
+            Some(d) if d.frame.is_some() && d.frame == self.frame => d,
+            // A new frame: recompute in the last frame's buffers.
+            stale => {
+                let mut d = stale.unwrap_or_default();
+                self.positions_into(&mut d.positions);
+                replay.node_errors_into(&d.positions, &mut d.errors);
+                d.order.reset(replay, &d.errors);
+                d.frame = self.frame;
+                d
             }
         };
         let mesh = self.cut(target, &mut derived);

@@ -714,8 +714,16 @@ impl Replay {
 impl Replay {
     /// Split priorities of every node from node positions (global ids).
     pub fn node_errors(&self, positions: &[Vec3]) -> Vec<f64> {
+        let mut err = Vec::new();
+        self.node_errors_into(positions, &mut err);
+        err
+    }
+
+    /// [`Self::node_errors`] into a buffer (resized to the node count).
+    pub fn node_errors_into(&self, positions: &[Vec3], err: &mut Vec<f64>) {
         let h = &self.h;
-        let mut err = vec![0f64; h.node_count()];
+        err.clear();
+        err.resize(h.node_count(), 0.0);
         for k in self.min_level..h.levels() - 1 {
             for (v, &p) in h.parent[k].iter().enumerate() {
                 let (c, a) = ((h.offsets[k] + v as u32) as usize, (h.offsets[k + 1] + p) as usize);
@@ -726,7 +734,6 @@ impl Replay {
                 }
             }
         }
-        err
     }
 
     /// Collapses the whole cut, in time proportional to it: the cut is closed upward, so every

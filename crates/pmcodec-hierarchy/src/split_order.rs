@@ -41,7 +41,9 @@ pub struct SplitOrder {
     heap: BinaryHeap<ByError>,
     /// Position in the order of each split node (global id); NONE while not (yet) ordered.
     rank: Vec<u32>,
-    /// Priority of the i-th split (non-increasing for monotone priorities).
+    /// The split nodes in order, and the priority of each (non-increasing for monotone
+    /// priorities).
+    order: Vec<u32>,
     priority: Vec<f64>,
     /// Shown triangles and cut nodes after the first i splits (one entry more than splits).
     shown_after: Vec<u32>,
@@ -59,29 +61,50 @@ pub struct SplitOrder {
 impl SplitOrder {
     /// The order's start: the coarsest cut (nothing split) of `replay`'s current frame.
     pub fn new(replay: &Replay, errors: &[f64]) -> SplitOrder {
+        let mut order = SplitOrder::default();
+        order.reset(replay, errors);
+        order
+    }
+
+    /// Starts the order again for `replay`'s current frame, keeping the memory (a player that
+    /// cuts every frame allocates nothing once its buffers have grown).
+    pub fn reset(&mut self, replay: &Replay, errors: &[f64]) {
         let h = &replay.h;
         let top = h.top();
         let nodes = h.node_count();
-        let mut appearing: Vec<u32> =
-            replay.degeneration().iter().enumerate().filter(|&(_, &g)| g == NONE).map(|(t, _)| t as u32).collect();
-        appearing.reserve(64);
         let corners = replay.corners();
-        let appearing_corners = appearing.iter().map(|&t| corners[t as usize]).collect();
-        let heap = (h.offsets[top]..h.offsets[top + 1])
-            .filter(|&g| replay.expandable(g))
-            .map(|g| ByError(errors.get(g as usize).copied().unwrap_or(0.0), g))
-            .collect();
-        SplitOrder {
-            heap,
-            rank: vec![NONE; nodes],
-            priority: Vec::new(),
-            shown_after: vec![appearing.len() as u32],
-            nodes_after: vec![h.level_sizes[top]],
-            appearing,
-            appearing_corners,
-            index: vec![NONE; nodes + 1],
-            corner_index: vec![NONE; h.level_sizes[replay.min_level] as usize],
+        self.appearing.clear();
+        self.appearing_corners.clear();
+        for (t, &g) in replay.degeneration().iter().enumerate() {
+            if g == NONE {
+                self.appearing.push(t as u32);
+                self.appearing_corners.push(corners.get(t).copied().unwrap_or([NONE; 3]));
+            }
         }
+        self.heap.clear();
+        self.heap.extend(
+            (h.offsets[top]..h.offsets[top + 1])
+                .filter(|&g| replay.expandable(g))
+                .map(|g| ByError(errors.get(g as usize).copied().unwrap_or(0.0), g)),
+        );
+        // Ranks are reset where the last order set them (all of them after a resize).
+        if self.rank.len() == nodes {
+            for &g in &self.order {
+                self.rank[g as usize] = NONE;
+            }
+        } else {
+            self.rank.clear();
+            self.rank.resize(nodes, NONE);
+        }
+        self.order.clear();
+        self.priority.clear();
+        self.shown_after.clear();
+        self.shown_after.push(self.appearing.len() as u32);
+        self.nodes_after.clear();
+        self.nodes_after.push(h.level_sizes[top]);
+        // Between calls of `mesh` the scratch holds NONE everywhere; only sizes can change.
+        self.index.resize(nodes + 1, NONE);
+        self.corner_index.resize(h.level_sizes[replay.min_level] as usize, NONE);
     }
 
     /// Splits ordered so far.
@@ -103,6 +126,7 @@ impl SplitOrder {
         let Some(ByError(priority, g)) = self.heap.pop() else { return false };
         let i = self.priority.len() as u32;
         self.rank[g as usize] = i;
+        self.order.push(g);
         self.priority.push(priority);
         let set = replay.degenerate_set(g);
         let start = self.appearing.len();

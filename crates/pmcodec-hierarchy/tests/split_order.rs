@@ -35,6 +35,8 @@ fn check_sequence(seq: &pmcodec_mesh::Sequence, every: usize, budgets: &[u32]) {
     let mut enc = Encoder::new(h.clone(), topo, seq.triangles.clone(), Default::default());
     let mut replay = Replay::new(h, &seq.triangles);
     let n0 = seq.vertex_count();
+    // One order reset frame after frame (as a player's decoder keeps it) must equal fresh ones.
+    let mut reused = SplitOrder::default();
     for (f, frame) in seq.frames.iter().enumerate() {
         let (delta, _) = enc.encode_frame(frame);
         replay.apply(&delta).unwrap_or_else(|e| panic!("frame {f}: {e}"));
@@ -89,7 +91,8 @@ fn check_sequence(seq: &pmcodec_mesh::Sequence, every: usize, budgets: &[u32]) {
             let mesh = order.mesh(&replay, &positions, k);
             assert!(mesh.positions.len() as u32 <= n, "frame {f}: {} vertices for a budget of {n}", mesh.positions.len());
         }
-        // An order grown lazily by small requests gives what one grown at once gives.
+        // An order grown lazily by small requests gives what one grown at once gives, and so
+        // does one reset from an earlier frame's.
         let mut fresh = SplitOrder::new(&replay, &errors);
         for &n in budgets.iter().rev() {
             let a = fresh.prefix(&replay, &errors, PrefixTarget::Triangles(n));
@@ -97,6 +100,16 @@ fn check_sequence(seq: &pmcodec_mesh::Sequence, every: usize, budgets: &[u32]) {
             assert_eq!(a, b);
             assert_eq!(fresh.mesh(&replay, &positions, a), order.mesh(&replay, &positions, b), "frame {f} budget {n}");
         }
+        // (Small budgets first: a reset that left stale ranks would show in a short order.)
+        reused.reset(&replay, &errors);
+        for &n in budgets {
+            let b = order.prefix(&replay, &errors, PrefixTarget::Triangles(n));
+            let c = reused.prefix(&replay, &errors, PrefixTarget::Triangles(n));
+            assert_eq!(c, b, "frame {f} budget {n}: reset order");
+            assert_eq!(reused.mesh(&replay, &positions, c), order.mesh(&replay, &positions, b), "frame {f} budget {n}: reset order");
+        }
+        // Grow the reused order fully so the next reset has every rank to clear.
+        reused.prefix(&replay, &errors, PrefixTarget::Triangles(u32::MAX));
     }
 }
 
