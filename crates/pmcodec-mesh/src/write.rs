@@ -53,7 +53,11 @@ const CHUNK_BIN: u32 = 0x004E_4942; // "BIN\0"
 const ARRAY_BUFFER: u32 = 34962;
 const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 const FLOAT: u32 = 5126;
+const UNSIGNED_SHORT: u32 = 5123;
 const UNSIGNED_INT: u32 = 5125;
+/// Meshes with fewer vertices get 16-bit indices. glTF forbids an index equal to the
+/// component type's largest value (primitive restart), so 65,535 vertices at most.
+const MAX_U16_VERTICES: usize = 65_535;
 const TRIANGLES: u32 = 4;
 
 /// Bytes of binary data a GLB of `mesh` carries: positions, normals, indices.
@@ -69,8 +73,9 @@ fn fits_glb(mesh: &TriMesh) -> bool {
 }
 
 /// A glTF 2.0 binary holding one scene with one node and one mesh of one indexed triangle
-/// primitive: POSITION (with the min/max the spec requires), area-weighted NORMAL and `u32`
-/// indices, each in its own 4-byte-aligned buffer view of a single buffer.
+/// primitive: POSITION (with the min/max the spec requires), area-weighted NORMAL and indices
+/// (`u16` up to 65,535 vertices, else `u32`), each in its own 4-byte-aligned buffer view of a
+/// single buffer.
 ///
 /// A mesh without triangles has no surface to draw and becomes a valid GLB of one scene with
 /// one empty node (no mesh, no buffer), so a reader always gets a file it can open.
@@ -90,8 +95,8 @@ pub fn glb_bytes(mesh: &TriMesh) -> Vec<u8> {
         (json!({"asset": {"version": "2.0", "generator": "pmcodec"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{}]}), Vec::new())
     } else {
         let mut bin: Vec<u8> = Vec::with_capacity(bin_len(mesh) as usize);
-        // Every element is a 4-byte float or u32, so each view starts 4-byte aligned without
-        // padding between them.
+        // Positions and normals are 4-byte floats and the indices come last, so each view
+        // starts 4-byte aligned without padding between them.
         let put = |bin: &mut Vec<u8>, v: Vec3| {
             for c in v.to_array() {
                 bin.extend_from_slice(&c.to_le_bytes());
@@ -105,8 +110,11 @@ pub fn glb_bytes(mesh: &TriMesh) -> Vec<u8> {
             put(&mut bin, n);
         }
         let indices_at = bin.len();
-        for t in &mesh.triangles {
-            for i in t {
+        let short = nv <= MAX_U16_VERTICES;
+        for &i in mesh.triangles.iter().flatten() {
+            if short {
+                bin.extend_from_slice(&(i as u16).to_le_bytes());
+            } else {
                 bin.extend_from_slice(&i.to_le_bytes());
             }
         }
@@ -125,7 +133,8 @@ pub fn glb_bytes(mesh: &TriMesh) -> Vec<u8> {
                 {"bufferView": 0, "componentType": FLOAT, "count": nv, "type": "VEC3",
                  "min": lo.to_array(), "max": hi.to_array()},
                 {"bufferView": 1, "componentType": FLOAT, "count": nv, "type": "VEC3"},
-                {"bufferView": 2, "componentType": UNSIGNED_INT, "count": nt * 3, "type": "SCALAR"},
+                {"bufferView": 2, "componentType": if short { UNSIGNED_SHORT } else { UNSIGNED_INT },
+                 "count": nt * 3, "type": "SCALAR"},
             ],
             "bufferViews": [
                 {"buffer": 0, "byteOffset": 0, "byteLength": normals_at, "target": ARRAY_BUFFER},

@@ -106,8 +106,28 @@ fn glb_round_trips_through_the_gltf_crate() {
         let pos = prim.get(&gltf::Semantic::Positions).unwrap();
         assert_eq!((pos.data_type(), pos.dimensions()), (gltf::accessor::DataType::F32, gltf::accessor::Dimensions::Vec3));
         let idx = prim.indices().unwrap();
-        assert_eq!(idx.data_type(), gltf::accessor::DataType::U32);
+        assert_eq!(idx.data_type(), gltf::accessor::DataType::U16);
         assert_eq!(idx.count(), m.triangles.len() * 3);
+    }
+}
+
+/// A fan of `n` triangles over `n + 2` vertices.
+fn fan(n: u32) -> TriMesh {
+    TriMesh {
+        positions: (0..n + 2).map(|i| Vec3::new((i % 97) as f32, (i / 97) as f32, (i % 5) as f32)).collect(),
+        triangles: (0..n).map(|i| [0, i + 1, i + 2]).collect(),
+    }
+}
+
+#[test]
+fn glb_indices_are_16_bit_up_to_65535_vertices() {
+    // 65,535 vertices: the largest index is 65,534 (65,535 is glTF's primitive restart value).
+    for (n, want) in [(65_533u32, gltf::accessor::DataType::U16), (65_534, gltf::accessor::DataType::U32)] {
+        let m = fan(n);
+        let (g, back) = read_glb(&glb_bytes(&m));
+        assert_eq!(back, m, "{} vertices", m.positions.len());
+        let prim = g.meshes().next().unwrap().primitives().next().unwrap();
+        assert_eq!(prim.indices().unwrap().data_type(), want, "{} vertices", m.positions.len());
     }
 }
 
