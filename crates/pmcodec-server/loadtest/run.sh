@@ -30,7 +30,19 @@ for c in json.load(sys.stdin)["chunks"]: print(c["offset"], c["length"])' > "$wo
 echo "== warm-up (decoder states for every keyframe interval)"
 ASSET=horse FRAMES=48 wrk -t2 -c8 -d3s -s crates/pmcodec-server/loadtest/lod.lua $base >/dev/null
 echo "== LOD on demand: horse, random frame 0..47, random budget 200..16000 triangles, 64 connections, ${secs}s"
-ASSET=horse FRAMES=48 wrk -t2 -c64 -d${secs}s --latency -s crates/pmcodec-server/loadtest/lod.lua $base
+ASSET=horse FRAMES=48 wrk -t2 -c64 -d${secs}s --latency -s crates/pmcodec-server/loadtest/lod.lua $base | tee "$work/lod.txt"
+# What the same connections get from bytes already in memory, at the LOD answers' mean size: the
+# ceiling that transfer alone (server writes, wrk reads, both on these cores) puts on LOD latency.
+mean=$(python3 - "$work/lod.txt" <<'P'
+import re, sys
+t = open(sys.argv[1]).read()
+n, size, unit = re.search(r"(\d+) requests in [\d.]+\w+, ([\d.]+)(\w+) read", t).groups()
+scale = {"B": 1, "KB": 2**10, "MB": 2**20, "GB": 2**30}[unit]
+print(int(float(size) * scale / int(n)))
+P
+)
+echo "== transfer ceiling: a ${mean}-byte range of the container (the mean LOD answer), 64 connections, ${secs}s"
+wrk -t2 -c64 -d${secs}s --latency -H "Range: bytes=0-$((mean - 1))" -s crates/pmcodec-server/loadtest/report.lua "$base$file"
 echo "== chunk range requests: random chunk of the horse's container, 64 connections, ${secs}s"
 FILE=$file CHUNKS=$work/chunks.txt wrk -t2 -c64 -d${secs}s --latency -s crates/pmcodec-server/loadtest/chunks.lua $base
 echo "== playback: bytes downloaded for the whole sequence"
