@@ -4,8 +4,10 @@ use std::path::PathBuf;
 /// vertex at fault so that a user can find it.
 #[derive(Debug, thiserror::Error)]
 pub enum MeshError {
-    #[error("reading {path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    /// Reading or writing `path` failed. (The I/O error is part of the message, not a
+    /// `source`, so that error chains do not print it twice.)
+    #[error("{path}: {error}")]
+    Io { path: PathBuf, error: std::io::Error },
     #[error("{path}:{line}: {message}")]
     Parse { path: PathBuf, line: usize, message: String },
     #[error("no frames: {0}")]

@@ -1172,7 +1172,7 @@ fn extension_is_supported(name: &str) -> bool {
 
 impl GltfFile {
     fn open(path: &Path) -> Result<Self, MeshError> {
-        let bytes = std::fs::read(path).map_err(|source| MeshError::Io { path: path.to_path_buf(), source })?;
+        let bytes = std::fs::read(path).map_err(|error| MeshError::Io { path: path.to_path_buf(), error })?;
         let base = path.parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });
         Self::parse(&bytes, base).map_err(|e| at_path(path, e))
     }
@@ -1464,7 +1464,7 @@ fn read_uri(uri: &str, base: Option<&Path>, index: usize) -> Result<Vec<u8>, Mes
         return Err(MeshError::Unsupported(format!("buffer {index}: URI {uri:?} (only relative paths inside the file's folder are read)")));
     }
     let path = base.join(relative);
-    std::fs::read(&path).map_err(|source| MeshError::Io { path, source })
+    std::fs::read(&path).map_err(|error| MeshError::Io { path, error })
 }
 
 fn percent_decode(s: &str) -> Option<String> {

@@ -75,7 +75,7 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjFrame, MeshError> {
 
 /// Reads one OBJ file.
 pub fn read_obj(path: &Path) -> Result<ObjFrame, MeshError> {
-    let text = std::fs::read_to_string(path).map_err(|source| MeshError::Io { path: path.to_path_buf(), source })?;
+    let text = std::fs::read_to_string(path).map_err(|error| MeshError::Io { path: path.to_path_buf(), error })?;
     parse_obj(&text, path)
 }
 
@@ -109,7 +109,7 @@ pub fn frame_paths(input: &Path) -> Result<Vec<PathBuf>, MeshError> {
 }
 
 fn list_dir(dir: &Path) -> Result<Vec<PathBuf>, MeshError> {
-    let io = |source| MeshError::Io { path: dir.to_path_buf(), source };
+    let io = |error| MeshError::Io { path: dir.to_path_buf(), error };
     let mut out = Vec::new();
     for entry in std::fs::read_dir(dir).map_err(io)? {
         let path = entry.map_err(io)?.path();

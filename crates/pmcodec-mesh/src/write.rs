@@ -195,7 +195,7 @@ static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
 /// a failure (or a kill) never leaves a half-written file under the final name: readers see the
 /// old file or the new one. The temporary file is removed on any error.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), MeshError> {
-    let io = |source| MeshError::Io { path: path.to_path_buf(), source };
+    let io = |error| MeshError::Io { path: path.to_path_buf(), error };
     let Some(name) = path.file_name() else {
         return Err(MeshError::Invalid(format!("cannot write {}: it does not name a file", path.display())));
     };
@@ -248,7 +248,7 @@ pub fn write_mesh_file(path: &Path, mesh: &TriMesh) -> Result<(), MeshError> {
         }
         Some("obj") => {
             let mut v = Vec::new();
-            write_obj(&mut v, mesh).map_err(|source| MeshError::Io { path: path.to_path_buf(), source })?;
+            write_obj(&mut v, mesh).map_err(|error| MeshError::Io { path: path.to_path_buf(), error })?;
             v
         }
         Some(other) => {
