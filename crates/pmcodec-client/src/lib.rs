@@ -22,28 +22,7 @@ pub enum ClientError {
     Protocol(String),
 }
 
-/// One asset as listed by `GET /v1/assets`.
-#[derive(Clone, Debug, Deserialize)]
-pub struct AssetSummary {
-    pub id: String,
-    pub frames: u32,
-    pub frame_rate: f32,
-    pub vertices: u32,
-    pub triangles: u32,
-    pub levels: Vec<u32>,
-    pub bytes: u64,
-    /// Immutable URL of the container, relative to the server.
-    pub file: String,
-}
-
-/// `GET /v1/assets/{id}`.
-#[derive(Clone, Debug, Deserialize)]
-pub struct AssetInfo {
-    #[serde(flatten)]
-    pub summary: AssetSummary,
-    pub triangles_per_level: Vec<usize>,
-    pub bytes_per_frame_to_level: Vec<f64>,
-}
+pub use pmcodec_api::{AssetInfo, AssetSummary};
 
 /// A connection to one server.
 #[derive(Clone, Debug)]

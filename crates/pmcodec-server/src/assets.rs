@@ -7,7 +7,6 @@ use crate::store::{AssetStore, StoredObject};
 use crate::{ApiError, AssetId};
 use bytes::Bytes;
 use pmcodec_container::{ChunkEntry, ChunkKind, Decoder, Header, MeshTarget, Reader, summary};
-use serde::Serialize;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -28,47 +27,7 @@ pub struct LoadedAsset {
     pub info: Arc<AssetInfo>,
 }
 
-/// What `GET /v1/assets` lists per asset.
-#[derive(Clone, Debug, Serialize)]
-pub struct AssetSummary {
-    pub id: String,
-    pub version: String,
-    pub frames: u32,
-    pub frame_rate: f32,
-    pub vertices: u32,
-    pub triangles: u32,
-    /// Nodes per level, `|M_0|` (the input) to `|M_top|`.
-    pub levels: Vec<u32>,
-    /// Size of the container.
-    pub bytes: u64,
-    /// The container's immutable URL.
-    pub file: String,
-}
-
-/// What `GET /v1/assets/{id}` returns.
-#[derive(Clone, Debug, Serialize)]
-pub struct AssetInfo {
-    #[serde(flatten)]
-    pub summary: AssetSummary,
-    pub bbox_min: [f32; 3],
-    pub bbox_max: [f32; 3],
-    pub keyframe_interval: u32,
-    /// Triangles shown when every node of a level is drawn (frame 0).
-    pub triangles_per_level: Vec<usize>,
-    /// Stored bytes of each band (all frames).
-    pub bytes_per_level: Vec<u64>,
-    /// Everything a client stopping at each level reads: preamble, header, index, the bands
-    /// from the top down to that level, and the input triangles for level 0.
-    pub bytes_to_level: Vec<u64>,
-    /// Bytes per frame of deltas and positions a client stopping at each level reads.
-    pub bytes_per_frame_to_level: Vec<f64>,
-    pub positions_bits_per_vertex_frame: f64,
-    /// The chunk table (JSON) at an immutable URL.
-    pub index: String,
-    /// Header and frames in playback order, one request.
-    pub stream: String,
-    pub generator: String,
-}
+pub use pmcodec_api::{AssetInfo, AssetSummary};
 
 impl LoadedAsset {
     /// Checks and describes a container (CPU work: run it on a blocking thread).

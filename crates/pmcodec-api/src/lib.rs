@@ -1,0 +1,87 @@
+//! The JSON bodies of the pmcodec HTTP API (proto/http.md, proto/openapi.yaml): written by
+//! `pmcodec-server`, read by `pmcodec-client`, so that the two cannot drift apart.
+
+use serde::{Deserialize, Serialize};
+
+/// What `GET /v1/assets` lists per asset.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct AssetSummary {
+    pub id: String,
+    pub version: String,
+    pub frames: u32,
+    pub frame_rate: f32,
+    pub vertices: u32,
+    pub triangles: u32,
+    /// Nodes per level, `|M_0|` (the input) to `|M_top|`.
+    pub levels: Vec<u32>,
+    /// Size of the container.
+    pub bytes: u64,
+    /// The container's immutable URL.
+    pub file: String,
+}
+
+/// What `GET /v1/assets/{id}` returns.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct AssetInfo {
+    #[serde(flatten)]
+    pub summary: AssetSummary,
+    pub bbox_min: [f32; 3],
+    pub bbox_max: [f32; 3],
+    pub keyframe_interval: u32,
+    /// Triangles shown when every node of a level is drawn (frame 0).
+    pub triangles_per_level: Vec<usize>,
+    /// Stored bytes of each band (all frames).
+    pub bytes_per_level: Vec<u64>,
+    /// Everything a client stopping at each level reads: preamble, header, index, the bands
+    /// from the top down to that level, and the input triangles for level 0.
+    pub bytes_to_level: Vec<u64>,
+    /// Bytes per frame of deltas and positions a client stopping at each level reads.
+    pub bytes_per_frame_to_level: Vec<f64>,
+    pub positions_bits_per_vertex_frame: f64,
+    /// The chunk table (JSON) at an immutable URL.
+    pub index: String,
+    /// Header and frames in playback order, one request.
+    pub stream: String,
+    pub generator: String,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn asset_info_is_flat_json_and_round_trips() {
+        let summary = AssetSummary {
+            id: "horse".into(),
+            version: "414ac7f9".into(),
+            frames: 48,
+            frame_rate: 30.0,
+            vertices: 8431,
+            triangles: 16843,
+            levels: vec![8431, 2108, 843],
+            bytes: 976_125,
+            file: "/v1/assets/horse/v/414ac7f9/file".into(),
+        };
+        let info = AssetInfo {
+            summary,
+            bbox_min: [-1.0, 0.0, -2.0],
+            bbox_max: [1.0, 2.0, 2.0],
+            keyframe_interval: 16,
+            triangles_per_level: vec![16843, 4200, 1678],
+            bytes_per_level: vec![700_000, 200_000, 60_000],
+            bytes_to_level: vec![976_125, 260_000, 61_000],
+            bytes_per_frame_to_level: vec![14925.0, 6021.0, 2657.0],
+            positions_bits_per_vertex_frame: 13.8,
+            index: "/v1/assets/horse/v/414ac7f9/index".into(),
+            stream: "/v1/assets/horse/stream".into(),
+            generator: "pmcodec 0.1.0".into(),
+        };
+        let json = serde_json::to_value(&info).expect("serialize");
+        // The summary's fields sit at the top level beside the details (proto/http.md).
+        assert_eq!(json["id"], "horse");
+        assert_eq!(json["triangles_per_level"][2], 1678);
+        assert!(json.get("summary").is_none());
+        let back: AssetInfo = serde_json::from_value(json).expect("deserialize");
+        assert_eq!(back, info);
+    }
+}
