@@ -156,8 +156,8 @@ fn main() {
                             }
                         }
                     } else {
-                        for a in 0..3 {
-                            coarse[k].add(bucket(last) * 3 + a, qs[a]);
+                        for (a, &q) in qs.iter().enumerate() {
+                            coarse[k].add(bucket(last) * 3 + a, q);
                         }
                         last = qs.iter().map(|x| x.unsigned_abs()).sum();
                         cur[g] = [0, 1, 2].map(|a| preds[0][a] + (qs[a] << s));

@@ -50,11 +50,11 @@ fn round_trip(seq: &Sequence, opts: &EncodeOptions) -> Vec<u8> {
             assert!((pos[v] - *p).length() <= bound, "frame {f} vertex {v}: {} > {bound}", (pos[v] - *p).length());
         }
         // Coarser nodes sit on a grid of 2^shift quanta around their prediction.
-        for g in seq.vertex_count()..pos.len() {
+        for (g, p) in pos.iter().enumerate().skip(seq.vertex_count()) {
             let (k, _) = enc.hierarchy().local(g as u32);
             let s = pmcodec_container::coarse_shift(h, k, opts.coarse_grid);
             let b = if s == 0 { bound } else { h.quantization.step * (1u32 << s) as f32 * 0.5 * 3f32.sqrt() * 1.0001 };
-            assert!((pos[g] - enc.recluster.nodes.positions[g]).length() <= b, "frame {f} node {g}");
+            assert!((*p - enc.recluster.nodes.positions[g]).length() <= b, "frame {f} node {g}");
         }
     }
     // Level 0 is the input, in input order.

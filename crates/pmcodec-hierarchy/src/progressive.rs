@@ -554,8 +554,8 @@ impl Replay {
 
     /// Replaces the cut by `expanded` (closed upward; entries at or below `min_level` ignored).
     pub fn set_cut(&mut self, expanded: &[bool]) {
-        for g in 0..self.expanded.len().min(expanded.len()) {
-            let want = expanded[g] && self.expandable(g as u32);
+        for (g, &wanted) in expanded.iter().enumerate().take(self.expanded.len()) {
+            let want = wanted && self.expandable(g as u32);
             if self.expanded[g] != want {
                 self.expanded[g] = want;
                 for i in 0..self.sets[g].len() {

@@ -26,6 +26,7 @@ pub fn load(name: &str, frames: usize) -> Option<Sequence> {
 /// A deterministic generator for tests (splitmix64).
 pub struct Rng(pub u64);
 impl Rng {
+    #[allow(clippy::should_implement_trait)] // an endless generator, not an iterator
     pub fn next(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;
