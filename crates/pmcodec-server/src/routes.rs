@@ -329,8 +329,13 @@ impl MeshQuery {
     }
 }
 
-/// A strong validator of a mesh response: the output is a function of the container's bytes
-/// and the normalised request.
+/// Generation of the mesh answers' bytes for a given container and request: raised whenever
+/// the cut rule or a body layout changes (2: split-order prefixes and 16-bit indices), so a
+/// strong tag never names two different bodies across server versions.
+const MESH_GENERATION: u32 = 2;
+
+/// A strong validator of a mesh response: the output is a function of the container's bytes,
+/// the normalised request and [`MESH_GENERATION`].
 fn mesh_etag(version: &str, r: &MeshRequest) -> String {
     let t = match r.target {
         MeshTarget::Triangles(n) => format!("t{n}"),
@@ -338,7 +343,7 @@ fn mesh_etag(version: &str, r: &MeshRequest) -> String {
         MeshTarget::Level(l) => format!("l{l}"),
         MeshTarget::MaxError(e) => format!("e{e}"),
     };
-    format!("\"{version}-f{}-{t}-{}\"", r.frame, r.format.name())
+    format!("\"{version}-f{}-{t}-{}-m{MESH_GENERATION}\"", r.frame, r.format.name())
 }
 
 /// `GET /v1/assets/{id}/mesh?frame=F&triangles=N|vertices=N|level=L|max_error=E&format=glb|bin`
