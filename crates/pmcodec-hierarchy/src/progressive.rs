@@ -765,53 +765,13 @@ impl Replay {
         h.offsets[k] + v
     }
 
-    /// The largest cut (greedy by priority, ties to the smaller id) with at most `budget`
-    /// shown triangles, or with at most `budget` cut nodes when `vertices` is set.
-    pub fn select_budget(&mut self, budget: u32, vertices: bool, errors: &[f64]) {
-        use crate::cut::ByError as Item;
-        self.collapse_all();
-        let top = self.h.top();
-        let mut used = if vertices { self.h.level_sizes[top] } else { self.shown.len() as u32 };
-        let mut heap: std::collections::BinaryHeap<Item> = (self.h.offsets[top]..self.h.offsets[top + 1])
-            .filter(|&g| self.expandable(g))
-            .map(|g| Item(errors.get(g as usize).copied().unwrap_or(0.0), g))
-            .collect();
-        while let Some(Item(_, g)) = heap.pop() {
-            let cost =
-                if vertices { (self.children[g as usize].len() as u32).saturating_sub(1) } else { self.sets[g as usize].len() as u32 };
-            if used + cost > budget {
-                continue;
-            }
-            self.expand(g);
-            used += cost;
-            for i in 0..self.children[g as usize].len() {
-                let c = self.children[g as usize][i];
-                if self.expandable(c) {
-                    heap.push(Item(errors.get(c as usize).copied().unwrap_or(0.0), c));
-                }
-            }
-        }
-    }
-
-    /// Every node above `level` expanded (clamped to what this replay tracks).
+    /// Every node above `level` expanded (clamped to what this replay tracks). Budgets and
+    /// error bounds are prefixes of the frame's [`crate::split_order::SplitOrder`].
     pub fn select_level(&mut self, level: usize) {
         self.collapse_all();
         let level = level.max(self.min_level).min(self.h.top());
         for g in self.h.offsets[level + 1]..self.h.offsets[self.h.levels()] {
             self.expand(g);
-        }
-    }
-
-    /// Every node whose priority exceeds `tolerance` expanded, top down.
-    pub fn select_max_error(&mut self, tolerance: f64, errors: &[f64]) {
-        self.collapse_all();
-        let top = self.h.top();
-        let mut stack: Vec<u32> = (self.h.offsets[top]..self.h.offsets[top + 1]).collect();
-        while let Some(g) = stack.pop() {
-            if self.expandable(g) && errors.get(g as usize).copied().unwrap_or(0.0) > tolerance {
-                self.expand(g);
-                stack.extend_from_slice(&self.children[g as usize]);
-            }
         }
     }
 
