@@ -159,7 +159,15 @@ impl SplitOrder {
             PrefixTarget::Vertices(n) => o.nodes_after[i + 1] <= n,
             PrefixTarget::MaxError(e) => o.priority[i] > e,
         };
-        let mut k = 0;
+        // Budgets: the counts after each split never decrease, so the first split that breaks
+        // the budget within the order grown so far is found by bisection (a warm frame answers
+        // every budget without rescanning its order). Error bounds scan: their monotonicity
+        // rests on the caller's priorities.
+        let mut k = match target {
+            PrefixTarget::Triangles(n) => self.shown_after[1..].partition_point(|&x| x <= n),
+            PrefixTarget::Vertices(n) => self.nodes_after[1..].partition_point(|&x| x <= n),
+            PrefixTarget::MaxError(_) => 0,
+        };
         loop {
             if k == self.priority.len() && !self.grow(replay, errors) {
                 return k;

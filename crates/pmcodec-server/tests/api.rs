@@ -330,30 +330,33 @@ async fn compressed_json_gets_a_weak_entity_tag_that_still_revalidates() {
     assert_eq!(again.status, StatusCode::NOT_MODIFIED);
 }
 
-/// A memory store that counts whole-object reads.
-struct CountingStore {
+/// A memory store for tests that counts whole-object reads and, when `blind_head` is set,
+/// never sees an asset in `head`: as if another server sharing the store created it just after
+/// each existence check, so only a job's final write can notice.
+#[derive(Default)]
+struct TestStore {
     inner: MemoryStore,
     gets: std::sync::atomic::AtomicUsize,
+    blind_head: bool,
 }
 
-impl AssetStore for CountingStore {
+impl AssetStore for TestStore {
     fn describe(&self) -> String {
-        "counting memory store".into()
+        "test memory store".into()
     }
-    fn list(&self) -> futures_util::future::BoxFuture<'_, Result<Vec<pmcodec_server::store::StoredObject>, pmcodec_server::StoreError>> {
+    fn list(&self) -> futures_util::future::BoxFuture<'_, Result<Vec<pmcodec_server::store::StoredObject>, StoreError>> {
         self.inner.list()
     }
     fn head<'a>(
         &'a self,
         id: &'a AssetId,
-    ) -> futures_util::future::BoxFuture<'a, Result<Option<pmcodec_server::store::StoredObject>, pmcodec_server::StoreError>> {
-        self.inner.head(id)
+    ) -> futures_util::future::BoxFuture<'a, Result<Option<pmcodec_server::store::StoredObject>, StoreError>> {
+        if self.blind_head { Box::pin(async { Ok(None) }) } else { self.inner.head(id) }
     }
     fn get<'a>(
         &'a self,
         id: &'a AssetId,
-    ) -> futures_util::future::BoxFuture<'a, Result<Option<(pmcodec_server::store::StoredObject, bytes::Bytes)>, pmcodec_server::StoreError>>
-    {
+    ) -> futures_util::future::BoxFuture<'a, Result<Option<(pmcodec_server::store::StoredObject, bytes::Bytes)>, StoreError>> {
         self.gets.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         self.inner.get(id)
     }
@@ -362,20 +365,20 @@ impl AssetStore for CountingStore {
         id: &'a AssetId,
         bytes: bytes::Bytes,
         mode: PutMode,
-    ) -> futures_util::future::BoxFuture<'a, Result<pmcodec_server::store::StoredObject, pmcodec_server::StoreError>> {
+    ) -> futures_util::future::BoxFuture<'a, Result<pmcodec_server::store::StoredObject, StoreError>> {
         self.inner.put(id, bytes, mode)
     }
-    fn delete<'a>(&'a self, id: &'a AssetId) -> futures_util::future::BoxFuture<'a, Result<bool, pmcodec_server::StoreError>> {
+    fn delete<'a>(&'a self, id: &'a AssetId) -> futures_util::future::BoxFuture<'a, Result<bool, StoreError>> {
         self.inner.delete(id)
     }
-    fn check(&self) -> futures_util::future::BoxFuture<'_, Result<(), pmcodec_server::StoreError>> {
+    fn check(&self) -> futures_util::future::BoxFuture<'_, Result<(), StoreError>> {
         self.inner.check()
     }
 }
 
 #[tokio::test]
 async fn an_unreadable_object_is_read_once_until_it_changes() {
-    let store = Arc::new(CountingStore { inner: MemoryStore::default(), gets: Default::default() });
+    let store = Arc::new(TestStore::default());
     let id = AssetId::parse("broken").unwrap();
     store.put(&id, bytes::Bytes::from_static(b"not a container at all"), PutMode::Overwrite).await.unwrap();
     let state = AppState::new(Config::default(), store.clone()).unwrap();
@@ -394,47 +397,6 @@ async fn an_unreadable_object_is_read_once_until_it_changes() {
     store.put(&id, cloth_bytes().into(), PutMode::Overwrite).await.unwrap();
     assert_eq!(get(&app, "/v1/assets/broken", &[]).await.status, StatusCode::OK);
     assert_eq!(store.gets.load(std::sync::atomic::Ordering::Relaxed), 2);
-}
-
-/// A memory store whose `head` never sees an asset: as if another server sharing the store
-/// created it just after each existence check, so only the job's final write can notice.
-struct LateCreatorStore {
-    inner: MemoryStore,
-}
-
-impl AssetStore for LateCreatorStore {
-    fn describe(&self) -> String {
-        "memory store with a late creator".into()
-    }
-    fn list(&self) -> futures_util::future::BoxFuture<'_, Result<Vec<pmcodec_server::store::StoredObject>, StoreError>> {
-        self.inner.list()
-    }
-    fn head<'a>(
-        &'a self,
-        _: &'a AssetId,
-    ) -> futures_util::future::BoxFuture<'a, Result<Option<pmcodec_server::store::StoredObject>, StoreError>> {
-        Box::pin(async { Ok(None) })
-    }
-    fn get<'a>(
-        &'a self,
-        id: &'a AssetId,
-    ) -> futures_util::future::BoxFuture<'a, Result<Option<(pmcodec_server::store::StoredObject, bytes::Bytes)>, StoreError>> {
-        self.inner.get(id)
-    }
-    fn put<'a>(
-        &'a self,
-        id: &'a AssetId,
-        bytes: bytes::Bytes,
-        mode: PutMode,
-    ) -> futures_util::future::BoxFuture<'a, Result<pmcodec_server::store::StoredObject, StoreError>> {
-        self.inner.put(id, bytes, mode)
-    }
-    fn delete<'a>(&'a self, id: &'a AssetId) -> futures_util::future::BoxFuture<'a, Result<bool, StoreError>> {
-        self.inner.delete(id)
-    }
-    fn check(&self) -> futures_util::future::BoxFuture<'_, Result<(), StoreError>> {
-        self.inner.check()
-    }
 }
 
 /// Uploads a one-frame GLB and polls the job until it ends; returns its last status.
@@ -458,7 +420,7 @@ async fn upload_and_wait(app: &axum::Router, query: &str) -> serde_json::Value {
 
 #[tokio::test]
 async fn a_job_without_replace_never_overwrites_an_asset_created_while_it_ran() {
-    let store = Arc::new(LateCreatorStore { inner: MemoryStore::default() });
+    let store = Arc::new(TestStore { blind_head: true, ..Default::default() });
     let id = AssetId::parse("cloth").unwrap();
     let theirs = cloth_bytes();
     store.inner.put(&id, theirs.clone().into(), PutMode::Overwrite).await.unwrap();
