@@ -59,3 +59,39 @@ fn lod_cut_warm_frame(bencher: divan::Bencher, budget: u32) {
     d.mesh(MeshTarget::Triangles(u32::MAX)).expect("warm-up");
     bencher.bench_local(|| d.mesh(MeshTarget::Triangles(budget)).expect("mesh").triangles.len());
 }
+
+/// LOD on demand as the server sees it: every frame's state warm, requests at random frames
+/// and budgets (200..16,000 triangles, as the load test asks), each cut and written as the
+/// compact binary. One iteration is 64 requests; the states of 48 frames do not fit the
+/// caches together, so this measures the cut's memory traffic, which the one-frame bench hides.
+#[divan::bench(sample_count = 20)]
+fn lod_on_demand_random_frames(bencher: divan::Bencher) {
+    let reader = Reader::open(file().as_slice()).expect("open");
+    let frames = reader.header().frame_count;
+    let mut states: Vec<_> = (0..frames)
+        .map(|f| {
+            let mut d = Decoder::new(reader.borrowed(), 0).expect("decoder");
+            d.seek(f).expect("frame");
+            d.mesh(MeshTarget::Triangles(u32::MAX)).expect("warm-up");
+            d
+        })
+        .collect();
+    // A fixed xorshift stream: the same requests in every run.
+    let mut x = 0x9E37_79B9_7F4A_7C15u64;
+    let mut next = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        x
+    };
+    bencher.bench_local(|| {
+        let mut bytes = 0;
+        for _ in 0..64 {
+            let f = (next() % frames as u64) as usize;
+            let budget = 200 + (next() % 15_801) as u32;
+            let mesh = states[f].mesh(MeshTarget::Triangles(budget)).expect("mesh");
+            bytes += pmcodec_mesh::binmesh::encode_bin(&mesh).len();
+        }
+        bytes
+    });
+}

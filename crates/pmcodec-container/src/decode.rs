@@ -317,6 +317,15 @@ impl<S: ByteSource> Decoder<S> {
     /// (with a full-resolution decoder) gives every input vertex in input order and the input
     /// triangles in input order.
     pub fn mesh(&mut self, target: MeshTarget) -> Result<TriMesh, ContainerError> {
+        let mut mesh = TriMesh::default();
+        self.mesh_into(target, &mut mesh)?;
+        Ok(mesh)
+    }
+
+    /// [`Decoder::mesh`] into `mesh`'s buffers (whatever they held is replaced): a server or
+    /// player that cuts again and again allocates nothing for budget and error cuts once the
+    /// buffers have grown.
+    pub fn mesh_into(&mut self, target: MeshTarget, mesh: &mut TriMesh) -> Result<(), ContainerError> {
         let Some(replay) = self.replay.as_ref() else {
             return Err(ContainerError::Options("seek to a frame first".into()));
         };
@@ -332,12 +341,12 @@ impl<S: ByteSource> Decoder<S> {
                 d
             }
         };
-        let mesh = self.cut(target, &mut derived);
+        let result = self.cut(target, &mut derived, mesh);
         self.derived = Some(derived);
-        mesh
+        result
     }
 
-    fn cut(&mut self, target: MeshTarget, d: &mut Derived) -> Result<TriMesh, ContainerError> {
+    fn cut(&mut self, target: MeshTarget, d: &mut Derived, mesh: &mut TriMesh) -> Result<(), ContainerError> {
         let diag = {
             let h = self.reader.header();
             (Vec3::from_array(h.bbox_max) - Vec3::from_array(h.bbox_min)).length() as f64
@@ -350,17 +359,22 @@ impl<S: ByteSource> Decoder<S> {
             MeshTarget::MaxError(e) => PrefixTarget::MaxError(e * diag),
             MeshTarget::Level(0) if min_level == 0 => {
                 let n0 = replay.h.level_sizes[0] as usize;
-                let triangles = self.triangles.clone().unwrap_or_default();
-                return Ok(TriMesh { positions: d.positions[..n0].to_vec(), triangles });
+                mesh.positions.clear();
+                mesh.positions.extend_from_slice(&d.positions[..n0]);
+                mesh.triangles.clear();
+                mesh.triangles.extend_from_slice(self.triangles.as_deref().unwrap_or_default());
+                return Ok(());
             }
             MeshTarget::Level(l) => {
                 replay.select_level(l);
-                return Ok(ordered_mesh(replay, &d.positions));
+                *mesh = ordered_mesh(replay, &d.positions);
+                return Ok(());
             }
         };
         // Budgets and error bounds are prefixes of the split order: no change to the replay.
         let k = d.order.prefix(replay, &d.errors, prefix);
-        Ok(d.order.mesh(replay, &d.positions, k))
+        d.order.mesh_into(replay, &d.positions, k, mesh);
+        Ok(())
     }
 }
 

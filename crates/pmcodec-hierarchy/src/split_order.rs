@@ -41,6 +41,12 @@ pub struct SplitOrder {
     heap: BinaryHeap<ByError>,
     /// Position in the order of each split node (global id); NONE while not (yet) ordered.
     rank: Vec<u32>,
+    /// Per node (global id): its parent (global id) and the parent's rank, NONE for a top
+    /// node or a parent not (yet) ordered. A corner's walk up to its cut node reads one pair
+    /// per level from this one array, instead of a per-level parent map and the rank array:
+    /// the walk is a chain of dependent loads, and a server holding many frames' states
+    /// mostly misses the caches on each of them.
+    up: Vec<[u32; 2]>,
     /// The split nodes in order, and the priority of each (non-increasing for monotone
     /// priorities).
     order: Vec<u32>,
@@ -98,6 +104,16 @@ impl SplitOrder {
         }
         self.order.clear();
         self.priority.clear();
+        self.up.clear();
+        self.up.resize(nodes, [NONE; 2]);
+        for level in replay.min_level..top {
+            let (base, above) = (h.offsets[level] as usize, h.offsets[level + 1]);
+            for (v, &p) in h.parent[level].iter().enumerate() {
+                if let Some(up) = self.up.get_mut(base + v) {
+                    up[0] = above + p;
+                }
+            }
+        }
         self.shown_after.clear();
         self.shown_after.push(self.appearing.len() as u32);
         self.nodes_after.clear();
@@ -139,6 +155,11 @@ impl SplitOrder {
             self.appearing_corners.push(corners.get(t).copied().unwrap_or([NONE; 3]));
         }
         let children = replay.children_of(g);
+        for &c in children {
+            if let Some(up) = self.up.get_mut(c as usize) {
+                up[1] = i;
+            }
+        }
         let (shown, cut) = (self.shown_after[i as usize], self.nodes_after[i as usize]);
         self.shown_after.push(shown + set.len() as u32);
         self.nodes_after.push(cut + (children.len() as u32).saturating_sub(1));
@@ -189,17 +210,30 @@ impl SplitOrder {
     /// highest ancestor whose parent is split, or its top-level ancestor.
     #[inline]
     pub fn cut_node_of(&self, replay: &Replay, v: u32, k: usize) -> u32 {
-        cut_node_of(&self.rank, replay, v, k)
+        cut_node_of(&self.up, replay, v, k)
     }
 
     /// The mesh after the first `k` splits: triangles in order of appearance (coarse first),
     /// vertices in order of first use, positions from `positions` (global ids).
     pub fn mesh(&mut self, replay: &Replay, positions: &[Vec3], k: usize) -> TriMesh {
+        let mut mesh = TriMesh::default();
+        self.mesh_into(replay, positions, k, &mut mesh);
+        mesh
+    }
+
+    /// [`SplitOrder::mesh`] into `mesh`'s buffers (whatever they held is replaced): a caller
+    /// that cuts again and again allocates nothing once they have grown.
+    pub fn mesh_into(&mut self, replay: &Replay, positions: &[Vec3], k: usize, mesh: &mut TriMesh) {
         let k = k.min(self.priority.len());
         let shown = &self.appearing_corners[..self.shown_after[k] as usize];
         let size = replay.h.level_sizes[replay.min_level];
         let nodes = self.index.len() as u32 - 1;
-        let mut mesh = TriMesh { positions: Vec::with_capacity(shown.len() / 2 + 3), triangles: Vec::with_capacity(shown.len()) };
+        mesh.positions.clear();
+        mesh.triangles.clear();
+        mesh.triangles.reserve(shown.len());
+        mesh.positions.reserve(shown.len() / 2 + 3);
+        // Node ids put in `index`, level-L corners put in `corner_index`: reset after the pass
+        // (the mesh's vertex count bounds both).
         let mut used: Vec<u32> = Vec::with_capacity(shown.len() / 2 + 3);
         let mut seen: Vec<u32> = Vec::with_capacity(shown.len() / 2 + 3);
         for c in shown {
@@ -211,7 +245,7 @@ impl SplitOrder {
                     _ => {
                         // A corner beyond the level (a corrupt state) stands for one slot past
                         // the end, drawn at the origin.
-                        let g = if x < size { cut_node_of(&self.rank, replay, x, k) } else { nodes };
+                        let g = if x < size { cut_node_of(&self.up, replay, x, k) } else { nodes };
                         let s = &mut self.index[g as usize];
                         if *s == NONE {
                             *s = used.len() as u32;
@@ -235,21 +269,19 @@ impl SplitOrder {
         for x in seen {
             self.corner_index[x as usize] = NONE;
         }
-        mesh
     }
 }
 
 /// See [`SplitOrder::cut_node_of`]: walks up while the parent's rank is not below `k`.
 #[inline]
-fn cut_node_of(rank: &[u32], replay: &Replay, v: u32, k: usize) -> u32 {
-    let h = &replay.h;
-    let (mut level, mut v) = (replay.min_level, v);
-    while level < h.top() {
-        let p = h.parent[level][v as usize];
-        if (rank[(h.offsets[level + 1] + p) as usize] as usize) < k {
-            break;
+fn cut_node_of(up: &[[u32; 2]], replay: &Replay, v: u32, k: usize) -> u32 {
+    let mut g = replay.h.offsets[replay.min_level] + v;
+    // Each step goes one level up, so a corrupt map cannot loop: at most `levels` steps.
+    for _ in 0..replay.h.levels() {
+        match up.get(g as usize) {
+            Some(&[p, rank]) if p != NONE && (rank as usize) >= k => g = p,
+            _ => break,
         }
-        (level, v) = (level + 1, p);
     }
-    h.offsets[level] + v
+    g
 }

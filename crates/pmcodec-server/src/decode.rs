@@ -20,6 +20,7 @@ use crate::lru::Lru;
 use crate::meshfmt::{MeshFormat, encode_mesh};
 use bytes::Bytes;
 use pmcodec_container::{ByteSource, ContainerError, Decoder, MeshTarget, Reader};
+use pmcodec_mesh::TriMesh;
 use std::hash::{Hash, Hasher};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -155,15 +156,18 @@ impl DecodePool {
 }
 
 /// A rough size of a decoder state: per node its parent, positions (current and previous,
-/// dequantized), split priority, split rank and bookkeeping; per triangle its corners,
+/// dequantized), split priority, split rank, parent-and-rank pair and bookkeeping; per triangle its corners,
 /// incidence, degeneration node and place in the split order; plus the reader's index.
 fn state_weight(asset: &LoadedAsset) -> u64 {
     let h = &asset.header;
-    108 * h.node_count() + 76 * h.triangle_count as u64 + 32 * asset.chunks.len() as u64 + 4096
+    116 * h.node_count() + 76 * h.triangle_count as u64 + 32 * asset.chunks.len() as u64 + 4096
 }
 
 fn worker(w: usize, rx: Receiver<Msg>, capacity: u64, stats: &DecodeStats) {
     let mut cache: Lru<Key, DecoderCell> = Lru::new(capacity);
+    // The cut's buffers, reused by every request on this worker (only the encoded body is
+    // allocated per request).
+    let mut scratch = TriMesh::default();
     // Ends when every sender is gone, i.e. when the server state is dropped.
     while let Ok(msg) = rx.recv() {
         match msg {
@@ -174,15 +178,16 @@ fn worker(w: usize, rx: Receiver<Msg>, capacity: u64, stats: &DecodeStats) {
                     continue;
                 }
                 let key = (job.asset.version.clone(), job.min_level, job.req.frame);
-                let result = match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run(&mut cache, &key, &job, stats))) {
-                    Ok(r) => r,
-                    Err(_) => {
-                        // The state in use may be half-updated: drop it. (A new state enters
-                        // the cache only after it decoded.)
-                        drop(cache.remove(&key));
-                        Err(ApiError::Internal(format!("decoder panicked on {} frame {}", job.asset.id, job.req.frame)))
-                    }
-                };
+                let result =
+                    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run(&mut cache, &key, &job, stats, &mut scratch))) {
+                        Ok(r) => r,
+                        Err(_) => {
+                            // The state in use may be half-updated: drop it. (A new state enters
+                            // the cache only after it decoded.)
+                            drop(cache.remove(&key));
+                            Err(ApiError::Internal(format!("decoder panicked on {} frame {}", job.asset.id, job.req.frame)))
+                        }
+                    };
                 let _ = job.reply.send(result);
             }
         }
@@ -191,15 +196,15 @@ fn worker(w: usize, rx: Receiver<Msg>, capacity: u64, stats: &DecodeStats) {
     }
 }
 
-fn run(cache: &mut Lru<Key, DecoderCell>, key: &Key, job: &Job, stats: &DecodeStats) -> Result<MeshOutput, ApiError> {
+fn run(cache: &mut Lru<Key, DecoderCell>, key: &Key, job: &Job, stats: &DecodeStats, mesh: &mut TriMesh) -> Result<MeshOutput, ApiError> {
     let t0 = Instant::now();
     let asset = &job.asset;
     let fail = |e: ContainerError| ApiError::Internal(format!("asset {} frame {}: {e}", asset.id, job.req.frame));
-    let mesh = if let Some(state) = cache.get(key) {
+    if let Some(state) = cache.get(key) {
         stats.hits.fetch_add(1, Ordering::Relaxed);
         // Already at the frame; a cut leaves the state at this frame.
-        match state.mesh(job.req.target) {
-            Ok(mesh) => mesh,
+        match state.mesh_into(job.req.target, mesh) {
+            Ok(()) => {}
             Err(e) => {
                 // A failed cut may leave the state anywhere: it goes.
                 drop(cache.remove(key));
@@ -217,13 +222,12 @@ fn run(cache: &mut Lru<Key, DecoderCell>, key: &Key, job: &Job, stats: &DecodeSt
             None => Decoder::new(Reader::open(AssetSource(asset.bytes.clone())).map_err(fail)?, level).map_err(fail)?,
         };
         state.seek(frame).map_err(fail)?;
-        let mesh = state.mesh(job.req.target).map_err(fail)?;
+        state.mesh_into(job.req.target, mesh).map_err(fail)?;
         // Only a state that decoded without error is kept.
         for evicted in cache.insert(key.clone(), state, state_weight(asset)) {
             drop(evicted);
         }
-        mesh
-    };
-    let body = encode_mesh(&mesh, job.req.format);
+    }
+    let body = encode_mesh(mesh, job.req.format);
     Ok(MeshOutput { body, vertices: mesh.positions.len(), triangles: mesh.triangles.len(), micros: t0.elapsed().as_micros() as u64 })
 }
