@@ -1,21 +1,28 @@
 #!/usr/bin/env bash
 # Load test of the server (issue 5's bars), with wrk (Debian's package) on this machine:
-#   1. LOD on demand for the 8,431-vertex horse at random frames and budgets, 64 connections;
-#   2. range requests for random chunks of its container, 64 connections;
-#   3. bytes a playback client downloads for the whole sequence at 10% of the triangles,
+#   1. LOD on demand for the 8,431-vertex horse at random frames and budgets, 64 connections,
+#      closed loop (wrk: each connection sends its next request when the last answer arrives,
+#      so this measures throughput, and latency is 64 / throughput);
+#   2. the same, and the 7,207-vertex cat, open loop at fixed offered rates (oha -q with its
+#      coordinated-omission correction: latency at a stated load);
+#   3. range requests for random chunks of its container, 64 connections;
+#   4. bytes a playback client downloads for the whole sequence at 10% of the triangles,
 #      beside a full-resolution client.
 # Usage: crates/pmcodec-server/loadtest/run.sh [seconds per run, default 20]
+# Installs wrk (apt) and oha (cargo install, a few minutes the first time) when missing.
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 secs=${1:-20}
 export LOADTEST_DIR=crates/pmcodec-server/loadtest
 command -v wrk >/dev/null || { apt-get update -qq && apt-get install -y -qq wrk >/dev/null; }
+command -v oha >/dev/null || cargo install oha@1.16.0 --locked -q
 cargo build --release --locked -q -p pmcodec
 bin=target/release/pmcodec
 work=$(mktemp -d)
 trap 'kill $server 2>/dev/null || true; rm -rf "$work"' EXIT
 mkdir -p "$work/assets"
 $bin encode ../shared/data/horse-gallop -o "$work/assets/horse.pmc" --quiet
+$bin encode ../shared/data/cat-poses -o "$work/assets/cat.pmc" --quiet
 port=18480
 $bin serve --assets "$work/assets" --listen 127.0.0.1:$port --no-viewer --quiet &
 server=$!
@@ -43,6 +50,36 @@ P
 )
 echo "== transfer ceiling: a ${mean}-byte range of the container (the mean LOD answer), 64 connections, ${secs}s"
 wrk -t2 -c64 -d${secs}s --latency -H "Range: bytes=0-$((mean - 1))" -s crates/pmcodec-server/loadtest/report.lua "$base$file"
+# Open loop: random (frame, budget) URLs, 64 connections, requests sent at a fixed rate whether
+# or not earlier answers came back.
+open_loop() { # asset frames max_triangles rates...
+  local asset=$1 frames=$2 max=$3; shift 3
+  python3 - "$base" "$asset" "$frames" "$max" > "$work/urls-$asset.txt" <<'P'
+import random, sys
+base, asset, frames, top = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
+random.seed(1)
+for _ in range(20000):
+    print(f"{base}/v1/assets/{asset}/mesh?frame={random.randint(0, frames - 1)}&triangles={random.randint(200, top)}&format=bin")
+P
+  oha -z 3s -c 8 --no-tui --urls-from-file "$work/urls-$asset.txt" >/dev/null
+  for rate in "$@"; do
+    oha -z ${secs}s -c 64 -q "$rate" --latency-correction --no-tui --output-format json \
+      --urls-from-file "$work/urls-$asset.txt" > "$work/oha.json"
+    python3 - "$work/oha.json" "$asset" "$rate" <<'P'
+import json, sys
+d = json.load(open(sys.argv[1]))
+s, p = d["summary"], d["latencyPercentiles"]
+# "aborted due to deadline": requests still in flight when the run's time ran out.
+errors = {k: v for k, v in d["errorDistribution"].items() if k != "aborted due to deadline"}
+codes = d["statusCodeDistribution"]
+print(f"{sys.argv[2]} at {sys.argv[3]} req/s offered: {s['requestsPerSec']:.0f} req/s, p50 {p['p50']*1e3:.2f} ms, "
+      f"p99 {p['p99']*1e3:.2f} ms, p99.9 {p['p99.9']*1e3:.2f} ms, status {codes}, errors {errors or 0}")
+P
+  done
+}
+echo "== LOD on demand, open loop, 64 connections, ${secs}s per rate"
+open_loop horse 48 16000 1000 2000 3000 4000
+open_loop cat 10 14410 2000 3000 4000 5000
 echo "== chunk range requests: random chunk of the horse's container, 64 connections, ${secs}s"
 FILE=$file CHUNKS=$work/chunks.txt wrk -t2 -c64 -d${secs}s --latency -s crates/pmcodec-server/loadtest/chunks.lua $base
 echo "== playback: bytes downloaded for the whole sequence"
