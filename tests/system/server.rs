@@ -198,6 +198,23 @@ async fn bad_uploads_and_requests_fail_cleanly_and_leave_nothing() {
     assert_eq!(r.status(), 401);
     let r = post("id=a", "application/zip", zip_of(&frames), Some("nope")).await.unwrap();
     assert_eq!(r.status(), 401);
+    // Refused before its body is read, a large upload still gets the answer (the server
+    // drains the body) rather than a connection reset while the client is still writing.
+    for _ in 0..10 {
+        let r = post("id=a", "application/zip", vec![0u8; 12 << 20], None).await.expect("an answer, not a reset");
+        assert_eq!(r.status(), 401);
+        let r = post("id=..", "application/zip", vec![0u8; 12 << 20], Some(TOKEN)).await.expect("an answer, not a reset");
+        assert_eq!(r.status(), 400);
+    }
+    // A client that asks `Expect: 100-continue` is answered without sending its body (the
+    // drain waits up to 2 s for a body; this answer must come well before that).
+    let mut s = std::net::TcpStream::connect(server.addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_millis(1500))).unwrap();
+    write!(s, "POST /v1/assets?id=a HTTP/1.1\r\nHost: x\r\nContent-Type: application/zip\r\nContent-Length: 100000000\r\nExpect: 100-continue\r\n\r\n").unwrap();
+    let mut buf = [0u8; 256];
+    let n = s.read(&mut buf).expect("an answer before the body is sent");
+    assert!(String::from_utf8_lossy(&buf[..n]).starts_with("HTTP/1.1 401"), "{}", String::from_utf8_lossy(&buf[..n]));
+    drop(s);
     // Ids that try to leave the store's folder, or name nothing.
     for id in ["..%2F..%2Fetc%2Fpasswd", "%2Ftmp%2Fx", ".hidden", "A", ""] {
         let r = post(&format!("id={id}"), "application/zip", zip_of(&frames), Some(TOKEN)).await.unwrap();

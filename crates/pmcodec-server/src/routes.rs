@@ -256,30 +256,54 @@ struct UploadQuery {
 /// `POST /v1/assets?id=ID[&fps=F][&animation=A][&replace=true]`: starts an encode job.
 async fn upload(
     State(app): State<AppState>,
-    _: WriteAccess,
-    Q(q): Q<UploadQuery>,
+    access: Result<WriteAccess, ApiError>,
+    q: Result<Q<UploadQuery>, ApiError>,
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, ApiError> {
+    // Refused before the body is read: the body is drained first, so the client gets the
+    // answer rather than a reset connection.
+    let checked = match (access, q) {
+        (Ok(_), Ok(Q(q))) => check_upload(&app, q).await,
+        (Err(e), _) | (_, Err(e)) => Err(e),
+    };
+    let opts = match checked {
+        Ok(opts) => opts,
+        Err(e) => {
+            // A client that asked `Expect: 100-continue` has not sent its body (hyper sends
+            // the 100 only once the body is read): answer at once.
+            let continue_expected = headers.get(header::EXPECT).is_some_and(|v| v.as_bytes().eq_ignore_ascii_case(b"100-continue"));
+            if !continue_expected {
+                crate::upload::drain(body).await;
+            }
+            return Err(e);
+        }
+    };
+    let body = UploadBody::read(&headers, body, app.config.limits.upload_bytes).await?;
+    let (id, opts) = opts;
+    let status = app.jobs.submit(&app, id, body, opts)?;
+    let location = header_value(&status.status_url)?;
+    Ok((StatusCode::ACCEPTED, [(header::LOCATION, location)], Json(status)).into_response())
+}
+
+/// What an upload's query says, checked before its body is read (a large body is not read
+/// when the answer is known already).
+async fn check_upload(app: &AppState, q: UploadQuery) -> Result<(AssetId, UploadOptions), ApiError> {
     let id = AssetId::parse(q.id.as_deref().ok_or_else(|| ApiError::BadRequest("name the asset: POST /v1/assets?id=<id>".into()))?)?;
     let frame_rate = q.fps.unwrap_or(30.0);
     if !(frame_rate.is_finite() && frame_rate > 0.0 && frame_rate <= 1000.0) {
         return Err(ApiError::BadRequest(format!("fps {frame_rate}: use a frame rate in (0, 1000]")));
     }
     let animation = q.animation.map(|a| a.parse::<usize>().map_or(AnimationSelector::Name(a), AnimationSelector::Index));
-    // Refuse before reading a large body when the answer is known already.
     if !q.replace.unwrap_or(false) && app.store.head(&id).await?.is_some() {
         return Err(ApiError::Conflict(format!("asset {id} exists; add replace=true to replace it")));
     }
     if app.jobs.is_pending(&id) {
         return Err(ApiError::Conflict(format!("an encode job for asset {id} is already queued or running")));
     }
-    let body = UploadBody::read(&headers, body, app.config.limits.upload_bytes).await?;
     let opts =
         UploadOptions { frame_rate, animation, unpacked_limit: app.config.limits.unpacked_bytes, replace: q.replace.unwrap_or(false) };
-    let status = app.jobs.submit(&app, id, body, opts)?;
-    let location = header_value(&status.status_url)?;
-    Ok((StatusCode::ACCEPTED, [(header::LOCATION, location)], Json(status)).into_response())
+    Ok((id, opts))
 }
 
 /// `DELETE /v1/assets/{id}`

@@ -115,6 +115,22 @@ fn classify(name: &str, bytes: Bytes, declared: Option<Kind>) -> Result<UploadBo
     })
 }
 
+/// Bytes of an upload refused before it was read that are still read (and dropped) before the
+/// answer goes out, and for how long at most.
+const DRAIN_BYTES: usize = 16 << 20;
+const DRAIN_TIME: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// Reads and drops a refused upload's body, up to [`DRAIN_BYTES`] or [`DRAIN_TIME`]. An
+/// HTTP/1.1 client writes its whole body before it reads the answer; a server that answers and
+/// closes with the body unread resets the connection, and the client sees a broken pipe instead
+/// of the 401 or 400 that says what is wrong (RFC 9112 section 9.6). A longer body still gets
+/// the reset: reading it all would let anyone without a token make the server take any size.
+pub async fn drain(body: Body) {
+    use http_body_util::BodyExt;
+    let mut body = http_body_util::Limited::new(body, DRAIN_BYTES);
+    let _ = tokio::time::timeout(DRAIN_TIME, async move { while let Some(Ok(_)) = body.frame().await {} }).await;
+}
+
 async fn read_limited(body: Body, limit: u64) -> Result<Bytes, ApiError> {
     use http_body_util::BodyExt;
     let limited = http_body_util::Limited::new(body, usize::try_from(limit).unwrap_or(usize::MAX));
