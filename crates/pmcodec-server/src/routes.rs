@@ -223,11 +223,29 @@ async fn fallback(State(app): State<AppState>, req: Request) -> Response {
 // Assets.
 
 /// `GET /v1/assets`
+/// Containers a listing loads at once when their metadata is not known yet.
+const LIST_LOADS: usize = 4;
+
 async fn list_assets(State(app): State<AppState>) -> Result<Response, ApiError> {
+    use futures_util::StreamExt;
     let objects = app.store.list().await?;
+    // Metadata not yet known means fetching and checking the container: a few at a time
+    // (a cold server listing a bucket waits for the slowest of each few, not for the sum),
+    // in listing order.
+    let infos: Vec<_> = futures_util::stream::iter(objects.iter().cloned())
+        .map(|obj| {
+            let app = app.clone();
+            async move {
+                let info = app.assets.info(&obj).await;
+                (obj, info)
+            }
+        })
+        .buffered(LIST_LOADS)
+        .collect()
+        .await;
     let mut assets = Vec::with_capacity(objects.len());
-    for obj in &objects {
-        match app.assets.info(obj).await {
+    for (obj, info) in infos {
+        match info {
             Ok(info) => assets.push(info.summary.clone()),
             // One unreadable object should not hide the others; the log names it.
             Err(e) => tracing::warn!(asset = %obj.id, error = %e, "leaving an unreadable asset out of the listing"),
