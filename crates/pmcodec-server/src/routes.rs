@@ -222,10 +222,10 @@ async fn fallback(State(app): State<AppState>, req: Request) -> Response {
 // ---------------------------------------------------------------------------------------------
 // Assets.
 
-/// `GET /v1/assets`
 /// Containers a listing loads at once when their metadata is not known yet.
 const LIST_LOADS: usize = 4;
 
+/// `GET /v1/assets`
 async fn list_assets(State(app): State<AppState>) -> Result<Response, ApiError> {
     use futures_util::StreamExt;
     let objects = app.store.list().await?;
@@ -285,8 +285,8 @@ async fn upload(
         (Ok(_), Ok(Q(q))) => check_upload(&app, q).await,
         (Err(e), _) | (_, Err(e)) => Err(e),
     };
-    let opts = match checked {
-        Ok(opts) => opts,
+    let (id, opts) = match checked {
+        Ok(checked) => checked,
         Err(e) => {
             // A client that asked `Expect: 100-continue` has not sent its body (hyper sends
             // the 100 only once the body is read): answer at once.
@@ -298,7 +298,6 @@ async fn upload(
         }
     };
     let body = UploadBody::read(&headers, body, app.config.limits.upload_bytes).await?;
-    let (id, opts) = opts;
     let status = app.jobs.submit(&app, id, body, opts)?;
     let location = header_value(&status.status_url)?;
     Ok((StatusCode::ACCEPTED, [(header::LOCATION, location)], Json(status)).into_response())
