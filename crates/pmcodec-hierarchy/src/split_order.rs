@@ -93,15 +93,10 @@ impl SplitOrder {
                 .filter(|&g| replay.expandable(g))
                 .map(|g| ByError(errors.get(g as usize).copied().unwrap_or(0.0), g)),
         );
-        // Ranks are reset where the last order set them (all of them after a resize).
-        if self.rank.len() == nodes {
-            for &g in &self.order {
-                self.rank[g as usize] = NONE;
-            }
-        } else {
-            self.rank.clear();
-            self.rank.resize(nodes, NONE);
-        }
+        // The parent maps change from frame to frame, so `up` is rebuilt over every node
+        // anyway: ranks are too, in the same pass over memory.
+        self.rank.clear();
+        self.rank.resize(nodes, NONE);
         self.order.clear();
         self.priority.clear();
         self.up.clear();
