@@ -9,9 +9,11 @@ import { BELOW, DecodeError, FrameDelta, KeyBand, NONE, Replay } from "./replay.
 export const MAGIC = [0x89, 0x50, 0x4d, 0x43, 0x0d, 0x0a, 0x1a, 0x0a];
 export const PREAMBLE_LEN = 32;
 /** The format version this decoder reads. */
-export const VERSION = 3;
+export const VERSION = 4;
 
 export enum ChunkKind { Triangles = 0, Key = 1, Delta = 2, Positions = 3, Faces = 4, Corners = 5 }
+/** How band 0 is predicted on frames that are not keyframes (proto/container.md, "Positions, band j"). */
+export enum Motion { Mean = 0, Affine = 1 }
 
 /**
  * Whether a client whose finest level is `minLevel` reads chunks of this kind in `band`: every
@@ -28,6 +30,8 @@ export interface Header {
   vertexCount: number; triangleCount: number; frameCount: number; frameRate: number;
   levelSizes: number[]; branching: number; bboxMin: number[]; bboxMax: number[];
   step: number; keyframeInterval: number; generator: string; frameNames: string[];
+  /** Band 0's prediction on inter frames. */
+  motion: Motion;
 }
 
 export interface ChunkEntry { kind: ChunkKind; frame: number; band: number; offset: number; storedLen: number; rawLen: number; crc32: number }
@@ -133,12 +137,14 @@ export class Container {
       vertexCount: p.varint(), triangleCount: p.varint(), frameCount: p.varint(), frameRate: p.f32(),
       levelSizes: p.seq(() => p.varint(), 64), branching: p.varint(),
       bboxMin: [p.f32(), p.f32(), p.f32()], bboxMax: [p.f32(), p.f32(), p.f32()],
-      step: p.f32(), keyframeInterval: p.varint(), generator: "", frameNames: [],
+      step: p.f32(), keyframeInterval: p.varint(), generator: "", frameNames: [], motion: Motion.Mean,
     };
     // encoded_with: informative, read and dropped.
     p.str(); p.str(); p.f64(); p.f64(); p.varint(); p.bool(); p.bool(); p.option(() => p.f64()); p.option(() => p.u8());
     header.generator = p.str();
     header.frameNames = p.seq(() => p.str(), 1 << 20);
+    header.motion = p.varint();
+    if (header.motion > Motion.Affine) throw new DecodeError(`header: unknown band-0 motion ${header.motion}`);
     const q = new Postcard(ib, "index");
     const index = q.seq((): ChunkEntry => {
       const kind = q.varint();
@@ -297,15 +303,20 @@ export class Player {
       // Motion sums of the band's decoded nodes per parent (inter frames), exact in doubles.
       const nParents = j < top ? h.levelSizes[j + 1] : 0;
       const sibSum = new Float64Array(3 * nParents), sibCount = new Uint32Array(nParents);
+      const fit = new Int32Array(3), affineBand = j === 0 && !intra && h.motion === Motion.Affine;
       for (let v = 0; v < h.levelSizes[j]; v++) {
         const g = r.offsets[j] + v;
         const local = j < top ? r.parent[j][v] : -1;
         const parent = j < top ? r.offsets[j + 1] + local : -1;
         const lo = lower ? lower.offsets[v] : 0, hi = lower ? lower.offsets[v + 1] : 0;
         const sib = !intra && local >= 0 && hi === lo ? sibCount[local] : 0;
+        // Band 0 on inter frames: the affine motion of the vertex's stencil, when it fits.
+        const affine = affineBand && hi > lo && affineMotion(lower!, v, cur, prev, fit);
         for (let a = 0; a < 3; a++) {
           let pred: number;
-          if (sib > 0) {
+          if (affine) {
+            pred = fit[a];
+          } else if (sib > 0) {
             pred = (prev[3 * g + a] + Math.floor((2 * sibSum[3 * local + a] + sib) / (2 * sib))) | 0;
           } else if (hi > lo) {
             // Mean over the lower neighbours, rounded half up: floor((2 sum + c) / (2 c)).
@@ -362,8 +373,68 @@ export class Player {
 
 export { BELOW };
 
-/** For each input vertex, the distinct vertices u < v sharing a triangle with it (rows sorted). */
-export interface LowerNeighbours { offsets: Uint32Array; items: Uint32Array }
+/**
+ * For each input vertex, the distinct vertices u < v sharing a triangle with it (rows sorted),
+ * and its stencil: its row and the row of its row's last vertex, merged (sorted, distinct).
+ */
+export interface LowerNeighbours { offsets: Uint32Array; items: Uint32Array; stencilOffsets: Uint32Array; stencilItems: Uint32Array }
+
+/**
+ * Band 0, inter frames, files encoded with affine motion (proto/container.md, "Affine
+ * motion"): the affine map that best carries vertex v's stencil from the previous frame to
+ * this one, applied to v, into `out`. False when the result does not fit an i32 (broken
+ * input): the caller uses the mean motion. Every operation is the spec's, in its order (the
+ * Rust decoder splits them in two passes, with the same results); doubles without fused
+ * multiply-adds make the same bits.
+ */
+export function affineMotion(lower: LowerNeighbours, v: number, cur: Int32Array, prev: Int32Array, out: Int32Array): boolean {
+  const lo = lower.stencilOffsets[v], hi = lower.stencilOffsets[v + 1], items = lower.stencilItems;
+  if (hi === lo) return false;
+  const o0 = prev[3 * v], o1 = prev[3 * v + 1], o2 = prev[3 * v + 2];
+  // The previous frame's part.
+  let sa0 = 0, sa1 = 0, sa2 = 0, s00 = 0, s01 = 0, s02 = 0, s11 = 0, s12 = 0, s22 = 0;
+  for (let i = lo; i < hi; i++) {
+    const w = 3 * items[i];
+    const a0 = prev[w] - o0, a1 = prev[w + 1] - o1, a2 = prev[w + 2] - o2;
+    sa0 += a0; sa1 += a1; sa2 += a2;
+    s00 += a0 * a0; s01 += a0 * a1; s02 += a0 * a2; s11 += a1 * a1; s12 += a1 * a2; s22 += a2 * a2;
+  }
+  const m = hi - lo, im = 1 / m;
+  let m00 = m * s00 - sa0 * sa0;
+  const m01 = m * s01 - sa0 * sa1, m02 = m * s02 - sa0 * sa2;
+  let m11 = m * s11 - sa1 * sa1;
+  const m12 = m * s12 - sa1 * sa2;
+  let m22 = m * s22 - sa2 * sa2;
+  const t = (m00 + m11 + m22) * im * 0.015625 + m;
+  m00 += t; m11 += t; m22 += t;
+  const c00 = m11 * m22 - m12 * m12, c01 = m02 * m12 - m01 * m22, c02 = m01 * m12 - m02 * m11;
+  const c11 = m00 * m22 - m02 * m02, c12 = m01 * m02 - m00 * m12, c22 = m00 * m11 - m01 * m01;
+  const det = m00 * c00 + m01 * c01 + m02 * c02;
+  const z0 = c00 * sa0 + c01 * sa1 + c02 * sa2;
+  const z1 = c01 * sa0 + c11 * sa1 + c12 * sa2;
+  const z2 = c02 * sa0 + c12 * sa1 + c22 * sa2;
+  const k = sa0 * z0 + sa1 * z1 + sa2 * z2;
+  const inv = 1 / (det * m);
+  // This frame's part.
+  let sb0 = 0, sb1 = 0, sb2 = 0, g0 = 0, g1 = 0, g2 = 0;
+  for (let i = lo; i < hi; i++) {
+    const w = 3 * items[i];
+    const s = (prev[w] - o0) * z0 + (prev[w + 1] - o1) * z1 + (prev[w + 2] - o2) * z2;
+    const b0 = cur[w] - o0, b1 = cur[w + 1] - o1, b2 = cur[w + 2] - o2;
+    sb0 += b0; g0 += b0 * s;
+    sb1 += b1; g1 += b1 * s;
+    sb2 += b2; g2 += b2 * s;
+  }
+  const e0 = (sb0 * det - (m * g0 - sb0 * k + t * z0)) * inv + 0.5;
+  const e1 = (sb1 * det - (m * g1 - sb1 * k + t * z1)) * inv + 0.5;
+  const e2 = (sb2 * det - (m * g2 - sb2 * k + t * z2)) * inv + 0.5;
+  // Also false for NaN.
+  if (!(Math.abs(e0) < 2147483648 && Math.abs(e1) < 2147483648 && Math.abs(e2) < 2147483648)) return false;
+  out[0] = (o0 + Math.floor(e0)) | 0;
+  out[1] = (o1 + Math.floor(e1)) | 0;
+  out[2] = (o2 + Math.floor(e2)) | 0;
+  return true;
+}
 
 export function lowerNeighbours(n: number, tris: Uint32Array): LowerNeighbours {
   const counts = new Uint32Array(n + 1);
@@ -388,7 +459,30 @@ export function lowerNeighbours(n: number, tris: Uint32Array): LowerNeighbours {
     for (let i = 0; i < row.length; i++) if (w === start || items[w - 1] !== row[i]) items[w++] = row[i];
     offsets[v + 1] = w;
   }
-  return { offsets, items: items.slice(0, w) };
+  const rows = items.slice(0, w);
+  // Stencils: each vertex's row and its row's vertices' rows, sorted and distinct.
+  const mark = new Uint32Array(n).fill(0xffffffff);
+  const stencilOffsets = new Uint32Array(n + 1);
+  const stencil: number[] = [];
+  const row: number[] = [];
+  for (let v = 0; v < n; v++) {
+    row.length = 0;
+    // The row of v, and the row of its last (most recently decoded) lower neighbour.
+    const lastAt = offsets[v + 1] - 1;
+    for (let i = offsets[v]; i < offsets[v + 1]; i++) {
+      const u = rows[i];
+      if (mark[u] !== v) { mark[u] = v; row.push(u); }
+      if (i !== lastAt) continue;
+      for (let k = offsets[u]; k < offsets[u + 1]; k++) {
+        const x = rows[k];
+        if (mark[x] !== v) { mark[x] = v; row.push(x); }
+      }
+    }
+    row.sort((a, b) => a - b);
+    for (const x of row) stencil.push(x);
+    stencilOffsets[v + 1] = stencil.length;
+  }
+  return { offsets, items: rows, stencilOffsets, stencilItems: Uint32Array.from(stencil) };
 }
 
 // rANS (proto/container.md, "Positions, band j"): 12-bit frequencies, states in [2^23, 2^31),

@@ -3,10 +3,10 @@
 import { test } from "node:test";
 import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
-import { existsSync, mkdtempSync, readFileSync } from "node:fs";
+import { existsSync, mkdtempSync, readdirSync, readFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { dirname, join } from "node:path";
-import { Container, Player } from "../src/container.js";
+import { Container, Motion, Player } from "../src/container.js";
 import { BELOW, DecodeError, NONE } from "../src/replay.js";
 
 // The repository root: the nearest folder above this file (compiled into build-test/ or not)
@@ -80,6 +80,25 @@ test("level 0 is the input within the quantization bound", async () => {
   for (let v = 0; v < c.header.vertexCount; v++) {
     const d = Math.hypot(pos[3 * v] - input.positions[3 * v], pos[3 * v + 1] - input.positions[3 * v + 1], pos[3 * v + 2] - input.positions[3 * v + 2]);
     assert.ok(d <= bound, `vertex ${v}: ${d} > ${bound}`);
+  }
+});
+
+test("affine motion: every frame's input vertices equal the Rust decoder's, bit for bit", async () => {
+  const apmc = join(dir, "tube-affine.pmc"), out = join(dir, "affine-frames");
+  execFileSync(bin, ["encode", "-q", join(dir, "frames"), "-o", apmc, "--keyframe-interval", "8", "--quant-bits", "14", "--motion", "affine"]);
+  execFileSync(bin, ["decode", "-q", apmc, "--all-frames", "--level", "0", "-o", out]);
+  const c = await open(apmc);
+  assert.equal(c.header.motion, Motion.Affine);
+  const files = readdirSync(out).filter((f) => f.endsWith(".obj")).sort();
+  assert.equal(files.length, 20);
+  const player = new Player(c, 0);
+  for (let f = 0; f < files.length; f++) {
+    await player.seek(f);
+    const pos = player.positions();
+    const expected = readObj(join(out, files[f]));
+    assert.equal(expected.positions.length, 3 * c.header.vertexCount);
+    // The OBJ holds each f32 in its shortest exact form, so equal predictions give equal numbers.
+    for (let i = 0; i < expected.positions.length; i++) assert.equal(pos[i], Math.fround(expected.positions[i]), `frame ${f}: coordinate ${i}`);
   }
 });
 

@@ -14,6 +14,10 @@ fn main() {
         Some(k) => opts.coarse_grid = Some(k.parse().expect("coarse grid: a number or none")),
         None => {}
     }
+    // PMCODEC_MOTION=affine: band 0 predicted by affine motion.
+    if std::env::var("PMCODEC_MOTION").as_deref() == Ok("affine") {
+        opts.motion = pmcodec_container::Motion::Affine;
+    }
     // Experiments: PMCODEC_BRANCHING=b, or PMCODEC_LEVELS=n1,n2,... (sizes below |M0|).
     if let Some(b) = std::env::var("PMCODEC_BRANCHING").ok().and_then(|s| s.parse().ok()) {
         opts.build.branching = b;

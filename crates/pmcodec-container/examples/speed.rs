@@ -1,7 +1,7 @@
 //! Development probe: decode and seek speed on a sequence at 12-bit quantization, in CPU time
 //! of this process (the build machine is shared, so wall time overstates it), for profiling.
 //! `cargo run --release -p pmcodec-container --example speed -- DIR|FILE.pmc [passes]`
-use pmcodec_container::{Decoder, EncodeOptions, QuantizationChoice, Reader, encode};
+use pmcodec_container::{Decoder, EncodeOptions, Motion, QuantizationChoice, Reader, encode};
 
 /// CPU seconds (user + system) this process has used, from /proc (10 ms ticks).
 fn cpu_seconds() -> f64 {
@@ -21,7 +21,9 @@ fn main() {
         std::fs::read(&args[1]).expect("read")
     } else {
         let seq = pmcodec_mesh::obj::load_obj_sequence(std::path::Path::new(&args[1]), 30.0).expect("load");
-        let opts = EncodeOptions { quantization: QuantizationChoice::Bits(12), ..Default::default() };
+        // PMCODEC_MOTION=affine: band 0 predicted by affine motion.
+        let motion = if std::env::var("PMCODEC_MOTION").as_deref() == Ok("affine") { Motion::Affine } else { Motion::Mean };
+        let opts = EncodeOptions { quantization: QuantizationChoice::Bits(12), motion, ..Default::default() };
         encode(&seq, &opts, |_| {}).expect("encode")
     };
     let reader = Reader::open(bytes.as_slice()).expect("open");

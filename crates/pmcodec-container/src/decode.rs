@@ -1,9 +1,9 @@
 //! Decoding: replaying keyframes and deltas down to a finest level L, reconstructing the
 //! quantized node positions, and extracting meshes at any cut.
 
-use crate::format::ChunkKind;
+use crate::format::{ChunkKind, Motion};
 use crate::payload;
-use crate::predict::{LowerNeighbours, Siblings, predict};
+use crate::predict::{AffineFits, LowerNeighbours, Siblings, predict};
 use crate::{ByteSource, ContainerError, Reader};
 use glam::Vec3;
 use pmcodec_hierarchy::NONE;
@@ -40,6 +40,8 @@ pub struct Decoder<S> {
     lower: LowerNeighbours,
     /// Scratch for the sibling-motion prediction.
     siblings: Siblings,
+    /// Scratch for band 0's affine motion prediction.
+    fits: AffineFits,
     /// Quantized positions of every node (global ids; only levels >= min_level are decoded).
     current: Vec<[i32; 3]>,
     previous: Vec<[i32; 3]>,
@@ -75,6 +77,7 @@ impl<S: ByteSource> Decoder<S> {
             triangles: None,
             lower: LowerNeighbours::default(),
             siblings: Siblings::default(),
+            fits: AffineFits::default(),
             current: vec![[0; 3]; total],
             previous: vec![[0; 3]; total],
             derived: None,
@@ -264,13 +267,16 @@ impl<S: ByteSource> Decoder<S> {
             // Parents exist below the top band only (offsets has one entry more than sizes).
             let up = if j + 1 < sizes.len() { offsets.get(j + 1).map(|&o| o as usize) } else { None };
             self.siblings.reset(sizes.get(j + 1).map_or(0, |&n| n as usize));
+            if j == 0 && !intra && h.motion == Motion::Affine {
+                self.fits.prepare(&self.lower, &self.previous, sizes[0] as usize);
+            }
             for (v, r) in residuals.iter().enumerate() {
                 let g = base + v;
                 let parent = match (up, parents.get(v)) {
                     (Some(o), Some(&p)) => Some((o + p as usize, p as usize)),
                     _ => None,
                 };
-                let p = predict(j, v, g, parent, &self.lower, &self.siblings, intra, &self.current, &self.previous);
+                let p = predict(j, v, g, parent, &self.lower, &self.fits, &self.siblings, intra, &self.current, &self.previous);
                 let q = [
                     p[0].wrapping_add(r[0].wrapping_shl(shift)),
                     p[1].wrapping_add(r[1].wrapping_shl(shift)),

@@ -4,7 +4,7 @@
 use crate::ContainerError;
 use crate::format::*;
 use crate::payload;
-use crate::predict::{LowerNeighbours, Siblings, coarse_shift, predict};
+use crate::predict::{AffineFits, LowerNeighbours, Siblings, coarse_shift, predict};
 use pmcodec_hierarchy::base::{BaseOptions, PoseSet, VertexWeights, base_quadrics};
 use pmcodec_hierarchy::progressive::{Encoder, FrameDelta};
 use pmcodec_hierarchy::recluster::ReclusterOptions;
@@ -36,6 +36,10 @@ pub struct EncodeOptions {
     /// far below the geometric error of its nodes (horse at 12 bits: 8% fewer bytes, 4% more RMS
     /// error at 10% of the triangles). None keeps every stored position within the bound.
     pub coarse_grid: Option<u32>,
+    /// Band 0's prediction on inter frames. `Mean` (the default) keeps decoding above 1,000
+    /// horse frames per second and random seeks under 5 ms; `Affine` stores 17% fewer position
+    /// bytes on the horse (20% on samba) for about 0.4 ms more per decoded frame.
+    pub motion: Motion,
 }
 
 impl Default for EncodeOptions {
@@ -49,6 +53,7 @@ impl Default for EncodeOptions {
             keyframe_interval: 16,
             quantization: QuantizationChoice::MaxError(1e-4),
             coarse_grid: Some(0),
+            motion: Motion::Mean,
         }
     }
 }
@@ -166,6 +171,7 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
         },
         generator: format!("pmcodec {}", env!("CARGO_PKG_VERSION")),
         frame_names: seq.frame_names.clone(),
+        motion: opts.motion,
     };
 
     let mut chunks: Vec<(ChunkEntry, Vec<u8>)> = Vec::new();
@@ -197,6 +203,7 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
     let mut current = vec![[0i32; 3]; total];
     let mut residuals: Vec<[i32; 3]> = Vec::new();
     let mut siblings = Siblings::default();
+    let mut fits = AffineFits::default();
     for (f, frame) in seq.frames.iter().enumerate() {
         let (delta, _) = enc.encode_frame(frame);
         let h = enc.hierarchy();
@@ -226,10 +233,13 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
             residuals.clear();
             let shift = shifts[j];
             siblings.reset(if j + 1 < levels { sizes[j + 1] as usize } else { 0 });
+            if j == 0 && !intra && opts.motion == Motion::Affine {
+                fits.prepare(&lower, &previous, sizes[0] as usize);
+            }
             for v in 0..sizes[j] as usize {
                 let g = offsets[j] as usize + v;
                 let parent = (j + 1 < levels).then(|| ((offsets[j + 1] + h.parent[j][v]) as usize, h.parent[j][v] as usize));
-                let p = predict(j, v, g, parent, &lower, &siblings, intra, &current, &previous);
+                let p = predict(j, v, g, parent, &lower, &fits, &siblings, intra, &current, &previous);
                 let t = truth(g);
                 let (q, r) = if j == 0 { choose(t, p, SLACK2) } else { on_grid(t, p, shift, SLACK2) };
                 current[g] = q;

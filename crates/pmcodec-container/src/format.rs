@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 /// transfers and truncating tools fail loudly, as in PNG's signature.
 pub const MAGIC: [u8; 8] = *b"\x89PMC\r\n\x1a\n";
 /// Format version this crate writes and reads.
-pub const VERSION: u16 = 3;
+pub const VERSION: u16 = 4;
 /// Size of the fixed preamble.
 pub const PREAMBLE_LEN: usize = 32;
 /// Upper bound on the header and index sizes a reader accepts (protects allocations).
@@ -90,6 +90,18 @@ pub struct EncodedWith {
     pub quant_bits: Option<u8>,
 }
 
+/// How input vertices (band 0) are predicted on frames that are not keyframes
+/// (proto/container.md, "Positions, band j").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Motion {
+    /// The previous position plus the mean motion of the lower neighbours.
+    #[default]
+    Mean,
+    /// The affine motion of the vertex's stencil: on the horse at 12 bits, 17% fewer position
+    /// bytes for about 0.4 ms more decoding per frame.
+    Affine,
+}
+
 /// The header (postcard).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Header {
@@ -108,6 +120,8 @@ pub struct Header {
     pub encoded_with: EncodedWith,
     pub generator: String,
     pub frame_names: Vec<String>,
+    /// Band 0's prediction on inter frames.
+    pub motion: Motion,
 }
 
 impl Header {

@@ -1,15 +1,21 @@
 //! Prediction of quantized node positions, shared by encoder and decoder (proto/container.md,
-//! "Positions, band j"). All arithmetic is on integers: 64-bit sums and a floor division for
-//! the neighbour means, 32-bit wrapping for the rest, so any decoder reproduces it exactly.
+//! "Positions, band j"). Neighbour means are integer arithmetic (64-bit sums, a floor
+//! division), 32-bit wrapping for the rest. The level-0 affine motion fit is IEEE double
+//! arithmetic in an order the spec fixes, without fused multiply-adds, so a decoder in any
+//! language that follows it gets the same bits.
 
 use crate::format::Header;
 
 /// For each input vertex, its *lower neighbours*: the distinct vertices u < v that share an
-/// input triangle with it, in compressed rows. Within level 0 they are decoded before v.
+/// input triangle with it, in compressed rows. Within level 0 they are decoded before v. And
+/// its *stencil*, which the affine motion fit reads: its lower neighbours and the lower
+/// neighbours of the last (largest) of them, distinct and ascending.
 #[derive(Clone, Debug, Default)]
 pub struct LowerNeighbours {
     offsets: Vec<u32>,
     items: Vec<u32>,
+    stencil_offsets: Vec<u32>,
+    stencil_items: Vec<u32>,
 }
 
 impl LowerNeighbours {
@@ -50,7 +56,46 @@ impl LowerNeighbours {
             out[v + 1] = w as u32;
         }
         items.truncate(w);
-        LowerNeighbours { offsets: out, items }
+        let mut lower = LowerNeighbours { offsets: out, items, stencil_offsets: vec![0], stencil_items: Vec::new() };
+        lower.build_stencils(n);
+        lower
+    }
+
+    /// Stencil rows: `row(v)` and `row(u)` for u the last of `row(v)`, merged, sorted, distinct.
+    /// (Adding every lower neighbour's row, 6.7 vertices instead of 4.5, saves no bits on the
+    /// horse and 0.2 on samba, for half again the work.)
+    fn build_stencils(&mut self, n: usize) {
+        let mut mark = vec![u32::MAX; n];
+        let mut row: Vec<u32> = Vec::new();
+        self.stencil_offsets = Vec::with_capacity(n + 1);
+        self.stencil_offsets.push(0);
+        self.stencil_items = Vec::with_capacity(self.items.len() * 3);
+        for v in 0..n {
+            row.clear();
+            // The last lower neighbour is the one decoded most recently: its own row lies
+            // where v's neighbourhood continues.
+            let last = self.row(v).last().copied();
+            for &u in self.row(v) {
+                let extra: &[u32] = if Some(u) == last { self.row(u as usize) } else { &[] };
+                for w in std::iter::once(u).chain(extra.iter().copied()) {
+                    if mark[w as usize] != v as u32 {
+                        mark[w as usize] = v as u32;
+                        row.push(w);
+                    }
+                }
+            }
+            row.sort_unstable();
+            self.stencil_items.extend_from_slice(&row);
+            self.stencil_offsets.push(self.stencil_items.len() as u32);
+        }
+    }
+
+    #[inline]
+    pub fn stencil(&self, v: usize) -> &[u32] {
+        match (self.stencil_offsets.get(v), self.stencil_offsets.get(v + 1)) {
+            (Some(&a), Some(&b)) => &self.stencil_items[a as usize..b as usize],
+            _ => &[],
+        }
     }
 
     #[inline]
@@ -117,7 +162,8 @@ impl Siblings {
 
 /// The prediction of node `v` (global id `g`) of band `j`. `parent` is its parent as (global
 /// id, local id at level j+1) in the current frame's hierarchy (None for the top band),
-/// `lower` the level-0 lower neighbours (used for band 0 only), `siblings` the motion of the
+/// `lower` the level-0 lower neighbours and `fits` their prepared affine fits (used for band 0
+/// only; `fits` prepared for this frame when it is not a keyframe), `siblings` the motion of the
 /// band's decoded nodes (inter frames), `intra` for keyframes.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
@@ -127,6 +173,7 @@ pub fn predict(
     g: usize,
     parent: Option<(usize, usize)>,
     lower: &LowerNeighbours,
+    fits: &AffineFits,
     siblings: &Siblings,
     intra: bool,
     cur: &[[i32; 3]],
@@ -145,6 +192,9 @@ pub fn predict(
                     }
                 }
                 return [mean(s[0], c) as i32, mean(s[1], c) as i32, mean(s[2], c) as i32];
+            }
+            if let Some(q) = fits.predict(lower.stencil(v), v, cur, prev) {
+                return q;
             }
             for &u in row {
                 let (q, p) = (cur[u as usize], prev[u as usize]);
@@ -180,6 +230,132 @@ pub fn predict(
         };
     }
     out
+}
+
+/// The part of one vertex's affine fit that depends on the previous frame only.
+#[derive(Clone, Copy, Debug, Default)]
+struct Fit {
+    /// `adj(M) sa`: the fit's solve, times `det`.
+    z: [f64; 3],
+    /// `sa . z`.
+    k: f64,
+    /// The regularization added to both diagonals.
+    t: f64,
+    det: f64,
+    /// `1 / (det m)`.
+    inv: f64,
+}
+
+/// Band 0 on inter frames: vertex v moves by the affine map that best carries its stencil from
+/// the previous frame to this one (least squares, regularized toward a translation so that a
+/// flat or tiny stencil stays well posed). Limbs of a galloping horse or a dancer rotate from
+/// frame to frame; a mean of the neighbours' motion misses the rotation by its angle times the
+/// neighbours' distance, an affine map does not: on the horse at 12 bits it saves 2.3 bits per
+/// vertex per frame, on samba 1.9.
+///
+/// The fit is split so that decoding stays fast: [`AffineFits::prepare`] solves, for every
+/// vertex before the band is decoded, what depends on the previous frame alone (independent
+/// work a CPU overlaps); [`AffineFits::predict`] then needs one pass over the stencil's
+/// decoded positions and no division. Coordinates are relative to the vertex's previous
+/// position, so on valid files the stencil sums are of small integers and exact in doubles;
+/// proto/container.md fixes the order of every other operation.
+#[derive(Clone, Debug, Default)]
+pub struct AffineFits {
+    fits: Vec<Fit>,
+}
+
+impl AffineFits {
+    /// Solves the previous-frame part of every vertex's fit (proto/container.md, "Affine
+    /// motion": everything up to `inv`).
+    pub fn prepare(&mut self, lower: &LowerNeighbours, prev: &[[i32; 3]], n: usize) {
+        self.fits.clear();
+        self.fits.resize(n, Fit::default());
+        for (v, fit) in self.fits.iter_mut().enumerate() {
+            let stencil = lower.stencil(v);
+            let Some(o) = prev.get(v) else { break };
+            if stencil.is_empty() {
+                continue;
+            }
+            let o = [o[0] as f64, o[1] as f64, o[2] as f64];
+            let mut sa = [0f64; 3];
+            // Sums of a a^T, upper triangle: 00 01 02 11 12 22.
+            let mut s = [0f64; 6];
+            for &w in stencil {
+                let Some(p) = prev.get(w as usize) else { break };
+                let a = [p[0] as f64 - o[0], p[1] as f64 - o[1], p[2] as f64 - o[2]];
+                sa[0] += a[0];
+                sa[1] += a[1];
+                sa[2] += a[2];
+                s[0] += a[0] * a[0];
+                s[1] += a[0] * a[1];
+                s[2] += a[0] * a[2];
+                s[3] += a[1] * a[1];
+                s[4] += a[1] * a[2];
+                s[5] += a[2] * a[2];
+            }
+            let m = stencil.len() as f64;
+            let im = 1.0 / m;
+            // m times the centred scatter of the stencil's previous positions, plus t.
+            let mut m00 = m * s[0] - sa[0] * sa[0];
+            let m01 = m * s[1] - sa[0] * sa[1];
+            let m02 = m * s[2] - sa[0] * sa[2];
+            let mut m11 = m * s[3] - sa[1] * sa[1];
+            let m12 = m * s[4] - sa[1] * sa[2];
+            let mut m22 = m * s[5] - sa[2] * sa[2];
+            let t = (m00 + m11 + m22) * im * 0.015625 + m;
+            m00 += t;
+            m11 += t;
+            m22 += t;
+            // Cofactors of the symmetric M: z = adj(M) sa = det M^-1 sa.
+            let c00 = m11 * m22 - m12 * m12;
+            let c01 = m02 * m12 - m01 * m22;
+            let c02 = m01 * m12 - m02 * m11;
+            let c11 = m00 * m22 - m02 * m02;
+            let c12 = m01 * m02 - m00 * m12;
+            let c22 = m00 * m11 - m01 * m01;
+            let det = m00 * c00 + m01 * c01 + m02 * c02;
+            let z =
+                [c00 * sa[0] + c01 * sa[1] + c02 * sa[2], c01 * sa[0] + c11 * sa[1] + c12 * sa[2], c02 * sa[0] + c12 * sa[1] + c22 * sa[2]];
+            let k = sa[0] * z[0] + sa[1] * z[1] + sa[2] * z[2];
+            *fit = Fit { z, k, t, det, inv: 1.0 / (det * m) };
+        }
+    }
+
+    /// The affine prediction of vertex `v` from its stencil's decoded positions; None when
+    /// there is no fit or the result does not fit an i32 (only on broken input), and the
+    /// caller falls back to the neighbours' mean motion.
+    #[inline(always)]
+    fn predict(&self, stencil: &[u32], v: usize, cur: &[[i32; 3]], prev: &[[i32; 3]]) -> Option<[i32; 3]> {
+        let (fit, o) = (self.fits.get(v)?, prev.get(v)?);
+        if stencil.is_empty() {
+            return None;
+        }
+        let of = [o[0] as f64, o[1] as f64, o[2] as f64];
+        let (mut sb, mut g) = ([0f64; 3], [0f64; 3]);
+        for &w in stencil {
+            let (Some(p), Some(c)) = (prev.get(w as usize), cur.get(w as usize)) else { return None };
+            let a = [p[0] as f64 - of[0], p[1] as f64 - of[1], p[2] as f64 - of[2]];
+            let s = a[0] * fit.z[0] + a[1] * fit.z[1] + a[2] * fit.z[2];
+            for i in 0..3 {
+                let b = c[i] as f64 - of[i];
+                sb[i] += b;
+                g[i] += b * s;
+            }
+        }
+        let m = stencil.len() as f64;
+        let mut q = [0i32; 3];
+        for i in 0..3 {
+            let e = (sb[i] * fit.det - (m * g[i] - sb[i] * fit.k + fit.t * fit.z[i])) * fit.inv + 0.5;
+            // floor(e), without the libm call `f64::floor` is on CPUs without SSE4.1: truncate,
+            // then step down where truncation went up. NaN is refused with the rest.
+            if e.is_nan() || e.abs() >= 2147483648.0 {
+                return None;
+            }
+            let r = e as i32;
+            q[i] = o[i].wrapping_add(if (r as f64) > e { r - 1 } else { r });
+        }
+        Some(q)
+    }
 }
 
 /// The residual step (as a power of two of the quantum) the encoder uses for band `level`

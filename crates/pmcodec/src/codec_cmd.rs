@@ -4,7 +4,9 @@ use crate::input::{self, InputArgs};
 use crate::{EXIT_BAD_INPUT, Exit, progress};
 use anyhow::{Context, anyhow};
 use clap::{Args, ValueEnum};
-use pmcodec_container::{Decoder, EncodeOptions, FileSource, MeshTarget, QuantizationChoice, Reader, encode, summary, verify, write_file};
+use pmcodec_container::{
+    Decoder, EncodeOptions, FileSource, MeshTarget, Motion, QuantizationChoice, Reader, encode, summary, verify, write_file,
+};
 use pmcodec_hierarchy::base::{PoseSet, VertexWeights};
 use std::path::{Path, PathBuf};
 
@@ -13,6 +15,12 @@ pub enum WeightsArg {
     None,
     Tertiles,
     Smooth,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum MotionArg {
+    Mean,
+    Affine,
 }
 
 #[derive(Args, Debug)]
@@ -45,6 +53,11 @@ pub struct EncodeArgs {
     /// vertices stay within the error bound); `none` stores every node within the bound.
     #[arg(long, value_name = "K|none", default_value = "0")]
     pub coarse_grid: String,
+    /// How input vertices are predicted between keyframes: `mean` (their neighbours' mean
+    /// motion) or `affine` (the affine motion of their neighbourhood): on the horse 17% fewer
+    /// position bytes, about half again the decoding time.
+    #[arg(long, value_enum, default_value_t = MotionArg::Mean)]
+    pub motion: MotionArg,
     /// Quadrics the base hierarchy is built from: `first`, `all`, or a number of sampled frames.
     #[arg(long, default_value = "first")]
     pub base_poses: String,
@@ -96,7 +109,11 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
         "none" => None,
         k => Some(k.parse::<u32>().map_err(|_| Exit(2, anyhow!("--coarse-grid {k:?}: use a number of levels or none")))?),
     };
-    let mut opts = EncodeOptions { keyframe_interval: args.keyframe_interval, coarse_grid, ..Default::default() };
+    let motion = match args.motion {
+        MotionArg::Mean => Motion::Mean,
+        MotionArg::Affine => Motion::Affine,
+    };
+    let mut opts = EncodeOptions { keyframe_interval: args.keyframe_interval, coarse_grid, motion, ..Default::default() };
     opts.build.branching = args.branching;
     opts.build.anchors = parse_anchors(&args.level_anchors).map_err(|e| Exit(2, e))?;
     opts.base.poses = parse_poses(&args.base_poses).map_err(|e| Exit(2, e))?;
@@ -244,7 +261,14 @@ pub fn info_cmd(args: InfoArgs) -> Result<(), Exit> {
     println!("keyframe interval {}", h.keyframe_interval);
     println!("bounding box      {:?} .. {:?}", h.bbox_min, h.bbox_max);
     println!("quantization step {}", h.quantization.step);
-    println!("positions         {:.2} bits/vertex/frame", s.positions_bits_per_vertex_frame);
+    println!(
+        "positions         {:.2} bits/vertex/frame ({} motion between keyframes)",
+        s.positions_bits_per_vertex_frame,
+        match h.motion {
+            Motion::Mean => "mean",
+            Motion::Affine => "affine",
+        }
+    );
     println!("topology deltas   {:.0} B/frame ({:.0} B raw)", s.delta_bytes_per_frame, s.delta_raw_bytes_per_frame);
     println!("{:>6} {:>8} {:>12} {:>12} {:>12} {:>14}", "level", "nodes", "keyframes B", "deltas B", "positions B", "B/frame to L");
     for l in (0..h.levels()).rev() {
