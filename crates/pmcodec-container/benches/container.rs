@@ -1,6 +1,6 @@
 //! Encode and decode speed of the container on the horse gallop.
 //! `cargo bench -p pmcodec-container --bench container`
-use pmcodec_container::{Decoder, EncodeOptions, MeshTarget, Reader, encode};
+use pmcodec_container::{Decoder, EncodeOptions, MeshTarget, Motion, Reader, encode};
 use std::sync::OnceLock;
 
 fn main() {
@@ -20,14 +20,21 @@ fn file() -> &'static Vec<u8> {
     F.get_or_init(|| encode(horse(), &EncodeOptions::default(), |_| {}).expect("encode"))
 }
 
+/// The same, encoded with band 0 predicted by affine motion.
+fn affine_file() -> &'static Vec<u8> {
+    static F: OnceLock<Vec<u8>> = OnceLock::new();
+    F.get_or_init(|| encode(horse(), &EncodeOptions { motion: Motion::Affine, ..Default::default() }, |_| {}).expect("encode"))
+}
+
 #[divan::bench(sample_count = 3)]
 fn encode_horse_48_frames() -> usize {
     encode(horse(), &EncodeOptions::default(), |_| {}).expect("encode").len()
 }
 
-#[divan::bench(sample_count = 10)]
-fn decode_horse_48_frames() -> u32 {
-    let reader = Reader::open(file().as_slice()).expect("open");
+#[divan::bench(sample_count = 10, args = ["mean", "affine"])]
+fn decode_horse_48_frames(motion: &str) -> u32 {
+    let bytes = if motion == "affine" { affine_file() } else { file() };
+    let reader = Reader::open(bytes.as_slice()).expect("open");
     let mut d = Decoder::new(reader.borrowed(), 0).expect("decoder");
     for f in 0..reader.header().frame_count {
         d.seek(f).expect("frame");

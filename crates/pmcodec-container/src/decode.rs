@@ -267,7 +267,8 @@ impl<S: ByteSource> Decoder<S> {
             // Parents exist below the top band only (offsets has one entry more than sizes).
             let up = if j + 1 < sizes.len() { offsets.get(j + 1).map(|&o| o as usize) } else { None };
             self.siblings.reset(sizes.get(j + 1).map_or(0, |&n| n as usize));
-            if j == 0 && !intra && h.motion == Motion::Affine {
+            let affine = j == 0 && !intra && h.motion == Motion::Affine;
+            if affine {
                 self.fits.prepare(&self.lower, &self.previous, sizes[0] as usize);
             }
             for (v, r) in residuals.iter().enumerate() {
@@ -276,7 +277,18 @@ impl<S: ByteSource> Decoder<S> {
                     (Some(o), Some(&p)) => Some((o + p as usize, p as usize)),
                     _ => None,
                 };
-                let p = predict(j, v, g, parent, &self.lower, &self.fits, &self.siblings, intra, &self.current, &self.previous);
+                let p = predict(
+                    j,
+                    v,
+                    g,
+                    parent,
+                    &self.lower,
+                    affine.then_some(&self.fits),
+                    &self.siblings,
+                    intra,
+                    &self.current,
+                    &self.previous,
+                );
                 let q = [
                     p[0].wrapping_add(r[0].wrapping_shl(shift)),
                     p[1].wrapping_add(r[1].wrapping_shl(shift)),

@@ -233,13 +233,14 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
             residuals.clear();
             let shift = shifts[j];
             siblings.reset(if j + 1 < levels { sizes[j + 1] as usize } else { 0 });
-            if j == 0 && !intra && opts.motion == Motion::Affine {
+            let affine = j == 0 && !intra && opts.motion == Motion::Affine;
+            if affine {
                 fits.prepare(&lower, &previous, sizes[0] as usize);
             }
             for v in 0..sizes[j] as usize {
                 let g = offsets[j] as usize + v;
                 let parent = (j + 1 < levels).then(|| ((offsets[j + 1] + h.parent[j][v]) as usize, h.parent[j][v] as usize));
-                let p = predict(j, v, g, parent, &lower, &fits, &siblings, intra, &current, &previous);
+                let p = predict(j, v, g, parent, &lower, affine.then_some(&fits), &siblings, intra, &current, &previous);
                 let t = truth(g);
                 let (q, r) = if j == 0 { choose(t, p, SLACK2) } else { on_grid(t, p, shift, SLACK2) };
                 current[g] = q;

@@ -162,8 +162,9 @@ impl Siblings {
 
 /// The prediction of node `v` (global id `g`) of band `j`. `parent` is its parent as (global
 /// id, local id at level j+1) in the current frame's hierarchy (None for the top band),
-/// `lower` the level-0 lower neighbours and `fits` their prepared affine fits (used for band 0
-/// only; `fits` prepared for this frame when it is not a keyframe), `siblings` the motion of the
+/// `lower` the level-0 lower neighbours and `fits` their affine fits prepared for this frame
+/// (band 0 only; None unless the file uses affine motion and the frame is not a keyframe),
+/// `siblings` the motion of the
 /// band's decoded nodes (inter frames), `intra` for keyframes.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
@@ -173,7 +174,7 @@ pub fn predict(
     g: usize,
     parent: Option<(usize, usize)>,
     lower: &LowerNeighbours,
-    fits: &AffineFits,
+    fits: Option<&AffineFits>,
     siblings: &Siblings,
     intra: bool,
     cur: &[[i32; 3]],
@@ -193,7 +194,7 @@ pub fn predict(
                 }
                 return [mean(s[0], c) as i32, mean(s[1], c) as i32, mean(s[2], c) as i32];
             }
-            if let Some(q) = fits.predict(lower.stencil(v), v, cur, prev) {
+            if let Some(q) = fits.and_then(|f| f.predict(lower.stencil(v), v, cur, prev)) {
                 return q;
             }
             for &u in row {

@@ -1,6 +1,6 @@
 //! Immutable representations over HTTP (RFC 9110): strong ETags, `If-None-Match` (304),
-//! `Range` with one range (206) or several (206 `multipart/byteranges`), `If-Range`, and 416
-//! for ranges that select nothing. Bodies are slices of the shared container bytes, not copies.
+//! `Range` with one range (206) or several (206 `multipart/byteranges`), `If-Range`, 416 for
+//! valid ranges that select nothing, and invalid ones ignored (200). Bodies are slices of the shared container bytes, not copies.
 
 use crate::ApiError;
 use axum::body::Body;
@@ -24,59 +24,67 @@ pub struct Representation {
 /// What a `Range` header asks for, given the representation's length.
 #[derive(Debug, PartialEq)]
 pub enum RangeRequest {
-    /// Not a byte range (another unit), or more ranges than we serve: send the whole thing,
-    /// which RFC 9110 section 14.2 allows.
+    /// Send the whole representation (200): another unit, a syntactically invalid range set
+    /// (RFC 9110 section 14.1.1: the recipient MUST ignore the field), or more ranges than we
+    /// serve (section 14.2 allows ignoring them).
     Ignore,
     /// Satisfiable ranges, in the order asked, end exclusive.
     Ranges(Vec<Range<u64>>),
 }
 
-/// Parses a `Range` header value. Malformed byte ranges, and sets whose every range is invalid
-/// or starts beyond the end, are errors (416); unsatisfiable members of a set that has some
-/// satisfiable ones are dropped.
+/// Parses a `Range` header value. A valid byte-range set whose every range starts beyond the
+/// end (or is an empty suffix) is an error (416, with the length); unsatisfiable members of a
+/// set that has satisfiable ones are dropped.
 pub fn parse_range(value: &str, len: u64, max_ranges: usize) -> Result<RangeRequest, ApiError> {
-    let unsatisfiable =
-        |why: &str| ApiError::RangeNotSatisfiable { detail: format!("Range {value:?}: {why} (the representation has {len} bytes)"), len };
     let Some((unit, set)) = value.split_once('=') else {
-        return Err(unsatisfiable("expected bytes=first-last"));
+        return Ok(RangeRequest::Ignore);
     };
     if !unit.trim().eq_ignore_ascii_case("bytes") {
         return Ok(RangeRequest::Ignore);
     }
-    // Empty list elements are allowed by the list syntax (RFC 9110 section 5.6.1).
+    // Empty list elements are allowed by the list syntax (RFC 9110 section 5.6.1), but a set
+    // needs at least one range.
     let specs: Vec<&str> = set.split(',').map(str::trim).filter(|s| !s.is_empty()).collect();
-    if specs.is_empty() {
-        return Err(unsatisfiable("no ranges"));
-    }
-    if specs.len() > max_ranges {
+    if specs.is_empty() || specs.len() > max_ranges {
         return Ok(RangeRequest::Ignore);
     }
+    // A position: decimal digits; more than u64 holds is a position beyond any representation.
+    let number = |s: &str| (!s.is_empty() && s.bytes().all(|b| b.is_ascii_digit())).then(|| s.parse().unwrap_or(u64::MAX));
     let mut out = Vec::with_capacity(specs.len());
     for spec in specs {
-        let (first, last) = spec.split_once('-').ok_or_else(|| unsatisfiable("each range is first-last, first- or -suffix"))?;
-        let number = |s: &str| -> Result<u64, ApiError> {
-            if s.is_empty() || !s.bytes().all(|b| b.is_ascii_digit()) {
-                return Err(unsatisfiable("positions are decimal digits"));
-            }
-            // More digits than u64 holds: a position beyond any representation.
-            Ok(s.parse().unwrap_or(u64::MAX))
+        let Some((first, last)) = spec.split_once('-') else {
+            return Ok(RangeRequest::Ignore);
         };
         if first.is_empty() {
-            let suffix = number(last)?;
+            let Some(suffix) = number(last) else {
+                return Ok(RangeRequest::Ignore);
+            };
             if suffix > 0 && len > 0 {
                 out.push(len - suffix.min(len)..len);
             }
+            continue;
+        }
+        let Some(start) = number(first) else {
+            return Ok(RangeRequest::Ignore);
+        };
+        let end = if last.is_empty() {
+            len
         } else {
-            let start = number(first)?;
-            let end = if last.is_empty() { len } else { number(last)?.saturating_add(1).min(len) };
-            let valid = last.is_empty() || number(last)? >= start;
-            if valid && start < len {
-                out.push(start..end);
+            match number(last) {
+                // first-last with last < first is syntactically invalid.
+                Some(l) if l >= start => l.saturating_add(1).min(len),
+                _ => return Ok(RangeRequest::Ignore),
             }
+        };
+        if start < len {
+            out.push(start..end);
         }
     }
     if out.is_empty() {
-        return Err(unsatisfiable("no range overlaps the representation"));
+        return Err(ApiError::RangeNotSatisfiable {
+            detail: format!("Range {value:?}: no range overlaps the representation, which has {len} bytes"),
+            len,
+        });
     }
     Ok(RangeRequest::Ranges(out))
 }
@@ -190,11 +198,18 @@ mod tests {
     fn sets_drop_unsatisfiable_members_and_fail_when_empty() {
         assert_eq!(ranges("bytes=0-1, ,5-6", 100), Ok(vec![0..2, 5..7]));
         assert_eq!(ranges("bytes=0-1,200-300", 100), Ok(vec![0..2]));
-        assert_eq!(ranges("bytes=5-1,0-0", 100), Ok(vec![0..1]), "an invalid member is dropped");
-        for bad in ["bytes=100-", "bytes=5-1", "bytes=-0", "bytes=", "bytes=a-b", "bytes=1", "bytes=--1", "0-1"] {
-            assert!(ranges(bad, 100).is_err(), "{bad}");
+        for unsatisfiable in ["bytes=100-", "bytes=-0", "bytes=100-200,-0"] {
+            assert!(ranges(unsatisfiable, 100).unwrap_err().contains("overlaps"), "{unsatisfiable}");
         }
         assert!(ranges("bytes=0-", 0).is_err(), "nothing is satisfiable in an empty representation");
+    }
+
+    /// RFC 9110 section 14.1.1: a set with a syntactically invalid member is ignored whole.
+    #[test]
+    fn invalid_sets_are_ignored() {
+        for bad in ["bytes=5-1", "bytes=5-1,0-0", "bytes=", "bytes=a-b", "bytes=1", "bytes=--1", "bytes=zz", "0-1", "bytes=1-2-3"] {
+            assert_eq!(ranges(bad, 100), Err("ignore".into()), "{bad}");
+        }
     }
 
     #[test]
