@@ -38,7 +38,7 @@ pub struct EncodeOptions {
     pub coarse_grid: Option<u32>,
     /// Band 0's prediction on inter frames. `Mean` (the default) keeps decoding above 1,000
     /// horse frames per second and random seeks under 5 ms; `Affine` stores 17% fewer position
-    /// bytes on the horse (20% on samba) for about 0.4 ms more per decoded frame.
+    /// bytes on the horse (14% on samba) for about 0.4 ms more per decoded frame.
     pub motion: Motion,
 }
 

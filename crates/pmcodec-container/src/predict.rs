@@ -252,7 +252,7 @@ struct Fit {
 /// flat or tiny stencil stays well posed). Limbs of a galloping horse or a dancer rotate from
 /// frame to frame; a mean of the neighbours' motion misses the rotation by its angle times the
 /// neighbours' distance, an affine map does not: on the horse at 12 bits it saves 2.3 bits per
-/// vertex per frame, on samba 1.9.
+/// vertex per frame, on samba 1.5.
 ///
 /// The fit is split so that decoding stays fast: [`AffineFits::prepare`] solves, for every
 /// vertex before the band is decoded, what depends on the previous frame alone (independent
