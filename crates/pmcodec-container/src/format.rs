@@ -93,6 +93,7 @@ pub struct EncodedWith {
 /// How input vertices (band 0) are predicted on frames that are not keyframes
 /// (proto/container.md, "Positions, band j").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Motion {
     /// The previous position plus the mean motion of the lower neighbours.
     #[default]

@@ -185,7 +185,8 @@ async fn run(app: AppState, tx: watch::Sender<JobStatus>, asset: AssetId, body: 
         s.state = JobState::Running;
         s.stage = "parsing";
     });
-    let encode_opts = EncodeOptions { keyframe_interval: app.config.keyframe_interval, ..EncodeOptions::default() };
+    let encode_opts =
+        EncodeOptions { keyframe_interval: app.config.keyframe_interval, motion: app.config.motion, ..EncodeOptions::default() };
     let progress_tx = tx.clone();
     let replace = opts.replace;
     let work = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, String> {

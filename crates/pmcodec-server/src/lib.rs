@@ -112,10 +112,10 @@ impl AppState {
         let tasks: Vec<_> = pmcodec_mesh::samples::NAMES
             .iter()
             .map(|&name| {
-                let keyframes = self.config.keyframe_interval;
+                let (keyframes, motion) = (self.config.keyframe_interval, self.config.motion);
                 tokio::task::spawn_blocking(move || -> Result<(AssetId, Vec<u8>), String> {
                     let seq = pmcodec_mesh::samples::by_name(name).ok_or_else(|| format!("no sample {name}"))?;
-                    let opts = pmcodec_container::EncodeOptions { keyframe_interval: keyframes, ..Default::default() };
+                    let opts = pmcodec_container::EncodeOptions { keyframe_interval: keyframes, motion, ..Default::default() };
                     let bytes = pmcodec_container::encode(&seq, &opts, |_| {}).map_err(|e| format!("{name}: {e}"))?;
                     Ok((AssetId::parse(name).map_err(|e| e.to_string())?, bytes))
                 })
