@@ -36,9 +36,10 @@ pub struct EncodeOptions {
     /// far below the geometric error of its nodes (horse at 12 bits: 8% fewer bytes, 4% more RMS
     /// error at 10% of the triangles). None keeps every stored position within the bound.
     pub coarse_grid: Option<u32>,
-    /// Band 0's prediction on inter frames. `Mean` (the default) keeps decoding above 1,000
-    /// horse frames per second and random seeks under 5 ms; `Affine` stores 17% fewer position
-    /// bytes on the horse (14% on samba) for about 0.4 ms more per decoded frame.
+    /// Band 0's prediction on inter frames. `Mean` (the default) keeps decoding the horse
+    /// above 1,000 frames per second on one core; `Affine` stores 17% fewer position bytes on
+    /// the horse (14% on samba) for about 0.4 ms more per decoded frame, which also lengthens
+    /// seeks (up to 15 frames from a keyframe).
     pub motion: Motion,
 }
 

@@ -164,8 +164,7 @@ impl Siblings {
 /// id, local id at level j+1) in the current frame's hierarchy (None for the top band),
 /// `lower` the level-0 lower neighbours and `fits` their affine fits prepared for this frame
 /// (band 0 only; None unless the file uses affine motion and the frame is not a keyframe),
-/// `siblings` the motion of the
-/// band's decoded nodes (inter frames), `intra` for keyframes.
+/// `siblings` the motion of the band's decoded nodes (inter frames), `intra` for keyframes.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub fn predict(
