@@ -8,8 +8,8 @@ import { BELOW, DecodeError, FrameDelta, KeyBand, NONE, Replay } from "./replay.
 
 export const MAGIC = [0x89, 0x50, 0x4d, 0x43, 0x0d, 0x0a, 0x1a, 0x0a];
 export const PREAMBLE_LEN = 32;
-/** The format version this decoder reads. */
-export const VERSION = 4;
+/** The format version this decoder reads, and the oldest it still reads (version 3: no `motion` in the header). */
+export const VERSION = 4, OLDEST_READABLE = 3;
 
 export enum ChunkKind { Triangles = 0, Key = 1, Delta = 2, Positions = 3, Faces = 4, Corners = 5 }
 /** How band 0 is predicted on frames that are not keyframes (proto/container.md, "Positions, band j"). */
@@ -123,7 +123,7 @@ export class Container {
     for (let i = 0; i < 8; i++) if (pre[i] !== MAGIC[i]) throw new DecodeError("not a .pmc file (bad magic number)");
     const dv = new DataView(pre.buffer, pre.byteOffset, pre.byteLength);
     const version = dv.getUint16(8, true);
-    if (version !== VERSION) throw new DecodeError(`container version ${version} is not supported`);
+    if (version < OLDEST_READABLE || version > VERSION) throw new DecodeError(`container version ${version} is not supported (this decoder reads versions ${OLDEST_READABLE} to ${VERSION})`);
     const headerLen = dv.getUint32(12, true), indexLen = dv.getUint32(16, true);
     const headerCrc = dv.getUint32(20, true), indexCrc = dv.getUint32(24, true);
     const dataStart = PREAMBLE_LEN + headerLen + indexLen;
@@ -143,7 +143,7 @@ export class Container {
     p.str(); p.str(); p.f64(); p.f64(); p.varint(); p.bool(); p.bool(); p.option(() => p.f64()); p.option(() => p.u8());
     header.generator = p.str();
     header.frameNames = p.seq(() => p.str(), 1 << 20);
-    header.motion = p.varint();
+    header.motion = version >= 4 ? p.varint() : Motion.Mean;
     if (header.motion > Motion.Affine) throw new DecodeError(`header: unknown band-0 motion ${header.motion}`);
     const q = new Postcard(ib, "index");
     const index = q.seq((): ChunkEntry => {

@@ -102,6 +102,25 @@ test("affine motion: every frame's input vertices equal the Rust decoder's, bit 
   }
 });
 
+test("a version 3 file still decodes, as the Rust decoder decodes it", async () => {
+  const v3 = join(root, "crates/pmcodec-container/tests/compat/v3-cloth-k1.pmc"), out = join(dir, "v3-frames");
+  execFileSync(bin, ["decode", "-q", v3, "--all-frames", "--level", "0", "-o", out]);
+  const c = await open(v3);
+  assert.equal(c.header.motion, Motion.Mean);
+  const files = readdirSync(out).filter((f) => f.endsWith(".obj")).sort();
+  assert.equal(files.length, c.header.frameCount);
+  const player = new Player(c, 0);
+  for (let f = 0; f < files.length; f++) {
+    await player.seek(f);
+    const pos = player.positions(), expected = readObj(join(out, files[f]));
+    assert.equal(expected.positions.length, 3 * c.header.vertexCount);
+    for (let i = 0; i < expected.positions.length; i++) assert.equal(pos[i], Math.fround(expected.positions[i]), `frame ${f}: coordinate ${i}`);
+  }
+  const bytes = new Uint8Array(readFileSync(v3));
+  bytes[8] = 9;
+  await assert.rejects(Container.open(async (o, n) => bytes.slice(o, o + n), bytes.length), /version 9 is not supported/);
+});
+
 test("a level-limited player reads fewer bytes and agrees above its level", async () => {
   const full = await open(pmc), part = await open(pmc);
   const a = new Player(full, 0), b = new Player(part, 2);

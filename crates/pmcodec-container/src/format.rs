@@ -8,6 +8,10 @@ use serde::{Deserialize, Serialize};
 pub const MAGIC: [u8; 8] = *b"\x89PMC\r\n\x1a\n";
 /// Format version this crate writes and reads.
 pub const VERSION: u16 = 4;
+/// Oldest format version this crate still reads. Version 3 differs from 4 only in its header,
+/// which ends before `motion` (band 0 always used the mean motion), so servers that upgrade
+/// keep serving what they stored.
+pub const OLDEST_READABLE: u16 = 3;
 /// Size of the fixed preamble.
 pub const PREAMBLE_LEN: usize = 32;
 /// Upper bound on the header and index sizes a reader accepts (protects allocations).
@@ -52,7 +56,7 @@ impl Preamble {
         let u16_at = |i: usize| u16::from_le_bytes([b[i], b[i + 1]]);
         let u32_at = |i: usize| u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
         let version = u16_at(8);
-        if version != VERSION {
+        if !(OLDEST_READABLE..=VERSION).contains(&version) {
             return Err(E::UnsupportedVersion(version));
         }
         let p = Preamble {
@@ -126,6 +130,19 @@ pub struct Header {
 }
 
 impl Header {
+    /// Parses the header of a file of format `version` (checked by [`Preamble::parse`]).
+    pub fn from_bytes(bytes: &[u8], version: u16) -> Result<Header, postcard::Error> {
+        if version >= 4 {
+            return postcard::from_bytes(bytes);
+        }
+        // Version 3: the same fields without the trailing `motion`, whose encoding for `Mean`
+        // is one zero byte.
+        let mut v4 = Vec::with_capacity(bytes.len() + 1);
+        v4.extend_from_slice(bytes);
+        v4.push(0);
+        postcard::from_bytes(&v4)
+    }
+
     pub fn levels(&self) -> usize {
         self.level_sizes.len()
     }

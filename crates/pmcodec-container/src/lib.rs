@@ -32,7 +32,7 @@ pub enum ContainerError {
     Io(String),
     #[error("not a .pmc file (bad magic number)")]
     BadMagic,
-    #[error("container version {0} is not supported (this build reads version {v})", v = format::VERSION)]
+    #[error("container version {0} is not supported (this build reads versions {o} to {v})", o = format::OLDEST_READABLE, v = format::VERSION)]
     UnsupportedVersion(u16),
     #[error("{what}: the file ends before it does")]
     Truncated { what: String },
