@@ -83,12 +83,13 @@ async fn upload(http: &reqwest::Client, base: &str, query: &str, content_type: &
     (names, last)
 }
 
-/// Files in a store folder other than finished containers (temporary files left behind).
+/// Files in a store folder other than finished containers and their listing metadata
+/// (temporary files left behind).
 fn leftovers(dir: &Path) -> Vec<String> {
     std::fs::read_dir(dir)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .filter(|n| !n.ends_with(".pmc"))
+        .filter(|n| !n.ends_with(".pmc") && !n.ends_with(".meta.json"))
         .collect()
 }
 
@@ -383,9 +384,19 @@ async fn two_servers_share_one_s3_bucket() {
     let frames = obj_frames("cat-poses", 3);
     let (_, last) = upload(&http, &a.url(), "id=cat", "application/zip", zip_of(&frames)).await;
     assert_eq!(last["state"], "succeeded", "{last}");
-    // Server b never saw the upload; it reads the bucket.
+    // Server b never saw the upload; it reads the bucket, and leaves the listing metadata there
+    // for the next cold server (which then lists the same without reading the container).
     let list: Value = http.get(format!("{}/v1/assets", b.url())).send().await.unwrap().json().await.unwrap();
     assert_eq!(list["assets"][0]["id"], "cat", "{list}");
+    use pmcodec_server::{AssetId, AssetStore, PutMode, StoreError};
+    let store = pmcodec_server::store::S3Store::new(&s3_config).unwrap();
+    let cat = AssetId::parse("cat").unwrap();
+    let meta: Value = serde_json::from_slice(&store.get_meta(&cat).await.unwrap().expect("cat.meta.json")).unwrap();
+    assert_eq!(meta["tag"].as_str(), Some(store.head(&cat).await.unwrap().unwrap().tag.as_str()));
+    assert_eq!(meta["info"]["id"], "cat", "{meta}");
+    let c = pmcodec_server::start(config()).await.unwrap();
+    let list_c: Value = http.get(format!("{}/v1/assets", c.url())).send().await.unwrap().json().await.unwrap();
+    assert_eq!(list_c, list);
     let ia: Value = http.get(format!("{}/v1/assets/cat", a.url())).send().await.unwrap().json().await.unwrap();
     let ib: Value = http.get(format!("{}/v1/assets/cat", b.url())).send().await.unwrap().json().await.unwrap();
     assert_eq!(ia["version"], ib["version"]);
@@ -400,11 +411,10 @@ async fn two_servers_share_one_s3_bucket() {
     assert_eq!(r.status(), 204);
     let list: Value = http.get(format!("{}/v1/assets", a.url())).send().await.unwrap().json().await.unwrap();
     assert_eq!(list["assets"].as_array().unwrap().len(), 0, "{list}");
+    assert!(store.get_meta(&cat).await.unwrap().is_none(), "the metadata went with the asset");
 
     // Create-only writes straight to the bucket: s3s-fs honours `If-None-Match: *`, so a second
     // create of one key is refused and leaves the first object's bytes.
-    use pmcodec_server::{AssetId, AssetStore, PutMode, StoreError};
-    let store = pmcodec_server::store::S3Store::new(&s3_config).unwrap();
     let dog = AssetId::parse("dog").unwrap();
     store.put(&dog, b"first".to_vec().into(), PutMode::Create).await.unwrap();
     let r = store.put(&dog, b"second".to_vec().into(), PutMode::Create).await;

@@ -117,6 +117,13 @@ pub fn content_version(bytes: &[u8]) -> String {
     digest.iter().take(16).map(|b| format!("{b:02x}")).collect()
 }
 
+/// What `<id>.meta.json` holds: the listing metadata of the container whose store tag is `tag`.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct StoredMeta {
+    tag: String,
+    info: AssetInfo,
+}
+
 struct Cached {
     asset: Arc<LoadedAsset>,
     checked: Instant,
@@ -205,7 +212,10 @@ impl AssetCache {
         self.load(id).await
     }
 
-    /// Metadata of a listed object: from memory when its tag is unchanged, else by loading it.
+    /// Metadata of a listed object: from memory when its tag is unchanged, else from the
+    /// metadata stored beside it when that describes this very object (same tag), else by
+    /// loading the container, after which the stored metadata is written for the next cold
+    /// server.
     pub async fn info(&self, obj: &StoredObject) -> Result<Arc<AssetInfo>, ApiError> {
         if let Some((tag, info)) = self.infos().get(&obj.id)
             && *tag == obj.tag
@@ -215,7 +225,39 @@ impl AssetCache {
         if let Some(e) = self.known_unreadable(&obj.id, &obj.tag) {
             return Err(e);
         }
-        Ok(self.load(&obj.id).await?.info.clone())
+        // The stored metadata is a cache: unreadable, unparsable or stale, it is passed over.
+        match self.store.get_meta(&obj.id).await {
+            Ok(Some(bytes)) => match serde_json::from_slice::<StoredMeta>(&bytes) {
+                Ok(m) if m.tag == obj.tag => {
+                    let info = Arc::new(m.info);
+                    self.remember_info(&obj.id, &obj.tag, &info);
+                    return Ok(info);
+                }
+                Ok(_) => {}
+                Err(e) => tracing::warn!(asset = %obj.id, error = %e, "ignoring unreadable stored listing metadata"),
+            },
+            Ok(None) => {}
+            Err(e) => tracing::warn!(asset = %obj.id, error = %e, "reading stored listing metadata failed"),
+        }
+        let asset = self.load(&obj.id).await?;
+        let meta = StoredMeta { tag: asset.tag.clone(), info: (*asset.info).clone() };
+        match serde_json::to_vec(&meta) {
+            Ok(bytes) => {
+                if let Err(e) = self.store.put_meta(&obj.id, bytes.into()).await {
+                    tracing::warn!(asset = %obj.id, error = %e, "writing listing metadata failed");
+                }
+            }
+            Err(e) => tracing::warn!(asset = %obj.id, error = %e, "encoding listing metadata failed"),
+        }
+        Ok(asset.info.clone())
+    }
+
+    fn remember_info(&self, id: &AssetId, tag: &str, info: &Arc<AssetInfo>) {
+        let mut infos = self.infos();
+        if infos.len() >= MAX_INFOS {
+            infos.clear();
+        }
+        infos.insert(id.clone(), (tag.to_string(), info.clone()));
     }
 
     async fn load(&self, id: &AssetId) -> Result<Arc<LoadedAsset>, ApiError> {
@@ -244,14 +286,8 @@ impl AssetCache {
             }
         };
         let asset = Arc::new(asset);
-        let evicted = {
-            let mut infos = self.infos();
-            if infos.len() >= MAX_INFOS {
-                infos.clear();
-            }
-            infos.insert(id.clone(), (asset.tag.clone(), asset.info.clone()));
-            self.lru().insert(id.clone(), Cached { asset: asset.clone(), checked: Instant::now() }, weight)
-        };
+        self.remember_info(id, &asset.tag, &asset.info);
+        let evicted = self.lru().insert(id.clone(), Cached { asset: asset.clone(), checked: Instant::now() }, weight);
         for old in evicted {
             if old.asset.version != asset.version && old.asset.id == asset.id {
                 (self.on_stale)(&old.asset.version);

@@ -376,6 +376,55 @@ impl AssetStore for TestStore {
     fn check(&self) -> futures_util::future::BoxFuture<'_, Result<(), StoreError>> {
         self.inner.check()
     }
+    fn get_meta<'a>(&'a self, id: &'a AssetId) -> futures_util::future::BoxFuture<'a, Result<Option<bytes::Bytes>, StoreError>> {
+        self.inner.get_meta(id)
+    }
+    fn put_meta<'a>(&'a self, id: &'a AssetId, bytes: bytes::Bytes) -> futures_util::future::BoxFuture<'a, Result<(), StoreError>> {
+        self.inner.put_meta(id, bytes)
+    }
+}
+
+/// A cold server lists assets from the metadata stored beside them, written by the first
+/// server that had to read the containers; metadata of other bytes (the asset was replaced)
+/// or damaged metadata is passed over and rewritten, never shown.
+#[tokio::test]
+async fn cold_servers_list_from_stored_metadata() {
+    let store = Arc::new(TestStore::default());
+    let (a, b) = (AssetId::parse("cloth-a").unwrap(), AssetId::parse("cloth-b").unwrap());
+    for id in [&a, &b] {
+        store.put(id, cloth_bytes().into(), PutMode::Overwrite).await.unwrap();
+    }
+    let gets = || store.gets.load(std::sync::atomic::Ordering::Relaxed);
+    let cold_listing = || async {
+        let state = AppState::new(Config::default(), store.clone()).unwrap();
+        state.set_ready(true);
+        get(&router(state), "/v1/assets", &[]).await.json()
+    };
+    let first = cold_listing().await;
+    assert_eq!(first["assets"].as_array().map(Vec::len), Some(2));
+    assert_eq!(gets(), 2, "the first server reads both containers");
+    assert!(store.get_meta(&a).await.unwrap().is_some(), "and leaves their metadata");
+    // A second cold server reads no container to list the same assets.
+    assert_eq!(cold_listing().await, first);
+    assert_eq!(gets(), 2);
+    // Replaced bytes: the metadata describes the old object and is not used.
+    let other = pmcodec_container::encode(&pmcodec_mesh::samples::twisting_tube(6, 5, 3), &Default::default(), |_| {}).unwrap();
+    store.put(&a, other.into(), PutMode::Overwrite).await.unwrap();
+    let listed = cold_listing().await;
+    assert_eq!(gets(), 3);
+    let version =
+        |l: &serde_json::Value, id: &str| l["assets"].as_array().unwrap().iter().find(|x| x["id"] == id).unwrap()["version"].clone();
+    assert_ne!(version(&listed, "cloth-a"), version(&first, "cloth-a"));
+    assert_eq!(version(&listed, "cloth-b"), version(&first, "cloth-b"));
+    // Damaged metadata is passed over too (and rewritten).
+    store.put_meta(&b, bytes::Bytes::from_static(b"{not json")).await.unwrap();
+    assert_eq!(cold_listing().await, listed);
+    assert_eq!(gets(), 4);
+    assert_eq!(cold_listing().await, listed);
+    assert_eq!(gets(), 4);
+    // Deleting an asset deletes its metadata.
+    store.delete(&b).await.unwrap();
+    assert!(store.get_meta(&b).await.unwrap().is_none());
 }
 
 #[tokio::test]

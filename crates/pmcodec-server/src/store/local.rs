@@ -44,6 +44,10 @@ impl LocalStore {
     fn path(&self, id: &AssetId) -> PathBuf {
         self.root.join(id.file_name())
     }
+
+    fn meta_path(&self, id: &AssetId) -> PathBuf {
+        self.root.join(format!("{id}.meta.json"))
+    }
 }
 
 fn io(what: &str, path: &Path, e: std::io::Error) -> StoreError {
@@ -187,11 +191,44 @@ impl AssetStore for LocalStore {
     fn delete<'a>(&'a self, id: &'a AssetId) -> BoxFuture<'a, Result<bool, StoreError>> {
         Box::pin(async move {
             let path = self.path(id);
+            // The metadata first: without its container it would only be a stale cache.
+            match tokio::fs::remove_file(self.meta_path(id)).await {
+                Ok(()) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                Err(e) => return Err(io("deleting", &self.meta_path(id), e)),
+            }
             match tokio::fs::remove_file(&path).await {
                 Ok(()) => Ok(true),
                 Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(false),
                 Err(e) => Err(io("deleting", &path, e)),
             }
+        })
+    }
+
+    fn get_meta<'a>(&'a self, id: &'a AssetId) -> BoxFuture<'a, Result<Option<Bytes>, StoreError>> {
+        Box::pin(async move {
+            let path = self.meta_path(id);
+            match tokio::fs::read(&path).await {
+                Ok(b) => Ok(Some(Bytes::from(b))),
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+                Err(e) => Err(io("reading", &path, e)),
+            }
+        })
+    }
+
+    fn put_meta<'a>(&'a self, id: &'a AssetId, bytes: Bytes) -> BoxFuture<'a, Result<(), StoreError>> {
+        Box::pin(async move {
+            let (root, dest) = (self.root.clone(), self.meta_path(id));
+            tokio::task::spawn_blocking(move || -> Result<(), StoreError> {
+                let tmp = root.join(format!("{TMP_PREFIX}{}", uuid::Uuid::new_v4().simple()));
+                let published = publish(&tmp, &dest, &bytes, PutMode::Overwrite);
+                if published.is_err() {
+                    let _ = std::fs::remove_file(&tmp);
+                }
+                published.map_err(|e| io("writing", &dest, e))
+            })
+            .await
+            .map_err(|e| StoreError::Io(format!("writing: {e}")))?
         })
     }
 
@@ -242,6 +279,24 @@ mod tests {
         store.put(&id, Bytes::from_static(b"third"), PutMode::Overwrite).await.unwrap();
         assert_eq!(std::fs::read(dir.path().join("a.pmc")).unwrap(), b"third");
         assert_eq!(names(dir.path()), ["a.pmc", "b.pmc"]);
+    }
+
+    #[tokio::test]
+    async fn metadata_sits_beside_its_asset_and_goes_with_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = LocalStore::open(dir.path()).unwrap();
+        let id = AssetId::parse("m").unwrap();
+        store.put(&id, Bytes::from_static(b"container"), PutMode::Overwrite).await.unwrap();
+        assert_eq!(store.get_meta(&id).await.unwrap(), None);
+        store.put_meta(&id, Bytes::from_static(b"{\"a\":1}")).await.unwrap();
+        store.put_meta(&id, Bytes::from_static(b"{\"a\":2}")).await.unwrap();
+        assert_eq!(store.get_meta(&id).await.unwrap().as_deref(), Some(&b"{\"a\":2}"[..]));
+        assert_eq!(names(dir.path()), ["m.meta.json", "m.pmc"], "no temporary file is left");
+        // Listings show assets only.
+        assert_eq!(store.list().await.unwrap().iter().map(|o| o.id.to_string()).collect::<Vec<_>>(), ["m"]);
+        assert!(store.delete(&id).await.unwrap());
+        assert!(names(dir.path()).is_empty());
+        assert_eq!(store.get_meta(&id).await.unwrap(), None);
     }
 
     #[tokio::test]

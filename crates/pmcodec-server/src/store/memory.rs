@@ -17,6 +17,7 @@ struct Inner {
     objects: BTreeMap<AssetId, (Bytes, u64)>,
     /// Every put gets a new generation, which is the object's tag.
     generation: u64,
+    meta: BTreeMap<AssetId, Bytes>,
 }
 
 impl MemoryStore {
@@ -64,7 +65,22 @@ impl AssetStore for MemoryStore {
     }
 
     fn delete<'a>(&'a self, id: &'a AssetId) -> BoxFuture<'a, Result<bool, StoreError>> {
-        Box::pin(async move { Ok(self.lock()?.objects.remove(id).is_some()) })
+        Box::pin(async move {
+            let mut inner = self.lock()?;
+            inner.meta.remove(id);
+            Ok(inner.objects.remove(id).is_some())
+        })
+    }
+
+    fn get_meta<'a>(&'a self, id: &'a AssetId) -> BoxFuture<'a, Result<Option<Bytes>, StoreError>> {
+        Box::pin(async move { Ok(self.lock()?.meta.get(id).cloned()) })
+    }
+
+    fn put_meta<'a>(&'a self, id: &'a AssetId, bytes: Bytes) -> BoxFuture<'a, Result<(), StoreError>> {
+        Box::pin(async move {
+            self.lock()?.meta.insert(id.clone(), bytes);
+            Ok(())
+        })
     }
 
     fn check(&self) -> BoxFuture<'_, Result<(), StoreError>> {

@@ -1,7 +1,8 @@
 //! Where containers live: a trait and three implementations (a local folder, an S3-compatible
 //! bucket, memory). Every implementation stores one object per asset, `<id>.pmc`, and makes a
 //! new object visible only when it is complete, so a reader on any server sees the old asset,
-//! the new one, or none, never a part.
+//! the new one, or none, never a part. Beside it may sit `<id>.meta.json`, a cache of what a
+//! listing shows, tagged with the container it describes.
 //!
 //! A write either replaces what is there or creates only ([`PutMode`]). A create-only write is
 //! a single check-and-write step in the store itself (a hard link that fails on an existing
@@ -68,8 +69,20 @@ pub trait AssetStore: Send + Sync + 'static {
     /// An existing asset is replaced ([`PutMode::Overwrite`]) or kept, failing the write with
     /// [`StoreError::AlreadyExists`] ([`PutMode::Create`]).
     fn put<'a>(&'a self, id: &'a AssetId, bytes: Bytes, mode: PutMode) -> BoxFuture<'a, Result<StoredObject, StoreError>>;
-    /// Removes an asset; `false` when there was none.
+    /// Removes an asset (and its listing metadata); `false` when there was none.
     fn delete<'a>(&'a self, id: &'a AssetId) -> BoxFuture<'a, Result<bool, StoreError>>;
+    /// The listing metadata kept beside an asset (`<id>.meta.json`), if any: what a listing
+    /// shows of it and the tag of the container it describes, so that a cold server lists a
+    /// bucket without reading every container. It is only ever a cache: a reader checks the
+    /// tag against the container's and falls back to the container. Stores without a place
+    /// for it keep these defaults (none; writes dropped).
+    fn get_meta<'a>(&'a self, _id: &'a AssetId) -> BoxFuture<'a, Result<Option<Bytes>, StoreError>> {
+        Box::pin(async { Ok(None) })
+    }
+    /// Writes (replaces) the listing metadata of an asset, atomically.
+    fn put_meta<'a>(&'a self, _id: &'a AssetId, _bytes: Bytes) -> BoxFuture<'a, Result<(), StoreError>> {
+        Box::pin(async { Ok(()) })
+    }
     /// Whether the store answers at all (readiness).
     fn check(&self) -> BoxFuture<'_, Result<(), StoreError>>;
 }

@@ -76,6 +76,10 @@ impl S3Store {
         ObjectPath::from(format!("{}{}", self.prefix, id.file_name()))
     }
 
+    fn meta_key(&self, id: &AssetId) -> ObjectPath {
+        ObjectPath::from(format!("{}{id}.meta.json", self.prefix))
+    }
+
     fn object(id: &AssetId, meta: &ObjectMeta) -> StoredObject {
         let tag = meta.e_tag.clone().unwrap_or_else(|| format!("{}-{}", meta.last_modified.timestamp_nanos_opt().unwrap_or(0), meta.size));
         StoredObject { id: id.clone(), size: meta.size, tag }
@@ -178,8 +182,31 @@ impl AssetStore for S3Store {
             if self.head(id).await?.is_none() {
                 return Ok(false);
             }
+            // The metadata first: without its container it would only be a stale cache. (S3
+            // answers a DELETE of a missing key with success; some compatible stores with 404.)
+            match self.store.delete(&self.meta_key(id)).await {
+                Ok(()) | Err(object_store::Error::NotFound { .. }) => {}
+                Err(e) => return Err(self.err("delete", e)),
+            }
             self.store.delete(&self.key(id)).await.map_err(|e| self.err("delete", e))?;
             Ok(true)
+        })
+    }
+
+    fn get_meta<'a>(&'a self, id: &'a AssetId) -> BoxFuture<'a, Result<Option<Bytes>, StoreError>> {
+        Box::pin(async move {
+            match self.store.get(&self.meta_key(id)).await {
+                Ok(r) => Ok(Some(r.bytes().await.map_err(|e| self.err("get", e))?)),
+                Err(object_store::Error::NotFound { .. }) => Ok(None),
+                Err(e) => Err(self.err("get", e)),
+            }
+        })
+    }
+
+    fn put_meta<'a>(&'a self, id: &'a AssetId, bytes: Bytes) -> BoxFuture<'a, Result<(), StoreError>> {
+        Box::pin(async move {
+            self.store.put(&self.meta_key(id), bytes.into()).await.map_err(|e| self.err("put", e))?;
+            Ok(())
         })
     }
 
