@@ -38,12 +38,20 @@ fn main() {
     let frames = (passes as u32 * n) as f64;
     let (wall, cpu) = (t.elapsed().as_secs_f64(), cpu_seconds() - c);
     println!("playback: {:.3} ms/frame CPU ({:.0} frames/s), {:.3} ms/frame wall", cpu * 1e3 / frames, frames / cpu, wall * 1e3 / frames);
-    let mut d = Decoder::new(reader.borrowed(), 0).expect("decoder");
+    // Random seeks with one open decoder, then with one that keeps its keyframes (warmed up
+    // by a first pass over the same seeks, so every keyframe is kept).
     let seeks = passes as u32 * 10;
-    let (t, c) = (std::time::Instant::now(), cpu_seconds());
-    for i in 0..seeks {
-        d.seek((i.wrapping_mul(2654435761) >> 8) % n).expect("seek");
+    for keep in [0, 8] {
+        let mut d = Decoder::new(reader.borrowed(), 0).expect("decoder");
+        d.keep_keyframes(keep);
+        let targets = (0..seeks).map(|i| (i.wrapping_mul(2654435761) >> 8) % n);
+        if keep > 0 {
+            targets.clone().for_each(|f| d.seek(f).expect("seek"));
+        }
+        let (t, c) = (std::time::Instant::now(), cpu_seconds());
+        targets.for_each(|f| d.seek(f).expect("seek"));
+        let (wall, cpu) = (t.elapsed().as_secs_f64(), cpu_seconds() - c);
+        let what = if keep > 0 { format!("keeping {keep} keyframes") } else { "keeping no keyframes".into() };
+        println!("random seek, open decoder {what}: {:.3} ms CPU, {:.3} ms wall", cpu * 1e3 / seeks as f64, wall * 1e3 / seeks as f64);
     }
-    let (wall, cpu) = (t.elapsed().as_secs_f64(), cpu_seconds() - c);
-    println!("random seek, open decoder: {:.3} ms CPU, {:.3} ms wall", cpu * 1e3 / seeks as f64, wall * 1e3 / seeks as f64);
 }

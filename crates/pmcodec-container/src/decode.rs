@@ -49,6 +49,17 @@ pub struct Decoder<S> {
     /// by the first [`Decoder::mesh`] after a seek (a server cuts one decoded frame at many
     /// budgets).
     derived: Option<Derived>,
+    /// Keyframe states kept by [`Decoder::keep_keyframes`], most recently used last.
+    kept: Vec<KeptKeyframe>,
+    keep: usize,
+}
+
+/// A decoder's state just after loading a keyframe: what seeking back to it restores.
+#[derive(Clone)]
+struct KeptKeyframe {
+    frame: u32,
+    replay: Replay,
+    current: Vec<[i32; 3]>,
 }
 
 /// What meshes of one decoded frame are cut from.
@@ -81,7 +92,19 @@ impl<S: ByteSource> Decoder<S> {
             current: vec![[0; 3]; total],
             previous: vec![[0; 3]; total],
             derived: None,
+            kept: Vec::new(),
+            keep: 0,
         })
+    }
+
+    /// Keeps the state after each of the last `n` keyframes loaded (0, the default, keeps
+    /// none), so that seeking back to one of them restores it instead of reading and decoding
+    /// it again: a player that scrubs, or a random seek, then pays only the frames after the
+    /// keyframe. Each kept state costs about as much memory as the decoder itself.
+    pub fn keep_keyframes(&mut self, n: usize) {
+        self.keep = n;
+        let excess = self.kept.len().saturating_sub(n);
+        self.kept.drain(..excess);
     }
 
     pub fn frame(&self) -> Option<u32> {
@@ -155,7 +178,26 @@ impl<S: ByteSource> Decoder<S> {
         let start = match self.frame {
             Some(c) if c <= frame && c >= key => c,
             _ => {
-                self.load_keyframe(key)?;
+                if let Some(i) = self.kept.iter().position(|k| k.frame == key) {
+                    let k = self.kept.remove(i);
+                    match self.replay.as_mut() {
+                        Some(r) => r.copy_from(&k.replay),
+                        None => self.replay = Some(k.replay.clone()),
+                    }
+                    self.current.copy_from_slice(&k.current);
+                    self.frame = Some(key);
+                    self.kept.push(k);
+                } else {
+                    self.load_keyframe(key)?;
+                    if self.keep > 0
+                        && let Some(replay) = &self.replay
+                    {
+                        if self.kept.len() >= self.keep {
+                            self.kept.remove(0);
+                        }
+                        self.kept.push(KeptKeyframe { frame: key, replay: replay.clone(), current: self.current.clone() });
+                    }
+                }
                 key
             }
         };

@@ -112,16 +112,19 @@ fn affine_motion_round_trips_and_saves_bits() {
     }
 }
 
-/// One decoder sent back and forth across keyframes (which reloads its replay in place) agrees
-/// with a fresh decoder at every stop, at full resolution and at level 1.
+/// One decoder sent back and forth across keyframes (which reloads its replay in place, or
+/// restores a kept keyframe state) agrees with a fresh decoder at every stop, at full
+/// resolution and at level 1.
 #[test]
 fn seeking_back_and_forth_equals_fresh_decoding() {
     let Some(seq) = data("horse-gallop", 20) else { return };
     let bytes = encode(&seq, &EncodeOptions { keyframe_interval: 4, ..Default::default() }, |_| {}).unwrap();
     let reader = Reader::open(bytes.as_slice()).unwrap();
-    for level in [0, 1] {
+    for (level, keep) in [(0, 0), (1, 0), (0, 2), (1, 3)] {
         let mut d = Decoder::new(reader.borrowed(), level).unwrap();
-        for f in [17u32, 3, 9, 2, 19, 0, 8, 7, 12] {
+        d.keep_keyframes(keep);
+        // With kept keyframes, the later stops revisit keyframes 0, 8 and 16 (restored).
+        for f in [17u32, 3, 9, 2, 19, 0, 8, 7, 12, 1, 18, 10, 3, 17] {
             d.seek(f).unwrap();
             let mut fresh = Decoder::new(reader.borrowed(), level).unwrap();
             fresh.seek(f).unwrap();

@@ -292,6 +292,27 @@ pub struct Replay {
 }
 
 impl Replay {
+    /// Makes this replay a copy of `other`, reusing this one's buffers (a decoder restoring
+    /// a kept keyframe state does this on every seek back; a fresh clone would allocate every
+    /// node's set and child list again).
+    pub fn copy_from(&mut self, other: &Replay) {
+        self.h.clone_from(&other.h);
+        self.min_level = other.min_level;
+        self.corners.clone_from(&other.corners);
+        self.incident.offsets.clone_from(&other.incident.offsets);
+        self.incident.list.clone_from(&other.incident.list);
+        self.incident.extra.clone_from(&other.incident.extra);
+        self.node_of.clone_from(&other.node_of);
+        self.affected.clone_from(&other.affected);
+        self.marked.clone_from(&other.marked);
+        self.sets.clone_from(&other.sets);
+        self.slot_in_set.clone_from(&other.slot_in_set);
+        self.children.clone_from(&other.children);
+        self.expanded.clone_from(&other.expanded);
+        self.shown.clone_from(&other.shown);
+        self.slot_in_shown.clone_from(&other.slot_in_shown);
+    }
+
     /// A full-resolution replay (L = 0) starting at hierarchy `h`.
     pub fn new(h: Hierarchy, triangles: &[[u32; 3]]) -> Self {
         let mut r = Self::empty(h, 0, triangles.len());
