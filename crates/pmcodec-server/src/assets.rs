@@ -117,12 +117,18 @@ pub fn content_version(bytes: &[u8]) -> String {
     digest.iter().take(16).map(|b| format!("{b:02x}")).collect()
 }
 
-/// What `<id>.meta.json` holds: the listing metadata of the container whose store tag is `tag`.
+/// What `<id>.meta.json` holds: the listing metadata of the container whose store tag is `tag`,
+/// as this server version describes assets (`schema`: a server that describes them otherwise,
+/// with other URLs for instance, passes over metadata of another schema).
 #[derive(serde::Serialize, serde::Deserialize)]
 struct StoredMeta {
+    schema: u32,
     tag: String,
     info: AssetInfo,
 }
+
+/// The [`StoredMeta::schema`] this server writes and reads.
+const META_SCHEMA: u32 = 1;
 
 struct Cached {
     asset: Arc<LoadedAsset>,
@@ -228,7 +234,7 @@ impl AssetCache {
         // The stored metadata is a cache: unreadable, unparsable or stale, it is passed over.
         match self.store.get_meta(&obj.id).await {
             Ok(Some(bytes)) => match serde_json::from_slice::<StoredMeta>(&bytes) {
-                Ok(m) if m.tag == obj.tag => {
+                Ok(m) if m.schema == META_SCHEMA && m.tag == obj.tag => {
                     let info = Arc::new(m.info);
                     self.remember_info(&obj.id, &obj.tag, &info);
                     return Ok(info);
@@ -240,7 +246,7 @@ impl AssetCache {
             Err(e) => tracing::warn!(asset = %obj.id, error = %e, "reading stored listing metadata failed"),
         }
         let asset = self.load(&obj.id).await?;
-        let meta = StoredMeta { tag: asset.tag.clone(), info: (*asset.info).clone() };
+        let meta = StoredMeta { schema: META_SCHEMA, tag: asset.tag.clone(), info: (*asset.info).clone() };
         match serde_json::to_vec(&meta) {
             Ok(bytes) => {
                 if let Err(e) = self.store.put_meta(&obj.id, bytes.into()).await {

@@ -416,12 +416,19 @@ async fn cold_servers_list_from_stored_metadata() {
         |l: &serde_json::Value, id: &str| l["assets"].as_array().unwrap().iter().find(|x| x["id"] == id).unwrap()["version"].clone();
     assert_ne!(version(&listed, "cloth-a"), version(&first, "cloth-a"));
     assert_eq!(version(&listed, "cloth-b"), version(&first, "cloth-b"));
+    // Metadata of another schema (another server version's description) is passed over.
+    let mut other_schema: serde_json::Value = serde_json::from_slice(&store.get_meta(&b).await.unwrap().unwrap()).unwrap();
+    other_schema["schema"] = 99.into();
+    other_schema["info"]["frames"] = 12345.into();
+    store.put_meta(&b, serde_json::to_vec(&other_schema).unwrap().into()).await.unwrap();
+    assert_eq!(cold_listing().await, listed);
+    assert_eq!(gets(), 4);
     // Damaged metadata is passed over too (and rewritten).
     store.put_meta(&b, bytes::Bytes::from_static(b"{not json")).await.unwrap();
     assert_eq!(cold_listing().await, listed);
-    assert_eq!(gets(), 4);
+    assert_eq!(gets(), 5);
     assert_eq!(cold_listing().await, listed);
-    assert_eq!(gets(), 4);
+    assert_eq!(gets(), 5);
     // Deleting an asset deletes its metadata.
     store.delete(&b).await.unwrap();
     assert!(store.get_meta(&b).await.unwrap().is_none());
