@@ -108,6 +108,9 @@ async fn uploaded_obj_sequence_is_served_bit_for_bit_and_plays_through_the_clien
     assert!(events.iter().filter(|e| *e == "running").count() >= 2, "progress events while encoding: {events:?}");
     assert_eq!(events.last().map(String::as_str), Some("succeeded"));
     assert!(dir.path().join("horse.pmc").is_file());
+    // Its listing metadata is written with it, for cold servers.
+    let meta: Value = serde_json::from_slice(&std::fs::read(dir.path().join("horse.meta.json")).unwrap()).unwrap();
+    assert_eq!((meta["schema"].as_u64(), meta["info"]["id"].as_str()), (Some(1), Some("horse")), "{meta}");
     assert!(leftovers(dir.path()).is_empty(), "{:?}", leftovers(dir.path()));
 
     let info: Value = http.get(format!("{base}/v1/assets/horse")).send().await.unwrap().json().await.unwrap();
@@ -384,8 +387,8 @@ async fn two_servers_share_one_s3_bucket() {
     let frames = obj_frames("cat-poses", 3);
     let (_, last) = upload(&http, &a.url(), "id=cat", "application/zip", zip_of(&frames)).await;
     assert_eq!(last["state"], "succeeded", "{last}");
-    // Server b never saw the upload; it reads the bucket, and leaves the listing metadata there
-    // for the next cold server (which then lists the same without reading the container).
+    // Server b never saw the upload; it reads the bucket, where server a left the listing
+    // metadata with the asset (so a cold server lists it without reading the container).
     let list: Value = http.get(format!("{}/v1/assets", b.url())).send().await.unwrap().json().await.unwrap();
     assert_eq!(list["assets"][0]["id"], "cat", "{list}");
     use pmcodec_server::{AssetId, AssetStore, PutMode, StoreError};
