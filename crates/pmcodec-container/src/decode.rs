@@ -178,31 +178,36 @@ impl<S: ByteSource> Decoder<S> {
         let start = match self.frame {
             Some(c) if c <= frame && c >= key => c,
             _ => {
-                if let Some(i) = self.kept.iter().position(|k| k.frame == key) {
-                    let k = self.kept.remove(i);
-                    match self.replay.as_mut() {
-                        Some(r) => r.copy_from(&k.replay),
-                        None => self.replay = Some(k.replay.clone()),
-                    }
-                    self.current.copy_from_slice(&k.current);
-                    self.frame = Some(key);
-                    self.kept.push(k);
-                } else {
-                    self.load_keyframe(key)?;
-                    if self.keep > 0
-                        && let Some(replay) = &self.replay
-                    {
-                        if self.kept.len() >= self.keep {
-                            self.kept.remove(0);
-                        }
-                        self.kept.push(KeptKeyframe { frame: key, replay: replay.clone(), current: self.current.clone() });
-                    }
-                }
+                self.enter_keyframe(key)?;
                 key
             }
         };
         for f in start + 1..=frame {
             self.step(f)?;
+        }
+        Ok(())
+    }
+
+    /// Brings the decoder to keyframe `key`: restored when it is kept, else loaded (and kept
+    /// when [`Decoder::keep_keyframes`] asks for it).
+    fn enter_keyframe(&mut self, key: u32) -> Result<(), ContainerError> {
+        if let Some(i) = self.kept.iter().position(|k| k.frame == key) {
+            let k = self.kept.remove(i);
+            match self.replay.as_mut() {
+                Some(r) => r.copy_from(&k.replay),
+                None => self.replay = Some(k.replay.clone()),
+            }
+            self.current.copy_from_slice(&k.current);
+            self.frame = Some(key);
+            self.kept.push(k);
+            return Ok(());
+        }
+        self.load_keyframe(key)?;
+        if let (true, Some(replay)) = (self.keep > 0, &self.replay) {
+            if self.kept.len() >= self.keep {
+                self.kept.remove(0);
+            }
+            self.kept.push(KeptKeyframe { frame: key, replay: replay.clone(), current: self.current.clone() });
         }
         Ok(())
     }

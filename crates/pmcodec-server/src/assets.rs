@@ -245,15 +245,21 @@ impl AssetCache {
             Ok(None) => {}
             Err(e) => tracing::warn!(asset = %obj.id, error = %e, "reading stored listing metadata failed"),
         }
-        let asset = self.load(&obj.id).await?;
+        self.describe(&obj.id).await
+    }
+
+    /// Loads an asset and writes its listing metadata to the store (best effort), for servers
+    /// that list it later. An upload's job calls this once it has stored the container.
+    pub async fn describe(&self, id: &AssetId) -> Result<Arc<AssetInfo>, ApiError> {
+        let asset = self.load(id).await?;
         let meta = StoredMeta { schema: META_SCHEMA, tag: asset.tag.clone(), info: (*asset.info).clone() };
         match serde_json::to_vec(&meta) {
             Ok(bytes) => {
-                if let Err(e) = self.store.put_meta(&obj.id, bytes.into()).await {
-                    tracing::warn!(asset = %obj.id, error = %e, "writing listing metadata failed");
+                if let Err(e) = self.store.put_meta(id, bytes.into()).await {
+                    tracing::warn!(asset = %id, error = %e, "writing listing metadata failed");
                 }
             }
-            Err(e) => tracing::warn!(asset = %obj.id, error = %e, "encoding listing metadata failed"),
+            Err(e) => tracing::warn!(asset = %id, error = %e, "encoding listing metadata failed"),
         }
         Ok(asset.info.clone())
     }

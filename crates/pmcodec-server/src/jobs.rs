@@ -218,12 +218,12 @@ async fn run(app: AppState, tx: watch::Sender<JobStatus>, asset: AssetId, body: 
             // The one write of the job: atomic in every store, so the asset appears whole.
             let mode = if replace { PutMode::Overwrite } else { PutMode::Create };
             match app.store.put(&asset, bytes.into(), mode).await {
-                Ok(stored) => {
+                Ok(_) => {
                     app.assets.forget(&asset);
                     // Describe it now, which also writes its listing metadata, so that no
                     // server has to read the container to list it (best effort: the asset is
                     // stored either way).
-                    if let Err(e) = app.assets.info(&stored).await {
+                    if let Err(e) = app.assets.describe(&asset).await {
                         tracing::warn!(asset = %asset, error = %e, "describing the stored asset failed");
                     }
                     Ok(())

@@ -247,6 +247,13 @@ impl AssetStore for LocalStore {
 mod tests {
     use super::*;
 
+    /// An empty store in a fresh temporary folder (kept alive by the returned guard).
+    fn temp_store() -> (tempfile::TempDir, LocalStore) {
+        let dir = tempfile::tempdir().unwrap();
+        let store = LocalStore::open(dir.path()).unwrap();
+        (dir, store)
+    }
+
     fn names(dir: &Path) -> Vec<String> {
         let mut v: Vec<String> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
         v.sort();
@@ -255,8 +262,7 @@ mod tests {
 
     #[tokio::test]
     async fn create_keeps_an_existing_file_and_leaves_no_temporary_files() {
-        let dir = tempfile::tempdir().unwrap();
-        let store = LocalStore::open(dir.path()).unwrap();
+        let (dir, store) = temp_store();
         let id = AssetId::parse("a").unwrap();
         store.put(&id, Bytes::from_static(b"first"), PutMode::Overwrite).await.unwrap();
         let before = store.head(&id).await.unwrap().unwrap();
@@ -283,8 +289,7 @@ mod tests {
 
     #[tokio::test]
     async fn metadata_sits_beside_its_asset_and_goes_with_it() {
-        let dir = tempfile::tempdir().unwrap();
-        let store = LocalStore::open(dir.path()).unwrap();
+        let (dir, store) = temp_store();
         let id = AssetId::parse("m").unwrap();
         store.put(&id, Bytes::from_static(b"container"), PutMode::Overwrite).await.unwrap();
         assert_eq!(store.get_meta(&id).await.unwrap(), None);
