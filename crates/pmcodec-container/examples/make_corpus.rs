@@ -1,21 +1,33 @@
 //! Writes the committed fuzz corpus (tests/corpus): small valid files and damaged copies.
 //! `cargo run -p pmcodec-container --example make_corpus`
-use pmcodec_container::{EncodeOptions, Motion, QuantizationChoice, encode};
+use pmcodec_container::{EncodeOptions, Motion, QuantizationChoice, VertexOrder, encode};
 
 fn main() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus");
     std::fs::create_dir_all(&dir).expect("corpus dir");
     let mut n = 0;
-    for (name, frames, key, bits) in
-        [("valid-cloth-k0", 3u32, 0u32, 10u8), ("valid-cloth-k1", 4, 1, 12), ("valid-tube-k2", 5, 2, 8), ("valid-tube-affine", 5, 3, 12)]
-    {
+    let valid = [
+        ("valid-cloth-k0", 3u32, 0u32, 10u8),
+        ("valid-cloth-k1", 4, 1, 12),
+        ("valid-tube-k2", 5, 2, 8),
+        ("valid-tube-affine", 5, 3, 12),
+        ("valid-tube-mean-input", 5, 3, 12),
+    ];
+    for (name, frames, key, bits) in valid {
         let seq = if name.contains("tube") {
             pmcodec_mesh::samples::twisting_tube(6, 5, frames)
         } else {
             pmcodec_mesh::samples::waving_cloth(6, 5, frames)
         };
-        let motion = if name.contains("affine") { Motion::Affine } else { Motion::Mean };
-        let opts = EncodeOptions { keyframe_interval: key, quantization: QuantizationChoice::Bits(bits), motion, ..Default::default() };
+        // The default (keyframe affine motion, breadth first), affine motion fitted on every
+        // frame, and version 4's default (mean motion in input order).
+        let (motion, order) = match name {
+            n if n.contains("-affine") => (Motion::Affine, VertexOrder::BreadthFirst),
+            n if n.contains("-mean-input") => (Motion::Mean, VertexOrder::Input),
+            _ => (Motion::KeyframeAffine, VertexOrder::BreadthFirst),
+        };
+        let opts =
+            EncodeOptions { keyframe_interval: key, quantization: QuantizationChoice::Bits(bits), motion, order, ..Default::default() };
         let bytes = encode(&seq, &opts, |_| {}).expect("encode");
         std::fs::write(dir.join(format!("{name}.pmc")), &bytes).expect("write");
         // Damaged copies: a flipped byte in each region and truncations.
@@ -30,5 +42,5 @@ fn main() {
             n += 1;
         }
     }
-    println!("wrote {n} damaged files and 4 valid ones to {}", dir.display());
+    println!("wrote {n} damaged files and {} valid ones to {}", valid.len(), dir.display());
 }

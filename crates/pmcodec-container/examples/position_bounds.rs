@@ -11,7 +11,8 @@
 //!   after, for each span `s` a hierarchy of B-frames would use.
 //!
 //! `cargo run --release -p pmcodec-container --example position_bounds -- DIR [bits]`
-use pmcodec_container::predict::{AffineFits, LowerNeighbours, Siblings, predict};
+use pmcodec_container::VertexOrder;
+use pmcodec_container::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, predict};
 use std::collections::HashMap;
 
 /// Bits of a static per-axis code for these residuals.
@@ -46,17 +47,29 @@ fn choose(t: [f64; 3], p: [i32; 3]) -> [i32; 3] {
     best.2
 }
 
-/// Codes frame `t` in closed loop from the reference `reference` (decoded positions): returns
-/// the decoded frame and the residuals' bits.
-fn code(lower: &LowerNeighbours, affine: bool, reference: &[[i32; 3]], t: &[[f64; 3]]) -> (Vec<[i32; 3]>, f64) {
+/// Codes frame `t` in closed loop from the reference `reference` (decoded positions), band 0
+/// in input order: returns the decoded frame and the residuals' bits. Affine motion is fitted
+/// on the reference unless keyframe `weights` are given.
+fn code(
+    lower: &LowerNeighbours,
+    affine: bool,
+    weights: Option<&StencilWeights>,
+    reference: &[[i32; 3]],
+    t: &[[f64; 3]],
+) -> (Vec<[i32; 3]>, f64) {
     let n = t.len();
     let mut fits = AffineFits::default();
     fits.prepare(lower, reference, n);
+    let motion = match (affine, weights) {
+        (false, _) => Band0Motion::Mean,
+        (true, None) => Band0Motion::Affine(&fits),
+        (true, Some(w)) => Band0Motion::KeyframeAffine(w),
+    };
     let siblings = Siblings::default();
     let mut cur = vec![[0i32; 3]; n];
     let mut res = Vec::with_capacity(n);
     for v in 0..n {
-        let mut p = predict(0, v, v, None, lower, affine.then_some(&fits), &siblings, false, &cur, reference);
+        let mut p = predict(0, v, v, v.checked_sub(1), None, lower, motion, &siblings, false, &cur, reference);
         // A vertex with no lower neighbour moves, in the container, as its decoded siblings
         // do; here (no hierarchy) as the vertex decoded before it.
         if lower.row(v).is_empty() && v > 0 {
@@ -140,8 +153,8 @@ fn main() {
     let relabelled: Vec<[u32; 3]> = seq.triangles.iter().map(|t| t.map(|v| rank[v as usize])).collect();
     let bfs_frames: Vec<Vec<[f64; 3]>> = frames.iter().map(|f| bfs.iter().map(|&v| f[v]).collect()).collect();
 
-    let input = LowerNeighbours::new(n, &seq.triangles);
-    let breadth = LowerNeighbours::new(n, &relabelled);
+    let input = LowerNeighbours::new(n, &seq.triangles, VertexOrder::Input);
+    let breadth = LowerNeighbours::new(n, &relabelled, VertexOrder::Input);
     let alone = |l: &LowerNeighbours| (0..n).filter(|&v| l.row(v).is_empty()).count();
     println!("vertices without a lower neighbour: {} in input order, {} breadth first", alone(&input), alone(&breadth));
     println!("{}: {n} vertices, {nf} frames, {bits}-bit grid; band 0, frames 1.. in closed loop (bits/vertex/frame)", args[1]);
@@ -152,7 +165,7 @@ fn main() {
             let mut total = 0.0;
             let mut out = vec![prev.clone()];
             for t in &fr[1..] {
-                let (cur, b) = code(lower, affine, &prev, t);
+                let (cur, b) = code(lower, affine, None, &prev, t);
                 total += b;
                 out.push(cur.clone());
                 prev = cur;
@@ -182,6 +195,24 @@ fn main() {
         exact += entropy(&res);
     }
     println!("  input order, affine, exact references (no quantization noise): {:.2}", per(exact, nf - 1));
+
+    // Keyframe affine motion: the fit's weights taken from an earlier frame's geometry.
+    for every in [1usize, 4, 16, 0] {
+        let mut prev: Vec<[i32; 3]> = frames[0].iter().map(|p| p.map(|x| x.round() as i32)).collect();
+        let mut weights = StencilWeights::default();
+        weights.compute(&input, &prev, n);
+        let mut total = 0.0;
+        for (f, t) in frames.iter().enumerate().skip(1) {
+            if every > 0 && (f - 1) % every == 0 {
+                weights.compute(&input, &prev, n);
+            }
+            let (cur, b) = code(&input, true, Some(&weights), &prev, t);
+            total += b;
+            prev = cur;
+        }
+        let from = if every == 0 { "frame 0".to_string() } else { format!("the frame before, every {every} frames") };
+        println!("  input order, affine, weights from {from}: {:.2}", per(total, nf - 1));
+    }
 
     // Residuals on a grid centred on the unrounded prediction (positions then off the fixed
     // grid, in 1/256 of a quantum), so a vertex whose prediction is good adds no rounding
@@ -230,8 +261,8 @@ fn main() {
         for f in s..nf.saturating_sub(s) {
             let mid: Vec<[i32; 3]> =
                 (0..n).map(|v| [0, 1, 2].map(|a| (decoded[f - s][v][a] + decoded[f + s][v][a] + 1).div_euclid(2))).collect();
-            b_bits += code(&input, true, &mid, &frames[f]).1;
-            p_bits += code(&input, true, &decoded[f - 1], &frames[f]).1;
+            b_bits += code(&input, true, None, &mid, &frames[f]).1;
+            p_bits += code(&input, true, None, &decoded[f - 1], &frames[f]).1;
             count += 1;
         }
         println!(

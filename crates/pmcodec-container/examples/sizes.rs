@@ -14,9 +14,15 @@ fn main() {
         Some(k) => opts.coarse_grid = Some(k.parse().expect("coarse grid: a number or none")),
         None => {}
     }
-    // PMCODEC_MOTION=affine: band 0 predicted by affine motion.
-    if std::env::var("PMCODEC_MOTION").as_deref() == Ok("affine") {
-        opts.motion = pmcodec_container::Motion::Affine;
+    // PMCODEC_MOTION=mean|affine: band 0's motion (default: keyframe affine);
+    // PMCODEC_ORDER=input: band 0 decoded in input order (default: breadth first).
+    match std::env::var("PMCODEC_MOTION").as_deref() {
+        Ok("mean") => opts.motion = pmcodec_container::Motion::Mean,
+        Ok("affine") => opts.motion = pmcodec_container::Motion::Affine,
+        _ => {}
+    }
+    if std::env::var("PMCODEC_ORDER").as_deref() == Ok("input") {
+        opts.order = pmcodec_container::VertexOrder::Input;
     }
     // Experiments: PMCODEC_BRANCHING=b, or PMCODEC_LEVELS=n1,n2,... (sizes below |M0|).
     if let Some(b) = std::env::var("PMCODEC_BRANCHING").ok().and_then(|s| s.parse().ok()) {
@@ -76,7 +82,8 @@ fn main() {
             }
             pmcodec_container::ChunkKind::Corners => {
                 let raw = reader.read_chunk(e).expect("chunk");
-                co[b] += pmcodec_container::payload::read_faces(&raw, "c", h.level_sizes[b], h.triangle_count).expect("corners").len();
+                // The count leads the chunk in every version.
+                co[b] += pmcodec_container::payload::Cursor::new(&raw, "corners").get().expect("corners") as usize;
             }
             _ => {}
         }

@@ -3,7 +3,7 @@
 
 use crate::format::{ChunkKind, Motion};
 use crate::payload;
-use crate::predict::{AffineFits, LowerNeighbours, Siblings, predict};
+use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, predict};
 use crate::{ByteSource, ContainerError, Reader};
 use glam::Vec3;
 use pmcodec_hierarchy::NONE;
@@ -40,8 +40,10 @@ pub struct Decoder<S> {
     lower: LowerNeighbours,
     /// Scratch for the sibling-motion prediction.
     siblings: Siblings,
-    /// Scratch for band 0's affine motion prediction.
+    /// Scratch for band 0's affine motion prediction (version 4).
     fits: AffineFits,
+    /// Band 0's stencil weights from the last keyframe decoded (keyframe affine motion).
+    weights: StencilWeights,
     /// Quantized positions of every node (global ids; only levels >= min_level are decoded).
     current: Vec<[i32; 3]>,
     previous: Vec<[i32; 3]>,
@@ -89,6 +91,7 @@ impl<S: ByteSource> Decoder<S> {
             lower: LowerNeighbours::default(),
             siblings: Siblings::default(),
             fits: AffineFits::default(),
+            weights: StencilWeights::default(),
             current: vec![[0; 3]; total],
             previous: vec![[0; 3]; total],
             derived: None,
@@ -200,6 +203,7 @@ impl<S: ByteSource> Decoder<S> {
             self.current.copy_from_slice(&k.current);
             self.frame = Some(key);
             self.kept.push(k);
+            self.keyframe_weights();
             return Ok(());
         }
         self.load_keyframe(key)?;
@@ -230,7 +234,8 @@ impl<S: ByteSource> Decoder<S> {
         if self.min_level > 0 {
             let j = self.min_level;
             let raw = self.chunk(ChunkKind::Faces, frame, j)?;
-            key.bands[j].faces = payload::read_faces(&raw, &format!("frame {frame} band {j} faces"), sizes[j], h.triangle_count)?;
+            key.bands[j].faces =
+                payload::read_faces(&raw, &format!("frame {frame} band {j} faces"), sizes[j], h.triangle_count, self.reader.version())?;
         }
         if self.min_level == 0 && self.triangles.is_none() {
             let e = self
@@ -242,7 +247,7 @@ impl<S: ByteSource> Decoder<S> {
                 .ok_or_else(|| ContainerError::Corrupt { what: "index".into(), detail: "no triangles chunk".into() })?;
             let raw = self.reader.read_chunk(e)?;
             let triangles = payload::read_triangles(&raw, "triangles chunk", h.triangle_count, h.vertex_count)?;
-            self.lower = LowerNeighbours::new(h.vertex_count as usize, &triangles);
+            self.lower = LowerNeighbours::new(h.vertex_count as usize, &triangles, h.order);
             self.triangles = Some(triangles);
         }
         let fail = |source| ContainerError::Delta { what: format!("frame {frame} keyframe"), source };
@@ -259,6 +264,7 @@ impl<S: ByteSource> Decoder<S> {
             }
         }
         self.decode_positions(frame, true)?;
+        self.keyframe_weights();
         self.frame = Some(frame);
         self.invalidate_derived();
         Ok(())
@@ -277,7 +283,13 @@ impl<S: ByteSource> Decoder<S> {
         if self.min_level > 0 {
             let j = self.min_level;
             let raw = self.chunk(ChunkKind::Corners, frame, j)?;
-            let updates = payload::read_faces(&raw, &format!("frame {frame} band {j} corners"), sizes[j], triangles)?;
+            let what = format!("frame {frame} band {j} corners");
+            let updates = if self.reader.version() >= 5 {
+                let replay = self.replay.as_ref().ok_or_else(|| ContainerError::Options("no keyframe loaded".into()))?;
+                payload::read_corner_updates(&raw, &what, sizes[j], replay.corners())?
+            } else {
+                payload::read_faces(&raw, &what, sizes[j], triangles, self.reader.version())?
+            };
             delta.corners.extend(updates.into_iter().map(|(t, corners)| CornerUpdate { level: j as u32, t, corners }));
         }
         let replay = self.replay.as_mut().ok_or_else(|| ContainerError::Options("no keyframe loaded".into()))?;
@@ -294,6 +306,15 @@ impl<S: ByteSource> Decoder<S> {
         self.frame = Some(frame);
         self.invalidate_derived();
         Ok(())
+    }
+
+    /// With keyframe affine motion, the stencil weights of the keyframe just decoded (in
+    /// `current`), which band 0 of the frames up to the next keyframe moves by.
+    fn keyframe_weights(&mut self) {
+        let h = self.reader.header();
+        if h.motion == Motion::KeyframeAffine && self.min_level == 0 {
+            self.weights.compute(&self.lower, &self.current, h.vertex_count as usize);
+        }
     }
 
     /// Decodes the positions chunks of `frame` (bands top..min_level) into `current`.
@@ -314,34 +335,40 @@ impl<S: ByteSource> Decoder<S> {
             // Parents exist below the top band only (offsets has one entry more than sizes).
             let up = if j + 1 < sizes.len() { offsets.get(j + 1).map(|&o| o as usize) } else { None };
             self.siblings.reset(sizes.get(j + 1).map_or(0, |&n| n as usize));
-            let affine = j == 0 && !intra && h.motion == Motion::Affine;
-            if affine {
-                self.fits.prepare(&self.lower, &self.previous, sizes[0] as usize);
-            }
-            for (v, r) in residuals.iter().enumerate() {
+            let motion = match h.motion {
+                _ if j > 0 || intra => Band0Motion::Mean,
+                Motion::Mean => Band0Motion::Mean,
+                Motion::Affine => {
+                    self.fits.prepare(&self.lower, &self.previous, sizes[0] as usize);
+                    Band0Motion::Affine(&self.fits)
+                }
+                Motion::KeyframeAffine => Band0Motion::KeyframeAffine(&self.weights),
+            };
+            // Band 0 in its decoding order (a permutation of the input vertices, as many as
+            // the band has), coarser bands in node order.
+            let sequence = if j == 0 { Some(self.lower.sequence()) } else { None };
+            let mut before = None;
+            for (k, r) in residuals.iter().enumerate() {
+                let v = match sequence {
+                    Some(s) => *s.get(k).ok_or_else(|| ContainerError::Corrupt {
+                        what: what.clone(),
+                        detail: "more input vertices than the triangles chunk's decoding order holds".into(),
+                    })? as usize,
+                    None => k,
+                };
                 let g = base + v;
                 let parent = match (up, parents.get(v)) {
                     (Some(o), Some(&p)) => Some((o + p as usize, p as usize)),
                     _ => None,
                 };
-                let p = predict(
-                    j,
-                    v,
-                    g,
-                    parent,
-                    &self.lower,
-                    affine.then_some(&self.fits),
-                    &self.siblings,
-                    intra,
-                    &self.current,
-                    &self.previous,
-                );
+                let p = predict(j, v, g, before, parent, &self.lower, motion, &self.siblings, intra, &self.current, &self.previous);
                 let q = [
                     p[0].wrapping_add(r[0].wrapping_shl(shift)),
                     p[1].wrapping_add(r[1].wrapping_shl(shift)),
                     p[2].wrapping_add(r[2].wrapping_shl(shift)),
                 ];
                 self.current[g] = q;
+                before = Some(g);
                 if let Some((_, local)) = parent {
                     self.siblings.add(local, q, self.previous[g]);
                 }

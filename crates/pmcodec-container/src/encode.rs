@@ -4,7 +4,7 @@
 use crate::ContainerError;
 use crate::format::*;
 use crate::payload;
-use crate::predict::{AffineFits, LowerNeighbours, Siblings, coarse_shift, predict};
+use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, coarse_shift, predict};
 use pmcodec_hierarchy::base::{BaseOptions, PoseSet, VertexWeights, base_quadrics};
 use pmcodec_hierarchy::progressive::{Encoder, FrameDelta};
 use pmcodec_hierarchy::recluster::ReclusterOptions;
@@ -41,6 +41,9 @@ pub struct EncodeOptions {
     /// the horse (14% on samba) for about 0.4 ms more per decoded frame, which also lengthens
     /// seeks (up to 15 frames from a keyframe).
     pub motion: Motion,
+    /// Band 0's decoding order. `BreadthFirst` (the default) gives each input vertex a stencil
+    /// on one side of it; `Input` is what versions 3 and 4 used.
+    pub order: VertexOrder,
 }
 
 impl Default for EncodeOptions {
@@ -54,7 +57,8 @@ impl Default for EncodeOptions {
             keyframe_interval: 16,
             quantization: QuantizationChoice::MaxError(1e-4),
             coarse_grid: Some(0),
-            motion: Motion::Mean,
+            motion: Motion::KeyframeAffine,
+            order: VertexOrder::BreadthFirst,
         }
     }
 }
@@ -173,6 +177,7 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
         generator: format!("pmcodec {}", env!("CARGO_PKG_VERSION")),
         frame_names: seq.frame_names.clone(),
         motion: opts.motion,
+        order: opts.order,
     };
 
     let mut chunks: Vec<(ChunkEntry, Vec<u8>)> = Vec::new();
@@ -193,7 +198,7 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
     push(ChunkKind::Triangles, 0, 0, payload::write_triangles(&seq.triangles))?;
 
     let total = *offsets.last().unwrap_or(&0) as usize;
-    let lower = LowerNeighbours::new(seq.vertex_count(), &seq.triangles);
+    let lower = LowerNeighbours::new(seq.vertex_count(), &seq.triangles, opts.order);
     let shifts: Vec<u32> = (0..levels).map(|j| coarse_shift(&header, j, opts.coarse_grid)).collect();
     // The radius (in quanta) input vertices may move from their true position: the bound the
     // quantization states, |error| <= sqrt(3)/2 step (the farthest rounding goes), less a
@@ -205,7 +210,15 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
     let mut residuals: Vec<[i32; 3]> = Vec::new();
     let mut siblings = Siblings::default();
     let mut fits = AffineFits::default();
+    let mut weights = StencilWeights::default();
+    // Each level's corners before the frame: what a reader stopping there holds, against which
+    // corner updates are coded.
+    let mut before: Vec<Vec<[u32; 3]>> = vec![Vec::new(); levels];
     for (f, frame) in seq.frames.iter().enumerate() {
+        for (j, b) in before.iter_mut().enumerate().skip(1) {
+            b.clear();
+            b.extend_from_slice(enc.corners_at(j));
+        }
         let (delta, _) = enc.encode_frame(frame);
         let h = enc.hierarchy();
         let positions = &enc.recluster.nodes.positions;
@@ -224,7 +237,7 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
                 push(ChunkKind::Faces, f as u32, j as u32, payload::write_faces(&k.bands[j].faces))?;
             }
             let corners: Vec<(u32, [u32; 3])> = delta.corners.iter().filter(|c| c.level as usize == j).map(|c| (c.t, c.corners)).collect();
-            push(ChunkKind::Corners, f as u32, j as u32, payload::write_faces(&corners))?;
+            push(ChunkKind::Corners, f as u32, j as u32, payload::write_corner_updates(&corners, &before[j]))?;
         }
         for j in (0..levels).rev() {
             if let Some(k) = &key {
@@ -234,14 +247,24 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
             residuals.clear();
             let shift = shifts[j];
             siblings.reset(if j + 1 < levels { sizes[j + 1] as usize } else { 0 });
-            let affine = j == 0 && !intra && opts.motion == Motion::Affine;
-            if affine {
-                fits.prepare(&lower, &previous, sizes[0] as usize);
-            }
-            for v in 0..sizes[j] as usize {
+            let motion = match opts.motion {
+                _ if j > 0 || intra => Band0Motion::Mean,
+                Motion::Mean => Band0Motion::Mean,
+                Motion::Affine => {
+                    fits.prepare(&lower, &previous, sizes[0] as usize);
+                    Band0Motion::Affine(&fits)
+                }
+                Motion::KeyframeAffine => Band0Motion::KeyframeAffine(&weights),
+            };
+            // Band 0 in its decoding order, coarser bands in node order.
+            let sequence = (j == 0).then(|| lower.sequence());
+            let mut before = None;
+            for k in 0..sizes[j] as usize {
+                let v = sequence.map_or(k, |s| s[k] as usize);
                 let g = offsets[j] as usize + v;
                 let parent = (j + 1 < levels).then(|| ((offsets[j + 1] + h.parent[j][v]) as usize, h.parent[j][v] as usize));
-                let p = predict(j, v, g, parent, &lower, affine.then_some(&fits), &siblings, intra, &current, &previous);
+                let p = predict(j, v, g, before, parent, &lower, motion, &siblings, intra, &current, &previous);
+                before = Some(g);
                 let t = truth(g);
                 let (q, r) = if j == 0 { choose(t, p, SLACK2) } else { on_grid(t, p, shift, SLACK2) };
                 current[g] = q;
@@ -251,6 +274,9 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
                 residuals.push(r);
             }
             push(ChunkKind::Positions, f as u32, j as u32, payload::write_positions(shift, &residuals))?;
+            if j == 0 && intra && opts.motion == Motion::KeyframeAffine {
+                weights.compute(&lower, &current, sizes[0] as usize);
+            }
         }
         std::mem::swap(&mut previous, &mut current);
         progress(f);

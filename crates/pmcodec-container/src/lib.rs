@@ -18,7 +18,7 @@ mod read;
 
 pub use decode::{Decoder, MeshTarget};
 pub use encode::{EncodeOptions, QuantizationChoice, encode, write_file};
-pub use format::{ChunkEntry, ChunkKind, Header, Index, Motion};
+pub use format::{ChunkEntry, ChunkKind, Header, Index, Motion, VertexOrder};
 pub use predict::coarse_shift;
 pub use read::{ByteSource, FileSource, Reader};
 

@@ -4,67 +4,124 @@
 //! arithmetic in an order the spec fixes, without fused multiply-adds, so a decoder in any
 //! language that follows it gets the same bits.
 
-use crate::format::Header;
+use crate::format::{Header, VertexOrder};
 
-/// For each input vertex, its *lower neighbours*: the distinct vertices u < v that share an
-/// input triangle with it, in compressed rows. Within level 0 they are decoded before v. And
-/// its *stencil*, which the affine motion fit reads: its lower neighbours and the lower
-/// neighbours of the last (largest) of them, distinct and ascending.
+/// For each input vertex, its *lower neighbours*: the distinct vertices that share an input
+/// triangle with it and are decoded before it in band 0's [`VertexOrder`], in compressed rows
+/// in decoding order. And its *stencil*, which the affine motions read: its lower neighbours
+/// and the lower neighbours of the last (most recently decoded) of them, distinct, in decoding
+/// order. In input order (versions 3 and 4) "decoded before" is "smaller".
 #[derive(Clone, Debug, Default)]
 pub struct LowerNeighbours {
+    /// Band 0's vertices in decoding order.
+    sequence: Vec<u32>,
     offsets: Vec<u32>,
     items: Vec<u32>,
     stencil_offsets: Vec<u32>,
     stencil_items: Vec<u32>,
 }
 
-impl LowerNeighbours {
-    pub fn new(n: usize, triangles: &[[u32; 3]]) -> Self {
-        let pairs = || {
-            triangles
-                .iter()
-                .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
-                .filter(move |&(a, b)| a != b && (a as usize) < n && (b as usize) < n)
-        };
-        let mut offsets = vec![0u32; n + 1];
-        for (a, b) in pairs() {
-            offsets[a.max(b) as usize + 1] += 1;
+/// The input triangles' edges as rows by vertex: for each `a`, the distinct `b` sharing a
+/// triangle with it for which `keep(a, b)`, ascending, dropping degenerate and out-of-range
+/// corners (only broken input has them). Returns (offsets, items).
+fn neighbour_rows(n: usize, triangles: &[[u32; 3]], keep: impl Fn(u32, u32) -> bool) -> (Vec<u32>, Vec<u32>) {
+    let pairs = || {
+        triangles
+            .iter()
+            .flat_map(|t| [(t[0], t[1]), (t[1], t[0]), (t[1], t[2]), (t[2], t[1]), (t[2], t[0]), (t[0], t[2])])
+            .filter(move |&(a, b)| a != b && (a as usize) < n && (b as usize) < n)
+            .filter(|&(a, b)| keep(a, b))
+    };
+    let mut offsets = vec![0u32; n + 1];
+    for (a, _) in pairs() {
+        offsets[a as usize + 1] += 1;
+    }
+    for i in 0..n {
+        offsets[i + 1] += offsets[i];
+    }
+    let mut fill = offsets.clone();
+    let mut items = vec![0u32; offsets[n] as usize];
+    for (a, b) in pairs() {
+        items[fill[a as usize] as usize] = b;
+        fill[a as usize] += 1;
+    }
+    // Sort and de-duplicate each row, closing the gaps.
+    let mut out = vec![0u32; n + 1];
+    let mut w = 0usize;
+    for v in 0..n {
+        let (lo, hi) = (offsets[v] as usize, offsets[v + 1] as usize);
+        items[lo..hi].sort_unstable();
+        let start = w;
+        for i in lo..hi {
+            if w == start || items[w - 1] != items[i] {
+                items[w] = items[i];
+                w += 1;
+            }
         }
-        for i in 0..n {
-            offsets[i + 1] += offsets[i];
+        out[v + 1] = w as u32;
+    }
+    items.truncate(w);
+    (out, items)
+}
+
+/// Breadth-first order over the input triangles' edges (proto/container.md, "Band 0 order"):
+/// from the smallest vertex not yet reached, first in first out, each vertex's neighbours
+/// taken in ascending order; a vertex on no triangle comes in its turn as a start.
+fn breadth_first(n: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
+    let (offsets, items) = neighbour_rows(n, triangles, |_, _| true);
+    let mut seen = vec![false; n];
+    let mut order = Vec::with_capacity(n);
+    for start in 0..n {
+        if seen[start] {
+            continue;
         }
-        let mut fill = offsets.clone();
-        let mut items = vec![0u32; offsets[n] as usize];
-        for (a, b) in pairs() {
-            let (hi, lo) = (a.max(b) as usize, a.min(b));
-            items[fill[hi] as usize] = lo;
-            fill[hi] += 1;
-        }
-        // Sort and de-duplicate each row, closing the gaps.
-        let mut out = vec![0u32; n + 1];
-        let mut w = 0usize;
-        for v in 0..n {
-            let (lo, hi) = (offsets[v] as usize, offsets[v + 1] as usize);
-            items[lo..hi].sort_unstable();
-            let start = w;
-            for i in lo..hi {
-                if w == start || items[w - 1] != items[i] {
-                    items[w] = items[i];
-                    w += 1;
+        seen[start] = true;
+        // `order` is the queue: what lies after `head` is waiting.
+        let mut head = order.len();
+        order.push(start as u32);
+        while head < order.len() {
+            let v = order[head] as usize;
+            head += 1;
+            for &u in &items[offsets[v] as usize..offsets[v + 1] as usize] {
+                if !seen[u as usize] {
+                    seen[u as usize] = true;
+                    order.push(u);
                 }
             }
-            out[v + 1] = w as u32;
         }
-        items.truncate(w);
-        let mut lower = LowerNeighbours { offsets: out, items, stencil_offsets: vec![0], stencil_items: Vec::new() };
-        lower.build_stencils(n);
+    }
+    order
+}
+
+impl LowerNeighbours {
+    pub fn new(n: usize, triangles: &[[u32; 3]], order: VertexOrder) -> Self {
+        let sequence: Vec<u32> = match order {
+            VertexOrder::Input => (0..n as u32).collect(),
+            VertexOrder::BreadthFirst => breadth_first(n, triangles),
+        };
+        let mut rank = vec![0u32; n];
+        for (k, &v) in sequence.iter().enumerate() {
+            rank[v as usize] = k as u32;
+        }
+        let (offsets, mut items) = neighbour_rows(n, triangles, |a, b| rank[b as usize] < rank[a as usize]);
+        for v in 0..n {
+            items[offsets[v] as usize..offsets[v + 1] as usize].sort_unstable_by_key(|&u| rank[u as usize]);
+        }
+        let mut lower = LowerNeighbours { sequence, offsets, items, stencil_offsets: vec![0], stencil_items: Vec::new() };
+        lower.build_stencils(n, &rank);
         lower
     }
 
-    /// Stencil rows: `row(v)` and `row(u)` for u the last of `row(v)`, merged, sorted, distinct.
-    /// (Adding every lower neighbour's row, 6.7 vertices instead of 4.5, saves no bits on the
-    /// horse and 0.2 on samba, for half again the work.)
-    fn build_stencils(&mut self, n: usize) {
+    /// Band 0's vertices in decoding order.
+    #[inline]
+    pub fn sequence(&self) -> &[u32] {
+        &self.sequence
+    }
+
+    /// Stencil rows: `row(v)` and `row(u)` for u the last of `row(v)`, merged, in decoding
+    /// order, distinct. (Adding every lower neighbour's row, 6.7 vertices instead of 4.5, saves
+    /// no bits on the horse and 0.2 on samba, for half again the work.)
+    fn build_stencils(&mut self, n: usize, rank: &[u32]) {
         let mut mark = vec![u32::MAX; n];
         let mut row: Vec<u32> = Vec::new();
         self.stencil_offsets = Vec::with_capacity(n + 1);
@@ -84,9 +141,18 @@ impl LowerNeighbours {
                     }
                 }
             }
-            row.sort_unstable();
+            row.sort_unstable_by_key(|&w| rank[w as usize]);
             self.stencil_items.extend_from_slice(&row);
             self.stencil_offsets.push(self.stencil_items.len() as u32);
+        }
+    }
+
+    /// The range of `v`'s stencil in the flat stencil arrays (empty for an unknown vertex).
+    #[inline]
+    fn stencil_range(&self, v: usize) -> std::ops::Range<usize> {
+        match (self.stencil_offsets.get(v), self.stencil_offsets.get(v + 1)) {
+            (Some(&a), Some(&b)) => a as usize..b as usize,
+            _ => 0..0,
         }
     }
 
@@ -160,10 +226,21 @@ impl Siblings {
     }
 }
 
-/// The prediction of node `v` (global id `g`) of band `j`. `parent` is its parent as (global
-/// id, local id at level j+1) in the current frame's hierarchy (None for the top band),
-/// `lower` the level-0 lower neighbours and `fits` their affine fits prepared for this frame
-/// (band 0 only; None unless the file uses affine motion and the frame is not a keyframe),
+/// What band 0 moves by on inter frames, with what it was prepared from.
+#[derive(Clone, Copy, Debug)]
+pub enum Band0Motion<'a> {
+    /// The lower neighbours' mean motion.
+    Mean,
+    /// Version 4's affine motion, fitted on the previous frame.
+    Affine(&'a AffineFits),
+    /// The stencil's motions weighted as the keyframe's geometry gives.
+    KeyframeAffine(&'a StencilWeights),
+}
+
+/// The prediction of node `v` (global id `g`) of band `j`. `before` is the global id of the
+/// node decoded just before it in the band (None for the first). `parent` is its parent as
+/// (global id, local id at level j+1) in the current frame's hierarchy (None for the top band),
+/// `lower` the level-0 lower neighbours and `motion` band 0's motion on inter frames,
 /// `siblings` the motion of the band's decoded nodes (inter frames), `intra` for keyframes.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
@@ -171,9 +248,10 @@ pub fn predict(
     j: usize,
     v: usize,
     g: usize,
+    before: Option<usize>,
     parent: Option<(usize, usize)>,
     lower: &LowerNeighbours,
-    fits: Option<&AffineFits>,
+    motion: Band0Motion,
     siblings: &Siblings,
     intra: bool,
     cur: &[[i32; 3]],
@@ -193,7 +271,12 @@ pub fn predict(
                 }
                 return [mean(s[0], c) as i32, mean(s[1], c) as i32, mean(s[2], c) as i32];
             }
-            if let Some(q) = fits.and_then(|f| f.predict(lower.stencil(v), v, cur, prev)) {
+            let fitted = match motion {
+                Band0Motion::Mean => None,
+                Band0Motion::Affine(f) => f.predict(lower.stencil(v), v, cur, prev),
+                Band0Motion::KeyframeAffine(w) => w.predict(lower, v, cur, prev),
+            };
+            if let Some(q) = fitted {
                 return q;
             }
             for &u in row {
@@ -218,13 +301,7 @@ pub fn predict(
     for a in 0..3 {
         out[a] = match (intra, parent) {
             (true, Some(p)) => cur[p][a],
-            (true, None) => {
-                if v > 0 {
-                    cur[g - 1][a]
-                } else {
-                    0
-                }
-            }
+            (true, None) => before.and_then(|b| cur.get(b)).map_or(0, |q| q[a]),
             (false, Some(p)) => prev[g][a].wrapping_add(cur[p][a].wrapping_sub(prev[p][a])),
             (false, None) => prev[g][a],
         };
@@ -271,53 +348,9 @@ impl AffineFits {
         self.fits.clear();
         self.fits.resize(n, Fit::default());
         for (v, fit) in self.fits.iter_mut().enumerate() {
-            let stencil = lower.stencil(v);
-            let Some(o) = prev.get(v) else { break };
-            if stencil.is_empty() {
-                continue;
+            if let Some(f) = solve(lower.stencil(v), v, prev) {
+                *fit = f;
             }
-            let o = [o[0] as f64, o[1] as f64, o[2] as f64];
-            let mut sa = [0f64; 3];
-            // Sums of a a^T, upper triangle: 00 01 02 11 12 22.
-            let mut s = [0f64; 6];
-            for &w in stencil {
-                let Some(p) = prev.get(w as usize) else { break };
-                let a = [p[0] as f64 - o[0], p[1] as f64 - o[1], p[2] as f64 - o[2]];
-                sa[0] += a[0];
-                sa[1] += a[1];
-                sa[2] += a[2];
-                s[0] += a[0] * a[0];
-                s[1] += a[0] * a[1];
-                s[2] += a[0] * a[2];
-                s[3] += a[1] * a[1];
-                s[4] += a[1] * a[2];
-                s[5] += a[2] * a[2];
-            }
-            let m = stencil.len() as f64;
-            let im = 1.0 / m;
-            // m times the centred scatter of the stencil's previous positions, plus t.
-            let mut m00 = m * s[0] - sa[0] * sa[0];
-            let m01 = m * s[1] - sa[0] * sa[1];
-            let m02 = m * s[2] - sa[0] * sa[2];
-            let mut m11 = m * s[3] - sa[1] * sa[1];
-            let m12 = m * s[4] - sa[1] * sa[2];
-            let mut m22 = m * s[5] - sa[2] * sa[2];
-            let t = (m00 + m11 + m22) * im * 0.015625 + m;
-            m00 += t;
-            m11 += t;
-            m22 += t;
-            // Cofactors of the symmetric M: z = adj(M) sa = det M^-1 sa.
-            let c00 = m11 * m22 - m12 * m12;
-            let c01 = m02 * m12 - m01 * m22;
-            let c02 = m01 * m12 - m02 * m11;
-            let c11 = m00 * m22 - m02 * m02;
-            let c12 = m01 * m02 - m00 * m12;
-            let c22 = m00 * m11 - m01 * m01;
-            let det = m00 * c00 + m01 * c01 + m02 * c02;
-            let z =
-                [c00 * sa[0] + c01 * sa[1] + c02 * sa[2], c01 * sa[0] + c11 * sa[1] + c12 * sa[2], c02 * sa[0] + c12 * sa[1] + c22 * sa[2]];
-            let k = sa[0] * z[0] + sa[1] * z[1] + sa[2] * z[2];
-            *fit = Fit { z, k, t, det, inv: 1.0 / (det * m) };
         }
     }
 
@@ -353,6 +386,126 @@ impl AffineFits {
             }
             let r = e as i32;
             q[i] = o[i].wrapping_add(if (r as f64) > e { r - 1 } else { r });
+        }
+        Some(q)
+    }
+}
+
+/// The part of vertex `v`'s affine fit that its stencil's positions `at` give (proto/
+/// container.md, "Affine motion": everything up to `inv`); None for an empty stencil.
+#[inline]
+fn solve(stencil: &[u32], v: usize, at: &[[i32; 3]]) -> Option<Fit> {
+    let o = at.get(v)?;
+    if stencil.is_empty() {
+        return None;
+    }
+    let o = [o[0] as f64, o[1] as f64, o[2] as f64];
+    let mut sa = [0f64; 3];
+    // Sums of a a^T, upper triangle: 00 01 02 11 12 22.
+    let mut s = [0f64; 6];
+    for &w in stencil {
+        let p = at.get(w as usize)?;
+        let a = [p[0] as f64 - o[0], p[1] as f64 - o[1], p[2] as f64 - o[2]];
+        sa[0] += a[0];
+        sa[1] += a[1];
+        sa[2] += a[2];
+        s[0] += a[0] * a[0];
+        s[1] += a[0] * a[1];
+        s[2] += a[0] * a[2];
+        s[3] += a[1] * a[1];
+        s[4] += a[1] * a[2];
+        s[5] += a[2] * a[2];
+    }
+    let m = stencil.len() as f64;
+    let im = 1.0 / m;
+    // m times the centred scatter of the stencil's positions, plus t.
+    let mut m00 = m * s[0] - sa[0] * sa[0];
+    let m01 = m * s[1] - sa[0] * sa[1];
+    let m02 = m * s[2] - sa[0] * sa[2];
+    let mut m11 = m * s[3] - sa[1] * sa[1];
+    let m12 = m * s[4] - sa[1] * sa[2];
+    let mut m22 = m * s[5] - sa[2] * sa[2];
+    let t = (m00 + m11 + m22) * im * 0.015625 + m;
+    m00 += t;
+    m11 += t;
+    m22 += t;
+    // Cofactors of the symmetric M: z = adj(M) sa = det M^-1 sa.
+    let c00 = m11 * m22 - m12 * m12;
+    let c01 = m02 * m12 - m01 * m22;
+    let c02 = m01 * m12 - m02 * m11;
+    let c11 = m00 * m22 - m02 * m02;
+    let c12 = m01 * m02 - m00 * m12;
+    let c22 = m00 * m11 - m01 * m01;
+    let det = m00 * c00 + m01 * c01 + m02 * c02;
+    let z = [c00 * sa[0] + c01 * sa[1] + c02 * sa[2], c01 * sa[0] + c11 * sa[1] + c12 * sa[2], c02 * sa[0] + c12 * sa[1] + c22 * sa[2]];
+    let k = sa[0] * z[0] + sa[1] * z[1] + sa[2] * z[2];
+    Some(Fit { z, k, t, det, inv: 1.0 / (det * m) })
+}
+
+/// Band 0 on inter frames, from format version 5: the affine prediction as a weighted sum of
+/// the stencil's motions, `v' = v + sum_w lambda_w (w' - w)`, with weights from the keyframe.
+///
+/// The fit of [`AffineFits`] predicts, at the vertex, a combination of its stencil's positions
+/// whose weights `lambda_w = (det - m a_w.z + k) / (det m)` sum to one and depend on the
+/// stencil's shape only: rotating or moving the neighbourhood leaves them unchanged. So they
+/// hardly change while a surface bends, and the keyframe's can serve until the next keyframe:
+/// on the horse at 12 bits that costs 0.1 bit per vertex per frame against weights fitted on
+/// every previous frame (0.02 on samba), and decoding then costs about what the mean motion
+/// does (a multiply-add per stencil vertex and axis), not a fit per vertex per frame.
+#[derive(Clone, Debug, Default)]
+pub struct StencilWeights {
+    /// One weight per stencil entry, in [`LowerNeighbours`]' flat stencil order.
+    weights: Vec<f64>,
+}
+
+impl StencilWeights {
+    /// The weights of every stencil from the keyframe's decoded band 0 `key`
+    /// (proto/container.md, "Keyframe affine motion").
+    pub fn compute(&mut self, lower: &LowerNeighbours, key: &[[i32; 3]], n: usize) {
+        self.weights.clear();
+        self.weights.resize(lower.stencil_items.len(), 0.0);
+        for v in 0..n {
+            let range = lower.stencil_range(v);
+            let stencil = &lower.stencil_items[range.clone()];
+            let (Some(fit), Some(o)) = (solve(stencil, v, key), key.get(v)) else { continue };
+            let o = [o[0] as f64, o[1] as f64, o[2] as f64];
+            let m = stencil.len() as f64;
+            for (weight, &w) in self.weights[range].iter_mut().zip(stencil) {
+                let Some(p) = key.get(w as usize) else { break };
+                let a = [p[0] as f64 - o[0], p[1] as f64 - o[1], p[2] as f64 - o[2]];
+                let s = a[0] * fit.z[0] + a[1] * fit.z[1] + a[2] * fit.z[2];
+                *weight = (fit.det - m * s + fit.k) * fit.inv;
+            }
+        }
+    }
+
+    /// The prediction of vertex `v` from its stencil's motions; None without weights or when
+    /// the result does not fit an i32 (only on broken input): the caller then falls back to
+    /// the mean motion.
+    #[inline(always)]
+    fn predict(&self, lower: &LowerNeighbours, v: usize, cur: &[[i32; 3]], prev: &[[i32; 3]]) -> Option<[i32; 3]> {
+        let range = lower.stencil_range(v);
+        let o = prev.get(v)?;
+        if range.is_empty() {
+            return None;
+        }
+        let (stencil, weights) = (&lower.stencil_items[range.clone()], self.weights.get(range)?);
+        let mut e = [0f64; 3];
+        for (&w, &l) in stencil.iter().zip(weights) {
+            let (Some(c), Some(p)) = (cur.get(w as usize), prev.get(w as usize)) else { return None };
+            e[0] += l * (c[0] as f64 - p[0] as f64);
+            e[1] += l * (c[1] as f64 - p[1] as f64);
+            e[2] += l * (c[2] as f64 - p[2] as f64);
+        }
+        let mut q = [0i32; 3];
+        for i in 0..3 {
+            let x = e[i] + 0.5;
+            if x.is_nan() || x.abs() >= 2147483648.0 {
+                return None;
+            }
+            // floor, as in AffineFits::predict.
+            let r = x as i32;
+            q[i] = o[i].wrapping_add(if (r as f64) > x { r - 1 } else { r });
         }
         Some(q)
     }

@@ -82,6 +82,8 @@ impl ByteSource for FileSource {
 #[derive(Clone)]
 pub struct Reader<S> {
     source: S,
+    /// Format version of the file (its preamble's).
+    version: u16,
     header: Header,
     index: Index,
     data_start: u64,
@@ -121,9 +123,14 @@ impl<S: ByteSource> Reader<S> {
         let index: Index =
             postcard::from_bytes(&ib).map_err(|e| ContainerError::Corrupt { what: "index".into(), detail: e.to_string() })?;
         check_header(&header)?;
-        let reader = Reader { source, header, index, data_start, file_len, bytes_read: Cell::new(data_start) };
+        let reader = Reader { source, version: pre.version, header, index, data_start, file_len, bytes_read: Cell::new(data_start) };
         reader.check_index()?;
         Ok(reader)
+    }
+
+    /// The file's format version.
+    pub fn version(&self) -> u16 {
+        self.version
     }
 
     pub fn header(&self) -> &Header {
@@ -135,6 +142,7 @@ impl<S: ByteSource> Reader<S> {
     pub fn borrowed(&self) -> Reader<&S> {
         Reader {
             source: &self.source,
+            version: self.version,
             header: self.header.clone(),
             index: self.index.clone(),
             data_start: self.data_start,

@@ -89,27 +89,40 @@ fn horse_gallop_round_trips() {
     }
 }
 
-/// Band 0 predicted by affine motion: the decoder follows the encoder frame by frame (every
-/// vertex within the bound, hierarchies equal), seeking agrees with playing, and on the
-/// galloping horse it stores clearly fewer position bits than the mean motion.
+/// Band 0's motions and orders: the decoder follows the encoder frame by frame (every vertex
+/// within the bound, hierarchies equal) and seeking agrees with playing for each; on the
+/// galloping horse the affine motions store clearly fewer position bits than the mean motion,
+/// keyframe weights cost little against weights fitted every frame, and breadth-first order
+/// saves bits over input order.
 #[test]
-fn affine_motion_round_trips_and_saves_bits() {
+fn band_0_motions_round_trip_and_save_bits() {
     let Some(seq) = data("horse-gallop", 20) else { return };
     let base = EncodeOptions { keyframe_interval: 8, quantization: QuantizationChoice::Bits(12), ..Default::default() };
-    let affine = round_trip(&seq, &EncodeOptions { motion: Motion::Affine, ..base.clone() });
-    let mean = encode(&seq, &base, |_| {}).unwrap();
-    let (ra, rm) = (Reader::open(affine.as_slice()).unwrap(), Reader::open(mean.as_slice()).unwrap());
-    assert_eq!((ra.header().motion, rm.header().motion), (Motion::Affine, Motion::Mean));
-    let (ba, bm) = (summary(&ra).positions_bits_per_vertex_frame, summary(&rm).positions_bits_per_vertex_frame);
-    assert!(ba < 0.9 * bm, "affine {ba:.2} vs mean {bm:.2} bits/vertex/frame");
-    let mut played = Decoder::new(ra.borrowed(), 0).unwrap();
-    for f in 0..=13 {
-        played.seek(f).unwrap();
+    let mut bits = Vec::new();
+    for (motion, order) in [
+        (Motion::KeyframeAffine, VertexOrder::BreadthFirst),
+        (Motion::KeyframeAffine, VertexOrder::Input),
+        (Motion::Affine, VertexOrder::BreadthFirst),
+        (Motion::Mean, VertexOrder::Input),
+    ] {
+        let bytes = round_trip(&seq, &EncodeOptions { motion, order, ..base.clone() });
+        let reader = Reader::open(bytes.as_slice()).unwrap();
+        assert_eq!((reader.header().motion, reader.header().order), (motion, order));
+        bits.push(summary(&reader).positions_bits_per_vertex_frame);
+        let mut played = Decoder::new(reader.borrowed(), 0).unwrap();
+        for f in 0..=13 {
+            played.seek(f).unwrap();
+        }
+        let mut sought = Decoder::new(reader.borrowed(), 0).unwrap();
+        sought.seek(13).unwrap();
+        assert_eq!(played.quantized(), sought.quantized(), "{motion:?} {order:?}");
     }
-    let mut sought = Decoder::new(ra.borrowed(), 0).unwrap();
-    sought.seek(13).unwrap();
-    assert_eq!(played.quantized(), sought.quantized());
+    let [keyed, keyed_input, affine, mean] = bits[..] else { unreachable!() };
+    assert!(keyed < 0.85 * mean, "keyframe affine {keyed:.2} vs mean {mean:.2} bits/vertex/frame");
+    assert!(keyed < 1.03 * affine, "keyframe affine {keyed:.2} vs affine {affine:.2} bits/vertex/frame");
+    assert!(keyed < 0.98 * keyed_input, "breadth first {keyed:.2} vs input order {keyed_input:.2} bits/vertex/frame");
     if let Some(seq) = data("samba-60", 6) {
+        round_trip(&seq, &EncodeOptions { keyframe_interval: 4, ..base.clone() });
         round_trip(&seq, &EncodeOptions { motion: Motion::Affine, keyframe_interval: 4, ..base });
     }
 }
@@ -250,13 +263,30 @@ fn level_limited_decoding_reads_only_its_bands() {
     let reader = Reader::open(&src).unwrap();
     let level = 2;
     let mut part = Decoder::new(reader.borrowed(), level).unwrap();
+    // The encoder's own level-2 corners, to check the faces and corner updates against.
+    let opts = EncodeOptions::default();
+    let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
+    let base = build(&topo, &base_quadrics(&seq, &topo, &opts.base), &opts.build).unwrap();
+    let mut enc = Encoder::new(base, topo, seq.triangles.clone(), opts.recluster.clone());
+    let alive = |c: &[u32; 3]| c[0] != c[1] && c[1] != c[2] && c[0] != c[2];
     for f in 0..10 {
+        enc.encode_frame(&seq.frames[f as usize]);
         full.seek(f).unwrap();
         part.seek(f).unwrap();
         let (a, b) = (full.replay().unwrap(), part.replay().unwrap());
         assert_eq!(&a.h.parent[level..], &b.h.parent[level..], "frame {f}");
         let off = a.h.offsets[level] as usize;
         assert_eq!(&full.quantized()[off..], &part.quantized()[off..], "frame {f}: positions above level {level}");
+        // Every triangle alive at the level has the encoder's corners there, and no other is.
+        let (mut shown, theirs) = (0, enc.corners_at(level));
+        for (t, (mine, truth)) in b.corners().iter().zip(theirs).enumerate() {
+            assert_eq!(alive(mine), alive(truth), "frame {f} triangle {t}");
+            if alive(truth) {
+                assert_eq!(mine, truth, "frame {f} triangle {t}");
+                shown += 1;
+            }
+        }
+        assert!(shown > 1000, "frame {f}: {shown} triangles alive at level {level}");
     }
     // Everything fetched: preamble, header, index and chunks of bands >= level only, and of
     // the faces and corners chunks only those of band `level`.
@@ -331,14 +361,20 @@ fn corruption_is_an_error_naming_the_region() {
 #[test]
 fn header_snapshot() {
     let bytes = encode(&wave(3), &EncodeOptions::default(), |_| {}).unwrap();
-    // Preamble: magic, version 4, flags 0.
-    assert_eq!(&bytes[..12], b"\x89PMC\r\n\x1a\n\x04\x00\x00\x00");
+    // Preamble: magic, version 5, flags 0.
+    assert_eq!(&bytes[..12], b"\x89PMC\r\n\x1a\n\x05\x00\x00\x00");
     let reader = Reader::open(bytes.as_slice()).unwrap();
     let h = reader.header();
     assert_eq!((h.vertex_count, h.triangle_count, h.frame_count), (108, 176, 3));
     // Levels anchored at 25% and 10% of the input, then every 4x while above 8.
     assert_eq!(h.level_sizes, vec![108, 27, 11]);
     assert_eq!(h.keyframe_interval, 16);
+    assert_eq!((h.motion, h.order), (Motion::KeyframeAffine, VertexOrder::BreadthFirst));
+    // Version 4 had no keyframe affine motion: such a header under version 4 is refused.
+    let mut as_v4 = bytes.clone();
+    as_v4[8] = 4;
+    let e = Reader::open(as_v4.as_slice()).err().expect("keyframe affine under version 4").to_string();
+    assert!(e.contains("header"), "{e}");
     // Deterministic output: encoding twice gives the same bytes.
     assert_eq!(bytes, encode(&wave(3), &EncodeOptions::default(), |_| {}).unwrap());
     // Index order: triangles, then frame 0: the faces and corners only a client stopping at

@@ -22,8 +22,9 @@ pub struct Config {
     pub cors: CorsConfig,
     /// Frames between keyframes in containers encoded from uploads.
     pub keyframe_interval: u32,
-    /// How containers encoded from uploads predict input vertices between keyframes: `mean`,
-    /// or `affine` (about 15% smaller, decoding about half again slower).
+    /// How containers encoded from uploads predict input vertices between keyframes:
+    /// `keyframe-affine` (the default), `affine` (about 1% smaller, decoding about half again
+    /// slower) or `mean` (about 20% larger).
     pub motion: pmcodec_container::Motion,
 }
 
@@ -38,7 +39,7 @@ impl Default for Config {
             cache: CacheConfig::default(),
             cors: CorsConfig::default(),
             keyframe_interval: 16,
-            motion: pmcodec_container::Motion::Mean,
+            motion: pmcodec_container::Motion::KeyframeAffine,
         }
     }
 }

@@ -5,7 +5,7 @@ use crate::{EXIT_BAD_INPUT, Exit, progress};
 use anyhow::{Context, anyhow};
 use clap::{Args, ValueEnum};
 use pmcodec_container::{
-    Decoder, EncodeOptions, FileSource, MeshTarget, Motion, QuantizationChoice, Reader, encode, summary, verify, write_file,
+    Decoder, EncodeOptions, FileSource, MeshTarget, Motion, QuantizationChoice, Reader, VertexOrder, encode, summary, verify, write_file,
 };
 use pmcodec_hierarchy::base::{PoseSet, VertexWeights};
 use std::path::{Path, PathBuf};
@@ -19,8 +19,15 @@ pub enum WeightsArg {
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum MotionArg {
-    Mean,
+    KeyframeAffine,
     Affine,
+    Mean,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum OrderArg {
+    BreadthFirst,
+    Input,
 }
 
 #[derive(Args, Debug)]
@@ -53,11 +60,16 @@ pub struct EncodeArgs {
     /// vertices stay within the error bound); `none` stores every node within the bound.
     #[arg(long, value_name = "K|none", default_value = "0")]
     pub coarse_grid: String,
-    /// How input vertices are predicted between keyframes: `mean` (their neighbours' mean
-    /// motion) or `affine` (the affine motion of their neighbourhood): on the horse 17% fewer
-    /// position bytes, about half again the decoding time.
-    #[arg(long, value_enum, default_value_t = MotionArg::Mean)]
+    /// How input vertices are predicted between keyframes: `keyframe-affine` (the affine
+    /// motion of their neighbourhood, weighted as the keyframe's shape gives), `affine` (the
+    /// same fitted on every frame: 1% fewer bytes, decoding about half again slower) or `mean`
+    /// (their neighbours' mean motion: on the horse 24% more position bytes).
+    #[arg(long, value_enum, default_value_t = MotionArg::KeyframeAffine)]
     pub motion: MotionArg,
+    /// The order input vertices are decoded in: `breadth-first` over the triangles, or `input`
+    /// (what format version 4 used; better with `--motion mean`).
+    #[arg(long, value_enum, default_value_t = OrderArg::BreadthFirst)]
+    pub order: OrderArg,
     /// Quadrics the base hierarchy is built from: `first`, `all`, or a number of sampled frames.
     #[arg(long, default_value = "first")]
     pub base_poses: String,
@@ -110,10 +122,15 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
         k => Some(k.parse::<u32>().map_err(|_| Exit(2, anyhow!("--coarse-grid {k:?}: use a number of levels or none")))?),
     };
     let motion = match args.motion {
-        MotionArg::Mean => Motion::Mean,
+        MotionArg::KeyframeAffine => Motion::KeyframeAffine,
         MotionArg::Affine => Motion::Affine,
+        MotionArg::Mean => Motion::Mean,
     };
-    let mut opts = EncodeOptions { keyframe_interval: args.keyframe_interval, coarse_grid, motion, ..Default::default() };
+    let order = match args.order {
+        OrderArg::BreadthFirst => VertexOrder::BreadthFirst,
+        OrderArg::Input => VertexOrder::Input,
+    };
+    let mut opts = EncodeOptions { keyframe_interval: args.keyframe_interval, coarse_grid, motion, order, ..Default::default() };
     opts.build.branching = args.branching;
     opts.build.anchors = parse_anchors(&args.level_anchors).map_err(|e| Exit(2, e))?;
     opts.base.poses = parse_poses(&args.base_poses).map_err(|e| Exit(2, e))?;
@@ -262,11 +279,16 @@ pub fn info_cmd(args: InfoArgs) -> Result<(), Exit> {
     println!("bounding box      {:?} .. {:?}", h.bbox_min, h.bbox_max);
     println!("quantization step {}", h.quantization.step);
     println!(
-        "positions         {:.2} bits/vertex/frame ({} motion between keyframes)",
+        "positions         {:.2} bits/vertex/frame ({} motion between keyframes, input vertices {})",
         s.positions_bits_per_vertex_frame,
         match h.motion {
             Motion::Mean => "mean",
             Motion::Affine => "affine",
+            Motion::KeyframeAffine => "keyframe affine",
+        },
+        match h.order {
+            VertexOrder::Input => "in input order",
+            VertexOrder::BreadthFirst => "breadth first",
         }
     );
     println!("topology deltas   {:.0} B/frame ({:.0} B raw)", s.delta_bytes_per_frame, s.delta_raw_bytes_per_frame);
