@@ -232,12 +232,12 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
         // updates), finest band first; then the bands every client from there down reads, top
         // first. So a full-resolution client's part of a frame is one contiguous span, and a
         // level-j client's span holds only the (smaller) faces and corners of coarser bands.
-        for j in 1..levels {
+        for (j, held) in before.iter().enumerate().skip(1) {
             if let Some(k) = &key {
                 push(ChunkKind::Faces, f as u32, j as u32, payload::write_faces(&k.bands[j].faces))?;
             }
             let corners: Vec<(u32, [u32; 3])> = delta.corners.iter().filter(|c| c.level as usize == j).map(|c| (c.t, c.corners)).collect();
-            push(ChunkKind::Corners, f as u32, j as u32, payload::write_corner_updates(&corners, &before[j]))?;
+            push(ChunkKind::Corners, f as u32, j as u32, payload::write_corner_updates(&corners, held))?;
         }
         for j in (0..levels).rev() {
             if let Some(k) = &key {
