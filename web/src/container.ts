@@ -8,12 +8,17 @@ import { BELOW, DecodeError, FrameDelta, KeyBand, NONE, Replay } from "./replay.
 
 export const MAGIC = [0x89, 0x50, 0x4d, 0x43, 0x0d, 0x0a, 0x1a, 0x0a];
 export const PREAMBLE_LEN = 32;
-/** The format version this decoder reads, and the oldest it still reads (version 3: no `motion` in the header). */
-export const VERSION = 4, OLDEST_READABLE = 3;
+/**
+ * The format version this decoder reads, and the oldest it still reads (version 4: no `order`
+ * in the header, faces and corners as plain ids; version 3: no `motion` either).
+ */
+export const VERSION = 5, OLDEST_READABLE = 3;
 
 export enum ChunkKind { Triangles = 0, Key = 1, Delta = 2, Positions = 3, Faces = 4, Corners = 5 }
 /** How band 0 is predicted on frames that are not keyframes (proto/container.md, "Positions, band j"). */
-export enum Motion { Mean = 0, Affine = 1 }
+export enum Motion { Mean = 0, Affine = 1, KeyframeAffine = 2 }
+/** The order band 0 is decoded in (proto/container.md, "Band 0 order"). */
+export enum VertexOrder { Input = 0, BreadthFirst = 1 }
 
 /**
  * Whether a client whose finest level is `minLevel` reads chunks of this kind in `band`: every
@@ -32,6 +37,8 @@ export interface Header {
   step: number; keyframeInterval: number; generator: string; frameNames: string[];
   /** Band 0's prediction on inter frames. */
   motion: Motion;
+  /** Band 0's decoding order. */
+  order: VertexOrder;
 }
 
 export interface ChunkEntry { kind: ChunkKind; frame: number; band: number; offset: number; storedLen: number; rawLen: number; crc32: number }
@@ -114,7 +121,7 @@ class Payload {
 }
 
 export class Container {
-  private constructor(readonly readAt: ReadAt, readonly header: Header, readonly index: ChunkEntry[], readonly dataStart: number, readonly fileLen: number) {}
+  private constructor(readonly readAt: ReadAt, readonly version: number, readonly header: Header, readonly index: ChunkEntry[], readonly dataStart: number, readonly fileLen: number) {}
   bytesRead = 0;
 
   static async open(readAt: ReadAt, fileLen: number): Promise<Container> {
@@ -137,14 +144,16 @@ export class Container {
       vertexCount: p.varint(), triangleCount: p.varint(), frameCount: p.varint(), frameRate: p.f32(),
       levelSizes: p.seq(() => p.varint(), 64), branching: p.varint(),
       bboxMin: [p.f32(), p.f32(), p.f32()], bboxMax: [p.f32(), p.f32(), p.f32()],
-      step: p.f32(), keyframeInterval: p.varint(), generator: "", frameNames: [], motion: Motion.Mean,
+      step: p.f32(), keyframeInterval: p.varint(), generator: "", frameNames: [], motion: Motion.Mean, order: VertexOrder.Input,
     };
     // encoded_with: informative, read and dropped.
     p.str(); p.str(); p.f64(); p.f64(); p.varint(); p.bool(); p.bool(); p.option(() => p.f64()); p.option(() => p.u8());
     header.generator = p.str();
     header.frameNames = p.seq(() => p.str(), 1 << 20);
     header.motion = version >= 4 ? p.varint() : Motion.Mean;
-    if (header.motion > Motion.Affine) throw new DecodeError(`header: unknown band-0 motion ${header.motion}`);
+    if (header.motion > (version >= 5 ? Motion.KeyframeAffine : Motion.Affine)) throw new DecodeError(`header: unknown band-0 motion ${header.motion}`);
+    header.order = version >= 5 ? p.varint() : VertexOrder.Input;
+    if (header.order > VertexOrder.BreadthFirst) throw new DecodeError(`header: unknown band-0 order ${header.order}`);
     const q = new Postcard(ib, "index");
     const index = q.seq((): ChunkEntry => {
       const kind = q.varint();
@@ -154,7 +163,7 @@ export class Container {
     const h = header;
     if (h.levelSizes.length === 0 || h.levelSizes[0] !== h.vertexCount || h.frameCount === 0 || !(h.step > 0)) throw new DecodeError("header: inconsistent counts");
     for (const e of index) if (e.offset + e.storedLen > fileLen - dataStart) throw new DecodeError(`${describe(e)}: the file ends before it does`);
-    const c = new Container(readAt, header, index, dataStart, fileLen);
+    const c = new Container(readAt, version, header, index, dataStart, fileLen);
     c.bytesRead = PREAMBLE_LEN + headerLen + indexLen;
     return c;
   }
@@ -193,18 +202,61 @@ function readKey(raw: Uint8Array, what: string, sizes: number[], band: number): 
   return parent;
 }
 
-/** Faces (keyframes) and corner updates (frames) of one band: triangle ascending, 3 corners. */
-function readFaces(raw: Uint8Array, what: string, size: number, triangles: number): KeyBand["faces"] {
+/**
+ * Faces (keyframes) of one band: triangle ascending, 3 corners, from version 5 each the zigzag
+ * difference from the same corner of the face before; in versions 3 and 4 plain, and corner
+ * updates (frames) coded the same way.
+ */
+function readFaces(raw: Uint8Array, what: string, size: number, triangles: number, version: number): KeyBand["faces"] {
   const c = new Payload(raw, what);
   const m = c.count(triangles, "faces");
   const faces: KeyBand["faces"] = [];
   const prev = { v: null as number | null };
+  let last: [number, number, number] = [0, 0, 0];
   for (let i = 0; i < m; i++) {
     const t = c.ascending(prev, triangles, "triangle");
-    faces.push({ t, corners: [c.id(size, "corner"), c.id(size, "corner"), c.id(size, "corner")] });
+    const corners: [number, number, number] = [0, 0, 0];
+    for (let k = 0; k < 3; k++) {
+      corners[k] = version >= 5 ? (last[k] + c.zigzag()) >>> 0 : c.get();
+      if (corners[k] >= size) throw new DecodeError(`${what}: corner ${corners[k]} out of range`);
+    }
+    last = corners;
+    faces.push({ t, corners });
   }
   c.finish();
   return faces;
+}
+
+/**
+ * Corner updates of one band from version 5, against the corners the reader holds (`held`, 3
+ * per triangle): for a triangle alive before, a mask of the corners that change and their
+ * zigzag differences; otherwise its three new corners.
+ */
+function readCornerUpdates(raw: Uint8Array, what: string, size: number, held: Uint32Array): KeyBand["faces"] {
+  const c = new Payload(raw, what);
+  const triangles = held.length / 3;
+  const m = c.count(triangles, "corner updates");
+  const out: KeyBand["faces"] = [];
+  const prev = { v: null as number | null };
+  for (let i = 0; i < m; i++) {
+    const t = c.ascending(prev, triangles, "triangle");
+    const corners: [number, number, number] = [held[3 * t], held[3 * t + 1], held[3 * t + 2]];
+    const alive = corners[0] !== corners[1] && corners[1] !== corners[2] && corners[0] !== corners[2];
+    if (alive) {
+      const mask = c.get();
+      if (mask < 1 || mask > 7) throw new DecodeError(`${what}: triangle ${t}: corner mask ${mask} (1 to 7)`);
+      for (let k = 0; k < 3; k++) {
+        if (!(mask & (1 << k))) continue;
+        corners[k] = (corners[k] + c.zigzag()) >>> 0;
+        if (corners[k] >= size) throw new DecodeError(`${what}: corner ${corners[k]} out of range`);
+      }
+    } else {
+      for (let k = 0; k < 3; k++) corners[k] = c.id(size, "corner");
+    }
+    out.push({ t, corners });
+  }
+  c.finish();
+  return out;
 }
 
 function readDelta(raw: Uint8Array, what: string, sizes: number[], band: number, out: FrameDelta): void {
@@ -228,6 +280,8 @@ export class Player {
   private triangles: Uint32Array | null = null;
   /** Level-0 lower neighbours (proto/container.md, "Positions, band j"). */
   private lower: LowerNeighbours | null = null;
+  /** Band 0's stencil weights from the last keyframe (keyframe affine motion). */
+  private weights: Float64Array | null = null;
 
   constructor(readonly c: Container, readonly minLevel: number) {
     const h = c.header;
@@ -255,7 +309,7 @@ export class Player {
       bands[j].parent = readKey(await this.c.chunk(this.c.find(ChunkKind.Key, k, j)), `frame ${k} band ${j} keyframe`, h.levelSizes, j);
     }
     const L = this.minLevel;
-    if (L > 0) bands[L].faces = readFaces(await this.c.chunk(this.c.find(ChunkKind.Faces, k, L)), `frame ${k} band ${L} faces`, h.levelSizes[L], h.triangleCount);
+    if (L > 0) bands[L].faces = readFaces(await this.c.chunk(this.c.find(ChunkKind.Faces, k, L)), `frame ${k} band ${L} faces`, h.levelSizes[L], h.triangleCount, this.c.version);
     if (this.minLevel === 0 && !this.triangles) {
       const raw = await this.c.chunk(this.c.find(ChunkKind.Triangles, 0, 0));
       const p = new Payload(raw, "triangles chunk");
@@ -265,10 +319,11 @@ export class Player {
       for (let i = 0; i < 3 * n; i++) tris[i] = p.id(h.vertexCount, "vertex");
       p.finish();
       this.triangles = tris;
-      this.lower = lowerNeighbours(h.vertexCount, tris);
+      this.lower = lowerNeighbours(h.vertexCount, tris, h.order);
     }
     this.replay.loadKeyframe(bands, this.triangles ?? undefined);
     await this.decodePositions(k, true);
+    if (h.motion === Motion.KeyframeAffine && this.lower) this.weights = stencilWeights(this.lower, this.current, h.vertexCount);
     this.frame = k;
   }
 
@@ -280,9 +335,11 @@ export class Player {
     }
     const L = this.minLevel;
     if (L > 0) {
-      for (const u of readFaces(await this.c.chunk(this.c.find(ChunkKind.Corners, f, L)), `frame ${f} band ${L} corners`, h.levelSizes[L], h.triangleCount)) {
-        delta.corners.push({ level: L, t: u.t, corners: u.corners });
-      }
+      const raw = await this.c.chunk(this.c.find(ChunkKind.Corners, f, L)), what = `frame ${f} band ${L} corners`;
+      const updates = this.c.version >= 5
+        ? readCornerUpdates(raw, what, h.levelSizes[L], this.replay.corners)
+        : readFaces(raw, what, h.levelSizes[L], h.triangleCount, this.c.version);
+      for (const u of updates) delta.corners.push({ level: L, t: u.t, corners: u.corners });
     }
     this.replay.apply(delta);
     [this.previous, this.current] = [this.current, this.previous];
@@ -303,15 +360,20 @@ export class Player {
       // Motion sums of the band's decoded nodes per parent (inter frames), exact in doubles.
       const nParents = j < top ? h.levelSizes[j + 1] : 0;
       const sibSum = new Float64Array(3 * nParents), sibCount = new Uint32Array(nParents);
-      const fit = new Int32Array(3), affineBand = j === 0 && !intra && h.motion === Motion.Affine;
-      for (let v = 0; v < h.levelSizes[j]; v++) {
+      const fit = new Int32Array(3), inter0 = j === 0 && !intra;
+      const affineBand = inter0 && h.motion === Motion.Affine, keyedBand = inter0 && h.motion === Motion.KeyframeAffine && this.weights !== null;
+      // Band 0 in its decoding order, coarser bands in node order; `before`: the node decoded last.
+      const sequence = lower ? lower.sequence : null;
+      let before = -1;
+      for (let k = 0; k < h.levelSizes[j]; k++) {
+        const v = sequence ? sequence[k] : k;
         const g = r.offsets[j] + v;
         const local = j < top ? r.parent[j][v] : -1;
         const parent = j < top ? r.offsets[j + 1] + local : -1;
         const lo = lower ? lower.offsets[v] : 0, hi = lower ? lower.offsets[v + 1] : 0;
         const sib = !intra && local >= 0 && hi === lo ? sibCount[local] : 0;
         // Band 0 on inter frames: the affine motion of the vertex's stencil, when it fits.
-        const affine = affineBand && hi > lo && affineMotion(lower!, v, cur, prev, fit);
+        const affine = hi > lo && ((affineBand && affineMotion(lower!, v, cur, prev, fit)) || (keyedBand && keyedMotion(lower!, this.weights!, v, cur, prev, fit)));
         for (let a = 0; a < 3; a++) {
           let pred: number;
           if (affine) {
@@ -327,12 +389,13 @@ export class Player {
             else for (let i = lo; i < hi; i++) sum += cur[3 * items[i] + a] - prev[3 * items[i] + a];
             const mean = Math.floor((2 * sum + c) / (2 * c));
             pred = intra ? mean | 0 : (prev[3 * g + a] + mean) | 0;
-          } else if (intra) pred = parent >= 0 ? cur[3 * parent + a] : v > 0 ? cur[3 * (g - 1) + a] : 0;
+          } else if (intra) pred = parent >= 0 ? cur[3 * parent + a] : before >= 0 ? cur[3 * before + a] : 0;
           else pred = parent >= 0 ? prev[3 * g + a] + cur[3 * parent + a] - prev[3 * parent + a] : prev[3 * g + a];
-          cur[3 * g + a] = (pred + (res[3 * v + a] << shift)) | 0;
+          cur[3 * g + a] = (pred + (res[3 * k + a] << shift)) | 0;
           if (local >= 0) sibSum[3 * local + a] += cur[3 * g + a] - prev[3 * g + a];
         }
         if (local >= 0) sibCount[local]++;
+        before = g;
       }
     }
   }
@@ -374,10 +437,12 @@ export class Player {
 export { BELOW };
 
 /**
- * For each input vertex, the distinct vertices u < v sharing a triangle with it (rows sorted),
- * and its stencil: its row and the row of its row's last vertex, merged (sorted, distinct).
+ * For each input vertex, the distinct vertices sharing a triangle with it and decoded before it
+ * in band 0's order (rows in decoding order), and its stencil: its row and the row of its row's
+ * last vertex, merged (in decoding order, distinct). `sequence`: band 0's vertices in decoding
+ * order (proto/container.md, "Band 0 order").
  */
-export interface LowerNeighbours { offsets: Uint32Array; items: Uint32Array; stencilOffsets: Uint32Array; stencilItems: Uint32Array }
+export interface LowerNeighbours { sequence: Uint32Array; offsets: Uint32Array; items: Uint32Array; stencilOffsets: Uint32Array; stencilItems: Uint32Array }
 
 /**
  * Band 0, inter frames, files encoded with affine motion (proto/container.md, "Affine
@@ -436,21 +501,24 @@ export function affineMotion(lower: LowerNeighbours, v: number, cur: Int32Array,
   return true;
 }
 
-export function lowerNeighbours(n: number, tris: Uint32Array): LowerNeighbours {
+/** Rows of the triangles' edges (a, b) with keep(a, b), per a: distinct b, ascending. */
+function neighbourRows(n: number, tris: Uint32Array, keep: (a: number, b: number) => boolean): { offsets: Uint32Array; items: Uint32Array } {
   const counts = new Uint32Array(n + 1);
-  const pairs = (f: (hi: number, lo: number) => void) => {
+  const pairs = (f: (a: number, b: number) => void) => {
     for (let t = 0; t + 2 < tris.length; t += 3) {
       for (let k = 0; k < 3; k++) {
         const a = tris[t + k], b = tris[t + ((k + 1) % 3)];
-        if (a !== b && a < n && b < n) f(Math.max(a, b), Math.min(a, b));
+        if (a === b || a >= n || b >= n) continue;
+        if (keep(a, b)) f(a, b);
+        if (keep(b, a)) f(b, a);
       }
     }
   };
-  pairs((hi) => { counts[hi + 1]++; });
+  pairs((a) => { counts[a + 1]++; });
   for (let i = 0; i < n; i++) counts[i + 1] += counts[i];
   const fill = counts.slice();
   const items = new Uint32Array(counts[n]);
-  pairs((hi, lo) => { items[fill[hi]++] = lo; });
+  pairs((a, b) => { items[fill[a]++] = b; });
   const offsets = new Uint32Array(n + 1);
   let w = 0;
   for (let v = 0; v < n; v++) {
@@ -459,8 +527,38 @@ export function lowerNeighbours(n: number, tris: Uint32Array): LowerNeighbours {
     for (let i = 0; i < row.length; i++) if (w === start || items[w - 1] !== row[i]) items[w++] = row[i];
     offsets[v + 1] = w;
   }
-  const rows = items.slice(0, w);
-  // Stencils: each vertex's row and its row's vertices' rows, sorted and distinct.
+  return { offsets, items: items.slice(0, w) };
+}
+
+/** Breadth first over the triangles' edges: from the smallest vertex not yet reached, FIFO, neighbours ascending. */
+function breadthFirst(n: number, tris: Uint32Array): Uint32Array {
+  const { offsets, items } = neighbourRows(n, tris, () => true);
+  const seen = new Uint8Array(n), order = new Uint32Array(n);
+  let len = 0;
+  for (let start = 0; start < n; start++) {
+    if (seen[start]) continue;
+    seen[start] = 1;
+    let head = len;
+    order[len++] = start;
+    while (head < len) {
+      const v = order[head++];
+      for (let i = offsets[v]; i < offsets[v + 1]; i++) {
+        const u = items[i];
+        if (!seen[u]) { seen[u] = 1; order[len++] = u; }
+      }
+    }
+  }
+  return order;
+}
+
+export function lowerNeighbours(n: number, tris: Uint32Array, order: VertexOrder = VertexOrder.Input): LowerNeighbours {
+  const sequence = order === VertexOrder.BreadthFirst ? breadthFirst(n, tris) : Uint32Array.from({ length: n }, (_, i) => i);
+  const rank = new Uint32Array(n);
+  sequence.forEach((v, k) => { rank[v] = k; });
+  const { offsets, items: rows } = neighbourRows(n, tris, (a, b) => rank[b] < rank[a]);
+  const byRank = (x: number, y: number) => rank[x] - rank[y];
+  for (let v = 0; v < n; v++) rows.subarray(offsets[v], offsets[v + 1]).sort(byRank);
+  // Stencils: each vertex's row and its last lower neighbour's row, in decoding order, distinct.
   const mark = new Uint32Array(n).fill(0xffffffff);
   const stencilOffsets = new Uint32Array(n + 1);
   const stencil: number[] = [];
@@ -478,11 +576,74 @@ export function lowerNeighbours(n: number, tris: Uint32Array): LowerNeighbours {
         if (mark[x] !== v) { mark[x] = v; row.push(x); }
       }
     }
-    row.sort((a, b) => a - b);
+    row.sort(byRank);
     for (const x of row) stencil.push(x);
     stencilOffsets[v + 1] = stencil.length;
   }
-  return { offsets, items: rows, stencilOffsets, stencilItems: Uint32Array.from(stencil) };
+  return { sequence, offsets, items: rows, stencilOffsets, stencilItems: Uint32Array.from(stencil) };
+}
+
+/**
+ * Keyframe affine motion (proto/container.md, "Keyframe affine motion"): from the keyframe's
+ * band 0 `key`, one weight per stencil entry, lambda_w = (det - m (a_w . z) + k) / (det m), with
+ * the fit's quantities computed as affineMotion computes them from the previous frame.
+ */
+export function stencilWeights(lower: LowerNeighbours, key: Int32Array, n: number): Float64Array {
+  const items = lower.stencilItems, out = new Float64Array(items.length);
+  for (let v = 0; v < n; v++) {
+    const lo = lower.stencilOffsets[v], hi = lower.stencilOffsets[v + 1];
+    if (hi === lo) continue;
+    const o0 = key[3 * v], o1 = key[3 * v + 1], o2 = key[3 * v + 2];
+    let sa0 = 0, sa1 = 0, sa2 = 0, s00 = 0, s01 = 0, s02 = 0, s11 = 0, s12 = 0, s22 = 0;
+    for (let i = lo; i < hi; i++) {
+      const w = 3 * items[i];
+      const a0 = key[w] - o0, a1 = key[w + 1] - o1, a2 = key[w + 2] - o2;
+      sa0 += a0; sa1 += a1; sa2 += a2;
+      s00 += a0 * a0; s01 += a0 * a1; s02 += a0 * a2; s11 += a1 * a1; s12 += a1 * a2; s22 += a2 * a2;
+    }
+    const m = hi - lo, im = 1 / m;
+    let m00 = m * s00 - sa0 * sa0;
+    const m01 = m * s01 - sa0 * sa1, m02 = m * s02 - sa0 * sa2;
+    let m11 = m * s11 - sa1 * sa1;
+    const m12 = m * s12 - sa1 * sa2;
+    let m22 = m * s22 - sa2 * sa2;
+    const t = (m00 + m11 + m22) * im * 0.015625 + m;
+    m00 += t; m11 += t; m22 += t;
+    const c00 = m11 * m22 - m12 * m12, c01 = m02 * m12 - m01 * m22, c02 = m01 * m12 - m02 * m11;
+    const c11 = m00 * m22 - m02 * m02, c12 = m01 * m02 - m00 * m12, c22 = m00 * m11 - m01 * m01;
+    const det = m00 * c00 + m01 * c01 + m02 * c02;
+    const z0 = c00 * sa0 + c01 * sa1 + c02 * sa2;
+    const z1 = c01 * sa0 + c11 * sa1 + c12 * sa2;
+    const z2 = c02 * sa0 + c12 * sa1 + c22 * sa2;
+    const k = sa0 * z0 + sa1 * z1 + sa2 * z2;
+    const inv = 1 / (det * m);
+    for (let i = lo; i < hi; i++) {
+      const w = 3 * items[i];
+      const s = (key[w] - o0) * z0 + (key[w + 1] - o1) * z1 + (key[w + 2] - o2) * z2;
+      out[i] = (det - m * s + k) * inv;
+    }
+  }
+  return out;
+}
+
+/** Band 0, inter frames, keyframe affine motion: v's previous position plus its stencil's weighted motions, into `out`; false when it does not fit an i32. */
+export function keyedMotion(lower: LowerNeighbours, weights: Float64Array, v: number, cur: Int32Array, prev: Int32Array, out: Int32Array): boolean {
+  const lo = lower.stencilOffsets[v], hi = lower.stencilOffsets[v + 1], items = lower.stencilItems;
+  if (hi === lo) return false;
+  let e0 = 0, e1 = 0, e2 = 0;
+  for (let i = lo; i < hi; i++) {
+    const w = 3 * items[i], l = weights[i];
+    e0 += l * (cur[w] - prev[w]);
+    e1 += l * (cur[w + 1] - prev[w + 1]);
+    e2 += l * (cur[w + 2] - prev[w + 2]);
+  }
+  e0 += 0.5; e1 += 0.5; e2 += 0.5;
+  // Also false for NaN.
+  if (!(Math.abs(e0) < 2147483648 && Math.abs(e1) < 2147483648 && Math.abs(e2) < 2147483648)) return false;
+  out[0] = (prev[3 * v] + Math.floor(e0)) | 0;
+  out[1] = (prev[3 * v + 1] + Math.floor(e1)) | 0;
+  out[2] = (prev[3 * v + 2] + Math.floor(e2)) | 0;
+  return true;
 }
 
 // rANS (proto/container.md, "Positions, band j"): 12-bit frequencies, states in [2^23, 2^31),
@@ -493,8 +654,16 @@ const RANS_M = 4096, RANS_L = 1 << 23, RANS_SYMBOLS = 32, RANS_ESCAPE = 31, MAX_
 /** A positions chunk: its residual shift and 3 residuals per node (units of 2^shift quanta). */
 export function readPositions(raw: Uint8Array, what: string, count: number): { shift: number; res: Int32Array } {
   const p = new Payload(raw, what);
-  const shift = p.get();
+  // shift + 32 * coding: 0 rANS, 1 plain zigzag varints (small bands, version 5).
+  const first = p.get(), shift = first % 32, coding = Math.floor(first / 32);
   if (shift > MAX_SHIFT) throw new DecodeError(`${what}: residual shift ${shift} beyond ${MAX_SHIFT}`);
+  if (coding === 1) {
+    const res = new Int32Array(3 * count);
+    for (let i = 0; i < 3 * count; i++) res[i] = p.zigzag();
+    p.finish();
+    return { shift, res };
+  }
+  if (coding !== 0) throw new DecodeError(`${what}: residual coding ${coding} (0 rANS, 1 varints)`);
   const tables: Uint32Array[] = [];
   for (let a = 0; a < 3; a++) {
     const n = p.count(RANS_SYMBOLS, "symbols");

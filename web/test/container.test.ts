@@ -6,7 +6,7 @@ import { execFileSync } from "node:child_process";
 import { existsSync, mkdtempSync, readdirSync, readFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { dirname, join } from "node:path";
-import { Container, Motion, Player } from "../src/container.js";
+import { Container, Motion, Player, VertexOrder } from "../src/container.js";
 import { BELOW, DecodeError, NONE } from "../src/replay.js";
 
 // The repository root: the nearest folder above this file (compiled into build-test/ or not)
@@ -83,30 +83,11 @@ test("level 0 is the input within the quantization bound", async () => {
   }
 });
 
-test("affine motion: every frame's input vertices equal the Rust decoder's, bit for bit", async () => {
-  const apmc = join(dir, "tube-affine.pmc"), out = join(dir, "affine-frames");
-  execFileSync(bin, ["encode", "-q", join(dir, "frames"), "-o", apmc, "--keyframe-interval", "8", "--quant-bits", "14", "--motion", "affine"]);
-  execFileSync(bin, ["decode", "-q", apmc, "--all-frames", "--level", "0", "-o", out]);
-  const c = await open(apmc);
-  assert.equal(c.header.motion, Motion.Affine);
-  const files = readdirSync(out).filter((f) => f.endsWith(".obj")).sort();
-  assert.equal(files.length, 20);
-  const player = new Player(c, 0);
-  for (let f = 0; f < files.length; f++) {
-    await player.seek(f);
-    const pos = player.positions();
-    const expected = readObj(join(out, files[f]));
-    assert.equal(expected.positions.length, 3 * c.header.vertexCount);
-    // The OBJ holds each f32 in its shortest exact form, so equal predictions give equal numbers.
-    for (let i = 0; i < expected.positions.length; i++) assert.equal(pos[i], Math.fround(expected.positions[i]), `frame ${f}: coordinate ${i}`);
-  }
-});
-
-test("a version 3 file still decodes, as the Rust decoder decodes it", async () => {
-  const v3 = join(root, "crates/pmcodec-container/tests/compat/v3-cloth-k1.pmc"), out = join(dir, "v3-frames");
-  execFileSync(bin, ["decode", "-q", v3, "--all-frames", "--level", "0", "-o", out]);
-  const c = await open(v3);
-  assert.equal(c.header.motion, Motion.Mean);
+/** Every frame's input vertices as the Rust decoder writes them, beside this decoder's. */
+async function sameAsRust(pmc: string, name: string): Promise<Container> {
+  const out = join(dir, `${name}-frames`);
+  execFileSync(bin, ["decode", "-q", pmc, "--all-frames", "--level", "0", "-o", out]);
+  const c = await open(pmc);
   const files = readdirSync(out).filter((f) => f.endsWith(".obj")).sort();
   assert.equal(files.length, c.header.frameCount);
   const player = new Player(c, 0);
@@ -114,9 +95,36 @@ test("a version 3 file still decodes, as the Rust decoder decodes it", async () 
     await player.seek(f);
     const pos = player.positions(), expected = readObj(join(out, files[f]));
     assert.equal(expected.positions.length, 3 * c.header.vertexCount);
-    for (let i = 0; i < expected.positions.length; i++) assert.equal(pos[i], Math.fround(expected.positions[i]), `frame ${f}: coordinate ${i}`);
+    // The OBJ holds each f32 in its shortest exact form, so equal predictions give equal numbers.
+    for (let i = 0; i < expected.positions.length; i++) assert.equal(pos[i], Math.fround(expected.positions[i]), `${name} frame ${f}: coordinate ${i}`);
   }
-  const bytes = new Uint8Array(readFileSync(v3));
+  return c;
+}
+
+test("every band-0 motion and order: every frame's input vertices equal the Rust decoder's, bit for bit", async () => {
+  const cases: [string, string[], Motion, VertexOrder][] = [
+    ["keyframe-affine", [], Motion.KeyframeAffine, VertexOrder.BreadthFirst],
+    ["affine", ["--motion", "affine"], Motion.Affine, VertexOrder.BreadthFirst],
+    ["mean-input", ["--motion", "mean", "--order", "input"], Motion.Mean, VertexOrder.Input],
+  ];
+  for (const [name, args, motion, order] of cases) {
+    const file = join(dir, `tube-${name}.pmc`);
+    execFileSync(bin, ["encode", "-q", join(dir, "frames"), "-o", file, "--keyframe-interval", "8", "--quant-bits", "14", ...args]);
+    const c = await sameAsRust(file, name);
+    assert.equal(c.header.motion, motion, name);
+    assert.equal(c.header.order, order, name);
+  }
+});
+
+test("version 3 and 4 files still decode, as the Rust decoder decodes them", async () => {
+  for (const [file, version, motion] of [["v3-cloth-k1.pmc", 3, Motion.Mean], ["v4-cloth-affine-k4.pmc", 4, Motion.Affine]] as const) {
+    const path = join(root, "crates/pmcodec-container/tests/compat", file);
+    const c = await sameAsRust(path, `v${version}`);
+    assert.equal(c.version, version);
+    assert.equal(c.header.motion, motion);
+    assert.equal(c.header.order, VertexOrder.Input);
+  }
+  const bytes = new Uint8Array(readFileSync(join(root, "crates/pmcodec-container/tests/compat/v3-cloth-k1.pmc")));
   bytes[8] = 9;
   await assert.rejects(Container.open(async (o, n) => bytes.slice(o, o + n), bytes.length), /version 9 is not supported/);
 });
