@@ -62,6 +62,8 @@ struct KeptKeyframe {
     frame: u32,
     replay: Replay,
     current: Vec<[i32; 3]>,
+    /// Band 0's stencil weights from it (keyframe affine motion; empty otherwise).
+    weights: StencilWeights,
 }
 
 /// What meshes of one decoded frame are cut from.
@@ -201,9 +203,9 @@ impl<S: ByteSource> Decoder<S> {
                 None => self.replay = Some(k.replay.clone()),
             }
             self.current.copy_from_slice(&k.current);
+            self.weights.clone_from(&k.weights);
             self.frame = Some(key);
             self.kept.push(k);
-            self.keyframe_weights();
             return Ok(());
         }
         self.load_keyframe(key)?;
@@ -211,7 +213,7 @@ impl<S: ByteSource> Decoder<S> {
             if self.kept.len() >= self.keep {
                 self.kept.remove(0);
             }
-            self.kept.push(KeptKeyframe { frame: key, replay: replay.clone(), current: self.current.clone() });
+            self.kept.push(KeptKeyframe { frame: key, replay: replay.clone(), current: self.current.clone(), weights: self.weights.clone() });
         }
         Ok(())
     }
