@@ -213,7 +213,12 @@ impl<S: ByteSource> Decoder<S> {
             if self.kept.len() >= self.keep {
                 self.kept.remove(0);
             }
-            self.kept.push(KeptKeyframe { frame: key, replay: replay.clone(), current: self.current.clone(), weights: self.weights.clone() });
+            self.kept.push(KeptKeyframe {
+                frame: key,
+                replay: replay.clone(),
+                current: self.current.clone(),
+                weights: self.weights.clone(),
+            });
         }
         Ok(())
     }
