@@ -444,23 +444,19 @@ export { BELOW };
  */
 export interface LowerNeighbours { sequence: Uint32Array; offsets: Uint32Array; items: Uint32Array; stencilOffsets: Uint32Array; stencilItems: Uint32Array }
 
+/** Scratch for affineMotion's fit. */
+const FIT = new Float64Array(8);
+
 /**
- * Band 0, inter frames, files encoded with affine motion (proto/container.md, "Affine
- * motion"): the affine map that best carries vertex v's stencil from the previous frame to
- * this one, applied to v, into `out`. False when the result does not fit an i32 (broken
- * input): the caller uses the mean motion. Every operation is the spec's, in its order (the
- * Rust decoder splits them in two passes, with the same results); doubles without fused
- * multiply-adds make the same bits.
+ * The part of a stencil's affine fit that its positions `at` give (proto/container.md, "Affine
+ * motion", up to `inv`), with `o` the vertex's position there: writes z0 z1 z2 k t det inv m
+ * into `out`. Every operation is the spec's, in its order.
  */
-export function affineMotion(lower: LowerNeighbours, v: number, cur: Int32Array, prev: Int32Array, out: Int32Array): boolean {
-  const lo = lower.stencilOffsets[v], hi = lower.stencilOffsets[v + 1], items = lower.stencilItems;
-  if (hi === lo) return false;
-  const o0 = prev[3 * v], o1 = prev[3 * v + 1], o2 = prev[3 * v + 2];
-  // The previous frame's part.
+function solveFit(items: Uint32Array, lo: number, hi: number, at: Int32Array, o0: number, o1: number, o2: number, out: Float64Array): void {
   let sa0 = 0, sa1 = 0, sa2 = 0, s00 = 0, s01 = 0, s02 = 0, s11 = 0, s12 = 0, s22 = 0;
   for (let i = lo; i < hi; i++) {
     const w = 3 * items[i];
-    const a0 = prev[w] - o0, a1 = prev[w + 1] - o1, a2 = prev[w + 2] - o2;
+    const a0 = at[w] - o0, a1 = at[w + 1] - o1, a2 = at[w + 2] - o2;
     sa0 += a0; sa1 += a1; sa2 += a2;
     s00 += a0 * a0; s01 += a0 * a1; s02 += a0 * a2; s11 += a1 * a1; s12 += a1 * a2; s22 += a2 * a2;
   }
@@ -478,8 +474,27 @@ export function affineMotion(lower: LowerNeighbours, v: number, cur: Int32Array,
   const z0 = c00 * sa0 + c01 * sa1 + c02 * sa2;
   const z1 = c01 * sa0 + c11 * sa1 + c12 * sa2;
   const z2 = c02 * sa0 + c12 * sa1 + c22 * sa2;
-  const k = sa0 * z0 + sa1 * z1 + sa2 * z2;
-  const inv = 1 / (det * m);
+  out[0] = z0; out[1] = z1; out[2] = z2;
+  out[3] = sa0 * z0 + sa1 * z1 + sa2 * z2;
+  out[4] = t; out[5] = det; out[6] = 1 / (det * m); out[7] = m;
+}
+
+/**
+ * Band 0, inter frames, files encoded with affine motion (proto/container.md, "Affine
+ * motion"): the affine map that best carries vertex v's stencil from the previous frame to
+ * this one, applied to v, into `out`. False when the result does not fit an i32 (broken
+ * input): the caller uses the mean motion. Every operation is the spec's, in its order (the
+ * Rust decoder splits them in two passes, with the same results); doubles without fused
+ * multiply-adds make the same bits.
+ */
+export function affineMotion(lower: LowerNeighbours, v: number, cur: Int32Array, prev: Int32Array, out: Int32Array): boolean {
+  const lo = lower.stencilOffsets[v], hi = lower.stencilOffsets[v + 1], items = lower.stencilItems;
+  if (hi === lo) return false;
+  const o0 = prev[3 * v], o1 = prev[3 * v + 1], o2 = prev[3 * v + 2];
+  // The previous frame's part.
+  const f = FIT;
+  solveFit(items, lo, hi, prev, o0, o1, o2, f);
+  const z0 = f[0], z1 = f[1], z2 = f[2], k = f[3], t = f[4], det = f[5], inv = f[6], m = f[7];
   // This frame's part.
   let sb0 = 0, sb1 = 0, sb2 = 0, g0 = 0, g1 = 0, g2 = 0;
   for (let i = lo; i < hi; i++) {
@@ -589,34 +604,13 @@ export function lowerNeighbours(n: number, tris: Uint32Array, order: VertexOrder
  * the fit's quantities computed as affineMotion computes them from the previous frame.
  */
 export function stencilWeights(lower: LowerNeighbours, key: Int32Array, n: number): Float64Array {
-  const items = lower.stencilItems, out = new Float64Array(items.length);
+  const items = lower.stencilItems, out = new Float64Array(items.length), f = new Float64Array(8);
   for (let v = 0; v < n; v++) {
     const lo = lower.stencilOffsets[v], hi = lower.stencilOffsets[v + 1];
     if (hi === lo) continue;
     const o0 = key[3 * v], o1 = key[3 * v + 1], o2 = key[3 * v + 2];
-    let sa0 = 0, sa1 = 0, sa2 = 0, s00 = 0, s01 = 0, s02 = 0, s11 = 0, s12 = 0, s22 = 0;
-    for (let i = lo; i < hi; i++) {
-      const w = 3 * items[i];
-      const a0 = key[w] - o0, a1 = key[w + 1] - o1, a2 = key[w + 2] - o2;
-      sa0 += a0; sa1 += a1; sa2 += a2;
-      s00 += a0 * a0; s01 += a0 * a1; s02 += a0 * a2; s11 += a1 * a1; s12 += a1 * a2; s22 += a2 * a2;
-    }
-    const m = hi - lo, im = 1 / m;
-    let m00 = m * s00 - sa0 * sa0;
-    const m01 = m * s01 - sa0 * sa1, m02 = m * s02 - sa0 * sa2;
-    let m11 = m * s11 - sa1 * sa1;
-    const m12 = m * s12 - sa1 * sa2;
-    let m22 = m * s22 - sa2 * sa2;
-    const t = (m00 + m11 + m22) * im * 0.015625 + m;
-    m00 += t; m11 += t; m22 += t;
-    const c00 = m11 * m22 - m12 * m12, c01 = m02 * m12 - m01 * m22, c02 = m01 * m12 - m02 * m11;
-    const c11 = m00 * m22 - m02 * m02, c12 = m01 * m02 - m00 * m12, c22 = m00 * m11 - m01 * m01;
-    const det = m00 * c00 + m01 * c01 + m02 * c02;
-    const z0 = c00 * sa0 + c01 * sa1 + c02 * sa2;
-    const z1 = c01 * sa0 + c11 * sa1 + c12 * sa2;
-    const z2 = c02 * sa0 + c12 * sa1 + c22 * sa2;
-    const k = sa0 * z0 + sa1 * z1 + sa2 * z2;
-    const inv = 1 / (det * m);
+    solveFit(items, lo, hi, key, o0, o1, o2, f);
+    const z0 = f[0], z1 = f[1], z2 = f[2], k = f[3], det = f[5], inv = f[6], m = f[7];
     for (let i = lo; i < hi; i++) {
       const w = 3 * items[i];
       const s = (key[w] - o0) * z0 + (key[w + 1] - o1) * z1 + (key[w + 2] - o2) * z2;

@@ -15,20 +15,10 @@
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
 use pmcodec_hierarchy::progressive::Encoder;
 use pmcodec_hierarchy::{BuildOptions, FineTopology, build};
+#[path = "common/entropy.rs"]
+mod entropy;
+use entropy::entropy;
 use std::collections::HashMap;
-
-fn entropy(res: &[[i32; 3]]) -> f64 {
-    let mut bits = 0.0;
-    for a in 0..3 {
-        let mut h: HashMap<i32, usize> = HashMap::new();
-        for r in res {
-            *h.entry(r[a]).or_default() += 1;
-        }
-        let n = res.len() as f64;
-        bits += h.values().map(|&k| -(k as f64) * (k as f64 / n).log2()).sum::<f64>();
-    }
-    bits
-}
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();

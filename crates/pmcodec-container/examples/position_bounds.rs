@@ -13,21 +13,9 @@
 //! `cargo run --release -p pmcodec-container --example position_bounds -- DIR [bits]`
 use pmcodec_container::VertexOrder;
 use pmcodec_container::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, predict};
-use std::collections::HashMap;
-
-/// Bits of a static per-axis code for these residuals.
-fn entropy(res: &[[i32; 3]]) -> f64 {
-    let mut bits = 0.0;
-    for a in 0..3 {
-        let mut h: HashMap<i32, usize> = HashMap::new();
-        for r in res {
-            *h.entry(r[a]).or_default() += 1;
-        }
-        let n = res.len() as f64;
-        bits += h.values().map(|&k| -(k as f64) * (k as f64 / n).log2()).sum::<f64>();
-    }
-    bits
-}
+#[path = "common/entropy.rs"]
+mod entropy;
+use entropy::entropy;
 
 /// The grid point within the error bound cheapest to code from `p`, as the encoder picks.
 fn choose(t: [f64; 3], p: [i32; 3]) -> [i32; 3] {
