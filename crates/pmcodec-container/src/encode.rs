@@ -36,10 +36,10 @@ pub struct EncodeOptions {
     /// far below the geometric error of its nodes (horse at 12 bits: 8% fewer bytes, 4% more RMS
     /// error at 10% of the triangles). None keeps every stored position within the bound.
     pub coarse_grid: Option<u32>,
-    /// Band 0's prediction on inter frames. `Mean` (the default) keeps decoding the horse
-    /// above 1,000 frames per second on one core; `Affine` stores 17% fewer position bytes on
-    /// the horse (14% on samba) for about 0.4 ms more per decoded frame, which also lengthens
-    /// seeks (up to 15 frames from a keyframe).
+    /// Band 0's prediction on inter frames. `KeyframeAffine` (the default) stores 21% fewer
+    /// position bytes than `Mean` on the horse at 12 bits (17% on samba) for about a tenth more
+    /// decoding time; `Affine` about 1% fewer again, for half again `Mean`'s decoding time,
+    /// which also lengthens seeks (up to 15 frames from a keyframe).
     pub motion: Motion,
     /// Band 0's decoding order. `BreadthFirst` (the default) gives each input vertex a stencil
     /// on one side of it; `Input` is what versions 3 and 4 used.

@@ -42,7 +42,13 @@ fn encode_info_verify_decode() {
     let info: serde_json::Value = serde_json::from_str(&ok(bin().arg("info").arg(&pmc).arg("--json"))).unwrap();
     assert_eq!(info["header"]["frame_count"], 12);
     assert_eq!(info["header"]["vertex_count"], 140);
+    assert_eq!((&info["header"]["motion"], &info["header"]["order"]), (&"keyframe-affine".into(), &"breadth-first".into()));
     assert!(ok(bin().arg("verify").arg(&pmc)).contains("ok"));
+    // Version 4's prediction, asked for by name, is what the header then says.
+    let v4 = dir.join("v4.pmc");
+    ok(bin().args(["encode", "-q", "--motion", "mean", "--order", "input"]).arg(&frames_dir).arg("-o").arg(&v4));
+    let table = ok(bin().arg("info").arg(&v4));
+    assert!(table.contains("mean motion between keyframes, input vertices in input order"), "{table}");
     // Level 0 of frame 9 is the input frame f10.obj: same faces, positions within the bound.
     let out = dir.join("f9.obj");
     ok(bin().args(["decode", "-q", "--frame", "9", "--level", "0"]).arg(&pmc).arg("-o").arg(&out));
