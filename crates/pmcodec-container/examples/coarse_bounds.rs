@@ -31,7 +31,8 @@ fn main() {
     let mut enc = Encoder::new(h0, topo, seq.triangles.clone(), Default::default());
     let n0 = seq.vertex_count();
     let names = ["none", "parent", "siblings", "centroid", "fine affine"];
-    let mut bits = vec![vec![0.0; names.len()]; 8];
+    // Per level (0 unused: input vertices are not measured here), per predictor.
+    let mut bits: Vec<Vec<f64>> = Vec::new();
     let mut prev_x: Vec<glam::DVec3> = Vec::new();
     let mut prev_c: Vec<glam::DVec3> = Vec::new();
     let mut prev_fine: Vec<glam::DVec3> = Vec::new();
@@ -46,6 +47,7 @@ fn main() {
             .collect();
         let fine: Vec<glam::DVec3> = frame.iter().map(|p| p.as_dvec3() / step).collect();
         if f > 0 {
+            bits.resize(h.levels(), vec![0.0; names.len()]);
             for j in 1..h.levels() {
                 let unit = (1u32 << j) as f64;
                 let base = h.offsets[j] as usize;
