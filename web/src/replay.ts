@@ -264,20 +264,59 @@ export class Replay {
   }
 
   /**
-   * Split priority of every node from decoded positions (proto/container.md, "Cuts"): the
-   * largest distance from the node to a child plus that child's own priority; 0 at minLevel.
+   * Split priorities (proto/container.md, "Cuts"): plane quadrics of the triangles alive at
+   * minLevel (a third of each one's area to each corner), summed over clusters; a node's own
+   * error is sqrt(Q(x) / area) at its position, its priority the largest own error in its
+   * subtree. Every operation in the Rust decoder's order, in doubles, so both pick the same cut.
    */
   nodeErrors(positions: Float32Array): Float64Array {
-    const err = new Float64Array(this.nodeCount);
+    const nodes = this.nodeCount, err = new Float64Array(nodes);
+    // 11 per node: a00 a01 a02 a11 a12 a22 b0 b1 b2 c, area.
+    const q = new Float64Array(11 * nodes);
+    const base = this.offsets[this.minLevel], size = this.levelSizes[this.minLevel], cs = this.corners;
+    const plane = new Float64Array(11);
+    for (let t = 0; t < this.triangleCount; t++) {
+      const c0 = cs[3 * t], c1 = cs[3 * t + 1], c2 = cs[3 * t + 2];
+      if (c0 === c1 || c1 === c2 || c0 === c2 || c0 >= size || c1 >= size || c2 >= size) continue;
+      const i0 = 3 * (base + c0), i1 = 3 * (base + c1), i2 = 3 * (base + c2);
+      const p0x = positions[i0], p0y = positions[i0 + 1], p0z = positions[i0 + 2];
+      const e1x = positions[i1] - p0x, e1y = positions[i1 + 1] - p0y, e1z = positions[i1 + 2] - p0z;
+      const e2x = positions[i2] - p0x, e2y = positions[i2 + 1] - p0y, e2z = positions[i2 + 2] - p0z;
+      const nx = e1y * e2z - e1z * e2y, ny = e1z * e2x - e1x * e2z, nz = e1x * e2y - e1y * e2x;
+      const len = Math.sqrt(nx * nx + ny * ny + nz * nz);
+      if (!(len > 0 && len < Infinity)) continue;
+      const ux = nx / len, uy = ny / len, uz = nz / len;
+      const d = -(ux * p0x + uy * p0y + uz * p0z);
+      const w = len / 6;
+      plane[0] = w * (ux * ux); plane[1] = w * (ux * uy); plane[2] = w * (ux * uz);
+      plane[3] = w * (uy * uy); plane[4] = w * (uy * uz); plane[5] = w * (uz * uz);
+      plane[6] = w * (d * ux); plane[7] = w * (d * uy); plane[8] = w * (d * uz);
+      plane[9] = w * (d * d); plane[10] = w;
+      for (const c of [c0, c1, c2]) {
+        const o = 11 * (base + c);
+        for (let i = 0; i < 11; i++) q[o + i] += plane[i];
+      }
+    }
+    for (let k = this.minLevel; k < this.top; k++) {
+      const p = this.parent[k];
+      for (let v = 0; v < p.length; v++) {
+        const c = 11 * (this.offsets[k] + v), a = 11 * (this.offsets[k + 1] + p[v]);
+        for (let i = 0; i < 11; i++) q[a + i] += q[c + i];
+      }
+    }
+    for (let g = this.offsets[this.minLevel + 1] ?? nodes; g < nodes; g++) {
+      const m = 11 * g, x = positions[3 * g], y = positions[3 * g + 1], z = positions[3 * g + 2];
+      const ax = q[m] * x + q[m + 1] * y + q[m + 2] * z;
+      const ay = q[m + 1] * x + q[m + 3] * y + q[m + 4] * z;
+      const az = q[m + 2] * x + q[m + 4] * y + q[m + 5] * z;
+      const e = x * ax + y * ay + z * az + 2 * (q[m + 6] * x + q[m + 7] * y + q[m + 8] * z) + q[m + 9];
+      err[g] = q[m + 10] > 0 && e > 0 ? Math.sqrt(e / q[m + 10]) : 0;
+    }
     for (let k = this.minLevel; k < this.top; k++) {
       const p = this.parent[k];
       for (let v = 0; v < p.length; v++) {
         const c = this.offsets[k] + v, a = this.offsets[k + 1] + p[v];
-        // In f32 like the Rust decoder (glam's Vec3::length), so both pick the same cut.
-        const f = Math.fround;
-        const dx = f(positions[3 * c] - positions[3 * a]), dy = f(positions[3 * c + 1] - positions[3 * a + 1]), dz = f(positions[3 * c + 2] - positions[3 * a + 2]);
-        const e = f(Math.sqrt(f(f(f(dx * dx) + f(dy * dy)) + f(dz * dz)))) + err[c];
-        if (e > err[a]) err[a] = e;
+        if (err[c] > err[a]) err[a] = err[c];
       }
     }
     return err;

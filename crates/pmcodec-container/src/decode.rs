@@ -445,6 +445,31 @@ impl<S: ByteSource> Decoder<S> {
         result
     }
 
+    /// The triangles a budget or error cut shows, each as the global ids of its corners' cut
+    /// nodes (input triangle order is not kept): what identifies a shown triangle from frame to
+    /// frame, for a tool that measures how much cuts change. `Level` targets are refused.
+    pub fn cut_triangles(&mut self, target: MeshTarget) -> Result<Vec<[u32; 3]>, ContainerError> {
+        // The derived state (split order) of this frame, as `mesh` makes it.
+        let mut scratch = TriMesh::default();
+        self.mesh_into(MeshTarget::Vertices(0), &mut scratch)?;
+        let diag = {
+            let h = self.reader.header();
+            (Vec3::from_array(h.bbox_max) - Vec3::from_array(h.bbox_min)).length() as f64
+        };
+        let prefix = match target {
+            MeshTarget::Triangles(n) => PrefixTarget::Triangles(n),
+            MeshTarget::Vertices(n) => PrefixTarget::Vertices(n),
+            MeshTarget::MaxError(e) => PrefixTarget::MaxError(e * diag),
+            MeshTarget::Level(l) => return Err(ContainerError::Options(format!("cut triangles of level {l}: give a budget or an error"))),
+        };
+        let (Some(replay), Some(d)) = (self.replay.as_ref(), self.derived.as_mut()) else {
+            return Err(ContainerError::Options("seek to a frame first".into()));
+        };
+        let k = d.order.prefix(replay, &d.errors, prefix);
+        let corners = replay.corners();
+        Ok(d.order.shown(k).iter().filter_map(|&t| corners.get(t as usize)).map(|c| c.map(|v| d.order.cut_node_of(replay, v, k))).collect())
+    }
+
     fn cut(&mut self, target: MeshTarget, d: &mut Derived, mesh: &mut TriMesh) -> Result<(), ContainerError> {
         let diag = {
             let h = self.reader.header();

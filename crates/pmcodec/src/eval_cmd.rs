@@ -71,6 +71,11 @@ pub struct EvalArgs {
     /// Only the first N frames.
     #[arg(long)]
     pub frames: Option<usize>,
+    /// Also measure a .pmc container of the same sequence as a client sees it: each frame
+    /// decoded (quantized positions) and cut by the file's own split order at the same vertex
+    /// count (and at the coherence budget). Reported as method `container`.
+    #[arg(long, value_name = "FILE.pmc")]
+    pub pmc: Option<PathBuf>,
     /// Print JSON instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -119,7 +124,7 @@ pub fn run(args: EvalArgs, quiet: bool) -> Result<(), Exit> {
     }
     let sample = pmcodec_eval::SampleOptions { samples: args.samples, ..Default::default() };
     let originals: Vec<_> = (0..frames).filter_map(|f| seq.frame_mesh(f)).collect();
-    let mut reports = Vec::new();
+    let mut reports: Vec<MethodReport> = Vec::new();
     for m in &args.methods {
         let method = m.method();
         let bar = progress(frames as u64, method.name(), quiet);
@@ -132,9 +137,6 @@ pub fn run(args: EvalArgs, quiet: bool) -> Result<(), Exit> {
             .map(|(orig, a)| pmcodec_eval::symmetric_relative(orig, &a.mesh, &sample))
             .collect::<Result<_, _>>()
             .with_context(|| format!("measuring the {} approximations", method.name()))?;
-        let rms: Vec<f64> = distances.iter().map(|d| d.rms).collect();
-        let max: Vec<f64> = distances.iter().map(|d| d.max).collect();
-        let q = (frames / 4).max(1);
         let changed = match args.coherence_triangles {
             Some(budget) => {
                 let bar = progress(frames as u64, "coherence", quiet);
@@ -146,16 +148,10 @@ pub fn run(args: EvalArgs, quiet: bool) -> Result<(), Exit> {
             }
             None => None,
         };
-        reports.push(MethodReport {
-            method: method.name(),
-            mean_rms: mean(&rms),
-            first_quarter_rms: mean(&rms[..q.min(rms.len())]),
-            last_quarter_rms: mean(&rms[rms.len().saturating_sub(q)..]),
-            mean_changed_share: changed.as_ref().map(|c| mean(&c[1.min(c.len())..])),
-            changed_share: changed,
-            rms,
-            max,
-        });
+        reports.push(method_report(method.name(), &distances, changed));
+    }
+    if let Some(path) = &args.pmc {
+        reports.push(container_report(path, &args, &originals, &sample, quiet)?);
     }
     let report = Report {
         input: args.input.display().to_string(),
@@ -170,6 +166,82 @@ pub fn run(args: EvalArgs, quiet: bool) -> Result<(), Exit> {
         print_table(&report);
     }
     Ok(())
+}
+
+/// A method's report from its per-frame distances and coherence shares.
+fn method_report(method: &'static str, distances: &[pmcodec_eval::Distance], changed: Option<Vec<f64>>) -> MethodReport {
+    let rms: Vec<f64> = distances.iter().map(|d| d.rms).collect();
+    let max: Vec<f64> = distances.iter().map(|d| d.max).collect();
+    let q = (rms.len() / 4).max(1);
+    MethodReport {
+        method,
+        mean_rms: mean(&rms),
+        first_quarter_rms: mean(&rms[..q.min(rms.len())]),
+        last_quarter_rms: mean(&rms[rms.len().saturating_sub(q)..]),
+        mean_changed_share: changed.as_ref().map(|c| mean(&c[1.min(c.len())..])),
+        changed_share: changed,
+        rms,
+        max,
+    }
+}
+
+/// The `container` method: the .pmc at `path`, decoded frame by frame and cut as clients cut it.
+fn container_report(
+    path: &std::path::Path,
+    args: &EvalArgs,
+    originals: &[pmcodec_mesh::TriMesh],
+    sample: &pmcodec_eval::SampleOptions,
+    quiet: bool,
+) -> Result<MethodReport, Exit> {
+    use pmcodec_container::{Decoder, FileSource, MeshTarget, Reader};
+    let source = FileSource::open(path).with_context(|| format!("opening {}", path.display()))?;
+    let reader = Reader::open(source).with_context(|| format!("reading {}", path.display()))?;
+    let h = reader.header();
+    let frames = originals.len();
+    let vertices = originals.first().map_or(0, |m| m.positions.len());
+    if h.vertex_count as usize != vertices || (h.frame_count as usize) < frames {
+        return Err(Exit(
+            2,
+            anyhow::anyhow!(
+                "{}: {} vertices and {} frames, but the input has {vertices} vertices and {frames} frames: not an encoding of it",
+                path.display(),
+                h.vertex_count,
+                h.frame_count
+            ),
+        ));
+    }
+    let mut d = Decoder::new(reader.borrowed(), 0).context("decoder")?;
+    let bar = progress(frames as u64, "container", quiet);
+    let mut meshes = Vec::with_capacity(frames);
+    let mut keys: Vec<Vec<[u32; 3]>> = Vec::new();
+    for f in 0..frames {
+        d.seek(f as u32).with_context(|| format!("{}: frame {f}", path.display()))?;
+        meshes.push(d.mesh(MeshTarget::Vertices(args.vertices)).with_context(|| format!("cutting frame {f}"))?);
+        if let Some(budget) = args.coherence_triangles {
+            let mut k = d.cut_triangles(MeshTarget::Triangles(budget)).with_context(|| format!("cutting frame {f}"))?;
+            k.iter_mut().for_each(|t| t.sort_unstable());
+            keys.push(k);
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let distances: Vec<pmcodec_eval::Distance> = originals
+        .par_iter()
+        .zip(&meshes)
+        .map(|(orig, m)| pmcodec_eval::symmetric_relative(orig, m, sample))
+        .collect::<Result<_, _>>()
+        .context("measuring the container's cuts")?;
+    // The share of each frame's shown triangles (by their corners' nodes) the frame before did not show.
+    let changed = args.coherence_triangles.map(|_| {
+        let mut out = vec![0.0];
+        for w in keys.windows(2) {
+            let before: std::collections::HashSet<&[u32; 3]> = w[0].iter().collect();
+            let new = w[1].iter().filter(|k| !before.contains(k)).count();
+            out.push(if w[1].is_empty() { 0.0 } else { new as f64 / w[1].len() as f64 });
+        }
+        out
+    });
+    Ok(method_report("container", &distances, changed))
 }
 
 fn print_table(r: &Report) {
@@ -203,5 +275,8 @@ fn print_table(r: &Report) {
     }
     if let (Some(p), Some(s)) = (find("pmcodec"), find("static")) {
         println!("pmcodec below static: {:.1}%", 100.0 * (1.0 - p.mean_rms / s.mean_rms));
+    }
+    if let (Some(c), Some(p)) = (find("container"), find("pmcodec")) {
+        println!("container / pmcodec mean RMS: {:.3} (quantization, coarse grids and the file's split order)", c.mean_rms / p.mean_rms);
     }
 }
