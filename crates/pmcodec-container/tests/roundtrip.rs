@@ -86,6 +86,10 @@ fn horse_gallop_round_trips() {
         let b = sought.mesh(MeshTarget::Triangles(budget)).unwrap();
         assert_eq!(a, b, "budget {budget}");
         assert!(a.triangles.len() as u32 <= budget && a.triangles.len() as u32 > budget / 2, "{}", a.triangles.len());
+        // The same cut as node triples: as many, each three distinct nodes.
+        let nodes = played.cut_triangles(MeshTarget::Triangles(budget)).unwrap();
+        assert_eq!(nodes.len(), a.triangles.len(), "budget {budget}");
+        assert!(nodes.iter().all(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]));
     }
 }
 
