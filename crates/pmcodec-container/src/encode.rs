@@ -213,9 +213,9 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
     let mut weights = StencilWeights::default();
     // Each level's corners before the frame: what a reader stopping there holds, against which
     // corner updates are coded.
-    let mut before: Vec<Vec<[u32; 3]>> = vec![Vec::new(); levels];
+    let mut held_corners: Vec<Vec<[u32; 3]>> = vec![Vec::new(); levels];
     for (f, frame) in seq.frames.iter().enumerate() {
-        for (j, b) in before.iter_mut().enumerate().skip(1) {
+        for (j, b) in held_corners.iter_mut().enumerate().skip(1) {
             b.clear();
             b.extend_from_slice(enc.corners_at(j));
         }
@@ -232,7 +232,7 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
         // updates), finest band first; then the bands every client from there down reads, top
         // first. So a full-resolution client's part of a frame is one contiguous span, and a
         // level-j client's span holds only the (smaller) faces and corners of coarser bands.
-        for (j, held) in before.iter().enumerate().skip(1) {
+        for (j, held) in held_corners.iter().enumerate().skip(1) {
             if let Some(k) = &key {
                 push(ChunkKind::Faces, f as u32, j as u32, payload::write_faces(&k.bands[j].faces))?;
             }
