@@ -176,8 +176,8 @@ pub fn write_faces(faces: &[(u32, [u32; 3])]) -> Vec<u8> {
     out
 }
 
-/// Reads a FACES chunk (or a CORNERS chunk of versions 3 and 4, coded alike before version 5,
-/// `version` < 5, without corner differences).
+/// Reads a FACES chunk; with `version` < 5, corners as plain ids, which is also how versions 3
+/// and 4 code their CORNERS chunks.
 pub fn read_faces(bytes: &[u8], what: &str, size: u32, triangles: u32, version: u16) -> Result<Vec<(u32, [u32; 3])>, ContainerError> {
     let mut c = Cursor::new(bytes, what);
     let m = c.count(triangles as u64, "faces")?;
@@ -212,7 +212,7 @@ fn alive(c: &[u32; 3]) -> bool {
 /// and their new values, in corner order; otherwise its three new corners. A reader holds the
 /// corners of every triangle alive at j exactly (they come with the keyframe and every change
 /// to them is sent), so most updates, one corner of a living triangle moving to a neighbouring
-/// node, cost a mask and one id. (Versions 3 and 4 code CORNERS as FACES.)
+/// node, cost a mask and one small difference. (Versions 3 and 4 code CORNERS as FACES.)
 pub fn write_corner_updates(updates: &[(u32, [u32; 3])], before: &[[u32; 3]]) -> Vec<u8> {
     let mut out = Vec::with_capacity(updates.len() * 4 + 2);
     put(&mut out, updates.len() as u32);
