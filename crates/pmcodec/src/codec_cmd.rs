@@ -175,7 +175,7 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
     Ok(())
 }
 
-fn open(path: &Path) -> Result<Reader<FileSource>, Exit> {
+pub(crate) fn open(path: &Path) -> Result<Reader<FileSource>, Exit> {
     let src = FileSource::open(path).map_err(|e| Exit(EXIT_BAD_INPUT, anyhow!(e)))?;
     Reader::open(src).with_context(|| format!("reading {}", path.display())).map_err(|e| Exit(EXIT_BAD_INPUT, e))
 }

@@ -193,15 +193,14 @@ fn container_report(
     sample: &pmcodec_eval::SampleOptions,
     quiet: bool,
 ) -> Result<MethodReport, Exit> {
-    use pmcodec_container::{Decoder, FileSource, MeshTarget, Reader};
-    let source = FileSource::open(path).with_context(|| format!("opening {}", path.display()))?;
-    let reader = Reader::open(source).with_context(|| format!("reading {}", path.display()))?;
+    use pmcodec_container::{Decoder, MeshTarget};
+    let reader = crate::codec_cmd::open(path)?;
     let h = reader.header();
     let frames = originals.len();
     let vertices = originals.first().map_or(0, |m| m.positions.len());
     if h.vertex_count as usize != vertices || (h.frame_count as usize) < frames {
         return Err(Exit(
-            2,
+            crate::EXIT_BAD_INPUT,
             anyhow::anyhow!(
                 "{}: {} vertices and {} frames, but the input has {vertices} vertices and {frames} frames: not an encoding of it",
                 path.display(),
@@ -215,7 +214,7 @@ fn container_report(
     let mut meshes = Vec::with_capacity(frames);
     let mut keys: Vec<Vec<[u32; 3]>> = Vec::new();
     for f in 0..frames {
-        d.seek(f as u32).with_context(|| format!("{}: frame {f}", path.display()))?;
+        d.seek(f as u32).with_context(|| format!("{}: frame {f}", path.display())).map_err(|e| Exit(crate::EXIT_BAD_INPUT, e))?;
         meshes.push(d.mesh(MeshTarget::Vertices(args.vertices)).with_context(|| format!("cutting frame {f}"))?);
         if let Some(budget) = args.coherence_triangles {
             let mut k = d.cut_triangles(MeshTarget::Triangles(budget)).with_context(|| format!("cutting frame {f}"))?;

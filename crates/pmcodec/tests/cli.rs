@@ -99,3 +99,41 @@ fn bad_input_is_reported_with_exit_code_and_no_output() {
     assert_eq!(bin().args(["decode", "x.pmc", "--triangles", "5", "--level", "1", "-o", "y.obj"]).output().unwrap().status.code(), Some(2));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `eval --pmc` measures a container's own cuts beside the methods asked for, and refuses a
+/// container of another sequence by name.
+#[test]
+fn eval_measures_a_container() {
+    let dir = temp("eval");
+    let frames_dir = dir.join("in");
+    std::fs::create_dir_all(&frames_dir).unwrap();
+    write_sequence(&frames_dir, 5);
+    let pmc = dir.join("seq.pmc");
+    ok(bin().args(["encode", "-q"]).arg(&frames_dir).arg("-o").arg(&pmc));
+    let out = ok(bin()
+        .args(["eval", "-q", "--methods", "static", "--vertices", "40", "--coherence-triangles", "60", "--samples", "2000", "--json"])
+        .arg(&frames_dir)
+        .arg("--pmc")
+        .arg(&pmc));
+    let report: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let methods = report["methods"].as_array().unwrap();
+    assert_eq!(methods.iter().map(|m| m["method"].as_str().unwrap()).collect::<Vec<_>>(), ["static", "container"]);
+    let container = &methods[1];
+    assert_eq!(container["rms"].as_array().unwrap().len(), 5);
+    let rms = container["mean_rms"].as_f64().unwrap();
+    assert!(rms > 0.0 && rms < 10.0, "{rms}");
+    let changed = container["mean_changed_share"].as_f64().unwrap();
+    assert!((0.0..=1.0).contains(&changed), "{changed}");
+    // A container of another mesh is refused, naming the file.
+    let other = dir.join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    let seq = pmcodec_mesh::samples::waving_cloth(6, 5, 5);
+    for f in 0..5 {
+        pmcodec_mesh::write::write_mesh_file(&other.join(format!("f{}.obj", f + 1)), &seq.frame_mesh(f).unwrap()).unwrap();
+    }
+    let out = bin().args(["eval", "-q", "--methods", "static", "--vertices", "10"]).arg(&other).arg("--pmc").arg(&pmc).output().unwrap();
+    assert_eq!(out.status.code(), Some(3), "bad input");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("seq.pmc") && err.contains("not an encoding of it"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}
