@@ -425,12 +425,21 @@ impl<S: ByteSource> Decoder<S> {
     /// player that cuts again and again allocates nothing for budget and error cuts once the
     /// buffers have grown.
     pub fn mesh_into(&mut self, target: MeshTarget, mesh: &mut TriMesh) -> Result<(), ContainerError> {
+        let mut derived = self.take_derived()?;
+        let result = self.cut(target, &mut derived, mesh);
+        self.derived = Some(derived);
+        result
+    }
+
+    /// The current frame's derived state (positions, split priorities, split order), taken
+    /// out of the decoder: kept from the last cut of this frame, or recomputed in the buffers of
+    /// the last frame's. The caller puts it back.
+    fn take_derived(&mut self) -> Result<Derived, ContainerError> {
         let Some(replay) = self.replay.as_ref() else {
             return Err(ContainerError::Options("seek to a frame first".into()));
         };
-        let mut derived = match self.derived.take() {
+        Ok(match self.derived.take() {
             Some(d) if d.frame.is_some() && d.frame == self.frame => d,
-            // A new frame: recompute in the last frame's buffers.
             stale => {
                 let mut d = stale.unwrap_or_default();
                 self.positions_into(&mut d.positions);
@@ -439,49 +448,54 @@ impl<S: ByteSource> Decoder<S> {
                 d.frame = self.frame;
                 d
             }
-        };
-        let result = self.cut(target, &mut derived, mesh);
-        self.derived = Some(derived);
-        result
+        })
+    }
+
+    /// The split-order prefix a budget or error target selects, or the level a level target
+    /// names.
+    fn prefix_target(&self, target: MeshTarget) -> Result<PrefixTarget, usize> {
+        let h = self.reader.header();
+        let diag = (Vec3::from_array(h.bbox_max) - Vec3::from_array(h.bbox_min)).length() as f64;
+        match target {
+            MeshTarget::Triangles(n) => Ok(PrefixTarget::Triangles(n)),
+            MeshTarget::Vertices(n) => Ok(PrefixTarget::Vertices(n)),
+            MeshTarget::MaxError(e) => Ok(PrefixTarget::MaxError(e * diag)),
+            MeshTarget::Level(l) => Err(l),
+        }
     }
 
     /// The triangles a budget or error cut shows, each as the global ids of its corners' cut
     /// nodes (input triangle order is not kept): what identifies a shown triangle from frame to
     /// frame, for a tool that measures how much cuts change. `Level` targets are refused.
     pub fn cut_triangles(&mut self, target: MeshTarget) -> Result<Vec<[u32; 3]>, ContainerError> {
-        // The derived state (split order) of this frame, as `mesh` makes it.
-        let mut scratch = TriMesh::default();
-        self.mesh_into(MeshTarget::Vertices(0), &mut scratch)?;
-        let diag = {
-            let h = self.reader.header();
-            (Vec3::from_array(h.bbox_max) - Vec3::from_array(h.bbox_min)).length() as f64
+        let prefix = self
+            .prefix_target(target)
+            .map_err(|l| ContainerError::Options(format!("cut triangles of level {l}: give a budget or an error")))?;
+        let mut d = self.take_derived()?;
+        let result = match self.replay.as_ref() {
+            Some(replay) => {
+                let k = d.order.prefix(replay, &d.errors, prefix);
+                let corners = replay.corners();
+                Ok(d.order
+                    .shown(k)
+                    .iter()
+                    .filter_map(|&t| corners.get(t as usize))
+                    .map(|c| c.map(|v| d.order.cut_node_of(replay, v, k)))
+                    .collect())
+            }
+            None => Err(ContainerError::Options("seek to a frame first".into())),
         };
-        let prefix = match target {
-            MeshTarget::Triangles(n) => PrefixTarget::Triangles(n),
-            MeshTarget::Vertices(n) => PrefixTarget::Vertices(n),
-            MeshTarget::MaxError(e) => PrefixTarget::MaxError(e * diag),
-            MeshTarget::Level(l) => return Err(ContainerError::Options(format!("cut triangles of level {l}: give a budget or an error"))),
-        };
-        let (Some(replay), Some(d)) = (self.replay.as_ref(), self.derived.as_mut()) else {
-            return Err(ContainerError::Options("seek to a frame first".into()));
-        };
-        let k = d.order.prefix(replay, &d.errors, prefix);
-        let corners = replay.corners();
-        Ok(d.order.shown(k).iter().filter_map(|&t| corners.get(t as usize)).map(|c| c.map(|v| d.order.cut_node_of(replay, v, k))).collect())
+        self.derived = Some(d);
+        result
     }
 
     fn cut(&mut self, target: MeshTarget, d: &mut Derived, mesh: &mut TriMesh) -> Result<(), ContainerError> {
-        let diag = {
-            let h = self.reader.header();
-            (Vec3::from_array(h.bbox_max) - Vec3::from_array(h.bbox_min)).length() as f64
-        };
+        let prefix = self.prefix_target(target);
         let min_level = self.min_level;
         let replay = self.replay.as_mut().ok_or_else(|| ContainerError::Options("seek to a frame first".into()))?;
-        let prefix = match target {
-            MeshTarget::Triangles(n) => PrefixTarget::Triangles(n),
-            MeshTarget::Vertices(n) => PrefixTarget::Vertices(n),
-            MeshTarget::MaxError(e) => PrefixTarget::MaxError(e * diag),
-            MeshTarget::Level(0) if min_level == 0 => {
+        let prefix = match prefix {
+            Ok(p) => p,
+            Err(0) if min_level == 0 => {
                 let n0 = replay.h.level_sizes[0] as usize;
                 mesh.positions.clear();
                 mesh.positions.extend_from_slice(&d.positions[..n0]);
@@ -489,7 +503,7 @@ impl<S: ByteSource> Decoder<S> {
                 mesh.triangles.extend_from_slice(self.triangles.as_deref().unwrap_or_default());
                 return Ok(());
             }
-            MeshTarget::Level(l) => {
+            Err(l) => {
                 replay.select_level(l);
                 *mesh = ordered_mesh(replay, &d.positions);
                 return Ok(());

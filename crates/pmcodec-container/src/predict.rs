@@ -22,15 +22,14 @@ pub struct LowerNeighbours {
 }
 
 /// The input triangles' edges as rows by vertex: for each `a`, the distinct `b` sharing a
-/// triangle with it for which `keep(a, b)`, ascending, dropping degenerate and out-of-range
-/// corners (only broken input has them). Returns (offsets, items).
-fn neighbour_rows(n: usize, triangles: &[[u32; 3]], keep: impl Fn(u32, u32) -> bool) -> (Vec<u32>, Vec<u32>) {
+/// triangle with it, ascending, dropping degenerate and out-of-range corners (only broken input
+/// has them). Returns (offsets, items).
+fn neighbour_rows(n: usize, triangles: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) {
     let pairs = || {
         triangles
             .iter()
             .flat_map(|t| [(t[0], t[1]), (t[1], t[0]), (t[1], t[2]), (t[2], t[1]), (t[2], t[0]), (t[0], t[2])])
             .filter(move |&(a, b)| a != b && (a as usize) < n && (b as usize) < n)
-            .filter(|&(a, b)| keep(a, b))
     };
     let mut offsets = vec![0u32; n + 1];
     for (a, _) in pairs() {
@@ -67,8 +66,7 @@ fn neighbour_rows(n: usize, triangles: &[[u32; 3]], keep: impl Fn(u32, u32) -> b
 /// Breadth-first order over the input triangles' edges (proto/container.md, "Band 0 order"):
 /// from the smallest vertex not yet reached, first in first out, each vertex's neighbours
 /// taken in ascending order; a vertex on no triangle comes in its turn as a start.
-fn breadth_first(n: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
-    let (offsets, items) = neighbour_rows(n, triangles, |_, _| true);
+fn breadth_first(n: usize, offsets: &[u32], items: &[u32]) -> Vec<u32> {
     let mut seen = vec![false; n];
     let mut order = Vec::with_capacity(n);
     for start in 0..n {
@@ -95,17 +93,24 @@ fn breadth_first(n: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
 
 impl LowerNeighbours {
     pub fn new(n: usize, triangles: &[[u32; 3]], order: VertexOrder) -> Self {
+        let (all_offsets, all) = neighbour_rows(n, triangles);
         let sequence: Vec<u32> = match order {
             VertexOrder::Input => (0..n as u32).collect(),
-            VertexOrder::BreadthFirst => breadth_first(n, triangles),
+            VertexOrder::BreadthFirst => breadth_first(n, &all_offsets, &all),
         };
         let mut rank = vec![0u32; n];
         for (k, &v) in sequence.iter().enumerate() {
             rank[v as usize] = k as u32;
         }
-        let (offsets, mut items) = neighbour_rows(n, triangles, |a, b| rank[b as usize] < rank[a as usize]);
+        // Each row's neighbours decoded before it, in decoding order.
+        let mut offsets = Vec::with_capacity(n + 1);
+        offsets.push(0u32);
+        let mut items = Vec::with_capacity(all.len() / 2);
         for v in 0..n {
-            items[offsets[v] as usize..offsets[v + 1] as usize].sort_unstable_by_key(|&u| rank[u as usize]);
+            let start = items.len();
+            items.extend(all[all_offsets[v] as usize..all_offsets[v + 1] as usize].iter().filter(|&&u| rank[u as usize] < rank[v]));
+            items[start..].sort_unstable_by_key(|&u| rank[u as usize]);
+            offsets.push(items.len() as u32);
         }
         let mut lower = LowerNeighbours { sequence, offsets, items, stencil_offsets: vec![0], stencil_items: Vec::new() };
         lower.build_stencils(n, &rank);
