@@ -47,7 +47,7 @@ fn check_degenerate_sets(b: &Built, seed: u64, cuts: usize) {
 
 #[test]
 fn horse_hierarchy_is_valid() {
-    let Some(seq) = load("horse-gallop", 1) else { return };
+    let seq = load("horse-gallop", 1);
     let b = build_seq(seq, &BuildOptions::default());
     assert_eq!(b.h.level_sizes, vec![8431, 2108, 527, 132, 33, 8]);
     b.h.check(&b.topo).expect("every cluster connected");
@@ -60,7 +60,7 @@ fn horse_hierarchy_is_valid() {
 #[test]
 fn samba_and_cat_hierarchies_are_valid() {
     for name in ["samba-60", "cat-poses"] {
-        let Some(seq) = load(name, 1) else { return };
+        let seq = load(name, 1);
         for branching in [2, 8] {
             let b = build_seq(seq.clone(), &BuildOptions { branching, ..Default::default() });
             b.h.check(&b.topo).unwrap_or_else(|e| panic!("{name} b={branching}: {e}"));
@@ -75,7 +75,7 @@ fn samba_and_cat_hierarchies_are_valid() {
 
 #[test]
 fn budget_cuts_are_exact_and_full() {
-    let Some(seq) = load("horse-gallop", 1) else { return };
+    let seq = load("horse-gallop", 1);
     let b = build_seq(seq, &BuildOptions::default());
     let children = ChildIndex::new(&b.h);
     let nodes = NodeState::compute(&b.h, &base_quadrics(&b.seq, &b.topo, &BaseOptions::default()), &b.seq.frames[0]);
