@@ -194,7 +194,7 @@ pub(crate) fn container_exit(e: &ContainerError) -> u8 {
 }
 
 /// `e` with its exit code and `what` (the file, and the frame where there is one) as context.
-fn container_error(e: ContainerError, what: impl std::fmt::Display) -> Exit {
+pub(crate) fn container_error(e: ContainerError, what: impl std::fmt::Display) -> Exit {
     Exit(container_exit(&e), anyhow!(e).context(what.to_string()))
 }
 

@@ -284,3 +284,25 @@ fn info_prints_encoding_options_as_rows() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `eval` checks its values before any work: out of range is bad input naming the value and the
+/// range (`--vertices 0` used to never return).
+#[test]
+fn eval_values_out_of_range_are_bad_input() {
+    let dir = temp("evalrange");
+    let frames_dir = dir.join("in");
+    std::fs::create_dir_all(&frames_dir).unwrap();
+    write_sequence(&frames_dir, 2);
+    for (args, says) in [
+        (&["--vertices", "0"][..], "--vertices 0: the input has 140 vertices; use 1..=140"),
+        (&["--vertices", "141"], "use 1..=140"),
+        (&["--vertices", "40", "--samples", "0"], "--samples 0"),
+        (&["--vertices", "40", "--branching", "1"], "--branching 1: use 2..=16"),
+        (&["--vertices", "40", "--beta", "NaN"], "--beta NaN: use a finite number >= 0"),
+        (&["--vertices", "40", "--min-benefit", "-1"], "--min-benefit -1"),
+    ] {
+        let err = fails(bin().args(["eval", "-q", "--methods", "static"]).arg(&frames_dir).args(args), 3);
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
