@@ -79,10 +79,10 @@ pub struct EncodeArgs {
     #[arg(long, value_enum, default_value_t = WeightsArg::None)]
     pub base_weights: WeightsArg,
     /// Hierarchical QEM growth exponent (equation 2).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub beta: Option<f64>,
     /// Smallest swap benefit relative to the moving node's error (hysteresis).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub min_benefit: Option<f64>,
     /// At most this many swaps per frame.
     #[arg(long)]
@@ -157,6 +157,11 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
         opts.recluster.max_swaps_per_frame = m;
     }
     opts.recluster.homeomorphism = args.homeomorphism;
+    for (flag, v) in [("--beta", args.beta), ("--min-benefit", args.min_benefit)] {
+        if let Some(v) = v.filter(|v| !(v.is_finite() && *v >= 0.0)) {
+            return Err(Exit(EXIT_BAD_INPUT, anyhow!("{flag} {v}: use a finite number >= 0")));
+        }
+    }
     opts.quantization = match (args.max_error, args.quant_bits) {
         (_, Some(b)) => QuantizationChoice::Bits(b),
         (Some(e), None) => QuantizationChoice::MaxError(e),
@@ -194,8 +199,10 @@ pub(crate) fn container_exit(e: &ContainerError) -> u8 {
 }
 
 /// `e` with its exit code and `what` (the file, and the frame where there is one) as context.
+/// The message is flattened: the library's messages already include their sources, which
+/// anyhow's chain would print a second time.
 pub(crate) fn container_error(e: ContainerError, what: impl std::fmt::Display) -> Exit {
-    Exit(container_exit(&e), anyhow!(e).context(what.to_string()))
+    Exit(container_exit(&e), anyhow::Error::msg(e.to_string()).context(what.to_string()))
 }
 
 pub(crate) fn open(path: &Path) -> Result<Reader<FileSource>, Exit> {
@@ -244,7 +251,7 @@ pub struct DecodeArgs {
     #[arg(long, conflicts_with = "frame")]
     pub all_frames: bool,
     /// At most this many triangles, or this share of the full-resolution triangles (25%). Where
-    /// the coarsest cut has more, it is written with a warning.
+    /// the coarsest cut has more, it is written with a warning (unless --quiet).
     #[arg(long, value_parser = parse_budget, value_name = "N|P%")]
     pub triangles: Option<Budget>,
     /// At most this many vertices, or this share of the input vertices (25%); as --triangles.
@@ -364,9 +371,11 @@ pub fn decode_cmd(args: DecodeArgs, quiet: bool) -> Result<(), Exit> {
     } else {
         vec![write_frame(&mut dec, &args.input, args.frame, target, &args.output)?]
     };
-    // A budget is "at most": say so where the coarsest cut could not keep it.
+    // A budget is "at most": say so where the coarsest cut could not keep it (unless --quiet;
+    // --json says it too).
     let over: Vec<(u32, OverBudget)> = written.iter().filter_map(|w| w.over_budget.map(|o| (w.frame, o))).collect();
     match over.as_slice() {
+        _ if quiet => {}
         [] => {}
         [(f, o)] => eprintln!(
             "warning: frame {f}: the coarsest cut the file holds has {} {}, more than the {} asked for; wrote it",

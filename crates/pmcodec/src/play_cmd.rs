@@ -65,7 +65,7 @@ async fn play(args: PlayArgs, quiet: bool) -> Result<(), Exit> {
     let pace = match args.realtime {
         true => {
             let (pace, warning) = pacing_rate(rate).map_err(|e| Exit(crate::EXIT_BAD_INPUT, anyhow::anyhow!("asset {id}: {e}")))?;
-            if let Some(w) = warning {
+            if let Some(w) = warning.filter(|_| !quiet) {
                 eprintln!("warning: asset {id}: {w}");
             }
             Some(pace)
@@ -130,7 +130,8 @@ fn client_error(e: ClientError, what: String) -> Exit {
         ClientError::Protocol(_) => crate::EXIT_BAD_INPUT,
         _ => crate::EXIT_FAILURE,
     };
-    Exit(code, anyhow::Error::new(e).context(what))
+    // Flattened: the library's messages include their sources already.
+    Exit(code, anyhow::Error::msg(e.to_string()).context(what))
 }
 
 /// The slowest and fastest frame rates `--realtime` paces at: a frame every 100 s at most, a

@@ -306,3 +306,27 @@ fn eval_values_out_of_range_are_bad_input() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `encode` refuses values out of range as bad input, each named once, and writes nothing.
+#[test]
+fn encode_values_out_of_range_are_bad_input() {
+    let dir = temp("encrange");
+    let frames_dir = dir.join("in");
+    std::fs::create_dir_all(&frames_dir).unwrap();
+    write_sequence(&frames_dir, 2);
+    let pmc = dir.join("x.pmc");
+    for (args, says) in [
+        (&["--fps", "1e-30"][..], "--fps 1e-30: use 0.01..=1000"),
+        (&["--fps", "1001"], "--fps 1001.0"),
+        (&["--beta", "NaN"], "--beta NaN: use a finite number >= 0"),
+        (&["--min-benefit", "-1"], "--min-benefit -1"),
+        (&["--branching", "99"], "branching factor 99 is outside 2..=16"),
+        (&["--quant-bits", "40"], "4..=24 bits"),
+        (&["--level-anchors", "50%,60%"], "percentages must decrease"),
+    ] {
+        let err = fails(bin().args(["encode", "-q"]).arg(&frames_dir).arg("-o").arg(&pmc).args(args), 3);
+        assert_eq!(err.matches(says).count(), 1, "{args:?}: {err}");
+        assert!(!pmc.exists());
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
