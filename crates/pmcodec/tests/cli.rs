@@ -330,3 +330,34 @@ fn encode_values_out_of_range_are_bad_input() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `play` against a server on loopback: an asset the server does not have is bad input (its
+/// 404 named), a server that cannot be reached is a failure, and a played asset reports every
+/// frame.
+#[test]
+fn play_exit_codes_follow_the_server_answers() {
+    let dir = temp("play");
+    let seq = pmcodec_mesh::samples::waving_cloth(14, 10, 6);
+    let bytes = pmcodec_container::encode(&seq, &Default::default(), |_| {}).unwrap();
+    std::fs::write(dir.join("cloth.pmc"), &bytes).unwrap();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let config = pmcodec_server::Config {
+        store: pmcodec_server::config::StoreConfig::Local { path: dir.clone() },
+        listen: "127.0.0.1:0".parse().unwrap(),
+        ..Default::default()
+    };
+    let server = rt.block_on(pmcodec_server::start(config)).unwrap();
+    let url = server.url();
+    let out = ok(bin().args(["play", "--json", "--asset", "cloth", "--triangles", "50"]).arg(&url));
+    let lines: Vec<serde_json::Value> = out.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(lines.len(), 7, "six frames and a summary: {out}");
+    assert_eq!(lines[6]["frames"], 6);
+    let err = fails(bin().args(["play", "--asset", "nope"]).arg(&url), 3);
+    assert!(err.contains("nope") && err.contains("404"), "{err}");
+    drop(server);
+    drop(rt);
+    // Nothing listens on a port just freed: a failure, not bad input.
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    fails(bin().args(["play", "--asset", "cloth"]).arg(format!("http://127.0.0.1:{port}")), 1);
+    std::fs::remove_dir_all(&dir).ok();
+}
