@@ -123,7 +123,22 @@ fn parse_poses(s: &str) -> anyhow::Result<PoseSet> {
     }
 }
 
+/// The frame rates accepted: a frame every 100 s to a thousand a second. A glTF animation is
+/// sampled at this rate, so a high rate means as many frames, and players pace by it.
+const FPS_RANGE: std::ops::RangeInclusive<f32> = 0.01..=1000.0;
+
+/// `--fps` out of [`FPS_RANGE`] is bad input (`1e-30` was accepted, and players of the file
+/// then overflowed their frame times).
+pub(crate) fn check_fps(args: &InputArgs) -> Result<(), Exit> {
+    if FPS_RANGE.contains(&args.fps) {
+        return Ok(());
+    }
+    let (lo, hi) = (FPS_RANGE.start(), FPS_RANGE.end());
+    Err(Exit(EXIT_BAD_INPUT, anyhow!("--fps {:?}: use {lo}..={hi} frames per second", args.fps)))
+}
+
 pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
+    check_fps(&args.input_args)?;
     let seq = input::load(&args.input, &args.input_args)?;
     let coarse_grid = match args.coarse_grid.trim() {
         "none" => None,

@@ -107,6 +107,7 @@ fn mean(x: &[f64]) -> f64 {
 }
 
 pub fn run(args: EvalArgs, quiet: bool) -> Result<(), Exit> {
+    crate::codec_cmd::check_fps(&args.input_args)?;
     let mut seq = input::load(&args.input, &args.input_args)?;
     if let Some(n) = args.frames {
         seq.frames.truncate(n.max(1));

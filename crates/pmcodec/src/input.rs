@@ -19,16 +19,8 @@ pub struct InputArgs {
     pub animation: Option<String>,
 }
 
-/// The frame rates accepted: a frame every 100 s to a thousand a second. A glTF animation is
-/// sampled at this rate, so a high rate means as many frames, and players pace by it.
-pub const FPS_RANGE: std::ops::RangeInclusive<f32> = 0.01..=1000.0;
-
 /// Reads and validates the input sequence.
 pub fn load(path: &Path, args: &InputArgs) -> Result<Sequence, Exit> {
-    if !FPS_RANGE.contains(&args.fps) {
-        let (lo, hi) = (FPS_RANGE.start(), FPS_RANGE.end());
-        return Err(Exit(EXIT_BAD_INPUT, anyhow::anyhow!("--fps {:?}: use {lo}..={hi} frames per second", args.fps)));
-    }
     let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     let seq = if ext == "glb" || ext == "gltf" {
         let animation = args.animation.as_ref().map(|a| match a.parse::<usize>() {
