@@ -117,3 +117,16 @@ fn grid_fixture_hierarchies() {
         assert!(b.h.level_sizes.len() >= 2);
     }
 }
+
+/// A hierarchy anchored at 0 vertices is refused with a typed error (it once never returned,
+/// growing its list of level sizes without bound), and small anchors still build.
+#[test]
+fn anchor_of_zero_vertices_is_refused() {
+    let seq = grid(12, 10, 1);
+    let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
+    let q = base_quadrics(&seq, &topo, &BaseOptions::default());
+    let e = pmcodec_hierarchy::approx::anchored_build(&topo, &q, 0, 4).unwrap_err();
+    assert!(e.to_string().contains("above 0"), "{e}");
+    let (h, level) = pmcodec_hierarchy::approx::anchored_build(&topo, &q, 30, 4).expect("anchor 30");
+    assert_eq!(h.level_sizes[level], 30);
+}
