@@ -98,7 +98,8 @@ pub fn anchored_sizes(fine: u32, anchor: u32, branching: u32, min_coarsest: u32)
     let b = branching.max(2) as u64;
     let mut above = Vec::new();
     let mut s = anchor as u64 * b;
-    while s < fine as u64 {
+    // An anchor of 0 would never grow: its size list is left to `build` to refuse.
+    while s > 0 && s < fine as u64 {
         above.push(s as u32);
         s *= b;
     }

@@ -4,23 +4,21 @@
 use pmcodec_mesh::Sequence;
 use std::path::PathBuf;
 
-/// `../shared/data` beside the repository; the test fails with a message where it is absent
-/// (always `Some`: the Option is kept for the callers' `let ... else`).
-pub fn data_dir() -> Option<PathBuf> {
+/// `../shared/data` beside the repository; the test fails with a message where it is absent.
+pub fn data_dir() -> PathBuf {
     let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data"));
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        panic!("{} is absent; real-mesh tests need ../shared/data beside the repository", dir.display());
-    }
+    assert!(dir.is_dir(), "{} is absent; real-mesh tests need ../shared/data beside the repository", dir.display());
+    dir
 }
 
-/// The first `frames` frames of a real OBJ sequence.
-pub fn load(name: &str, frames: usize) -> Option<Sequence> {
-    let dir = data_dir()?.join(name);
-    let mut paths = pmcodec_mesh::obj::frame_paths(&dir).expect("frames");
+/// The first `frames` frames of a real OBJ sequence; the test fails naming the folder when it
+/// is missing or holds fewer frames.
+pub fn load(name: &str, frames: usize) -> Sequence {
+    let dir = data_dir().join(name);
+    let mut paths = pmcodec_mesh::obj::frame_paths(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
+    assert!(paths.len() >= frames, "{}: {} frames, the test needs {frames}", dir.display(), paths.len());
     paths.truncate(frames);
-    Some(pmcodec_mesh::obj::load_obj_files(&paths, 30.0).expect("load"))
+    pmcodec_mesh::obj::load_obj_files(&paths, 30.0).unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
 }
 
 /// A deterministic generator for tests (splitmix64).

@@ -47,7 +47,7 @@ fn check_degenerate_sets(b: &Built, seed: u64, cuts: usize) {
 
 #[test]
 fn horse_hierarchy_is_valid() {
-    let Some(seq) = load("horse-gallop", 1) else { return };
+    let seq = load("horse-gallop", 1);
     let b = build_seq(seq, &BuildOptions::default());
     assert_eq!(b.h.level_sizes, vec![8431, 2108, 527, 132, 33, 8]);
     b.h.check(&b.topo).expect("every cluster connected");
@@ -60,7 +60,7 @@ fn horse_hierarchy_is_valid() {
 #[test]
 fn samba_and_cat_hierarchies_are_valid() {
     for name in ["samba-60", "cat-poses"] {
-        let Some(seq) = load(name, 1) else { return };
+        let seq = load(name, 1);
         for branching in [2, 8] {
             let b = build_seq(seq.clone(), &BuildOptions { branching, ..Default::default() });
             b.h.check(&b.topo).unwrap_or_else(|e| panic!("{name} b={branching}: {e}"));
@@ -75,7 +75,7 @@ fn samba_and_cat_hierarchies_are_valid() {
 
 #[test]
 fn budget_cuts_are_exact_and_full() {
-    let Some(seq) = load("horse-gallop", 1) else { return };
+    let seq = load("horse-gallop", 1);
     let b = build_seq(seq, &BuildOptions::default());
     let children = ChildIndex::new(&b.h);
     let nodes = NodeState::compute(&b.h, &base_quadrics(&b.seq, &b.topo, &BaseOptions::default()), &b.seq.frames[0]);
@@ -116,4 +116,17 @@ fn grid_fixture_hierarchies() {
         check_degenerate_sets(&b, 3, 10);
         assert!(b.h.level_sizes.len() >= 2);
     }
+}
+
+/// A hierarchy anchored at 0 vertices is refused with a typed error (it once never returned,
+/// growing its list of level sizes without bound), and small anchors still build.
+#[test]
+fn anchor_of_zero_vertices_is_refused() {
+    let seq = grid(12, 10, 1);
+    let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
+    let q = base_quadrics(&seq, &topo, &BaseOptions::default());
+    let e = pmcodec_hierarchy::approx::anchored_build(&topo, &q, 0, 4).unwrap_err();
+    assert!(e.to_string().contains("above 0"), "{e}");
+    let (h, level) = pmcodec_hierarchy::approx::anchored_build(&topo, &q, 30, 4).expect("anchor 30");
+    assert_eq!(h.level_sizes[level], 30);
 }

@@ -17,15 +17,25 @@ fn encoder_for(seq: &pmcodec_mesh::Sequence, opts: ReclusterOptions) -> (Encoder
     (Encoder::new(h.clone(), topo, seq.triangles.clone(), opts), h)
 }
 
+/// What a replayed sequence did: swaps in all, and swaps that broke section 4.2's
+/// homeomorphism rule as [`homeomorphism_violations`] checks it.
+struct Replayed {
+    swaps: usize,
+    violations: usize,
+}
+
 /// Replays every frame and checks it against the encoder and against re-deriving the cut.
-fn replay_matches(seq: &pmcodec_mesh::Sequence, opts: ReclusterOptions) -> usize {
+fn replay_matches(seq: &pmcodec_mesh::Sequence, opts: ReclusterOptions) -> Replayed {
     let (mut enc, base) = encoder_for(seq, opts);
     let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
     let mut replay = Replay::new(base, &seq.triangles);
-    let mut total_swaps = 0;
+    let mut out = Replayed { swaps: 0, violations: 0 };
     for (f, frame) in seq.frames.iter().enumerate() {
+        let before = enc.hierarchy().clone();
         let (delta, stats) = enc.encode_frame(frame);
-        total_swaps += stats.swaps as usize;
+        assert_eq!(stats.swaps as usize, delta.swaps.len(), "frame {f}: swaps counted and sent");
+        out.swaps += delta.swaps.len();
+        out.violations += homeomorphism_violations(&before, &seq.triangles, &delta.swaps);
         enc.hierarchy().check(&topo).unwrap_or_else(|e| panic!("frame {f}: {e}"));
         // Every few frames, pick a fresh budget cut on the encoder's side and hand it over, so
         // the replay maintains different cuts through later deltas.
@@ -53,38 +63,114 @@ fn replay_matches(seq: &pmcodec_mesh::Sequence, opts: ReclusterOptions) -> usize
         shown.sort_unstable();
         assert_eq!(shown, derived, "frame {f}: shown triangles");
     }
-    total_swaps
+    out
+}
+
+/// Each level-k node's neighbours: the level-k nodes whose clusters share a fine edge with its
+/// own (sorted, without itself).
+fn level_neighbours(h: &Hierarchy, triangles: &[[u32; 3]], k: usize) -> Vec<Vec<u32>> {
+    let ancestor = |mut v: u32| {
+        for p in &h.parent[..k] {
+            v = p[v as usize];
+        }
+        v
+    };
+    let mut out = vec![Vec::new(); h.level_sizes[k] as usize];
+    for t in triangles {
+        for i in 0..3 {
+            let (a, b) = (ancestor(t[i]), ancestor(t[(i + 1) % 3]));
+            if a != b {
+                out[a as usize].push(b);
+                out[b as usize].push(a);
+            }
+        }
+    }
+    for row in &mut out {
+        row.sort_unstable();
+        row.dedup();
+    }
+    out
+}
+
+/// How many of a frame's swaps (in the order performed, on the hierarchy `before` the frame)
+/// break section 4.2's homeomorphism rule in the conservative form the encoder applies it: a
+/// node v moving to cluster b may touch another cluster c only where v's contact with c
+/// continues a contact between b and c (a neighbour of v in b is adjacent to a neighbour of v
+/// in c); otherwise the move could open a second boundary between b and c. Levels are
+/// reclustered coarsest first, so a level's swaps see the frame's parent maps below it (which
+/// fix its neighbours) and the swaps before them at their own level.
+fn homeomorphism_violations(before: &Hierarchy, triangles: &[[u32; 3]], swaps: &[Swap]) -> usize {
+    let mut h = before.clone();
+    let mut adj: Option<(usize, Vec<Vec<u32>>)> = None;
+    let mut violations = 0;
+    for s in swaps {
+        let k = s.level as usize;
+        if adj.as_ref().is_none_or(|(level, _)| *level != k) {
+            adj = Some((k, level_neighbours(&h, triangles, k)));
+        }
+        let Some((_, adj)) = adj.as_ref() else { unreachable!() };
+        let parent = &h.parent[k];
+        assert_eq!(parent[s.v as usize], s.from, "swap {s:?} does not start from v's parent");
+        let nbrs = &adj[s.v as usize];
+        let continues = |c: u32| {
+            nbrs.iter().any(|&u| {
+                parent[u as usize] == s.to && nbrs.iter().any(|&z| parent[z as usize] == c && adj[u as usize].binary_search(&z).is_ok())
+            })
+        };
+        if !nbrs.iter().all(|&w| parent[w as usize] == s.to || continues(parent[w as usize])) {
+            violations += 1;
+        }
+        h.parent[k][s.v as usize] = s.to;
+    }
+    violations
 }
 
 #[test]
 fn horse_gallop_replays_bit_for_bit() {
-    let Some(seq) = load("horse-gallop", 48) else { return };
-    let swaps = replay_matches(&seq, ReclusterOptions::default());
-    assert!(swaps > 48 * 50, "reclustering should move vertices on a gallop: {swaps} swaps");
+    let seq = load("horse-gallop", 48);
+    let r = replay_matches(&seq, ReclusterOptions::default());
+    assert!(r.swaps > 48 * 50, "reclustering should move vertices on a gallop: {} swaps", r.swaps);
 }
 
+/// With the rule on, swaps still happen and none breaks it; with it off, the same frames give
+/// swaps that do (so the check above can fail).
 #[test]
 fn samba_replays_with_homeomorphism_rule() {
-    let Some(seq) = load("samba-60", 12) else { return };
-    replay_matches(&seq, ReclusterOptions { homeomorphism: true, ..Default::default() });
+    let seq = load("samba-60", 12);
+    let with_rule = replay_matches(&seq, ReclusterOptions { homeomorphism: true, ..Default::default() });
+    assert!(with_rule.swaps > 12 * 5, "reclustering should move vertices on a dance: {} swaps", with_rule.swaps);
+    assert_eq!(with_rule.violations, 0, "of {} swaps", with_rule.swaps);
+    let (mut enc, _) = encoder_for(&seq, ReclusterOptions::default());
+    let mut without = 0;
+    for frame in &seq.frames {
+        let before = enc.hierarchy().clone();
+        let (delta, _) = enc.encode_frame(frame);
+        without += homeomorphism_violations(&before, &seq.triangles, &delta.swaps);
+    }
+    // Shown with --nocapture, for the figures quoted in commit messages and reports.
+    eprintln!("samba, 12 frames: {} swaps with the rule, none breaking it; {without} swaps break it without the rule", with_rule.swaps);
+    assert!(without > 0, "without the rule some swap should break it");
 }
 
 #[test]
 fn cat_poses_replay() {
-    let Some(seq) = load("cat-poses", 10) else { return };
-    replay_matches(&seq, ReclusterOptions::default());
+    let seq = load("cat-poses", 10);
+    let r = replay_matches(&seq, ReclusterOptions::default());
+    eprintln!("cat, 10 poses: {} swaps", r.swaps);
+    // Ten different poses: every frame reclusters.
+    assert!(r.swaps > 10 * 50, "reclustering should move vertices between poses: {} swaps", r.swaps);
 }
 
 #[test]
 fn generated_wave_replays() {
     let seq = grid(30, 20, 12);
-    let swaps = replay_matches(&seq, ReclusterOptions::default());
-    assert!(swaps > 0);
+    let r = replay_matches(&seq, ReclusterOptions::default());
+    assert!(r.swaps > 0);
 }
 
 #[test]
 fn reclustering_lowers_level_error() {
-    let Some(seq) = load("horse-gallop", 16) else { return };
+    let seq = load("horse-gallop", 16);
     let (mut enc, base) = encoder_for(&seq, ReclusterOptions::default());
     let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
     let mut stat = pmcodec_hierarchy::recluster::Reclusterer::new(base, topo, seq.triangles.clone(), Default::default());
@@ -102,7 +188,7 @@ fn reclustering_lowers_level_error() {
 
 #[test]
 fn swap_cap_is_respected() {
-    let Some(seq) = load("horse-gallop", 3) else { return };
+    let seq = load("horse-gallop", 3);
     let (mut enc, _) = encoder_for(&seq, ReclusterOptions { max_swaps_per_frame: 10, ..Default::default() });
     for frame in &seq.frames {
         let (delta, _) = enc.encode_frame(frame);
@@ -185,7 +271,7 @@ fn level_limited_replay_matches(seq: &pmcodec_mesh::Sequence, key_frame: usize, 
 
 #[test]
 fn level_limited_clients_agree_with_encoder() {
-    let Some(seq) = load("horse-gallop", 20) else { return };
+    let seq = load("horse-gallop", 20);
     for (key, level) in [(0, 1), (0, 2), (5, 3), (9, 0), (0, 4)] {
         level_limited_replay_matches(&seq, key, level);
     }

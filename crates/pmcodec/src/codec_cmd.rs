@@ -1,13 +1,15 @@
 //! `pmcodec encode`, `decode`, `info` and `verify`: the container from the command line.
 
 use crate::input::{self, InputArgs};
-use crate::{EXIT_BAD_INPUT, Exit, progress};
+use crate::{EXIT_BAD_INPUT, EXIT_FAILURE, Exit, progress};
 use anyhow::{Context, anyhow};
 use clap::{Args, ValueEnum};
 use pmcodec_container::{
-    Decoder, EncodeOptions, FileSource, MeshTarget, Motion, QuantizationChoice, Reader, VertexOrder, encode, summary, verify, write_file,
+    ContainerError, Decoder, EncodeOptions, FileSource, Header, MeshTarget, Motion, QuantizationChoice, Reader, VertexOrder, encode,
+    summary, verify, write_file,
 };
 use pmcodec_hierarchy::base::{PoseSet, VertexWeights};
+use serde::Serialize;
 use std::path::{Path, PathBuf};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -77,10 +79,10 @@ pub struct EncodeArgs {
     #[arg(long, value_enum, default_value_t = WeightsArg::None)]
     pub base_weights: WeightsArg,
     /// Hierarchical QEM growth exponent (equation 2).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub beta: Option<f64>,
     /// Smallest swap benefit relative to the moving node's error (hysteresis).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub min_benefit: Option<f64>,
     /// At most this many swaps per frame.
     #[arg(long)]
@@ -90,17 +92,23 @@ pub struct EncodeArgs {
     pub homeomorphism: bool,
 }
 
-fn parse_anchors(s: &str) -> anyhow::Result<Vec<f64>> {
+/// Anchors as percentages: a value that is not a number is a usage error (2), one out of range
+/// bad input (3), as everywhere in the command line.
+fn parse_anchors(s: &str) -> Result<Vec<f64>, Exit> {
     if s.trim() == "none" || s.trim().is_empty() {
         return Ok(Vec::new());
     }
     let mut out: Vec<f64> = Vec::new();
     for part in s.split(',') {
         let p = part.trim();
-        let v: f64 =
-            p.strip_suffix('%').unwrap_or(p).trim().parse().map_err(|_| anyhow!("--level-anchors {p:?}: use percentages like 25%,10%"))?;
+        let v: f64 = p
+            .strip_suffix('%')
+            .unwrap_or(p)
+            .trim()
+            .parse()
+            .map_err(|_| Exit(2, anyhow!("--level-anchors {p:?}: use percentages like 25%,10%")))?;
         if !(v > 0.0 && v < 100.0) || out.last().is_some_and(|&last| v / 100.0 >= last) {
-            return Err(anyhow!("--level-anchors {s:?}: percentages must decrease and lie between 0 and 100"));
+            return Err(Exit(EXIT_BAD_INPUT, anyhow!("--level-anchors {s:?}: percentages must decrease and lie between 0 and 100")));
         }
         out.push(v / 100.0);
     }
@@ -115,7 +123,22 @@ fn parse_poses(s: &str) -> anyhow::Result<PoseSet> {
     }
 }
 
+/// The frame rates accepted: a frame every 100 s to a thousand a second. A glTF animation is
+/// sampled at this rate, so a high rate means as many frames, and players pace by it.
+const FPS_RANGE: std::ops::RangeInclusive<f32> = 0.01..=1000.0;
+
+/// `--fps` out of [`FPS_RANGE`] is bad input (`1e-30` was accepted, and players of the file
+/// then overflowed their frame times).
+pub(crate) fn check_fps(args: &InputArgs) -> Result<(), Exit> {
+    if FPS_RANGE.contains(&args.fps) {
+        return Ok(());
+    }
+    let (lo, hi) = (FPS_RANGE.start(), FPS_RANGE.end());
+    Err(Exit(EXIT_BAD_INPUT, anyhow!("--fps {:?}: use {lo}..={hi} frames per second", args.fps)))
+}
+
 pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
+    check_fps(&args.input_args)?;
     let seq = input::load(&args.input, &args.input_args)?;
     let coarse_grid = match args.coarse_grid.trim() {
         "none" => None,
@@ -132,7 +155,7 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
     };
     let mut opts = EncodeOptions { keyframe_interval: args.keyframe_interval, coarse_grid, motion, order, ..Default::default() };
     opts.build.branching = args.branching;
-    opts.build.anchors = parse_anchors(&args.level_anchors).map_err(|e| Exit(2, e))?;
+    opts.build.anchors = parse_anchors(&args.level_anchors)?;
     opts.base.poses = parse_poses(&args.base_poses).map_err(|e| Exit(2, e))?;
     opts.base.weights = match args.base_weights {
         WeightsArg::None => VertexWeights::None,
@@ -149,13 +172,19 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
         opts.recluster.max_swaps_per_frame = m;
     }
     opts.recluster.homeomorphism = args.homeomorphism;
+    for (flag, v) in [("--beta", args.beta), ("--min-benefit", args.min_benefit)] {
+        if let Some(v) = v.filter(|v| !(v.is_finite() && *v >= 0.0)) {
+            return Err(Exit(EXIT_BAD_INPUT, anyhow!("{flag} {v}: use a finite number >= 0")));
+        }
+    }
     opts.quantization = match (args.max_error, args.quant_bits) {
         (_, Some(b)) => QuantizationChoice::Bits(b),
         (Some(e), None) => QuantizationChoice::MaxError(e),
         (None, None) => QuantizationChoice::MaxError(1e-4),
     };
     let bar = progress(seq.frame_count() as u64, "encode", quiet);
-    let bytes = encode(&seq, &opts, |_| bar.inc(1)).with_context(|| format!("encoding {}", args.input.display()))?;
+    // What the encoder refuses is the input or an option value out of range: bad input.
+    let bytes = encode(&seq, &opts, |_| bar.inc(1)).map_err(|e| container_error(e, format!("encoding {}", args.input.display())))?;
     bar.finish_and_clear();
     write_file(&args.output, &bytes).with_context(|| format!("writing {}", args.output.display()))?;
     if !quiet {
@@ -175,9 +204,54 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
     Ok(())
 }
 
+/// The exit code of a container error: what the file holds is bad input; a failing disk is a
+/// failure of the work.
+pub(crate) fn container_exit(e: &ContainerError) -> u8 {
+    match e {
+        ContainerError::Io(_) => EXIT_FAILURE,
+        _ => EXIT_BAD_INPUT,
+    }
+}
+
+/// `e` with its exit code and `what` (the file, and the frame where there is one) as context.
+/// The message is flattened: the library's messages already include their sources, which
+/// anyhow's chain would print a second time.
+pub(crate) fn container_error(e: ContainerError, what: impl std::fmt::Display) -> Exit {
+    Exit(container_exit(&e), anyhow::Error::msg(e.to_string()).context(what.to_string()))
+}
+
 pub(crate) fn open(path: &Path) -> Result<Reader<FileSource>, Exit> {
+    // A file that cannot be opened is bad input too (named wrong, or not there).
     let src = FileSource::open(path).map_err(|e| Exit(EXIT_BAD_INPUT, anyhow!(e)))?;
-    Reader::open(src).with_context(|| format!("reading {}", path.display())).map_err(|e| Exit(EXIT_BAD_INPUT, e))
+    Reader::open(src).map_err(|e| container_error(e, format!("reading {}", path.display())))
+}
+
+/// A budget as given: a count, or a share of the full-resolution count (`25%`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Budget {
+    Count(u32),
+    Percent(f64),
+}
+
+/// Only the syntax is checked here (clap reports it as a usage error); the range is checked
+/// against the file, as bad input.
+fn parse_budget(s: &str) -> Result<Budget, String> {
+    let t = s.trim();
+    match t.strip_suffix('%') {
+        Some(p) => p.trim().parse::<f64>().map(Budget::Percent).map_err(|_| format!("{s:?}: use a count like 2000 or a share like 25%")),
+        None => t.parse::<u32>().map(Budget::Count).map_err(|_| format!("{s:?}: use a count like 2000 or a share like 25%")),
+    }
+}
+
+impl Budget {
+    /// The count this budget allows out of `total` (rounded down: a budget is a maximum).
+    fn resolve(self, flag: &str, total: u32) -> Result<u32, Exit> {
+        match self {
+            Budget::Count(n) => Ok(n),
+            Budget::Percent(p) if p.is_finite() && p > 0.0 && p <= 100.0 => Ok((total as f64 * p / 100.0).floor() as u32),
+            Budget::Percent(p) => Err(Exit(EXIT_BAD_INPUT, anyhow!("{flag} {p}%: a share must be more than 0% and at most 100%"))),
+        }
+    }
 }
 
 #[derive(Args, Debug)]
@@ -191,66 +265,183 @@ pub struct DecodeArgs {
     /// Every frame, one OBJ per frame into the folder given by -o (names sort in frame order).
     #[arg(long, conflicts_with = "frame")]
     pub all_frames: bool,
-    /// At most this many triangles.
-    #[arg(long)]
-    pub triangles: Option<u32>,
-    /// At most this many vertices.
-    #[arg(long)]
-    pub vertices: Option<u32>,
+    /// At most this many triangles, or this share of the full-resolution triangles (25%). Where
+    /// the coarsest cut has more, it is written with a warning (unless --quiet).
+    #[arg(long, value_parser = parse_budget, value_name = "N|P%")]
+    pub triangles: Option<Budget>,
+    /// At most this many vertices, or this share of the input vertices (25%); as --triangles.
+    #[arg(long, value_parser = parse_budget, value_name = "N|P%")]
+    pub vertices: Option<Budget>,
     /// A whole level (0 = the input mesh, every input vertex in input order).
     #[arg(long)]
     pub level: Option<usize>,
-    /// Refine every node whose error bound exceeds this fraction of the bounding-box diagonal.
-    #[arg(long)]
+    /// Refine every node whose error bound exceeds this fraction of the bounding-box diagonal
+    /// (a finite number >= 0).
+    #[arg(long, allow_hyphen_values = true)]
     pub max_error: Option<f64>,
     /// Output: .glb or .obj (a folder with --all-frames).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Print what was written as JSON on stdout (per frame: vertices, triangles, and whether
+    /// the coarsest cut exceeded the budget).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// What one decoded frame holds, for the summary and `--json`.
+#[derive(Serialize)]
+struct DecodedFrame {
+    frame: u32,
+    path: String,
+    vertices: usize,
+    triangles: usize,
+    /// The budget asked for, when the coarsest cut the file holds exceeds it.
+    over_budget: Option<OverBudget>,
+}
+
+#[derive(Clone, Copy, Serialize)]
+struct OverBudget {
+    /// `triangles` or `vertices`.
+    of: &'static str,
+    asked: u32,
+    got: usize,
+}
+
+/// The decode target, checked against the file: every value out of range is bad input naming
+/// the value and the range, as the server answers 400.
+fn decode_target(args: &DecodeArgs, h: &Header) -> Result<MeshTarget, Exit> {
+    let bad = |e| Exit(EXIT_BAD_INPUT, e);
+    Ok(match (args.triangles, args.vertices, args.level, args.max_error) {
+        (Some(b), ..) => MeshTarget::Triangles(b.resolve("--triangles", h.triangle_count)?),
+        (_, Some(b), ..) => MeshTarget::Vertices(b.resolve("--vertices", h.vertex_count)?),
+        (_, _, Some(l), _) if l < h.levels() => MeshTarget::Level(l),
+        (_, _, Some(l), _) => return Err(bad(anyhow!("--level {l}: the file has levels 0..={}", h.top()))),
+        (.., Some(e)) if e.is_finite() && e >= 0.0 => MeshTarget::MaxError(e),
+        (.., Some(e)) => return Err(bad(anyhow!("--max-error {e}: use a finite number >= 0"))),
+        _ => MeshTarget::Level(0),
+    })
+}
+
+/// The budget a cut exceeds, if any: the coarsest cut of a frame can hold more than a small
+/// budget allows (a mesh of many parts keeps a triangle or more per part).
+fn over_budget(target: MeshTarget, mesh: &pmcodec_mesh::TriMesh) -> Option<OverBudget> {
+    match target {
+        MeshTarget::Triangles(n) if mesh.triangles.len() > n as usize => {
+            Some(OverBudget { of: "triangles", asked: n, got: mesh.triangles.len() })
+        }
+        MeshTarget::Vertices(n) if mesh.positions.len() > n as usize => {
+            Some(OverBudget { of: "vertices", asked: n, got: mesh.positions.len() })
+        }
+        _ => None,
+    }
+}
+
+/// Writes one frame's mesh and says what it holds.
+fn write_frame(dec: &mut Decoder<&FileSource>, input: &Path, frame: u32, target: MeshTarget, path: &Path) -> Result<DecodedFrame, Exit> {
+    let where_ = || format!("{} frame {frame}", input.display());
+    dec.seek(frame).map_err(|e| container_error(e, where_()))?;
+    let mesh = dec.mesh(target).map_err(|e| container_error(e, where_()))?;
+    pmcodec_mesh::write::write_mesh_file(path, &mesh).with_context(|| format!("writing {}", path.display()))?;
+    Ok(DecodedFrame {
+        frame,
+        path: path.display().to_string(),
+        vertices: mesh.positions.len(),
+        triangles: mesh.triangles.len(),
+        over_budget: over_budget(target, &mesh),
+    })
 }
 
 pub fn decode_cmd(args: DecodeArgs, quiet: bool) -> Result<(), Exit> {
+    // The output's format is known before anything is decoded: a wrong name is a usage error.
+    if !args.all_frames {
+        let ext = args.output.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+        if !matches!(ext.as_deref(), Some("glb" | "obj")) {
+            return Err(Exit(2, anyhow!("-o {}: name a .glb or .obj file (or a folder with --all-frames)", args.output.display())));
+        }
+    }
     let reader = open(&args.input)?;
-    let target = match (args.triangles, args.vertices, args.level, args.max_error) {
-        (Some(n), ..) => MeshTarget::Triangles(n),
-        (_, Some(n), ..) => MeshTarget::Vertices(n),
-        (_, _, Some(l), _) => MeshTarget::Level(l),
-        (.., Some(e)) => MeshTarget::MaxError(e),
-        _ => MeshTarget::Level(0),
-    };
+    let h = reader.header();
+    let target = decode_target(&args, h)?;
+    if !args.all_frames && args.frame >= h.frame_count {
+        return Err(Exit(
+            EXIT_BAD_INPUT,
+            anyhow!(
+                "--frame {}: {} has {} frames (0..={})",
+                args.frame,
+                args.input.display(),
+                h.frame_count,
+                h.frame_count.saturating_sub(1)
+            ),
+        ));
+    }
     // A level-limited decode reads only the bands it needs.
     let min_level = match target {
-        MeshTarget::Level(l) => l.min(reader.header().top()),
+        MeshTarget::Level(l) => l,
         _ => 0,
     };
-    let mut dec = Decoder::new(reader.borrowed(), min_level).context("starting the decoder")?;
-    if args.all_frames {
-        std::fs::create_dir_all(&args.output).with_context(|| format!("creating {}", args.output.display()))?;
-        let frames = reader.header().frame_count;
-        let width = frames.to_string().len().max(4);
-        let bar = progress(frames as u64, "decode", quiet);
-        for f in 0..frames {
-            dec.seek(f).with_context(|| format!("decoding frame {f}"))?;
-            let mesh = dec.mesh(target)?;
-            let path = args.output.join(format!("frame-{f:0width$}.obj"));
-            pmcodec_mesh::write::write_mesh_file(&path, &mesh).with_context(|| format!("writing {}", path.display()))?;
-            bar.inc(1);
-        }
-        bar.finish_and_clear();
+    let mut dec =
+        Decoder::new(reader.borrowed(), min_level).map_err(|e| container_error(e, format!("reading {}", args.input.display())))?;
+    let written = if args.all_frames {
+        decode_all(&mut dec, &args, target, quiet)?
     } else {
-        dec.seek(args.frame).with_context(|| format!("decoding frame {}", args.frame))?;
-        let mesh = dec.mesh(target)?;
-        pmcodec_mesh::write::write_mesh_file(&args.output, &mesh).with_context(|| format!("writing {}", args.output.display()))?;
-        if !quiet {
-            eprintln!(
-                "{}: frame {}, {} vertices, {} triangles",
-                args.output.display(),
-                args.frame,
-                mesh.positions.len(),
-                mesh.triangles.len()
-            );
+        vec![write_frame(&mut dec, &args.input, args.frame, target, &args.output)?]
+    };
+    // A budget is "at most": say so where the coarsest cut could not keep it (unless --quiet;
+    // --json says it too).
+    let over: Vec<(u32, OverBudget)> = written.iter().filter_map(|w| w.over_budget.map(|o| (w.frame, o))).collect();
+    match over.as_slice() {
+        _ if quiet => {}
+        [] => {}
+        [(f, o)] => eprintln!(
+            "warning: frame {f}: the coarsest cut the file holds has {} {}, more than the {} asked for; wrote it",
+            o.got, o.of, o.asked
+        ),
+        [(_, o), ..] => eprintln!(
+            "warning: {} frames: their coarsest cuts hold more than the {} {} asked for (up to {}); wrote them",
+            over.len(),
+            o.asked,
+            o.of,
+            over.iter().map(|(_, o)| o.got).max().unwrap_or(o.got)
+        ),
+    }
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&written).context("writing JSON")?);
+    } else if !quiet && !args.all_frames {
+        for w in &written {
+            eprintln!("{}: frame {}, {} vertices, {} triangles", w.path, w.frame, w.vertices, w.triangles);
         }
     }
     Ok(())
+}
+
+/// Every frame into the output folder; on any error the files written so far (and the folder,
+/// when this created it) are removed, so a failed decode leaves nothing behind.
+fn decode_all(dec: &mut Decoder<&FileSource>, args: &DecodeArgs, target: MeshTarget, quiet: bool) -> Result<Vec<DecodedFrame>, Exit> {
+    let created = !args.output.exists();
+    std::fs::create_dir_all(&args.output).with_context(|| format!("creating {}", args.output.display()))?;
+    let frames = dec.reader().header().frame_count;
+    let width = frames.to_string().len().max(4);
+    let bar = progress(frames as u64, "decode", quiet);
+    let mut written = Vec::with_capacity(frames as usize);
+    for f in 0..frames {
+        let path = args.output.join(format!("frame-{f:0width$}.obj"));
+        match write_frame(dec, &args.input, f, target, &path) {
+            Ok(w) => written.push(w),
+            Err(e) => {
+                bar.finish_and_clear();
+                for w in &written {
+                    let _ = std::fs::remove_file(&w.path);
+                }
+                if created {
+                    let _ = std::fs::remove_dir(&args.output);
+                }
+                return Err(e);
+            }
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    Ok(written)
 }
 
 #[derive(Args, Debug)]
@@ -274,9 +465,11 @@ pub fn info_cmd(args: InfoArgs) -> Result<(), Exit> {
     println!("vertices          {}", h.vertex_count);
     println!("triangles         {}", h.triangle_count);
     println!("frames            {} at {} fps", h.frame_count, h.frame_rate);
-    println!("levels            {:?} (branching {})", h.level_sizes, h.branching);
+    let sizes: Vec<String> = h.level_sizes.iter().map(|n| n.to_string()).collect();
+    println!("levels            {} nodes, finest first (branching {})", sizes.join(", "), h.branching);
     println!("keyframe interval {}", h.keyframe_interval);
-    println!("bounding box      {:?} .. {:?}", h.bbox_min, h.bbox_max);
+    let [a, b] = [h.bbox_min, h.bbox_max];
+    println!("bounding box      ({}, {}, {}) .. ({}, {}, {})", a[0], a[1], a[2], b[0], b[1], b[2]);
     println!("quantization step {}", h.quantization.step);
     println!(
         "positions         {:.2} bits/vertex/frame ({} motion between keyframes, input vertices {})",
@@ -299,7 +492,24 @@ pub fn info_cmd(args: InfoArgs) -> Result<(), Exit> {
             h.level_sizes[l], s.key_bytes[l], s.delta_bytes[l], s.positions_bytes[l], s.bytes_per_frame_to_level[l]
         );
     }
-    println!("encoded with      {:?}", h.encoded_with);
+    // The options the file was encoded with, one per row, as a person reads them.
+    let e = &h.encoded_with;
+    let yes_no = |b: bool| if b { "yes" } else { "no" };
+    println!("encoded with");
+    println!("  base poses      {}", e.base_poses.escape_debug());
+    println!("  base weights    {}", e.base_weights.escape_debug());
+    println!("  beta            {}", e.beta);
+    println!("  min benefit     {}", e.min_relative_benefit);
+    println!("  max passes      {}", e.max_passes);
+    println!("  homeomorphism   {}", yes_no(e.homeomorphism));
+    println!("  exact benefit   {}", yes_no(e.exact_benefit));
+    match (e.quant_bits, e.max_error) {
+        (Some(b), _) => println!("  quantization    {b} bits per axis"),
+        (None, Some(m)) => println!("  quantization    max error {m} of the bounding-box diagonal"),
+        (None, None) => println!("  quantization    -"),
+    }
+    // Strings from the file are escaped: a file should not be able to drive the terminal.
+    println!("generator         {}", h.generator.escape_debug());
     Ok(())
 }
 
@@ -310,7 +520,7 @@ pub struct VerifyArgs {
 
 pub fn verify_cmd(args: VerifyArgs, quiet: bool) -> Result<(), Exit> {
     let reader = open(&args.input)?;
-    let report = verify(&reader).with_context(|| format!("verifying {}", args.input.display())).map_err(|e| Exit(EXIT_BAD_INPUT, e))?;
+    let report = verify(&reader).map_err(|e| container_error(e, format!("verifying {}", args.input.display())))?;
     if !quiet {
         println!("{}: ok ({} chunks, {} frames, {} bytes)", args.input.display(), report.chunks, report.frames, report.bytes);
     }

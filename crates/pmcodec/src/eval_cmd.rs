@@ -3,7 +3,7 @@
 //! baselines of Kircher & Garland figure 11, plus temporal coherence at a triangle budget.
 
 use crate::input::{self, InputArgs};
-use crate::{Exit, progress};
+use crate::{EXIT_BAD_INPUT, Exit, progress};
 use anyhow::Context;
 use clap::{Args, ValueEnum};
 use pmcodec_hierarchy::approx::{self, ApproxOptions, ApproxTarget, Approximation, Method};
@@ -54,10 +54,10 @@ pub struct EvalArgs {
     #[arg(long, default_value_t = 4)]
     pub branching: u32,
     /// Hierarchical QEM growth exponent (Kircher & Garland equation 2; the paper used 1.9127).
-    #[arg(long, default_value_t = 4.0)]
+    #[arg(long, default_value_t = 4.0, allow_hyphen_values = true)]
     pub beta: f64,
     /// Smallest swap benefit, relative to the moving node's error (hysteresis).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub min_benefit: Option<f64>,
     /// Independent-set passes per level per frame.
     #[arg(long)]
@@ -107,11 +107,13 @@ fn mean(x: &[f64]) -> f64 {
 }
 
 pub fn run(args: EvalArgs, quiet: bool) -> Result<(), Exit> {
+    crate::codec_cmd::check_fps(&args.input_args)?;
     let mut seq = input::load(&args.input, &args.input_args)?;
     if let Some(n) = args.frames {
         seq.frames.truncate(n.max(1));
     }
     let frames = seq.frame_count();
+    check_args(&args, seq.vertex_count())?;
     let mut opts = ApproxOptions { branching: args.branching, ..Default::default() };
     opts.recluster.beta = args.beta;
     opts.recluster.homeomorphism = args.homeomorphism;
@@ -136,7 +138,9 @@ pub fn run(args: EvalArgs, quiet: bool) -> Result<(), Exit> {
             .zip(&approximations)
             .map(|(orig, a)| pmcodec_eval::symmetric_relative(orig, &a.mesh, &sample))
             .collect::<Result<_, _>>()
-            .with_context(|| format!("measuring the {} approximations", method.name()))?;
+            // What cannot be measured is the input's (or a vertex count too small for any
+            // surface): bad input.
+            .map_err(|e| Exit(EXIT_BAD_INPUT, anyhow::Error::new(e).context(format!("measuring the {} approximations", method.name()))))?;
         let changed = match args.coherence_triangles {
             Some(budget) => {
                 let bar = progress(frames as u64, "coherence", quiet);
@@ -168,6 +172,31 @@ pub fn run(args: EvalArgs, quiet: bool) -> Result<(), Exit> {
     Ok(())
 }
 
+/// The most surface samples per mesh and direction: each costs a point and a distance query,
+/// so the bound keeps a run within memory and minutes (the default is 20,000).
+const MAX_SAMPLES: usize = 10_000_000;
+
+/// Values out of range are bad input (exit 3) naming the value and the range, before any work
+/// (`--vertices 0` once never returned).
+fn check_args(args: &EvalArgs, input_vertices: usize) -> Result<(), Exit> {
+    let bad = |msg: String| Err(Exit(EXIT_BAD_INPUT, anyhow::anyhow!(msg)));
+    if args.vertices == 0 || args.vertices as usize > input_vertices {
+        return bad(format!("--vertices {}: the input has {input_vertices} vertices; use 1..={input_vertices}", args.vertices));
+    }
+    if !(1..=MAX_SAMPLES).contains(&args.samples) {
+        return bad(format!("--samples {}: use 1..={MAX_SAMPLES}", args.samples));
+    }
+    if !(2..=16).contains(&args.branching) {
+        return bad(format!("--branching {}: use 2..=16", args.branching));
+    }
+    for (flag, v) in [("--beta", Some(args.beta)), ("--min-benefit", args.min_benefit)] {
+        if let Some(v) = v.filter(|v| !(v.is_finite() && *v >= 0.0)) {
+            return bad(format!("{flag} {v}: use a finite number >= 0"));
+        }
+    }
+    Ok(())
+}
+
 /// A method's report from its per-frame distances and coherence shares.
 fn method_report(method: &'static str, distances: &[pmcodec_eval::Distance], changed: Option<Vec<f64>>) -> MethodReport {
     let rms: Vec<f64> = distances.iter().map(|d| d.rms).collect();
@@ -193,6 +222,7 @@ fn container_report(
     sample: &pmcodec_eval::SampleOptions,
     quiet: bool,
 ) -> Result<MethodReport, Exit> {
+    use crate::codec_cmd::container_error;
     use pmcodec_container::{Decoder, MeshTarget};
     let reader = crate::codec_cmd::open(path)?;
     let h = reader.header();
@@ -209,15 +239,16 @@ fn container_report(
             ),
         ));
     }
-    let mut d = Decoder::new(reader.borrowed(), 0).context("decoder")?;
+    let mut d = Decoder::new(reader.borrowed(), 0).map_err(|e| container_error(e, format!("reading {}", path.display())))?;
     let bar = progress(frames as u64, "container", quiet);
     let mut meshes = Vec::with_capacity(frames);
     let mut keys: Vec<Vec<[u32; 3]>> = Vec::new();
     for f in 0..frames {
-        d.seek(f as u32).with_context(|| format!("{}: frame {f}", path.display())).map_err(|e| Exit(crate::EXIT_BAD_INPUT, e))?;
-        meshes.push(d.mesh(MeshTarget::Vertices(args.vertices)).with_context(|| format!("cutting frame {f}"))?);
+        let at = || format!("{} frame {f}", path.display());
+        d.seek(f as u32).map_err(|e| container_error(e, at()))?;
+        meshes.push(d.mesh(MeshTarget::Vertices(args.vertices)).map_err(|e| container_error(e, at()))?);
         if let Some(budget) = args.coherence_triangles {
-            let mut k = d.cut_triangles(MeshTarget::Triangles(budget)).with_context(|| format!("cutting frame {f}"))?;
+            let mut k = d.cut_triangles(MeshTarget::Triangles(budget)).map_err(|e| container_error(e, at()))?;
             k.iter_mut().for_each(|t| t.sort_unstable());
             keys.push(k);
         }
@@ -229,7 +260,7 @@ fn container_report(
         .zip(&meshes)
         .map(|(orig, m)| pmcodec_eval::symmetric_relative(orig, m, sample))
         .collect::<Result<_, _>>()
-        .context("measuring the container's cuts")?;
+        .map_err(|e| Exit(EXIT_BAD_INPUT, anyhow::Error::new(e).context(format!("measuring the cuts of {}", path.display()))))?;
     // The share of each frame's shown triangles (by their corners' nodes) the frame before did not show.
     let changed = args.coherence_triangles.map(|_| {
         let mut out = vec![0.0];

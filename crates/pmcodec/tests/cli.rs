@@ -137,3 +137,227 @@ fn eval_measures_a_container() {
     assert!(err.contains("seq.pmc") && err.contains("not an encoding of it"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Runs `cmd`, expecting it to fail with `code`; returns its stderr.
+fn fails(cmd: &mut Command, code: i32) -> String {
+    let out = cmd.output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(code), "{cmd:?}: {err}");
+    err
+}
+
+/// A 12-frame container of the small sheet (140 vertices, 234 triangles), keyframes every 4.
+fn small_container(dir: &Path) -> PathBuf {
+    let frames_dir = dir.join("in");
+    std::fs::create_dir_all(&frames_dir).unwrap();
+    write_sequence(&frames_dir, 12);
+    let pmc = dir.join("seq.pmc");
+    ok(bin().args(["encode", "-q", "--keyframe-interval", "4"]).arg(&frames_dir).arg("-o").arg(&pmc));
+    pmc
+}
+
+/// Values out of the file's range are bad input (exit 3) naming the value and the range, as the
+/// server answers 400, and nothing is written.
+#[test]
+fn decode_targets_out_of_range_are_bad_input() {
+    let dir = temp("range");
+    let pmc = small_container(&dir);
+    let out = dir.join("x.obj");
+    let levels = {
+        let info: serde_json::Value = serde_json::from_str(&ok(bin().arg("info").arg(&pmc).arg("--json"))).unwrap();
+        info["header"]["level_sizes"].as_array().unwrap().len()
+    };
+    let decode = |extra: &[&str]| {
+        let mut c = bin();
+        c.arg("decode").arg(&pmc).arg("-o").arg(&out).args(extra);
+        c
+    };
+    let err = fails(&mut decode(&["--level", "99"]), 3);
+    assert!(err.contains("--level 99") && err.contains(&format!("0..={}", levels - 1)), "{err}");
+    for bad in ["NaN", "-1", "inf", "-inf"] {
+        let err = fails(&mut decode(&["--max-error", bad]), 3);
+        assert!(err.contains("--max-error") && err.contains(">= 0"), "{bad}: {err}");
+    }
+    let err = fails(&mut decode(&["--frame", "999"]), 3);
+    assert!(err.contains("--frame 999") && err.contains("12 frames"), "{err}");
+    for bad in ["0%", "150%", "NaN%"] {
+        let err = fails(&mut decode(&["--triangles", bad]), 3);
+        assert!(err.contains("--triangles") && err.contains("at most 100%"), "{bad}: {err}");
+    }
+    // Not a count at all is a usage error, as is an output format that does not exist.
+    fails(&mut decode(&["--triangles", "many"]), 2);
+    let err = fails(bin().arg("decode").arg(&pmc).arg("-o").arg(dir.join("x.stl")), 2);
+    assert!(err.contains(".glb or .obj"), "{err}");
+    assert!(!out.exists() && !dir.join("x.stl").exists(), "nothing written");
+    // The last level and a zero error bound are in range.
+    ok(decode(&["-q", "--level", &(levels - 1).to_string()]).arg("--frame").arg("11"));
+    ok(&mut decode(&["-q", "--max-error", "0"]));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Flips a byte inside the stored bytes of frame `frame`'s band-0 positions chunk, leaving the
+/// header and index intact (so the file still opens).
+fn damage_positions(pmc: &Path, frame: u32) {
+    let mut bytes = std::fs::read(pmc).unwrap();
+    let (at, name) = {
+        let r = pmcodec_container::Reader::open(bytes.as_slice()).unwrap();
+        let e = r.find(pmcodec_container::ChunkKind::Positions, frame, 0).expect("a band-0 positions chunk");
+        (r.data_start() + e.offset + e.stored_len as u64 / 2, e.describe())
+    };
+    bytes[at as usize] ^= 0x40;
+    std::fs::write(pmc, bytes).unwrap();
+    assert!(name.contains(&format!("frame {frame}")), "{name}");
+}
+
+/// A damaged chunk is bad input from every command that reads it (exit 3, naming the file, the
+/// frame and the chunk), and a failed `--all-frames` decode leaves no files behind.
+#[test]
+fn damaged_chunk_is_bad_input_everywhere() {
+    let dir = temp("crc");
+    let pmc = small_container(&dir);
+    damage_positions(&pmc, 5);
+    let name = pmc.display().to_string();
+    // Frame 3 is before the damage: still decodes.
+    ok(bin().args(["decode", "-q", "--frame", "3"]).arg(&pmc).arg("-o").arg(dir.join("f3.obj")));
+    let out = dir.join("f6.obj");
+    let err = fails(bin().args(["decode", "--frame", "6"]).arg(&pmc).arg("-o").arg(&out), 3);
+    assert!(err.contains(&name) && err.contains("frame 5 band 0 positions") && err.contains("checksum"), "{err}");
+    assert!(!out.exists());
+    let err = fails(bin().arg("verify").arg(&pmc), 3);
+    assert!(err.contains(&name) && err.contains("frame 5 band 0 positions: checksum"), "{err}");
+    let all = dir.join("all");
+    let err = fails(bin().args(["decode", "-q", "--all-frames"]).arg(&pmc).arg("-o").arg(&all), 3);
+    assert!(err.contains("checksum"), "{err}");
+    assert!(!all.exists(), "a failed --all-frames decode leaves nothing");
+    // A damaged header is bad input for info too.
+    let mut bytes = std::fs::read(&pmc).unwrap();
+    bytes[20] ^= 0xff;
+    std::fs::write(&pmc, bytes).unwrap();
+    fails(bin().arg("info").arg(&pmc), 3);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `--triangles 25%` is a share of the full-resolution triangles, as `lod` takes; a budget below
+/// the coarsest cut gives that cut with a warning (and `over_budget` in `--json`).
+#[test]
+fn decode_budgets_as_percentages_and_over_budget_warning() {
+    let dir = temp("pct");
+    let pmc = small_container(&dir);
+    let info: serde_json::Value = serde_json::from_str(&ok(bin().arg("info").arg(&pmc).arg("--json"))).unwrap();
+    let full = info["header"]["triangle_count"].as_u64().unwrap();
+    let decoded = |flag: &str, budget: &str| -> (serde_json::Value, String) {
+        let out =
+            bin().args(["decode", "--json", "--frame", "7", flag, budget]).arg(&pmc).arg("-o").arg(dir.join("b.obj")).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{flag} {budget}: {err}");
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        (json[0].clone(), err)
+    };
+    let (quarter, err) = decoded("--triangles", "25%");
+    let n = quarter["triangles"].as_u64().unwrap();
+    assert!(n <= full / 4 && n > full / 8, "{n} of {full}");
+    assert!(quarter["over_budget"].is_null() && !err.contains("warning"), "{quarter} {err}");
+    // The same as the count it stands for.
+    let (count, _) = decoded("--triangles", &(full / 4).to_string());
+    assert_eq!(count["triangles"], quarter["triangles"]);
+    let (v, _) = decoded("--vertices", "10%");
+    assert!(v["vertices"].as_u64().unwrap() <= 14 || v["over_budget"]["of"] == "vertices", "{v}");
+    // One triangle is below any cut: the coarsest is written, and said to be over budget.
+    let (coarsest, err) = decoded("--triangles", "1");
+    let got = coarsest["triangles"].as_u64().unwrap();
+    assert!(got > 1, "{coarsest}");
+    assert_eq!(coarsest["over_budget"]["asked"], 1);
+    assert_eq!(coarsest["over_budget"]["got"], got);
+    assert!(err.contains("warning") && err.contains(&format!("{got} triangles, more than the 1 asked for")), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `info` prints the encoding options as rows a person reads, not a Rust `Debug` struct.
+#[test]
+fn info_prints_encoding_options_as_rows() {
+    let dir = temp("info");
+    let pmc = small_container(&dir);
+    let table = ok(bin().arg("info").arg(&pmc));
+    assert!(!table.contains("EncodedWith") && !table.contains('{'), "{table}");
+    for row in ["  base poses      first", "  homeomorphism   no", "  max passes      16", "  quantization    max error 0.0001"] {
+        assert!(table.lines().any(|l| l == row || l.starts_with(row)), "no row {row:?} in\n{table}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `eval` checks its values before any work: out of range is bad input naming the value and the
+/// range (`--vertices 0` used to never return).
+#[test]
+fn eval_values_out_of_range_are_bad_input() {
+    let dir = temp("evalrange");
+    let frames_dir = dir.join("in");
+    std::fs::create_dir_all(&frames_dir).unwrap();
+    write_sequence(&frames_dir, 2);
+    for (args, says) in [
+        (&["--vertices", "0"][..], "--vertices 0: the input has 140 vertices; use 1..=140"),
+        (&["--vertices", "141"], "use 1..=140"),
+        (&["--vertices", "40", "--samples", "0"], "--samples 0"),
+        (&["--vertices", "40", "--branching", "1"], "--branching 1: use 2..=16"),
+        (&["--vertices", "40", "--beta", "NaN"], "--beta NaN: use a finite number >= 0"),
+        (&["--vertices", "40", "--min-benefit", "-1"], "--min-benefit -1"),
+    ] {
+        let err = fails(bin().args(["eval", "-q", "--methods", "static"]).arg(&frames_dir).args(args), 3);
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `encode` refuses values out of range as bad input, each named once, and writes nothing.
+#[test]
+fn encode_values_out_of_range_are_bad_input() {
+    let dir = temp("encrange");
+    let frames_dir = dir.join("in");
+    std::fs::create_dir_all(&frames_dir).unwrap();
+    write_sequence(&frames_dir, 2);
+    let pmc = dir.join("x.pmc");
+    for (args, says) in [
+        (&["--fps", "1e-30"][..], "--fps 1e-30: use 0.01..=1000"),
+        (&["--fps", "1001"], "--fps 1001.0"),
+        (&["--beta", "NaN"], "--beta NaN: use a finite number >= 0"),
+        (&["--min-benefit", "-1"], "--min-benefit -1"),
+        (&["--branching", "99"], "branching factor 99 is outside 2..=16"),
+        (&["--quant-bits", "40"], "4..=24 bits"),
+        (&["--level-anchors", "50%,60%"], "percentages must decrease"),
+    ] {
+        let err = fails(bin().args(["encode", "-q"]).arg(&frames_dir).arg("-o").arg(&pmc).args(args), 3);
+        assert_eq!(err.matches(says).count(), 1, "{args:?}: {err}");
+        assert!(!pmc.exists());
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `play` against a server on loopback: an asset the server does not have is bad input (its
+/// 404 named), a server that cannot be reached is a failure, and a played asset reports every
+/// frame.
+#[test]
+fn play_exit_codes_follow_the_server_answers() {
+    let dir = temp("play");
+    let seq = pmcodec_mesh::samples::waving_cloth(14, 10, 6);
+    let bytes = pmcodec_container::encode(&seq, &Default::default(), |_| {}).unwrap();
+    std::fs::write(dir.join("cloth.pmc"), &bytes).unwrap();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let config = pmcodec_server::Config {
+        store: pmcodec_server::config::StoreConfig::Local { path: dir.clone() },
+        listen: "127.0.0.1:0".parse().unwrap(),
+        ..Default::default()
+    };
+    let server = rt.block_on(pmcodec_server::start(config)).unwrap();
+    let url = server.url();
+    let out = ok(bin().args(["play", "--json", "--asset", "cloth", "--triangles", "50"]).arg(&url));
+    let lines: Vec<serde_json::Value> = out.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(lines.len(), 7, "six frames and a summary: {out}");
+    assert_eq!(lines[6]["frames"], 6);
+    let err = fails(bin().args(["play", "--asset", "nope"]).arg(&url), 3);
+    assert!(err.contains("nope") && err.contains("404"), "{err}");
+    drop(server);
+    drop(rt);
+    // Nothing listens on a port just freed: a failure, not bad input.
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    fails(bin().args(["play", "--asset", "cloth"]).arg(format!("http://127.0.0.1:{port}")), 1);
+    std::fs::remove_dir_all(&dir).ok();
+}
