@@ -183,6 +183,49 @@ async fn uploaded_glb_with_a_named_animation_becomes_an_asset() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn frame_rates_and_long_animations_are_refused_before_sampling() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut config = Config {
+        store: StoreConfig::Local { path: dir.path().to_path_buf() },
+        listen: "127.0.0.1:0".parse().unwrap(),
+        ..Default::default()
+    };
+    config.auth.write_token = Some(Secret(TOKEN.into()));
+    config.limits.max_frames = 100;
+    let server = pmcodec_server::start(config).await.unwrap();
+    let http = reqwest::Client::new();
+    let glb = std::fs::read(data("gltf/Fox.glb")).unwrap();
+    // Out of range (fps=1000 made a 72 KB GLB 20,001 frames; fps=1e-30 a frame time no player
+    // can convert): 400 naming the parameter.
+    for fps in ["1000", "1e-30", "0"] {
+        let r = http
+            .post(format!("{}/v1/assets?id=fox&fps={fps}", server.url()))
+            .bearer_auth(TOKEN)
+            .header("content-type", "model/gltf-binary")
+            .body(glb.clone())
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), 400, "fps={fps}");
+        let body: Value = r.json().await.unwrap();
+        assert!(body["detail"].as_str().unwrap().contains("fps"), "{body}");
+    }
+    // In range, but more frames than the server takes: the job fails naming the limit, before
+    // sampling the animation, and stores nothing.
+    let (_, last) = upload(&http, &server.url(), "id=fox&fps=240", "model/gltf-binary", glb.clone()).await;
+    assert_eq!(last["state"], "failed", "{last}");
+    let message = last["message"].as_str().unwrap();
+    assert!(message.contains("max_frames") && message.contains("240 frames per second"), "{message}");
+    assert_eq!(last["frames_total"], Value::Null, "refused before sampling: {last}");
+    assert!(!dir.path().join("fox.pmc").exists());
+    assert!(leftovers(dir.path()).is_empty());
+    // The same file at a rate within the cap is encoded.
+    let (_, last) = upload(&http, &server.url(), "id=fox&fps=2&animation=Walk", "model/gltf-binary", glb).await;
+    assert_eq!(last["state"], "succeeded", "{last}");
+    server.stop().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_uploads_and_requests_fail_cleanly_and_leave_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let server = local_server(dir.path()).await;
