@@ -118,7 +118,7 @@ pub struct LimitsConfig {
     /// Time a client has to send a whole request head (slow-loris clients are disconnected).
     pub header_read_timeout_secs: u64,
     /// A connection with no request in progress and no byte moved for this long is closed
-    /// (idle keep-alive connections).
+    /// (idle keep-alive connections). Keep it above 15 s, the job event streams' keep-alive.
     pub idle_timeout_secs: u64,
     /// Most frames an uploaded sequence may have (an OBJ per frame, or a glTF animation's
     /// duration times the frame rate).
@@ -432,6 +432,32 @@ mod tests {
         assert!(e.contains("PMCODEC_UPLOAD_LIMIT_BYTES"), "{e}");
         c.apply_env(env(&[("PMCODEC_STORE", "s3")])).unwrap();
         assert!(c.validate().unwrap_err().contains("bucket"));
+    }
+
+    #[test]
+    fn connection_and_job_bounds_from_environment_and_empty_tokens_refused() {
+        let mut c = Config::default();
+        c.apply_env(env(&[
+            ("PMCODEC_MAX_CONNECTIONS", "7"),
+            ("PMCODEC_HEADER_READ_TIMEOUT_SECS", "3"),
+            ("PMCODEC_IDLE_TIMEOUT_SECS", "20"),
+            ("PMCODEC_MAX_PENDING_JOBS", "2"),
+            ("PMCODEC_MAX_FRAMES", "90"),
+            ("PMCODEC_UPLOAD_DIR", "/var/tmp"),
+        ]))
+        .unwrap();
+        let l = &c.limits;
+        assert_eq!((l.max_connections, l.header_read_timeout_secs, l.idle_timeout_secs), (7, 3, 20));
+        assert_eq!((l.max_pending_jobs, l.max_frames), (2, 90));
+        assert_eq!(c.upload_dir, Some(PathBuf::from("/var/tmp")));
+        assert!(c.validate().is_ok());
+        c.limits.max_connections = 0;
+        assert!(c.validate().unwrap_err().contains("max_connections"));
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("s.toml");
+        std::fs::write(&path, "[auth]\nwrite_token = \"\"\n").unwrap();
+        let c = Config::from_file(&path).unwrap();
+        assert!(c.validate().unwrap_err().contains("auth.write_token is empty"));
     }
 
     #[test]
