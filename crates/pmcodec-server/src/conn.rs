@@ -6,7 +6,10 @@
 //! - **a header-read timeout** (hyper's): a client that does not send a whole request head in
 //!   time (a slow-loris trickle) is disconnected;
 //! - **an idle timeout**: a connection with no request in progress and no byte read or written
-//!   for that long is closed, so idle keep-alive sockets do not hold permits forever.
+//!   for that long is closed, so idle keep-alive sockets do not hold permits forever; one that
+//!   has not sent a request yet gets only the header-read timeout (hyper's own timer starts
+//!   with the first byte, so a socket that sends nothing would otherwise wait for the longer
+//!   idle timeout while connections beyond the cap queue behind it).
 //!
 //! These protect the server itself; a reverse proxy in front (README, proto/http.md) is still
 //! expected for TLS, per-client rate limits and buffering of slow clients.
@@ -42,11 +45,13 @@ struct Activity {
     last_ms: AtomicU64,
     /// Requests whose handler has not answered yet.
     in_flight: AtomicUsize,
+    /// Requests begun on this connection.
+    requests: AtomicU64,
 }
 
 impl Activity {
     fn new() -> Activity {
-        Activity { start: Instant::now(), last_ms: AtomicU64::new(0), in_flight: AtomicUsize::new(0) }
+        Activity { start: Instant::now(), last_ms: AtomicU64::new(0), in_flight: AtomicUsize::new(0), requests: AtomicU64::new(0) }
     }
     fn touch(&self) {
         self.last_ms.store(self.start.elapsed().as_millis() as u64, Ordering::Relaxed);
@@ -57,9 +62,10 @@ impl Activity {
 }
 
 /// Resolves once the connection has been idle (no request being handled, no byte moved) for
-/// `limit`. Wakes at most a few times per `limit`.
-async fn idle(activity: &Activity, limit: Duration) {
+/// `limit`, or for `first` before its first request. Wakes at most a few times per limit.
+async fn idle(activity: &Activity, first: Duration, later: Duration) {
     loop {
+        let limit = if activity.requests.load(Ordering::Relaxed) == 0 { first } else { later };
         let quiet = activity.quiet_for();
         if quiet >= limit && activity.in_flight.load(Ordering::Relaxed) == 0 {
             return;
@@ -119,6 +125,7 @@ struct InFlight(Arc<Activity>);
 impl InFlight {
     fn new(activity: Arc<Activity>) -> InFlight {
         activity.in_flight.fetch_add(1, Ordering::Relaxed);
+        activity.requests.fetch_add(1, Ordering::Relaxed);
         InFlight(activity)
     }
 }
@@ -185,14 +192,14 @@ pub async fn serve(listener: TcpListener, app: Router, limits: ConnLimits, shutd
         let mut builder = hyper_util::server::conn::auto::Builder::new(TokioExecutor::new());
         builder.http1().timer(TokioTimer::new()).header_read_timeout(limits.header_read_timeout);
         let conn = graceful.watch(builder.serve_connection_with_upgrades(io, service).into_owned());
-        let idle_limit = limits.idle_timeout;
+        let (first_limit, idle_limit) = (limits.header_read_timeout, limits.idle_timeout);
         tokio::spawn(async move {
             let _permit = permit;
             tokio::select! {
                 r = conn => if let Err(e) = r {
                     tracing::debug!(error = %e, "connection ended with an error");
                 },
-                () = idle(&activity, idle_limit) => tracing::debug!("closing a connection idle for {idle_limit:?}"),
+                () = idle(&activity, first_limit, idle_limit) => tracing::debug!("closing an idle connection"),
             }
         });
     }
@@ -207,14 +214,18 @@ mod tests {
     #[tokio::test]
     async fn idle_waits_for_quiet_and_for_requests_to_finish() {
         let a = Arc::new(Activity::new());
-        let limit = Duration::from_millis(100);
+        let (first, limit) = (Duration::from_millis(50), Duration::from_millis(200));
+        // Before any request, the first (header-read) limit applies.
+        let t = Instant::now();
+        tokio::time::timeout(Duration::from_secs(30), idle(&a, first, limit)).await.expect("idle before a request");
+        assert!(t.elapsed() >= first && t.elapsed() < limit * 10, "{:?}", t.elapsed());
         let held = InFlight::new(a.clone());
         // A request in progress keeps the connection however long it is quiet.
-        assert!(tokio::time::timeout(limit * 4, idle(&a, limit)).await.is_err());
-        // Its end counts as activity: the quiet time starts again.
+        assert!(tokio::time::timeout(limit * 3, idle(&a, first, limit)).await.is_err());
+        // Its end counts as activity: the quiet time starts again, with the idle limit.
         drop(held);
         let t = Instant::now();
-        tokio::time::timeout(Duration::from_secs(30), idle(&a, limit)).await.expect("idle after the limit");
+        tokio::time::timeout(Duration::from_secs(30), idle(&a, first, limit)).await.expect("idle after the limit");
         assert!(t.elapsed() >= limit, "{:?}", t.elapsed());
     }
 }
