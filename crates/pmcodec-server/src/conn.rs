@@ -148,6 +148,7 @@ pub async fn serve(listener: TcpListener, app: Router, limits: ConnLimits, shutd
     let permits = Arc::new(Semaphore::new(limits.max_connections.max(1)));
     let graceful = hyper_util::server::graceful::GracefulShutdown::new();
     tokio::pin!(shutdown);
+    let mut last_warning = None;
     loop {
         // Taken before accepting: past the cap, connections wait in the listen backlog.
         let permit = tokio::select! {
@@ -163,8 +164,12 @@ pub async fn serve(listener: TcpListener, app: Router, limits: ConnLimits, shutd
                 Ok((stream, _)) => stream,
                 Err(e) if per_connection(&e) => continue,
                 Err(e) => {
-                    // Out of descriptors or memory: wait a moment rather than spin.
-                    tracing::warn!(error = %e, "accepting a connection failed");
+                    // Out of descriptors or memory: wait a moment rather than spin, and say so
+                    // at most once a second.
+                    if last_warning.is_none_or(|t: Instant| t.elapsed() >= Duration::from_secs(1)) {
+                        tracing::warn!(error = %e, "accepting a connection failed (limits.max_connections above the descriptor limit?)");
+                        last_warning = Some(Instant::now());
+                    }
                     tokio::select! {
                         () = tokio::time::sleep(Duration::from_millis(100)) => continue,
                         () = &mut shutdown => break,

@@ -63,11 +63,6 @@ impl UploadBody {
         }
     }
 
-    /// The temporary file holding the body (tests check that it goes away).
-    pub fn path(&self) -> &Path {
-        self.file.path()
-    }
-
     /// Reads a request body into a temporary file and classifies it: by content type, and for
     /// bodies sent as plain octets, by their magic number.
     pub async fn read(headers: &HeaderMap, body: Body, limits: &BodyLimits<'_>) -> Result<UploadBody, ApiError> {
