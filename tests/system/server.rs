@@ -183,6 +183,49 @@ async fn uploaded_glb_with_a_named_animation_becomes_an_asset() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn frame_rates_and_long_animations_are_refused_before_sampling() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut config = Config {
+        store: StoreConfig::Local { path: dir.path().to_path_buf() },
+        listen: "127.0.0.1:0".parse().unwrap(),
+        ..Default::default()
+    };
+    config.auth.write_token = Some(Secret(TOKEN.into()));
+    config.limits.max_frames = 100;
+    let server = pmcodec_server::start(config).await.unwrap();
+    let http = reqwest::Client::new();
+    let glb = std::fs::read(data("gltf/Fox.glb")).unwrap();
+    // Out of range (fps=1000 made a 72 KB GLB 20,001 frames; fps=1e-30 a frame time no player
+    // can convert): 400 naming the parameter.
+    for fps in ["1000", "1e-30", "0"] {
+        let r = http
+            .post(format!("{}/v1/assets?id=fox&fps={fps}", server.url()))
+            .bearer_auth(TOKEN)
+            .header("content-type", "model/gltf-binary")
+            .body(glb.clone())
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), 400, "fps={fps}");
+        let body: Value = r.json().await.unwrap();
+        assert!(body["detail"].as_str().unwrap().contains("fps"), "{body}");
+    }
+    // In range, but more frames than the server takes: the job fails naming the limit, before
+    // sampling the animation, and stores nothing.
+    let (_, last) = upload(&http, &server.url(), "id=fox&fps=240", "model/gltf-binary", glb.clone()).await;
+    assert_eq!(last["state"], "failed", "{last}");
+    let message = last["message"].as_str().unwrap();
+    assert!(message.contains("max_frames") && message.contains("240 frames per second"), "{message}");
+    assert_eq!(last["frames_total"], Value::Null, "refused before sampling: {last}");
+    assert!(!dir.path().join("fox.pmc").exists());
+    assert!(leftovers(dir.path()).is_empty());
+    // The same file at a rate within the cap is encoded.
+    let (_, last) = upload(&http, &server.url(), "id=fox&fps=2&animation=Walk", "model/gltf-binary", glb).await;
+    assert_eq!(last["state"], "succeeded", "{last}");
+    server.stop().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_uploads_and_requests_fail_cleanly_and_leave_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let server = local_server(dir.path()).await;
@@ -423,4 +466,90 @@ async fn two_servers_share_one_s3_bucket() {
     let r = store.put(&dog, b"second".to_vec().into(), PutMode::Create).await;
     assert!(matches!(r, Err(StoreError::AlreadyExists(_))), "{r:?}");
     assert_eq!(&store.get(&dog).await.unwrap().unwrap().1[..], b"first");
+}
+
+/// Reads from a raw socket until the server closes it; `true` when it did within `within`
+/// (anything it sends first, such as a 408 answer, is read and dropped).
+fn closed_by_server(s: &mut std::net::TcpStream, within: Duration) -> bool {
+    let deadline = std::time::Instant::now() + within;
+    let mut buf = [0u8; 1024];
+    loop {
+        let left = deadline.saturating_duration_since(std::time::Instant::now());
+        if left.is_zero() {
+            return false;
+        }
+        s.set_read_timeout(Some(left)).unwrap();
+        match s.read(&mut buf) {
+            Ok(0) => return true,
+            Ok(_) => continue,
+            Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => return false,
+            // A reset is a close too.
+            Err(_) => return true,
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn slow_and_idle_connections_are_closed_and_connections_are_capped() {
+    let mut config = Config { store: StoreConfig::Memory, listen: "127.0.0.1:0".parse().unwrap(), ..Default::default() };
+    config.limits.header_read_timeout_secs = 2;
+    config.limits.idle_timeout_secs = 3;
+    config.limits.max_connections = 3;
+    let server = pmcodec_server::start(config).await.unwrap();
+    let addr = server.addr;
+    tokio::task::spawn_blocking(move || {
+        // A request head trickled a byte at a time (slow loris) is cut off by the header-read
+        // timeout, though bytes keep arriving.
+        let mut loris = std::net::TcpStream::connect(addr).unwrap();
+        let start = std::time::Instant::now();
+        let mut cut = false;
+        for b in b"GET /healthz HTTP/1.1\r\nHost: x\r\nX-Slow: ".iter().chain([b'a'; 200].iter()) {
+            if loris.write_all(&[*b]).is_err() {
+                cut = true;
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        assert!(cut || closed_by_server(&mut loris, Duration::from_secs(5)), "a trickled header is cut off");
+        assert!(start.elapsed() < Duration::from_secs(15), "cut off after {:?}", start.elapsed());
+
+        // A keep-alive connection left idle after its answer is closed.
+        let mut idle = std::net::TcpStream::connect(addr).unwrap();
+        write!(idle, "GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n").unwrap();
+        let mut buf = [0u8; 256];
+        let n = idle.read(&mut buf).unwrap();
+        assert!(String::from_utf8_lossy(&buf[..n]).starts_with("HTTP/1.1 200"));
+        assert!(closed_by_server(&mut idle, Duration::from_secs(10)), "an idle keep-alive connection is closed");
+
+        // Three connections fill the cap; a fourth is not served while they are open, and is
+        // once the idle ones are closed.
+        let held: Vec<_> = (0..3)
+            .map(|_| {
+                let mut s = std::net::TcpStream::connect(addr).unwrap();
+                write!(s, "GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n").unwrap();
+                let n = s.read(&mut buf).unwrap();
+                assert!(String::from_utf8_lossy(&buf[..n]).starts_with("HTTP/1.1 200"));
+                s
+            })
+            .collect();
+        let mut fourth = std::net::TcpStream::connect(addr).unwrap();
+        write!(fourth, "GET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n").unwrap();
+        fourth.set_read_timeout(Some(Duration::from_millis(700))).unwrap();
+        assert!(fourth.read(&mut buf).is_err(), "a connection beyond the cap was served");
+        fourth.set_read_timeout(Some(Duration::from_secs(15))).unwrap();
+        let n = fourth.read(&mut buf).expect("served once the idle connections are closed");
+        assert!(String::from_utf8_lossy(&buf[..n]).starts_with("HTTP/1.1 200"), "{}", String::from_utf8_lossy(&buf[..n]));
+        drop(held);
+    })
+    .await
+    .unwrap();
+    // With many idle sockets open, /healthz still answers (they are closed in time).
+    let idle: Vec<_> = (0..8).map(|_| std::net::TcpStream::connect(addr).unwrap()).collect();
+    let r = tokio::time::timeout(Duration::from_secs(30), reqwest::get(format!("{}/healthz", server.url())))
+        .await
+        .expect("healthz answers while idle sockets are open")
+        .unwrap();
+    assert_eq!(r.status(), 200);
+    drop(idle);
+    server.stop().await.unwrap();
 }

@@ -15,6 +15,9 @@ pub struct Config {
     pub listen: SocketAddr,
     /// Folder of the built viewer served at `/`; `None` serves no viewer.
     pub viewer: Option<PathBuf>,
+    /// Folder where upload bodies wait for their encode job (one temporary file per job,
+    /// removed when the job ends); `None` is the system's temporary folder.
+    pub upload_dir: Option<PathBuf>,
     pub store: StoreConfig,
     pub auth: AuthConfig,
     pub limits: LimitsConfig,
@@ -33,6 +36,7 @@ impl Default for Config {
         Config {
             listen: SocketAddr::from(([127, 0, 0, 1], 8080)),
             viewer: None,
+            upload_dir: None,
             store: StoreConfig::default(),
             auth: AuthConfig::default(),
             limits: LimitsConfig::default(),
@@ -108,6 +112,17 @@ pub struct LimitsConfig {
     pub decode_queue: usize,
     /// Time given to open connections after SIGINT/SIGTERM.
     pub shutdown_grace_secs: u64,
+    /// Connections open at once; beyond it new ones wait in the listen backlog until one
+    /// closes. Keep it well below the process's descriptor limit (`ulimit -n`).
+    pub max_connections: usize,
+    /// Time a client has to send a whole request head (slow-loris clients are disconnected).
+    pub header_read_timeout_secs: u64,
+    /// A connection with no request in progress and no byte moved for this long is closed
+    /// (idle keep-alive connections). Keep it above 15 s, the job event streams' keep-alive.
+    pub idle_timeout_secs: u64,
+    /// Most frames an uploaded sequence may have (an OBJ per frame, or a glTF animation's
+    /// duration times the frame rate).
+    pub max_frames: u32,
 }
 
 impl Default for LimitsConfig {
@@ -124,6 +139,10 @@ impl Default for LimitsConfig {
             finished_jobs_kept: 256,
             decode_queue: 256,
             shutdown_grace_secs: 10,
+            max_connections: 512,
+            header_read_timeout_secs: 10,
+            idle_timeout_secs: 60,
+            max_frames: 2000,
         }
     }
 }
@@ -134,6 +153,12 @@ impl LimitsConfig {
     }
     pub fn upload_timeout(&self) -> Duration {
         Duration::from_secs(self.upload_timeout_secs.max(1))
+    }
+    pub fn header_read_timeout(&self) -> Duration {
+        Duration::from_secs(self.header_read_timeout_secs.max(1))
+    }
+    pub fn idle_timeout(&self) -> Duration {
+        Duration::from_secs(self.idle_timeout_secs.max(1))
     }
 }
 
@@ -300,6 +325,24 @@ impl Config {
         if let Some(v) = non_empty("PMCODEC_REQUEST_TIMEOUT_SECS") {
             self.limits.request_timeout_secs = parsed("PMCODEC_REQUEST_TIMEOUT_SECS", v)?;
         }
+        if let Some(v) = non_empty("PMCODEC_MAX_CONNECTIONS") {
+            self.limits.max_connections = parsed("PMCODEC_MAX_CONNECTIONS", v)?;
+        }
+        if let Some(v) = non_empty("PMCODEC_HEADER_READ_TIMEOUT_SECS") {
+            self.limits.header_read_timeout_secs = parsed("PMCODEC_HEADER_READ_TIMEOUT_SECS", v)?;
+        }
+        if let Some(v) = non_empty("PMCODEC_IDLE_TIMEOUT_SECS") {
+            self.limits.idle_timeout_secs = parsed("PMCODEC_IDLE_TIMEOUT_SECS", v)?;
+        }
+        if let Some(v) = non_empty("PMCODEC_MAX_PENDING_JOBS") {
+            self.limits.max_pending_jobs = parsed("PMCODEC_MAX_PENDING_JOBS", v)?;
+        }
+        if let Some(v) = non_empty("PMCODEC_MAX_FRAMES") {
+            self.limits.max_frames = parsed("PMCODEC_MAX_FRAMES", v)?;
+        }
+        if let Some(v) = non_empty("PMCODEC_UPLOAD_DIR") {
+            self.upload_dir = Some(PathBuf::from(v.trim()));
+        }
         if let Some(v) = non_empty("PMCODEC_ASSET_CACHE_BYTES") {
             self.cache.asset_bytes = parsed("PMCODEC_ASSET_CACHE_BYTES", v)?;
         }
@@ -322,8 +365,15 @@ impl Config {
         {
             return Err("store.kind = \"s3\" needs store.bucket (or PMCODEC_S3_BUCKET)".into());
         }
-        if self.limits.upload_bytes == 0 || self.limits.max_pending_jobs == 0 || self.limits.encode_concurrency == 0 {
-            return Err("limits.upload_bytes, max_pending_jobs and encode_concurrency must be positive".into());
+        let l = &self.limits;
+        if l.upload_bytes == 0 || l.max_pending_jobs == 0 || l.encode_concurrency == 0 || l.max_connections == 0 || l.max_frames == 0 {
+            return Err("limits.upload_bytes, max_pending_jobs, encode_concurrency, max_connections and max_frames must be positive".into());
+        }
+        // An empty token would be matched by `Authorization: Bearer ` (or by nothing at all).
+        for (name, token) in [("write_token", &self.auth.write_token), ("read_token", &self.auth.read_token)] {
+            if token.as_ref().is_some_and(|t| t.expose().trim().is_empty()) {
+                return Err(format!("auth.{name} is empty: give a token, or leave the setting out"));
+            }
         }
         if self.cors.allow_origins.iter().any(|o| o != "*" && axum::http::HeaderValue::from_str(o).is_err()) {
             return Err(format!("cors.allow_origins {:?}: not valid header values", self.cors.allow_origins));
@@ -382,6 +432,32 @@ mod tests {
         assert!(e.contains("PMCODEC_UPLOAD_LIMIT_BYTES"), "{e}");
         c.apply_env(env(&[("PMCODEC_STORE", "s3")])).unwrap();
         assert!(c.validate().unwrap_err().contains("bucket"));
+    }
+
+    #[test]
+    fn connection_and_job_bounds_from_environment_and_empty_tokens_refused() {
+        let mut c = Config::default();
+        c.apply_env(env(&[
+            ("PMCODEC_MAX_CONNECTIONS", "7"),
+            ("PMCODEC_HEADER_READ_TIMEOUT_SECS", "3"),
+            ("PMCODEC_IDLE_TIMEOUT_SECS", "20"),
+            ("PMCODEC_MAX_PENDING_JOBS", "2"),
+            ("PMCODEC_MAX_FRAMES", "90"),
+            ("PMCODEC_UPLOAD_DIR", "/var/tmp"),
+        ]))
+        .unwrap();
+        let l = &c.limits;
+        assert_eq!((l.max_connections, l.header_read_timeout_secs, l.idle_timeout_secs), (7, 3, 20));
+        assert_eq!((l.max_pending_jobs, l.max_frames), (2, 90));
+        assert_eq!(c.upload_dir, Some(PathBuf::from("/var/tmp")));
+        assert!(c.validate().is_ok());
+        c.limits.max_connections = 0;
+        assert!(c.validate().unwrap_err().contains("max_connections"));
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("s.toml");
+        std::fs::write(&path, "[auth]\nwrite_token = \"\"\n").unwrap();
+        let c = Config::from_file(&path).unwrap();
+        assert!(c.validate().unwrap_err().contains("auth.write_token is empty"));
     }
 
     #[test]

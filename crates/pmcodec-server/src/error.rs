@@ -70,6 +70,9 @@ impl ApiError {
     }
 }
 
+/// Longest `detail` of an error body.
+const MAX_DETAIL: usize = 1024;
+
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
         let (status, kind) = self.status_and_kind();
@@ -82,7 +85,9 @@ impl IntoResponse for ApiError {
                 _ => "internal error; the server log has the details".to_string(),
             }
         } else {
-            self.to_string()
+            // Client errors can quote the request (an id, a parameter's name): a quote of a
+            // 64 KB URL is cut short.
+            crate::middleware::clip_to(&self.to_string(), MAX_DETAIL).into_owned()
         };
         let mut resp = (status, Json(serde_json::json!({ "error": kind, "detail": detail }))).into_response();
         let h = resp.headers_mut();

@@ -3,6 +3,11 @@
 //! that fails anywhere before it writes nothing. Without `replace=true` that write is
 //! create-only, so it never replaces an asset another server created while the job ran.
 //!
+//! A place in the queue is taken ([`Jobs::reserve`]) before an upload's body is read, so a full
+//! queue refuses at once; the body waits in a temporary file, not in memory. A job can be
+//! cancelled (`DELETE /v1/jobs/{id}`): a queued one never starts, a running one stops at its
+//! next frame or stage, and a cancelled job writes nothing.
+//!
 //! Jobs live in the memory of the server that accepted the upload (the asset itself goes to the
 //! shared store): behind a load balancer, job URLs need that server (sticky routing), or a
 //! client polls `GET /v1/assets/{id}` on any server until the asset appears.
@@ -24,11 +29,12 @@ pub enum JobState {
     Running,
     Succeeded,
     Failed,
+    Cancelled,
 }
 
 impl JobState {
     pub fn is_finished(self) -> bool {
-        matches!(self, JobState::Succeeded | JobState::Failed)
+        matches!(self, JobState::Succeeded | JobState::Failed | JobState::Cancelled)
     }
     pub fn name(self) -> &'static str {
         match self {
@@ -36,6 +42,7 @@ impl JobState {
             JobState::Running => "running",
             JobState::Succeeded => "succeeded",
             JobState::Failed => "failed",
+            JobState::Cancelled => "cancelled",
         }
     }
 }
@@ -54,6 +61,8 @@ pub struct JobStatus {
     pub frames_total: Option<u32>,
     /// Why it failed.
     pub message: Option<String>,
+    /// A `DELETE` asked for it to stop (it ends `cancelled` unless it had finished storing).
+    pub cancel_requested: bool,
     /// What was uploaded.
     pub input: String,
     pub created_unix_ms: u64,
@@ -64,8 +73,14 @@ pub struct JobStatus {
     pub events_url: String,
 }
 
+/// A job as the registry holds it: its status, and the flag its work checks between frames.
+struct Entry {
+    status: watch::Sender<JobStatus>,
+    cancel: watch::Sender<bool>,
+}
+
 struct Inner {
-    jobs: HashMap<String, watch::Sender<JobStatus>>,
+    jobs: HashMap<String, Entry>,
     finished: VecDeque<String>,
     pending: usize,
     pending_assets: HashSet<AssetId>,
@@ -112,16 +127,56 @@ impl Jobs {
     }
 
     pub fn status(&self, job: &str) -> Option<JobStatus> {
-        self.lock().jobs.get(job).map(|s| s.borrow().clone())
+        self.lock().jobs.get(job).map(|e| e.status.borrow().clone())
     }
 
     pub fn subscribe(&self, job: &str) -> Option<watch::Receiver<JobStatus>> {
-        self.lock().jobs.get(job).map(|s| s.subscribe())
+        self.lock().jobs.get(job).map(|e| e.status.subscribe())
     }
 
-    /// Registers a job and starts it; errors when too many are pending or the asset already
-    /// has one.
-    pub fn submit(&self, app: &AppState, asset: AssetId, body: UploadBody, opts: UploadOptions) -> Result<JobStatus, ApiError> {
+    /// Asks a queued or running job to stop; the status it returns has `cancel_requested`
+    /// set, and the job's events end with `cancelled` once it has. A job that has finished
+    /// is a conflict.
+    pub fn cancel(&self, job: &str) -> Result<JobStatus, ApiError> {
+        let inner = self.lock();
+        let e = inner.jobs.get(job).ok_or_else(|| ApiError::NotFound(format!("no job {job} on this server")))?;
+        let state = e.status.borrow().state;
+        if state.is_finished() {
+            return Err(ApiError::Conflict(format!("job {job} has finished ({}); there is nothing to cancel", state.name())));
+        }
+        e.cancel.send_replace(true);
+        e.status.send_modify(|s| s.cancel_requested = true);
+        Ok(e.status.borrow().clone())
+    }
+
+    /// Takes a place in the queue for an upload of `asset`, before its body is read: errors
+    /// at once when the queue is full or the asset has a job. The place is given back when the
+    /// reservation is dropped unless [`Jobs::submit`] turned it into a job.
+    pub fn reserve(&self, app: &AppState, asset: AssetId) -> Result<Reservation, ApiError> {
+        let mut inner = self.lock();
+        if inner.pending >= self.max_pending {
+            return Err(ApiError::Busy(format!(
+                "{} encode jobs are already queued, running or being uploaded (limits.max_pending_jobs); retry later",
+                inner.pending
+            )));
+        }
+        if inner.pending_assets.contains(&asset) {
+            return Err(ApiError::Conflict(format!("an encode job for asset {asset} is already queued or running")));
+        }
+        inner.pending += 1;
+        inner.pending_assets.insert(asset.clone());
+        Ok(Reservation { app: app.clone(), asset: Some(asset) })
+    }
+
+    fn release(&self, asset: &AssetId) {
+        let mut inner = self.lock();
+        inner.pending = inner.pending.saturating_sub(1);
+        inner.pending_assets.remove(asset);
+    }
+
+    /// Turns a reservation into a job and starts it.
+    pub fn submit(&self, app: &AppState, mut place: Reservation, body: UploadBody, opts: UploadOptions) -> Result<JobStatus, ApiError> {
+        let asset = place.asset.take().ok_or_else(|| ApiError::Internal("a reservation used twice".into()))?;
         let id = uuid::Uuid::new_v4().simple().to_string();
         let status = JobStatus {
             id: id.clone(),
@@ -132,6 +187,7 @@ impl Jobs {
             frames_done: 0,
             frames_total: None,
             message: None,
+            cancel_requested: false,
             input: body.describe(),
             created_unix_ms: now_ms(),
             finished_unix_ms: None,
@@ -140,29 +196,19 @@ impl Jobs {
             events_url: format!("/v1/jobs/{id}/events"),
         };
         let (tx, _) = watch::channel(status.clone());
-        {
-            let mut inner = self.lock();
-            if inner.pending >= self.max_pending {
-                return Err(ApiError::Busy(format!("{} encode jobs are already queued or running; retry later", inner.pending)));
-            }
-            if inner.pending_assets.contains(&asset) {
-                return Err(ApiError::Conflict(format!("an encode job for asset {asset} is already queued or running")));
-            }
-            inner.pending += 1;
-            inner.pending_assets.insert(asset.clone());
-            inner.jobs.insert(id.clone(), tx.clone());
-        }
+        let (cancel, cancelled) = watch::channel(false);
+        // The place reserved for this upload is the job's now (released in `finish`).
+        self.lock().jobs.insert(id.clone(), Entry { status: tx.clone(), cancel });
         tracing::info!(job = %id, asset = %asset, input = %status.input, "encode job queued");
         // The job outlives the request: it gets a span of its own, not the request's.
         let span = tracing::info_span!(parent: None, "job", id = %id, asset = %asset);
-        tokio::spawn(tracing::Instrument::instrument(run(app.clone(), tx, asset, body, opts), span));
+        tokio::spawn(tracing::Instrument::instrument(run(app.clone(), tx, cancelled, asset, body, opts), span));
         Ok(status)
     }
 
     fn finish(&self, job: &str, asset: &AssetId) {
+        self.release(asset);
         let mut inner = self.lock();
-        inner.pending = inner.pending.saturating_sub(1);
-        inner.pending_assets.remove(asset);
         inner.finished.push_back(job.to_string());
         // Each pass removes one finished job: bounded by the queue's length.
         while inner.finished.len() > self.keep_finished {
@@ -173,14 +219,109 @@ impl Jobs {
     }
 }
 
+/// A place in the jobs queue held by an upload whose body is being read.
+pub struct Reservation {
+    app: AppState,
+    /// `None` once a job holds the place.
+    asset: Option<AssetId>,
+}
+
+impl Drop for Reservation {
+    fn drop(&mut self) {
+        if let Some(asset) = self.asset.take() {
+            self.app.jobs.release(&asset);
+        }
+    }
+}
+
 fn created_meanwhile(asset: &AssetId) -> String {
     format!("asset {asset} was created while this job ran; upload again with replace=true to replace it")
 }
 
-async fn run(app: AppState, tx: watch::Sender<JobStatus>, asset: AssetId, body: UploadBody, opts: UploadOptions) {
+/// The unwind payload that stops an encode between frames when its job is cancelled. It is
+/// raised with `resume_unwind`, which does not run the panic hook (nothing is printed), and
+/// caught where the blocking task is joined; the encoder holds nothing that outlives it.
+struct Cancelled;
+
+enum Outcome {
+    Stored,
+    Failed(String),
+    Cancelled,
+}
+
+async fn run(
+    app: AppState,
+    tx: watch::Sender<JobStatus>,
+    mut cancelled: watch::Receiver<bool>,
+    asset: AssetId,
+    body: UploadBody,
+    opts: UploadOptions,
+) {
     let job_id = tx.borrow().id.clone();
-    // The semaphore is never closed, so acquiring only waits for a free slot.
-    let permit = app.jobs.permits.clone().acquire_owned().await;
+    // The semaphore is never closed, so acquiring only waits for a free slot (or a cancel).
+    let permit = tokio::select! {
+        p = app.jobs.permits.clone().acquire_owned() => p.ok(),
+        _ = cancelled.wait_for(|c| *c) => None,
+    };
+    let outcome = match permit {
+        None => {
+            // Cancelled while queued: the body's temporary file goes with `body`.
+            drop(body);
+            Outcome::Cancelled
+        }
+        Some(permit) => {
+            let outcome = encode_and_store(&app, &tx, cancelled, &asset, body, opts).await;
+            drop(permit);
+            outcome
+        }
+    };
+    match &outcome {
+        Outcome::Stored => {
+            app.metrics.jobs_succeeded.fetch_add(1, Ordering::Relaxed);
+            tracing::info!(job = %job_id, asset = %asset, "encode job succeeded");
+        }
+        Outcome::Failed(m) => {
+            app.metrics.jobs_failed.fetch_add(1, Ordering::Relaxed);
+            tracing::warn!(job = %job_id, asset = %asset, message = %m, "encode job failed");
+        }
+        Outcome::Cancelled => tracing::info!(job = %job_id, asset = %asset, "encode job cancelled"),
+    }
+    // Release the asset before announcing the outcome, so a client reacting to "succeeded"
+    // or "failed" can submit the next job for it at once.
+    app.jobs.finish(&job_id, &asset);
+    tx.send_modify(|s| {
+        s.finished_unix_ms = Some(now_ms());
+        s.stage = "done";
+        match outcome {
+            Outcome::Stored => {
+                s.state = JobState::Succeeded;
+                s.progress = 1.0;
+                s.asset_url = Some(format!("/v1/assets/{asset}"));
+            }
+            Outcome::Failed(m) => {
+                s.state = JobState::Failed;
+                s.message = Some(m);
+            }
+            Outcome::Cancelled => {
+                s.state = JobState::Cancelled;
+                s.message = Some("cancelled by a DELETE request; nothing was stored".into());
+            }
+        }
+    });
+}
+
+/// Parses, encodes and stores, checking for a cancel between stages and frames.
+async fn encode_and_store(
+    app: &AppState,
+    tx: &watch::Sender<JobStatus>,
+    cancelled: watch::Receiver<bool>,
+    asset: &AssetId,
+    body: UploadBody,
+    opts: UploadOptions,
+) -> Outcome {
+    if *cancelled.borrow() {
+        return Outcome::Cancelled;
+    }
     tx.send_modify(|s| {
         s.state = JobState::Running;
         s.stage = "parsing";
@@ -189,14 +330,22 @@ async fn run(app: AppState, tx: watch::Sender<JobStatus>, asset: AssetId, body: 
         EncodeOptions { keyframe_interval: app.config.keyframe_interval, motion: app.config.motion, ..EncodeOptions::default() };
     let progress_tx = tx.clone();
     let replace = opts.replace;
+    let stop = cancelled.clone();
     let work = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, String> {
         let seq = body.into_sequence(&opts)?;
+        // The body's temporary file is gone with `body`; only the parsed frames remain.
         let frames = seq.frame_count() as u32;
+        if *stop.borrow() {
+            std::panic::resume_unwind(Box::new(Cancelled));
+        }
         progress_tx.send_modify(|s| {
             s.stage = "encoding";
             s.frames_total = Some(frames);
         });
         encode(&seq, &encode_opts, |f| {
+            if *stop.borrow() {
+                std::panic::resume_unwind(Box::new(Cancelled));
+            }
             progress_tx.send_modify(|s| {
                 s.frames_done = (f as u32 + 1).min(frames);
                 // Storing is the last few percent.
@@ -206,64 +355,47 @@ async fn run(app: AppState, tx: watch::Sender<JobStatus>, asset: AssetId, body: 
         .map_err(|e| format!("encoding: {e}"))
     })
     .await;
-    drop(permit);
-    let result = match work {
-        // Without replace=true, an asset that appeared while the job ran (an upload through
-        // another server sharing the store) is kept, and the job fails saying so. This check
-        // only saves the write; the create-only write below is what keeps the asset when
-        // another server creates it after this check.
-        Ok(Ok(_)) if !replace && matches!(app.store.head(&asset).await, Ok(Some(_))) => Err(created_meanwhile(&asset)),
-        Ok(Ok(bytes)) => {
-            tx.send_modify(|s| s.stage = "storing");
-            // The one write of the job: atomic in every store, so the asset appears whole.
-            let mode = if replace { PutMode::Overwrite } else { PutMode::Create };
-            match app.store.put(&asset, bytes.into(), mode).await {
-                Ok(_) => {
-                    app.assets.forget(&asset);
-                    // Describe it now, which also writes its listing metadata, so that no
-                    // server has to read the container to list it (best effort: the asset is
-                    // stored either way).
-                    if let Err(e) = app.assets.describe(&asset).await {
-                        tracing::warn!(asset = %asset, error = %e, "describing the stored asset failed");
-                    }
-                    Ok(())
-                }
-                Err(StoreError::AlreadyExists(_)) => Err(created_meanwhile(&asset)),
-                Err(e) => {
-                    tracing::error!(error = %e, "storing the encoded asset failed");
-                    Err("storing the asset failed; the server log has the details".to_string())
-                }
+    let bytes = match work {
+        Ok(Ok(bytes)) => bytes,
+        Ok(Err(message)) => return Outcome::Failed(message),
+        Err(join) if join.is_panic() => match join.into_panic().downcast::<Cancelled>() {
+            Ok(_) => return Outcome::Cancelled,
+            Err(_) => {
+                tracing::error!("the encoder panicked (a bug)");
+                return Outcome::Failed("the encoder stopped unexpectedly (a bug); the server log has the details".into());
             }
-        }
-        Ok(Err(message)) => Err(message),
-        Err(join) => Err(format!("the encoder stopped unexpectedly: {join}")),
+        },
+        Err(join) => return Outcome::Failed(format!("the encoder stopped unexpectedly: {join}")),
     };
-    match &result {
-        Ok(()) => {
-            app.metrics.jobs_succeeded.fetch_add(1, Ordering::Relaxed);
-            tracing::info!(job = %job_id, asset = %asset, "encode job succeeded");
+    // The last point where a cancel is honoured: the store write below is one atomic step.
+    if *cancelled.borrow() {
+        return Outcome::Cancelled;
+    }
+    // Without replace=true, an asset that appeared while the job ran (an upload through
+    // another server sharing the store) is kept, and the job fails saying so. This check
+    // only saves the write; the create-only write below is what keeps the asset when
+    // another server creates it after this check.
+    if !replace && matches!(app.store.head(asset).await, Ok(Some(_))) {
+        return Outcome::Failed(created_meanwhile(asset));
+    }
+    tx.send_modify(|s| s.stage = "storing");
+    // The one write of the job: atomic in every store, so the asset appears whole.
+    let mode = if replace { PutMode::Overwrite } else { PutMode::Create };
+    match app.store.put(asset, bytes.into(), mode).await {
+        Ok(_) => {
+            app.assets.forget(asset);
+            // Describe it now, which also writes its listing metadata, so that no
+            // server has to read the container to list it (best effort: the asset is
+            // stored either way).
+            if let Err(e) = app.assets.describe(asset).await {
+                tracing::warn!(asset = %asset, error = %e, "describing the stored asset failed");
+            }
+            Outcome::Stored
         }
-        Err(m) => {
-            app.metrics.jobs_failed.fetch_add(1, Ordering::Relaxed);
-            tracing::warn!(job = %job_id, asset = %asset, message = %m, "encode job failed");
+        Err(StoreError::AlreadyExists(_)) => Outcome::Failed(created_meanwhile(asset)),
+        Err(e) => {
+            tracing::error!(error = %e, "storing the encoded asset failed");
+            Outcome::Failed("storing the asset failed; the server log has the details".to_string())
         }
     }
-    // Release the asset before announcing the outcome, so a client reacting to "succeeded"
-    // or "failed" can submit the next job for it at once.
-    app.jobs.finish(&job_id, &asset);
-    tx.send_modify(|s| {
-        s.finished_unix_ms = Some(now_ms());
-        s.stage = "done";
-        match result {
-            Ok(()) => {
-                s.state = JobState::Succeeded;
-                s.progress = 1.0;
-                s.asset_url = Some(format!("/v1/assets/{asset}"));
-            }
-            Err(m) => {
-                s.state = JobState::Failed;
-                s.message = Some(m);
-            }
-        }
-    });
 }

@@ -15,6 +15,7 @@
 
 pub mod assets;
 pub mod config;
+mod conn;
 pub mod decode;
 mod error;
 mod id;
@@ -73,6 +74,11 @@ impl AppState {
     /// State over a store; `ready` starts false.
     pub fn new(config: Config, store: Arc<dyn AssetStore>) -> Result<AppState, ServerError> {
         config.validate().map_err(ServerError::Config)?;
+        if let Some(dir) = &config.upload_dir
+            && !dir.is_dir()
+        {
+            return Err(ServerError::Config(format!("upload_dir {}: not a folder", dir.display())));
+        }
         let c = &config.cache;
         let decoder = Arc::new(
             DecodePool::new(c.decode_workers, c.decode_bytes, config.limits.decode_queue)
@@ -140,14 +146,20 @@ impl AppState {
         let grace = std::time::Duration::from_secs(self.config.limits.shutdown_grace_secs);
         let mut begun = self.shutdown.subscribe();
         let state = self.clone();
-        let server = axum::serve(listener, app).with_graceful_shutdown(async move {
+        let l = &self.config.limits;
+        let limits = conn::ConnLimits {
+            max_connections: l.max_connections,
+            header_read_timeout: l.header_read_timeout(),
+            idle_timeout: l.idle_timeout(),
+        };
+        let server = conn::serve(listener, app, limits, async move {
             shutdown.await;
             tracing::info!("shutting down: no new connections; finishing open requests");
             state.set_ready(false);
             let _ = state.shutdown.send(true);
         });
         tokio::select! {
-            r = server => r.map_err(ServerError::Serve),
+            () = server => Ok(()),
             _ = async {
                 let _ = begun.wait_for(|stop| *stop).await;
                 tokio::time::sleep(grace).await;

@@ -34,7 +34,7 @@ pub async fn request_context(State(app): State<AppState>, mut req: Request, next
         req.headers_mut().insert(REQUEST_ID.clone(), v);
     }
     let method = req.method().clone();
-    let uri = req.uri().clone();
+    let uri = clip(&req.uri().to_string()).into_owned();
     let route = req.extensions().get::<MatchedPath>().map_or_else(|| "other".to_string(), |p| p.as_str().to_string());
     let range = req.headers().get(header::RANGE).and_then(|v| v.to_str().ok()).map(str::to_string);
     let span = tracing::info_span!("request", id = %id);
@@ -54,7 +54,30 @@ pub async fn request_context(State(app): State<AppState>, mut req: Request, next
     if let Ok(v) = HeaderValue::from_str(&id) {
         resp.headers_mut().insert(REQUEST_ID.clone(), v);
     }
+    // Every answer's type is the one it says (the viewer's files and JSON errors alike).
+    resp.headers_mut().insert(header::X_CONTENT_TYPE_OPTIONS, HeaderValue::from_static("nosniff"));
     resp
+}
+
+/// Longest part of a URL echoed in an error body or a log line.
+pub const MAX_ECHOED_URL: usize = 256;
+
+/// A URL or path cut to [`MAX_ECHOED_URL`] bytes (at a character boundary) with a note of its
+/// length: a 64 KB URL is not written back in full to the client or into the logs.
+pub fn clip(s: &str) -> std::borrow::Cow<'_, str> {
+    clip_to(s, MAX_ECHOED_URL)
+}
+
+/// `s` cut to at most `max` bytes (at a character boundary) with a note of its length.
+pub fn clip_to(s: &str, max: usize) -> std::borrow::Cow<'_, str> {
+    if s.len() <= max {
+        return s.into();
+    }
+    let mut end = max;
+    while !s.is_char_boundary(end) {
+        end -= 1;
+    }
+    format!("{}... ({} bytes)", &s[..end], s.len()).into()
 }
 
 /// Bounds the time to a response head (bodies stream on afterwards) with a JSON 503.
@@ -72,11 +95,13 @@ fn bearer(parts_headers: &axum::http::HeaderMap) -> Option<&str> {
     scheme.eq_ignore_ascii_case("bearer").then(|| token.trim())
 }
 
-/// Compares in time independent of where the strings differ, so that response timing does
-/// not reveal a token prefix.
+/// Compares the SHA-256 digests of the two strings in time independent of where they differ,
+/// so that response timing reveals neither a token prefix nor its length (comparing the
+/// strings themselves returned early when their lengths differed).
 fn same_secret(a: &str, b: &str) -> bool {
-    let (a, b) = (a.as_bytes(), b.as_bytes());
-    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+    use sha2::{Digest, Sha256};
+    let (a, b) = (Sha256::digest(a.as_bytes()), Sha256::digest(b.as_bytes()));
+    a.iter().zip(b.iter()).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
 }
 
 /// Reads under /v1 need the read token (or the write token) when one is configured.
@@ -212,6 +237,14 @@ mod tests {
         h.insert(header::AUTHORIZATION, HeaderValue::from_static("Basic abc"));
         assert_eq!(bearer(&h), None);
         assert!(same_secret("abc", "abc"));
-        assert!(!same_secret("abc", "abd") && !same_secret("abc", "abcd"));
+        assert!(!same_secret("abc", "abd") && !same_secret("abc", "abcd") && !same_secret("", "abc"));
+    }
+
+    #[test]
+    fn long_urls_are_clipped_at_a_character_boundary() {
+        assert_eq!(clip("/v1/assets"), "/v1/assets");
+        let long = format!("/{}", "é".repeat(40_000));
+        let c = clip(&long);
+        assert!(c.len() < MAX_ECHOED_URL + 40 && c.ends_with("(80001 bytes)"), "{c}");
     }
 }

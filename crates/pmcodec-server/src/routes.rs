@@ -64,6 +64,7 @@ fn table() -> Vec<Route> {
         r(Method::GET, "/v1/assets/{id}/v/{version}/index", Read, get(index)),
         r(Method::GET, "/v1/assets/{id}/v/{version}/chunks/{n}", Read, get(chunk)),
         r(Method::GET, "/v1/jobs/{id}", Read, get(job_status)),
+        r(Method::DELETE, "/v1/jobs/{id}", Write, delete(cancel_job)),
         r(Method::GET, "/v1/jobs/{id}/events", LongRead, get(job_events)),
     ]
 }
@@ -146,6 +147,15 @@ fn header_value(s: &str) -> Result<HeaderValue, ApiError> {
     HeaderValue::from_str(s).map_err(|e| ApiError::Internal(format!("header value {s:?}: {e}")))
 }
 
+/// `Cache-Control` of content-addressed URLs: shared caches may keep them forever, unless reads
+/// need a token, when only the client's own cache may (a CDN would otherwise hand them to
+/// anyone).
+fn immutable(app: &AppState) -> &'static str {
+    if app.config.auth.read_token.is_some() { IMMUTABLE_PRIVATE } else { IMMUTABLE }
+}
+
+const IMMUTABLE_PRIVATE: &str = "private, max-age=31536000, immutable";
+
 /// JSON that may change (metadata by id): validated by ETag, never cached without asking.
 fn json_revalidated<T: serde::Serialize>(req: &HeaderMap, etag: &str, value: &T) -> Result<Response, ApiError> {
     let body = serde_json::to_vec(value).map_err(|e| ApiError::Internal(e.to_string()))?;
@@ -200,8 +210,14 @@ async fn metrics(State(app): State<AppState>) -> Response {
 }
 
 async fn method_not_allowed(method: Method, uri: Uri) -> ApiError {
-    ApiError::MethodNotAllowed { method: method.to_string(), path: uri.path().to_string() }
+    ApiError::MethodNotAllowed { method: method.to_string(), path: middleware::clip(uri.path()).into_owned() }
 }
+
+/// What the viewer's pages may load: their own scripts (the Vite bundle, no inline script),
+/// their inline styles, and the API of this origin; no frames, plugins or foreign origins.
+const VIEWER_CSP: &str = "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; img-src 'self' data: blob:; \
+     connect-src 'self' data: blob:; worker-src 'self' blob:; object-src 'none'; base-uri 'self'; form-action 'self'; \
+     frame-ancestors 'none'";
 
 /// Unknown paths: JSON 404 under /v1, else the viewer's files when a viewer folder is set.
 async fn fallback(State(app): State<AppState>, req: Request) -> Response {
@@ -210,12 +226,17 @@ async fn fallback(State(app): State<AppState>, req: Request) -> Response {
     match (&app.config.viewer, api) {
         (Some(dir), false) if matches!(*req.method(), Method::GET | Method::HEAD) => {
             use tower::ServiceExt;
-            match tower_http::services::ServeDir::new(dir).oneshot(req).await {
+            let mut resp = match tower_http::services::ServeDir::new(dir).oneshot(req).await {
                 Ok(resp) => resp.into_response(),
                 Err(never) => match never {},
-            }
+            };
+            resp.headers_mut().insert(header::CONTENT_SECURITY_POLICY, HeaderValue::from_static(VIEWER_CSP));
+            resp
         }
-        _ => ApiError::NotFound(format!("no route {} {path}; the API is described in proto/openapi.yaml", req.method())).into_response(),
+        _ => {
+            ApiError::NotFound(format!("no route {} {}; the API is described in proto/openapi.yaml", req.method(), middleware::clip(path)))
+                .into_response()
+        }
     }
 }
 
@@ -288,28 +309,53 @@ async fn upload(
     let (id, opts) = match checked {
         Ok(checked) => checked,
         Err(e) => {
-            // A client that asked `Expect: 100-continue` has not sent its body (hyper sends
-            // the 100 only once the body is read): answer at once.
-            let continue_expected = headers.get(header::EXPECT).is_some_and(|v| v.as_bytes().eq_ignore_ascii_case(b"100-continue"));
-            if !continue_expected {
+            if !continue_expected(&headers) {
                 crate::upload::drain(body).await;
             }
             return Err(e);
         }
     };
-    let body = UploadBody::read(&headers, body, app.config.limits.upload_bytes).await?;
-    let status = app.jobs.submit(&app, id, body, opts)?;
+    // A place in the queue before the body is read: a full queue answers at once, and a body
+    // being received counts against the queue like a queued job.
+    let place = match app.jobs.reserve(&app, id.clone()) {
+        Ok(place) => place,
+        Err(e) => {
+            if !continue_expected(&headers) {
+                crate::upload::drain(body).await;
+            }
+            return Err(e);
+        }
+    };
+    let dir = app.config.upload_dir.clone().unwrap_or_else(std::env::temp_dir);
+    let l = &app.config.limits;
+    let limits = crate::upload::BodyLimits { bytes: l.upload_bytes, files: l.max_frames as usize, dir: &dir };
+    let body = UploadBody::read(&headers, body, &limits).await?;
+    let status = app.jobs.submit(&app, place, body, opts)?;
     let location = header_value(&status.status_url)?;
     Ok((StatusCode::ACCEPTED, [(header::LOCATION, location)], Json(status)).into_response())
 }
+
+/// A client that asked `Expect: 100-continue` has not sent its body (hyper sends the 100 only
+/// once the body is read): it can be answered at once.
+fn continue_expected(headers: &HeaderMap) -> bool {
+    headers.get(header::EXPECT).is_some_and(|v| v.as_bytes().eq_ignore_ascii_case(b"100-continue"))
+}
+
+/// Frame rates an upload may ask for: a glTF animation is sampled at this rate, and the
+/// frame time is the reciprocal (`fps=1e-30` made a player's frame time overflow).
+const FPS_RANGE: std::ops::RangeInclusive<f32> = 0.1..=240.0;
 
 /// What an upload's query says, checked before its body is read (a large body is not read
 /// when the answer is known already).
 async fn check_upload(app: &AppState, q: UploadQuery) -> Result<(AssetId, UploadOptions), ApiError> {
     let id = AssetId::parse(q.id.as_deref().ok_or_else(|| ApiError::BadRequest("name the asset: POST /v1/assets?id=<id>".into()))?)?;
     let frame_rate = q.fps.unwrap_or(30.0);
-    if !(frame_rate.is_finite() && frame_rate > 0.0 && frame_rate <= 1000.0) {
-        return Err(ApiError::BadRequest(format!("fps {frame_rate}: use a frame rate in (0, 1000]")));
+    if !(frame_rate.is_finite() && FPS_RANGE.contains(&frame_rate)) {
+        return Err(ApiError::BadRequest(format!(
+            "fps {frame_rate}: use a frame rate from {} to {} frames per second",
+            FPS_RANGE.start(),
+            FPS_RANGE.end()
+        )));
     }
     let animation = q.animation.map(|a| a.parse::<usize>().map_or(AnimationSelector::Name(a), AnimationSelector::Index));
     if !q.replace.unwrap_or(false) && app.store.head(&id).await?.is_some() {
@@ -318,8 +364,13 @@ async fn check_upload(app: &AppState, q: UploadQuery) -> Result<(AssetId, Upload
     if app.jobs.is_pending(&id) {
         return Err(ApiError::Conflict(format!("an encode job for asset {id} is already queued or running")));
     }
-    let opts =
-        UploadOptions { frame_rate, animation, unpacked_limit: app.config.limits.unpacked_bytes, replace: q.replace.unwrap_or(false) };
+    let opts = UploadOptions {
+        frame_rate,
+        animation,
+        unpacked_limit: app.config.limits.unpacked_bytes,
+        max_frames: app.config.limits.max_frames,
+        replace: q.replace.unwrap_or(false),
+    };
     Ok((id, opts))
 }
 
@@ -389,13 +440,23 @@ fn mesh_etag(version: &str, r: &MeshRequest) -> String {
 }
 
 /// `GET /v1/assets/{id}/mesh?frame=F&triangles=N|vertices=N|level=L|max_error=E&format=glb|bin`
-async fn mesh(State(app): State<AppState>, p: Params, Q(q): Q<MeshQuery>, headers: HeaderMap) -> Result<Response, ApiError> {
+/// `HEAD` answers from the request and the asset's metadata (type, ETag, version) without
+/// decoding: the counts (`x-pmc-vertices`, `x-pmc-triangles`) come only with `GET`.
+async fn mesh(
+    State(app): State<AppState>,
+    method: Method,
+    p: Params,
+    Q(q): Q<MeshQuery>,
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
     let a = app.assets.get(&p.asset_id()?).await?;
     let req = q.resolve(&a)?;
     let etag = mesh_etag(&a.version, &req);
     let version = header_value(&a.version)?;
     // Answer a revalidation without decoding anything.
-    let mut resp = if headers.get(header::IF_NONE_MATCH).and_then(|v| v.to_str().ok()).is_some_and(|v| {
+    let mut resp = if method == Method::HEAD {
+        (StatusCode::OK, [(header::CONTENT_TYPE, req.format.content_type())]).into_response()
+    } else if headers.get(header::IF_NONE_MATCH).and_then(|v| v.to_str().ok()).is_some_and(|v| {
         v.split(',').any(|t| {
             // If-None-Match compares weakly (RFC 9110 13.1.2): a W/ prefix does not matter.
             let t = t.trim();
@@ -480,7 +541,7 @@ async fn file(State(app): State<AppState>, p: Params, headers: HeaderMap) -> Res
         bytes: a.bytes.clone(),
         etag: format!("\"{}\"", a.version),
         content_type: "application/vnd.pmcodec",
-        cache_control: IMMUTABLE,
+        cache_control: immutable(&app),
     };
     ranges::serve(&headers, rep, app.config.limits.max_ranges)
 }
@@ -537,7 +598,7 @@ async fn index(State(app): State<AppState>, p: Params, Q(q): Q<IndexQuery>, head
         bytes: bytes.into(),
         etag: format!("\"{}-index-{level}\"", a.version),
         content_type: "application/json",
-        cache_control: IMMUTABLE,
+        cache_control: immutable(&app),
     };
     ranges::serve(&headers, rep, app.config.limits.max_ranges)
 }
@@ -556,7 +617,7 @@ async fn chunk(State(app): State<AppState>, p: Params, headers: HeaderMap) -> Re
         bytes: a.bytes.slice(r.start as usize..r.end as usize),
         etag: format!("\"{}-chunk-{n}\"", a.version),
         content_type: "application/zstd",
-        cache_control: IMMUTABLE,
+        cache_control: immutable(&app),
     };
     ranges::serve(&headers, rep, app.config.limits.max_ranges)
 }
@@ -581,8 +642,18 @@ async fn job_status(State(app): State<AppState>, p: Params) -> Result<Response, 
     Ok(resp)
 }
 
+/// `DELETE /v1/jobs/{id}`: asks a queued or running job to stop (202 with its status; its
+/// events end with `cancelled`). A cancelled job stores nothing.
+async fn cancel_job(State(app): State<AppState>, _: WriteAccess, p: Params) -> Result<Response, ApiError> {
+    let id = job_id(&p)?;
+    let status = app.jobs.cancel(&id)?;
+    let mut resp = (StatusCode::ACCEPTED, Json(status)).into_response();
+    resp.headers_mut().insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    Ok(resp)
+}
+
 /// `GET /v1/jobs/{id}/events`: server-sent events, one per status change (named after the
-/// state), ending after `succeeded` or `failed`.
+/// state), ending after `succeeded`, `failed` or `cancelled`.
 async fn job_events(State(app): State<AppState>, p: Params) -> Result<Response, ApiError> {
     let id = job_id(&p)?;
     let rx = app.jobs.subscribe(&id).ok_or_else(|| ApiError::NotFound(format!("no job {id} on this server")))?;

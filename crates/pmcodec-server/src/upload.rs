@@ -1,24 +1,31 @@
 //! Upload bodies: a zip of OBJ frames, multipart OBJ files, or a GLB. Reading the body and
 //! telling the kinds apart happens in the request (bad bodies get 4xx at once); parsing the
 //! meshes happens in the encode job (bad meshes fail the job with the parser's message).
+//!
+//! A body is written to a temporary file as it arrives, never held in memory: a queued job
+//! holds a file, not its bytes, and the file is removed when the job is dropped (it ends,
+//! fails or is cancelled).
 
 use crate::ApiError;
 use axum::body::Body;
 use axum::http::{HeaderMap, header};
 use bytes::Bytes;
 use pmcodec_mesh::Sequence;
-use pmcodec_mesh::gltf_input::{AnimationSelector, GltfOptions, load_gltf_bytes};
+use pmcodec_mesh::gltf_input::{AnimationSelector, GltfOptions, list_animations_bytes, load_gltf_bytes};
 use pmcodec_mesh::obj::{natural_cmp, parse_obj};
+use std::ops::Range;
 use std::path::Path;
+use tokio::io::AsyncWriteExt;
 
-/// An upload, read and classified but not yet parsed.
-pub enum UploadBody {
-    /// A zip archive holding one `.obj` per frame.
-    Zip(Bytes),
-    /// OBJ files by name (multipart parts).
-    Objs(Vec<(String, Bytes)>),
-    /// A binary glTF with an animation (or a single pose).
-    Glb(Bytes),
+/// An upload, read into a temporary file and classified but not yet parsed.
+pub struct UploadBody {
+    kind: Kind,
+    /// Removed when dropped.
+    file: tempfile::NamedTempFile,
+    /// The files of the upload: the whole body, or each multipart part, as byte ranges of
+    /// `file`.
+    parts: Vec<(String, Range<u64>)>,
+    bytes: u64,
 }
 
 /// How to turn an upload into a sequence.
@@ -28,25 +35,38 @@ pub struct UploadOptions {
     pub animation: Option<AnimationSelector>,
     /// Largest total of unpacked zip members.
     pub unpacked_limit: u64,
+    /// Most frames the sequence may have.
+    pub max_frames: u32,
     /// Whether the job may replace an asset of the same id that exists when it stores.
     pub replace: bool,
 }
 
-/// Parts of a multipart upload beyond this are refused (frames of one sequence).
-const MAX_PARTS: usize = 100_000;
+/// Where and how much an upload may write.
+pub struct BodyLimits<'a> {
+    /// Largest body.
+    pub bytes: u64,
+    /// Most OBJ files (frames) in a multipart body.
+    pub files: usize,
+    /// The folder of the temporary file.
+    pub dir: &'a Path,
+}
+
+/// Bytes buffered between the body and its temporary file.
+const WRITE_BUFFER: usize = 256 << 10;
 
 impl UploadBody {
     pub fn describe(&self) -> String {
-        match self {
-            UploadBody::Zip(b) => format!("zip, {} bytes", b.len()),
-            UploadBody::Objs(f) => format!("{} OBJ files, {} bytes", f.len(), f.iter().map(|(_, b)| b.len()).sum::<usize>()),
-            UploadBody::Glb(b) => format!("GLB, {} bytes", b.len()),
+        match self.kind {
+            Kind::Zip => format!("zip, {} bytes", self.bytes),
+            Kind::Objs => format!("{} OBJ files, {} bytes", self.parts.len(), self.bytes),
+            Kind::Glb => format!("GLB, {} bytes", self.bytes),
         }
     }
 
-    /// Reads and classifies a request body: by content type, and for bodies sent as plain
-    /// octets, by their magic number.
-    pub async fn read(headers: &HeaderMap, body: Body, limit: u64) -> Result<UploadBody, ApiError> {
+    /// Reads a request body into a temporary file and classifies it: by content type, and for
+    /// bodies sent as plain octets, by their magic number.
+    pub async fn read(headers: &HeaderMap, body: Body, limits: &BodyLimits<'_>) -> Result<UploadBody, ApiError> {
+        let limit = limits.bytes;
         if let Some(len) = headers.get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()).and_then(|v| v.parse::<u64>().ok())
             && len > limit
         {
@@ -54,37 +74,102 @@ impl UploadBody {
         }
         let ctype = headers.get(header::CONTENT_TYPE).and_then(|v| v.to_str().ok()).unwrap_or("").to_string();
         let mime = ctype.split(';').next().unwrap_or("").trim().to_ascii_lowercase();
-        let bytes = read_limited(body, limit).await?;
-        if bytes.is_empty() {
-            return Err(ApiError::BadRequest("the upload is empty".into()));
-        }
-        match mime.as_str() {
-            "multipart/form-data" => read_multipart(&ctype, bytes).await,
-            "application/zip" | "application/x-zip-compressed" => classify("upload.zip", bytes, Some(Kind::Zip)),
-            "model/gltf-binary" => classify("upload.glb", bytes, Some(Kind::Glb)),
-            "application/octet-stream" | "" => classify("the body", bytes, None),
-            other => Err(unsupported(other)),
-        }
+        let declared = match mime.as_str() {
+            "multipart/form-data" => None,
+            "application/zip" | "application/x-zip-compressed" => Some(Some(Kind::Zip)),
+            "model/gltf-binary" => Some(Some(Kind::Glb)),
+            "application/octet-stream" | "" => Some(None),
+            other => return Err(unsupported(other)),
+        };
+        let mut spill = Spill::new(limits.dir).await?;
+        let upload = match declared {
+            None => read_multipart(&ctype, body, limits, &mut spill).await?,
+            Some(declared) => {
+                let name = match declared {
+                    Some(Kind::Zip) => "upload.zip",
+                    Some(_) => "upload.glb",
+                    None => "the body",
+                };
+                let range = spill.copy(body_stream(body), limit).await.map_err(|e| e.into_api(limit))?;
+                if range.is_empty() {
+                    return Err(ApiError::BadRequest("the upload is empty".into()));
+                }
+                let kind = classify(name, &spill.head, declared)?;
+                (kind, vec![(name.to_string(), range)])
+            }
+        };
+        spill.finish(upload.0, upload.1).await
     }
 
     /// Parses the meshes (CPU work: run on a blocking thread). The error says which file and
     /// line is wrong.
     pub fn into_sequence(self, opts: &UploadOptions) -> Result<Sequence, String> {
-        match self {
-            UploadBody::Glb(b) => {
+        let all = Bytes::from(std::fs::read(self.file.path()).map_err(|e| format!("reading the upload back: {e}"))?);
+        let slice = |r: &Range<u64>| all.slice(r.start as usize..r.end as usize);
+        let seq = match self.kind {
+            Kind::Glb => {
+                let b = self.parts.first().map(|(_, r)| slice(r)).unwrap_or_default();
+                check_animation_frames(&b, opts)?;
                 let o = GltfOptions { animation: opts.animation.clone(), frame_rate: opts.frame_rate, ..GltfOptions::default() };
-                load_gltf_bytes(&b, &o).map_err(|e| format!("GLB: {e}"))
+                load_gltf_bytes(&b, &o).map_err(|e| format!("GLB: {e}"))?
             }
-            UploadBody::Objs(files) => sequence_from_objs(files, opts.frame_rate),
-            UploadBody::Zip(b) => sequence_from_objs(unzip_objs(b, opts.unpacked_limit)?, opts.frame_rate),
+            Kind::Objs => {
+                let files: Vec<_> = self.parts.iter().map(|(n, r)| (n.clone(), slice(r))).collect();
+                sequence_from_objs(files, opts.frame_rate, opts.max_frames)?
+            }
+            Kind::Zip => {
+                let b = self.parts.first().map(|(_, r)| slice(r)).unwrap_or_default();
+                sequence_from_objs(unzip_objs(b, opts.unpacked_limit, opts.max_frames)?, opts.frame_rate, opts.max_frames)?
+            }
+        };
+        // Whatever the path above, the cap holds for what is encoded.
+        if seq.frame_count() > opts.max_frames as usize {
+            return Err(too_many_frames(seq.frame_count(), opts.max_frames));
         }
+        Ok(seq)
     }
 }
 
-#[derive(Clone, Copy, PartialEq)]
+fn too_many_frames(n: usize, max: u32) -> String {
+    format!("{n} frames: more than this server's limit of {max} frames per asset (limits.max_frames)")
+}
+
+/// Refuses an animation that would sample to more frames than allowed before sampling it
+/// (a 72 KB GLB at a high frame rate is otherwise tens of thousands of poses to build and
+/// encode). A file whose animations cannot be listed is left to the loader to report.
+fn check_animation_frames(glb: &[u8], opts: &UploadOptions) -> Result<(), String> {
+    let Ok(animations) = list_animations_bytes(glb) else {
+        return Ok(());
+    };
+    let chosen = match &opts.animation {
+        None => animations.first(),
+        Some(AnimationSelector::Index(i)) => animations.iter().find(|a| a.index == *i),
+        Some(AnimationSelector::Name(n)) => animations.iter().find(|a| a.name.as_deref() == Some(n.as_str())),
+    };
+    let Some(a) = chosen else {
+        return Ok(());
+    };
+    // The loader's own frame count: floor(duration * rate) + 1, in f32.
+    let last = (a.duration.max(0.0) * opts.frame_rate).floor();
+    if !(last.is_finite() && last < opts.max_frames as f32) {
+        let what = a.name.as_deref().map_or_else(|| format!("#{}", a.index), |n| format!("{n:?}"));
+        return Err(format!(
+            "animation {what} lasts {:.3} s: at {} frames per second that is {} frames, more than this server's limit of {} \
+             frames per asset (limits.max_frames); upload with a lower fps",
+            a.duration,
+            opts.frame_rate,
+            if last.is_finite() { format!("{}", last as u64 + 1) } else { "too many".into() },
+            opts.max_frames
+        ));
+    }
+    Ok(())
+}
+
+#[derive(Clone, Copy, PartialEq, Debug)]
 enum Kind {
     Zip,
     Glb,
+    Objs,
 }
 
 fn unsupported(what: &str) -> ApiError {
@@ -93,26 +178,178 @@ fn unsupported(what: &str) -> ApiError {
     ))
 }
 
-/// Checks that the bytes are what the content type or file name says, by magic number.
-fn classify(name: &str, bytes: Bytes, declared: Option<Kind>) -> Result<UploadBody, ApiError> {
-    let sniffed = if bytes.starts_with(b"PK\x03\x04") {
+/// Checks that the first bytes are what the content type or file name says, by magic number.
+fn classify(name: &str, head: &[u8], declared: Option<Kind>) -> Result<Kind, ApiError> {
+    let sniffed = if head.starts_with(b"PK\x03\x04") {
         Some(Kind::Zip)
-    } else if bytes.starts_with(b"glTF") {
+    } else if head.starts_with(b"glTF") {
         Some(Kind::Glb)
     } else {
         None
     };
     match (declared, sniffed) {
-        (Some(d), Some(s)) if d == s => {}
-        (None, Some(_)) => {}
-        (Some(Kind::Zip), _) => return Err(ApiError::BadRequest(format!("{name} is not a zip archive"))),
-        (Some(Kind::Glb), _) => return Err(ApiError::BadRequest(format!("{name} is not a binary glTF (no glTF magic)"))),
-        (None, None) => return Err(unsupported(&format!("{name} is neither a zip nor a GLB"))),
+        (Some(d), Some(s)) if d == s => Ok(s),
+        (None, Some(s)) => Ok(s),
+        (Some(Kind::Zip), _) => Err(ApiError::BadRequest(format!("{name} is not a zip archive"))),
+        (Some(_), _) => Err(ApiError::BadRequest(format!("{name} is not a binary glTF (no glTF magic)"))),
+        (None, None) => Err(unsupported(&format!("{name} is neither a zip nor a GLB"))),
     }
-    Ok(match sniffed {
-        Some(Kind::Zip) => UploadBody::Zip(bytes),
-        _ => UploadBody::Glb(bytes),
-    })
+}
+
+/// Why copying a body into the temporary file stopped.
+enum CopyError {
+    TooLarge,
+    Body(String),
+    Write(std::io::Error),
+}
+
+impl CopyError {
+    fn into_api(self, limit: u64) -> ApiError {
+        match self {
+            CopyError::TooLarge => ApiError::PayloadTooLarge { limit },
+            CopyError::Body(e) => ApiError::BadRequest(format!("reading the upload: {e}")),
+            CopyError::Write(e) => {
+                tracing::error!(error = %e, "writing an upload to its temporary file failed");
+                ApiError::Internal("the upload could not be written to a temporary file".into())
+            }
+        }
+    }
+}
+
+/// The temporary file an upload is written to, with the first bytes of the part being
+/// written (for the magic number).
+struct Spill {
+    file: tempfile::NamedTempFile,
+    out: tokio::io::BufWriter<tokio::fs::File>,
+    written: u64,
+    head: Vec<u8>,
+}
+
+fn temp_file_error(e: std::io::Error) -> ApiError {
+    tracing::error!(error = %e, "creating a temporary file for an upload failed");
+    ApiError::Internal("the upload could not be written to a temporary file".into())
+}
+
+impl Spill {
+    async fn new(dir: &Path) -> Result<Spill, ApiError> {
+        let file = tempfile::Builder::new().prefix("pmcodec-upload-").suffix(".part").tempfile_in(dir).map_err(temp_file_error)?;
+        let handle = file.as_file().try_clone().map_err(temp_file_error)?;
+        let out = tokio::io::BufWriter::with_capacity(WRITE_BUFFER, tokio::fs::File::from_std(handle));
+        Ok(Spill { file, out, written: 0, head: Vec::new() })
+    }
+
+    /// Appends a stream of chunks as one part; the total over all parts is at most `limit`.
+    async fn copy<S, E>(&mut self, mut chunks: S, limit: u64) -> Result<Range<u64>, CopyError>
+    where
+        S: futures_util::Stream<Item = Result<Bytes, E>> + Unpin,
+        E: std::fmt::Display,
+    {
+        use futures_util::StreamExt;
+        let start = self.written;
+        self.head.clear();
+        while let Some(chunk) = chunks.next().await {
+            let chunk = chunk.map_err(|e| CopyError::Body(e.to_string()))?;
+            self.written += chunk.len() as u64;
+            if self.written > limit {
+                return Err(CopyError::TooLarge);
+            }
+            if self.head.len() < 4 {
+                let take = (4 - self.head.len()).min(chunk.len());
+                self.head.extend_from_slice(&chunk[..take]);
+            }
+            self.out.write_all(&chunk).await.map_err(CopyError::Write)?;
+        }
+        Ok(start..self.written)
+    }
+
+    async fn finish(mut self, kind: Kind, parts: Vec<(String, Range<u64>)>) -> Result<UploadBody, ApiError> {
+        self.out.flush().await.map_err(|e| CopyError::Write(e).into_api(0))?;
+        Ok(UploadBody { kind, file: self.file, parts, bytes: self.written })
+    }
+}
+
+fn body_stream(body: Body) -> impl futures_util::Stream<Item = Result<Bytes, axum::Error>> + Unpin {
+    body.into_data_stream()
+}
+
+async fn read_multipart(
+    ctype: &str,
+    body: Body,
+    limits: &BodyLimits<'_>,
+    spill: &mut Spill,
+) -> Result<(Kind, Vec<(String, Range<u64>)>), ApiError> {
+    use futures_util::StreamExt;
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+    let limit = limits.bytes;
+    let boundary = multer::parse_boundary(ctype).map_err(|e| ApiError::BadRequest(format!("multipart: {e}")))?;
+    // The body's bytes are counted as they arrive (parts' framing included), so that a body
+    // over the limit stops being read at the limit.
+    let over = Arc::new(AtomicBool::new(false));
+    let seen = Arc::new(AtomicU64::new(0));
+    let (over_in, seen_in) = (over.clone(), seen.clone());
+    let stream = body.into_data_stream().map(move |chunk| {
+        let chunk = chunk.map_err(std::io::Error::other)?;
+        if seen_in.fetch_add(chunk.len() as u64, Ordering::Relaxed) + chunk.len() as u64 > limit {
+            over_in.store(true, Ordering::Relaxed);
+            return Err(std::io::Error::other("the body is over the limit"));
+        }
+        Ok(chunk)
+    });
+    let mut mp = multer::Multipart::new(stream, boundary);
+    let mp_err = |e: multer::Error, what: &str| {
+        if over.load(Ordering::Relaxed) {
+            ApiError::PayloadTooLarge { limit }
+        } else {
+            ApiError::BadRequest(format!("multipart{what}: {e}"))
+        }
+    };
+    let mut objs = Vec::new();
+    let mut single: Option<(Kind, (String, Range<u64>))> = None;
+    // Bounded: each part consumes body bytes, and the body is bounded.
+    while let Some(field) = mp.next_field().await.map_err(|e| mp_err(e, ""))? {
+        let Some(name) = field.file_name().map(str::to_string) else {
+            // Form fields without a file are not part of the mesh.
+            continue;
+        };
+        let lower = name.to_ascii_lowercase();
+        let kind = if lower.ends_with(".obj") {
+            Kind::Objs
+        } else if lower.ends_with(".zip") {
+            Kind::Zip
+        } else if lower.ends_with(".glb") {
+            Kind::Glb
+        } else {
+            return Err(unsupported(&format!("part {name:?}")));
+        };
+        if kind != Kind::Objs && single.is_some() {
+            return Err(ApiError::BadRequest("send one .zip or .glb per upload".into()));
+        }
+        let range = match spill.copy(Box::pin(field), limit).await {
+            Ok(r) => r,
+            Err(CopyError::Body(_)) if over.load(Ordering::Relaxed) => return Err(ApiError::PayloadTooLarge { limit }),
+            Err(CopyError::Body(e)) => return Err(ApiError::BadRequest(format!("multipart part {name}: {e}"))),
+            Err(e) => return Err(e.into_api(limit)),
+        };
+        if kind == Kind::Objs {
+            objs.push((name, range));
+            if objs.len() > limits.files {
+                return Err(ApiError::BadRequest(format!(
+                    "more than {} .obj files: more frames than this server takes per asset (limits.max_frames)",
+                    limits.files
+                )));
+            }
+        } else {
+            classify(&name, &spill.head, Some(kind))?;
+            single = Some((kind, (name, range)));
+        }
+    }
+    match (single, objs.is_empty()) {
+        (Some(_), false) => Err(ApiError::BadRequest("send either .obj files or one .zip/.glb, not both".into())),
+        (Some((kind, part)), true) => Ok((kind, vec![part])),
+        (None, false) => Ok((Kind::Objs, objs)),
+        (None, true) => Err(ApiError::BadRequest("the multipart upload has no .obj, .zip or .glb file".into())),
+    }
 }
 
 /// Bytes of an upload refused before it was read that are still read (and dropped) before the
@@ -131,55 +368,8 @@ pub async fn drain(body: Body) {
     let _ = tokio::time::timeout(DRAIN_TIME, async move { while let Some(Ok(_)) = body.frame().await {} }).await;
 }
 
-async fn read_limited(body: Body, limit: u64) -> Result<Bytes, ApiError> {
-    use http_body_util::BodyExt;
-    let limited = http_body_util::Limited::new(body, usize::try_from(limit).unwrap_or(usize::MAX));
-    match limited.collect().await {
-        Ok(c) => Ok(c.to_bytes()),
-        Err(e) if e.is::<http_body_util::LengthLimitError>() => Err(ApiError::PayloadTooLarge { limit }),
-        Err(e) => Err(ApiError::BadRequest(format!("reading the upload: {e}"))),
-    }
-}
-
-async fn read_multipart(ctype: &str, bytes: Bytes) -> Result<UploadBody, ApiError> {
-    let boundary = multer::parse_boundary(ctype).map_err(|e| ApiError::BadRequest(format!("multipart: {e}")))?;
-    let stream = futures_util::stream::once(async move { Ok::<Bytes, std::convert::Infallible>(bytes) });
-    let mut mp = multer::Multipart::new(stream, boundary);
-    let mut objs = Vec::new();
-    let mut single = None;
-    // Bounded: each part consumes body bytes, and the body is bounded.
-    while let Some(field) = mp.next_field().await.map_err(|e| ApiError::BadRequest(format!("multipart: {e}")))? {
-        let Some(name) = field.file_name().map(str::to_string) else {
-            // Form fields without a file are not part of the mesh.
-            continue;
-        };
-        let data = field.bytes().await.map_err(|e| ApiError::BadRequest(format!("multipart part {name}: {e}")))?;
-        let lower = name.to_ascii_lowercase();
-        if lower.ends_with(".obj") {
-            objs.push((name, data));
-            if objs.len() > MAX_PARTS {
-                return Err(ApiError::BadRequest(format!("more than {MAX_PARTS} files")));
-            }
-        } else if lower.ends_with(".zip") || lower.ends_with(".glb") {
-            if single.is_some() {
-                return Err(ApiError::BadRequest("send one .zip or .glb per upload".into()));
-            }
-            let kind = if lower.ends_with(".zip") { Kind::Zip } else { Kind::Glb };
-            single = Some(classify(&name, data, Some(kind))?);
-        } else {
-            return Err(unsupported(&format!("part {name:?}")));
-        }
-    }
-    match (single, objs.is_empty()) {
-        (Some(_), false) => Err(ApiError::BadRequest("send either .obj files or one .zip/.glb, not both".into())),
-        (Some(s), true) => Ok(s),
-        (None, false) => Ok(UploadBody::Objs(objs)),
-        (None, true) => Err(ApiError::BadRequest("the multipart upload has no .obj, .zip or .glb file".into())),
-    }
-}
-
 /// The `.obj` members of a zip, with a bound on what they unpack to (zip bombs).
-fn unzip_objs(bytes: Bytes, limit: u64) -> Result<Vec<(String, Bytes)>, String> {
+fn unzip_objs(bytes: Bytes, limit: u64, max_frames: u32) -> Result<Vec<(String, Bytes)>, String> {
     use std::io::Read;
     let mut zip = zip::ZipArchive::new(std::io::Cursor::new(bytes)).map_err(|e| format!("zip: {e}"))?;
     let mut out = Vec::new();
@@ -191,6 +381,11 @@ fn unzip_objs(bytes: Bytes, limit: u64) -> Result<Vec<(String, Bytes)>, String> 
         // Folders, resource forks and hidden files are not frames.
         if f.is_dir() || name.contains("__MACOSX/") || base.starts_with('.') || !base.to_ascii_lowercase().ends_with(".obj") {
             continue;
+        }
+        if out.len() >= max_frames as usize {
+            return Err(format!(
+                "the zip holds more than {max_frames} .obj files: more frames than this server's limit per asset (limits.max_frames)"
+            ));
         }
         let room = limit.saturating_sub(total);
         let mut buf = Vec::new();
@@ -206,9 +401,12 @@ fn unzip_objs(bytes: Bytes, limit: u64) -> Result<Vec<(String, Bytes)>, String> 
 }
 
 /// Frames in natural name order, each the same mesh with other positions.
-fn sequence_from_objs(mut files: Vec<(String, Bytes)>, frame_rate: f32) -> Result<Sequence, String> {
+fn sequence_from_objs(mut files: Vec<(String, Bytes)>, frame_rate: f32, max_frames: u32) -> Result<Sequence, String> {
     if files.is_empty() {
         return Err("the upload holds no .obj files".into());
+    }
+    if files.len() > max_frames as usize {
+        return Err(too_many_frames(files.len(), max_frames));
     }
     files.sort_by(|a, b| natural_cmp(&a.0, &b.0));
     let mut seq = Sequence { frame_rate, ..Default::default() };
@@ -249,13 +447,14 @@ mod tests {
     #[test]
     fn frames_sort_naturally_and_must_match() {
         let files = vec![("f10.obj".into(), obj(0.3)), ("f2.obj".into(), obj(0.2)), ("f1.obj".into(), obj(0.1))];
-        let seq = sequence_from_objs(files, 24.0).unwrap();
+        let seq = sequence_from_objs(files.clone(), 24.0, 3).unwrap();
         assert_eq!(seq.frame_names, ["f1.obj", "f2.obj", "f10.obj"]);
         assert_eq!(seq.frames[2][0].x, 0.3);
+        assert!(sequence_from_objs(files, 24.0, 2).unwrap_err().contains("limit of 2 frames"));
         let bad = vec![("a.obj".into(), obj(0.0)), ("b.obj".into(), Bytes::from_static(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"))];
-        assert!(sequence_from_objs(bad, 24.0).unwrap_err().contains("b.obj"));
+        assert!(sequence_from_objs(bad, 24.0, 10).unwrap_err().contains("b.obj"));
         let broken = vec![("a.obj".into(), Bytes::from_static(b"v 0 0 zero\n"))];
-        assert!(sequence_from_objs(broken, 24.0).unwrap_err().contains("a.obj:1"));
+        assert!(sequence_from_objs(broken, 24.0, 10).unwrap_err().contains("a.obj:1"));
     }
 
     #[test]
@@ -271,15 +470,17 @@ mod tests {
         }
         let bytes = Bytes::from(buf.into_inner());
         assert!(bytes.len() < 10_000);
-        assert!(unzip_objs(bytes.clone(), 50_000).unwrap_err().contains("more than 50000"));
-        assert_eq!(unzip_objs(bytes, 200_000).unwrap()[0].1.len(), 100_000);
+        assert!(unzip_objs(bytes.clone(), 50_000, 10).unwrap_err().contains("more than 50000"));
+        assert_eq!(unzip_objs(bytes.clone(), 200_000, 10).unwrap()[0].1.len(), 100_000);
+        assert!(unzip_objs(bytes, 200_000, 0).unwrap_err().contains("more than 0"));
     }
 
     #[test]
     fn magic_numbers_decide_octet_bodies() {
-        assert!(matches!(classify("b", Bytes::from_static(b"PK\x03\x04rest"), None), Ok(UploadBody::Zip(_))));
-        assert!(matches!(classify("b", Bytes::from_static(b"glTFrest"), None), Ok(UploadBody::Glb(_))));
-        assert!(matches!(classify("b", Bytes::from_static(b"hello"), None), Err(ApiError::UnsupportedMediaType(_))));
-        assert!(matches!(classify("b", Bytes::from_static(b"glTF"), Some(Kind::Zip)), Err(ApiError::BadRequest(_))));
+        assert!(matches!(classify("b", b"PK\x03\x04", None), Ok(Kind::Zip)));
+        assert!(matches!(classify("b", b"glTF", None), Ok(Kind::Glb)));
+        assert!(matches!(classify("b", b"hell", None), Err(ApiError::UnsupportedMediaType(_))));
+        assert!(matches!(classify("b", b"glTF", Some(Kind::Zip)), Err(ApiError::BadRequest(_))));
+        assert!(matches!(classify("b", b"PK\x03\x04", Some(Kind::Glb)), Err(ApiError::BadRequest(_))));
     }
 }

@@ -503,3 +503,247 @@ async fn a_job_without_replace_never_overwrites_an_asset_created_while_it_ran() 
     assert_eq!(status["state"], "succeeded", "{status}");
     assert_ne!(&store.inner.get(&id).await.unwrap().unwrap().1[..], &theirs[..], "replace=true did not replace");
 }
+
+// ---------------------------------------------------------------------------------------------
+// Bounds on what a request can take (issue 13): the upload queue, cancelling jobs, frame
+// counts and rates, and the smaller ones.
+
+const AUTH: (&str, &str) = ("authorization", "Bearer w");
+
+/// A server with a write token `w` whose upload bodies wait in a folder of their own.
+async fn writable_app(configure: impl FnOnce(&mut Config)) -> (axum::Router, tempfile::TempDir) {
+    let dir = tempfile::tempdir().unwrap();
+    let mut config = Config { upload_dir: Some(dir.path().to_path_buf()), ..Default::default() };
+    config.auth.write_token = Some(Secret("w".into()));
+    configure(&mut config);
+    (app_with(config).await.0, dir)
+}
+
+fn files_in(dir: &std::path::Path) -> usize {
+    std::fs::read_dir(dir).unwrap().count()
+}
+
+/// Frames of a sequence as OBJ files in a multipart body; returns the content type and body.
+fn multipart_objs(seq: &pmcodec_mesh::Sequence) -> (String, Vec<u8>) {
+    use std::fmt::Write;
+    let boundary = "pmcodec-test-boundary";
+    let mut body = String::new();
+    for (f, frame) in seq.frames.iter().enumerate() {
+        write!(body, "--{boundary}\r\nContent-Disposition: form-data; name=\"f\"; filename=\"frame-{f:04}.obj\"\r\n\r\n").unwrap();
+        for p in frame {
+            writeln!(body, "v {} {} {}", p.x, p.y, p.z).unwrap();
+        }
+        for t in &seq.triangles {
+            writeln!(body, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1).unwrap();
+        }
+        body.push_str("\r\n");
+    }
+    write!(body, "--{boundary}--\r\n").unwrap();
+    (format!("multipart/form-data; boundary={boundary}"), body.into_bytes())
+}
+
+async fn wait_finished(app: &axum::Router, url: &str) -> serde_json::Value {
+    for _ in 0..1200 {
+        let status = get(app, url, &[]).await.json();
+        if ["succeeded", "failed", "cancelled"].contains(&status["state"].as_str().unwrap_or("")) {
+            return status;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+    }
+    panic!("the job at {url} did not finish within a minute");
+}
+
+#[tokio::test]
+async fn a_full_queue_refuses_an_upload_before_reading_its_body() {
+    let (app, dir) = writable_app(|c| c.limits.max_pending_jobs = 1).await;
+    // The first upload's body arrives slowly: it holds the only place while it is received.
+    let (tx, rx) = tokio::sync::mpsc::channel::<Result<bytes::Bytes, std::io::Error>>(4);
+    let slow = Body::from_stream(tokio_stream_from(rx));
+    let req = Request::post("/v1/assets?id=slow").header("content-type", "application/zip").header(AUTH.0, AUTH.1).body(slow).unwrap();
+    let first = tokio::spawn(app.clone().oneshot(req));
+    tx.send(Ok(bytes::Bytes::from_static(b"PK\x03\x04"))).await.unwrap();
+    // Its body is written to a temporary file as it arrives, not kept in memory.
+    for _ in 0..200 {
+        if files_in(dir.path()) == 1 {
+            break;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+    }
+    assert_eq!(files_in(dir.path()), 1, "the body being received is spilled to the upload folder");
+    // A second upload is refused at once: 503 with Retry-After, its body never stored.
+    let r = send(&app, Method::POST, "/v1/assets?id=other", &[("content-type", "application/zip"), AUTH], b"PK\x03\x04more".to_vec()).await;
+    assert_eq!(r.status, StatusCode::SERVICE_UNAVAILABLE, "{}", String::from_utf8_lossy(&r.body));
+    assert_eq!(r.header("retry-after"), "1");
+    assert!(r.json()["detail"].as_str().unwrap().contains("max_pending_jobs"));
+    assert_eq!(files_in(dir.path()), 1);
+    // The first completes; its job fails on the broken zip, and its file goes with it.
+    drop(tx);
+    let resp = first.await.unwrap().unwrap();
+    assert_eq!(resp.status(), StatusCode::ACCEPTED);
+    let status: serde_json::Value = serde_json::from_slice(&resp.into_body().collect().await.unwrap().to_bytes()).unwrap();
+    let last = wait_finished(&app, status["status_url"].as_str().unwrap()).await;
+    assert_eq!(last["state"], "failed", "{last}");
+    assert_eq!(files_in(dir.path()), 0, "the temporary file is removed when the job ends");
+    // A refused upload gives its place back: the next one is taken.
+    let r = send(&app, Method::POST, "/v1/assets?id=other", &[("content-type", "application/zip"), AUTH], b"PK\x03\x04more".to_vec()).await;
+    assert_eq!(r.status, StatusCode::ACCEPTED, "{}", String::from_utf8_lossy(&r.body));
+}
+
+/// A stream over an mpsc receiver (tokio-stream is not a dependency).
+fn tokio_stream_from<T: Send + 'static>(rx: tokio::sync::mpsc::Receiver<T>) -> impl futures_util::Stream<Item = T> + Send + 'static {
+    futures_util::stream::unfold(rx, |mut rx| async move { rx.recv().await.map(|item| (item, rx)) })
+}
+
+#[tokio::test]
+async fn jobs_can_be_cancelled_queued_or_running_and_store_nothing() {
+    let (app, dir) = writable_app(|c| {
+        c.limits.encode_concurrency = 1;
+        c.store = pmcodec_server::config::StoreConfig::Memory;
+    })
+    .await;
+    // A long job (hundreds of frames) and a short one queued behind it.
+    let (ctype, long) = multipart_objs(&pmcodec_mesh::samples::waving_cloth(40, 40, 600));
+    let r = send(&app, Method::POST, "/v1/assets?id=long", &[("content-type", &ctype), AUTH], long).await;
+    assert_eq!(r.status, StatusCode::ACCEPTED, "{}", String::from_utf8_lossy(&r.body));
+    let long_url = r.json()["status_url"].as_str().unwrap().to_string();
+    let (ctype, short) = multipart_objs(&pmcodec_mesh::samples::waving_cloth(8, 6, 3));
+    let r = send(&app, Method::POST, "/v1/assets?id=short", &[("content-type", &ctype), AUTH], short).await;
+    assert_eq!(r.status, StatusCode::ACCEPTED);
+    let short_url = r.json()["status_url"].as_str().unwrap().to_string();
+
+    // Wait until the long one encodes: its body has been parsed, so the only temporary file
+    // left is the queued job's.
+    let mut running = serde_json::Value::Null;
+    for _ in 0..2000 {
+        running = get(&app, &long_url, &[]).await.json();
+        if running["frames_done"].as_u64().unwrap_or(0) >= 1 || running["state"] != "queued" && running["state"] != "running" {
+            break;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+    }
+    assert_eq!(running["state"], "running", "{running}");
+    assert_eq!(get(&app, &short_url, &[]).await.json()["state"], "queued");
+    assert_eq!(files_in(dir.path()), 1, "the queued job's body waits on disk");
+
+    // Cancelling needs the write token.
+    assert_eq!(send(&app, Method::DELETE, &short_url, &[], Vec::new()).await.status, StatusCode::UNAUTHORIZED);
+    // The queued job never starts; its file goes.
+    let r = send(&app, Method::DELETE, &short_url, &[AUTH], Vec::new()).await;
+    assert_eq!(r.status, StatusCode::ACCEPTED, "{}", String::from_utf8_lossy(&r.body));
+    assert_eq!(r.json()["cancel_requested"], true);
+    let last = wait_finished(&app, &short_url).await;
+    assert_eq!(last["state"], "cancelled", "{last}");
+    assert_eq!(files_in(dir.path()), 0, "a cancelled job's temporary file is removed");
+
+    // The running one stops between frames and stores nothing.
+    let r = send(&app, Method::DELETE, &long_url, &[AUTH], Vec::new()).await;
+    assert_eq!(r.status, StatusCode::ACCEPTED);
+    let last = wait_finished(&app, &long_url).await;
+    assert_eq!(last["state"], "cancelled", "{last}");
+    assert!(last["frames_done"].as_u64().unwrap() < 600, "it stopped before the end: {last}");
+    assert_eq!(get(&app, "/v1/assets/long", &[]).await.status, StatusCode::NOT_FOUND);
+    assert_eq!(get(&app, "/v1/assets/short", &[]).await.status, StatusCode::NOT_FOUND);
+    // A finished job cannot be cancelled; an unknown one is not found.
+    assert_eq!(send(&app, Method::DELETE, &long_url, &[AUTH], Vec::new()).await.status, StatusCode::CONFLICT);
+    let r = send(&app, Method::DELETE, "/v1/jobs/0123456789abcdef0123456789abcdef", &[AUTH], Vec::new()).await;
+    assert_eq!(r.status, StatusCode::NOT_FOUND);
+    // The asset's place was given back: it can be uploaded again.
+    let (ctype, short) = multipart_objs(&pmcodec_mesh::samples::waving_cloth(8, 6, 3));
+    let r = send(&app, Method::POST, "/v1/assets?id=long", &[("content-type", &ctype), AUTH], short).await;
+    assert_eq!(r.status, StatusCode::ACCEPTED);
+    assert_eq!(wait_finished(&app, r.json()["status_url"].as_str().unwrap()).await["state"], "succeeded");
+}
+
+#[tokio::test]
+async fn frame_rates_and_frame_counts_are_bounded() {
+    let (app, dir) = writable_app(|c| c.limits.max_frames = 2).await;
+    let glb = pmcodec_mesh::write::glb_bytes(&pmcodec_mesh::samples::waving_cloth(8, 6, 1).frame_mesh(0).unwrap());
+    for fps in ["1e-30", "0", "-5", "1000", "241", "NaN", "inf"] {
+        let r =
+            send(&app, Method::POST, &format!("/v1/assets?id=a&fps={fps}"), &[("content-type", "model/gltf-binary"), AUTH], glb.clone())
+                .await;
+        assert_eq!(r.status, StatusCode::BAD_REQUEST, "fps={fps}: {}", String::from_utf8_lossy(&r.body));
+        assert!(r.json()["detail"].as_str().unwrap().contains("fps"), "fps={fps}");
+    }
+    // More OBJ files than frames allowed: refused while the body is read.
+    let (ctype, three) = multipart_objs(&pmcodec_mesh::samples::waving_cloth(8, 6, 3));
+    let r = send(&app, Method::POST, "/v1/assets?id=a", &[("content-type", &ctype), AUTH], three).await;
+    assert_eq!(r.status, StatusCode::BAD_REQUEST, "{}", String::from_utf8_lossy(&r.body));
+    assert!(r.json()["detail"].as_str().unwrap().contains("max_frames"));
+    assert_eq!(files_in(dir.path()), 0, "a refused body leaves no file");
+    // Within the bounds, it works.
+    let r = send(&app, Method::POST, "/v1/assets?id=a&fps=0.1", &[("content-type", "model/gltf-binary"), AUTH], glb).await;
+    assert_eq!(r.status, StatusCode::ACCEPTED, "{}", String::from_utf8_lossy(&r.body));
+    assert_eq!(wait_finished(&app, r.json()["status_url"].as_str().unwrap()).await["state"], "succeeded");
+}
+
+#[tokio::test]
+async fn head_on_a_mesh_does_not_decode() {
+    let (app, _) = app().await;
+    let decodes = |text: &str| -> u64 {
+        let line = text.lines().find(|l| l.starts_with("pmcodec_decode_requests_total")).expect("the decode counter");
+        line.split_whitespace().last().unwrap().parse().unwrap()
+    };
+    let before = decodes(&String::from_utf8(get(&app, "/metrics", &[]).await.body).unwrap());
+    let r = send(&app, Method::HEAD, "/v1/assets/cloth/mesh?frame=3&triangles=77", &[], Vec::new()).await;
+    assert_eq!(r.status, StatusCode::OK);
+    assert_eq!(r.header("content-type"), "model/gltf-binary");
+    assert!(r.header("etag").contains("-f3-t77-"));
+    assert!(r.body.is_empty());
+    let after = decodes(&String::from_utf8(get(&app, "/metrics", &[]).await.body).unwrap());
+    assert_eq!(after, before, "HEAD ran a decode");
+    // A bad HEAD is still refused.
+    assert_eq!(send(&app, Method::HEAD, "/v1/assets/cloth/mesh?frame=99", &[], Vec::new()).await.status, StatusCode::BAD_REQUEST);
+    // GET decodes, with the same tag.
+    let g = get(&app, "/v1/assets/cloth/mesh?frame=3&triangles=77", &[]).await;
+    assert_eq!(g.header("etag"), r.header("etag"));
+}
+
+#[tokio::test]
+async fn headers_for_browsers_caches_and_long_urls() {
+    // Immutable URLs are private when reads need a token.
+    let mut config = Config::default();
+    config.auth.read_token = Some(Secret("r".into()));
+    let (private, _) = app_with(config).await;
+    let auth = [("authorization", "Bearer r")];
+    let info = get(&private, "/v1/assets/cloth", &auth).await.json();
+    for url in [info["file"].as_str().unwrap().to_string(), info["file"].as_str().unwrap().replace("/file", "/chunks/0")] {
+        let r = get(&private, &url, &auth).await;
+        assert_eq!(r.status, StatusCode::OK);
+        assert!(r.header("cache-control").starts_with("private,"), "{url}: {}", r.header("cache-control"));
+    }
+    let (app, _) = app().await;
+    let file = get(&app, "/v1/assets/cloth", &[]).await.json()["file"].as_str().unwrap().to_string();
+    assert!(get(&app, &file, &[]).await.header("cache-control").starts_with("public,"));
+
+    // A 64 KB URL is not echoed back in full.
+    let long = format!("/v1/{}", "a".repeat(60_000));
+    let r = get(&app, &long, &[]).await;
+    assert_eq!(r.status, StatusCode::NOT_FOUND);
+    assert!(r.body.len() < 2_000, "{} bytes of error body", r.body.len());
+    let r = get(&app, &format!("/v1/assets/{}", "b".repeat(60_000)), &[]).await;
+    assert_eq!(r.status, StatusCode::BAD_REQUEST);
+    assert!(r.body.len() < 2_000, "{} bytes of error body", r.body.len());
+    assert_eq!(r.header("x-content-type-options"), "nosniff");
+
+    // The viewer's files: no sniffing, and a policy that allows only this origin's scripts.
+    let viewer = tempfile::tempdir().unwrap();
+    std::fs::write(viewer.path().join("index.html"), "<!doctype html><title>v</title>").unwrap();
+    let (app, _) = app_with(Config { viewer: Some(viewer.path().to_path_buf()), ..Default::default() }).await;
+    let r = get(&app, "/index.html", &[]).await;
+    assert_eq!(r.status, StatusCode::OK);
+    assert_eq!(r.header("x-content-type-options"), "nosniff");
+    let csp = r.header("content-security-policy");
+    assert!(csp.contains("script-src 'self'") && csp.contains("frame-ancestors 'none'"), "{csp}");
+}
+
+#[test]
+fn an_empty_token_is_refused_at_start() {
+    for (write, read) in [(Some(""), None), (None, Some("  ")), (Some(""), Some("r"))] {
+        let mut config = Config::default();
+        config.auth.write_token = write.map(|t| Secret(t.into()));
+        config.auth.read_token = read.map(|t| Secret(t.into()));
+        let e = AppState::new(config, Arc::new(MemoryStore::default())).err().expect("refused");
+        assert!(e.to_string().contains("token is empty"), "{e}");
+    }
+}

@@ -27,6 +27,22 @@ pub struct ServeArgs {
     /// Serve no viewer even if web/dist exists.
     #[arg(long, conflicts_with = "viewer")]
     pub no_viewer: bool,
+    /// Connections open at once; more wait in the listen backlog [default: 512].
+    #[arg(long, value_name = "N")]
+    pub max_connections: Option<usize>,
+    /// Seconds a client has to send a request head [default: 10].
+    #[arg(long, value_name = "SECS")]
+    pub header_read_timeout: Option<u64>,
+    /// Seconds after which a connection with nothing in progress is closed [default: 60].
+    #[arg(long, value_name = "SECS")]
+    pub idle_timeout: Option<u64>,
+    /// Most frames an uploaded sequence may have [default: 2000].
+    #[arg(long, value_name = "N")]
+    pub max_frames: Option<u32>,
+    /// Folder where upload bodies wait for their encode job [default: the system's temporary
+    /// folder].
+    #[arg(long, value_name = "DIR")]
+    pub upload_dir: Option<PathBuf>,
 }
 
 pub fn run(args: ServeArgs, quiet: bool) -> Result<(), Exit> {
@@ -36,6 +52,22 @@ pub fn run(args: ServeArgs, quiet: bool) -> Result<(), Exit> {
     }
     if let Some(addr) = args.listen {
         config.listen = addr;
+    }
+    let l = &mut config.limits;
+    if let Some(n) = args.max_connections {
+        l.max_connections = n;
+    }
+    if let Some(s) = args.header_read_timeout {
+        l.header_read_timeout_secs = s;
+    }
+    if let Some(s) = args.idle_timeout {
+        l.idle_timeout_secs = s;
+    }
+    if let Some(n) = args.max_frames {
+        l.max_frames = n;
+    }
+    if let Some(dir) = args.upload_dir {
+        config.upload_dir = Some(dir);
     }
     if args.no_viewer {
         config.viewer = None;
