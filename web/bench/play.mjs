@@ -1,0 +1,130 @@
+// Playback measurements of the viewer in headless Chromium (a benchmark, not a test; the bars
+// of issue 18). Starts `pmcodec serve --assets DIR` with the viewer in web/dist, then:
+//   1. frame rate at full resolution on loopback, over 10 s after the first second, with the
+//      page thread's work per displayed frame (the player's own timing) and Long Tasks;
+//   2. the same with 50 ms of latency on every request (CDP Network.emulateNetworkConditions);
+//   3. bytes: over those seconds (several loops), whether any byte of the container was fetched
+//      twice, from the server's request log;
+//   4. bytes per frame after lowering the budget from full to 10% during playback;
+//   5. median time from a seek to the first drawn frame of the new position, 20 random seeks.
+// Usage (from web/, after npm run build):
+//   node bench/play.mjs ASSETS_DIR [ASSET_ID]      (PMCODEC_BIN: the server binary)
+import { chromium } from "playwright-core";
+import { spawn } from "node:child_process";
+
+const root = new URL("../..", import.meta.url).pathname;
+const dir = process.argv[2];
+const asset = process.argv[3] ?? "horse-gallop";
+if (!dir) { console.error("usage: node bench/play.mjs ASSETS_DIR [ASSET_ID]"); process.exit(2); }
+const bin = process.env.PMCODEC_BIN ?? `${root}/target/release/pmcodec`;
+const port = 19000 + Math.floor(Math.random() * 1000);
+const server = spawn(bin, ["serve", "--listen", `127.0.0.1:${port}`, "--assets", dir, "--viewer", `${root}/web/dist`], { stdio: ["ignore", "pipe", "pipe"] });
+let log = "";
+server.stdout.on("data", (d) => { log += d; });
+server.stderr.on("data", (d) => { log += d; });
+const base = `http://127.0.0.1:${port}`;
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+let browser;
+try {
+  for (let i = 0; ; i++) {
+    try { if ((await fetch(`${base}/readyz`)).ok) break; } catch {}
+    if (i > 400) throw new Error("server did not start");
+    await sleep(250);
+  }
+  const info = await (await fetch(`${base}/v1/assets/${asset}`)).json();
+  browser = await chromium.launch({
+    executablePath: "/usr/bin/chromium",
+    args: ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking", "--disable-component-update", "--disable-sync"],
+  });
+  const stat = (page) => page.$eval("#overlay", (e) => ({ frame: Number(e.dataset.frame), shown: Number(e.dataset.shown), mainMs: Number(e.dataset.mainMs), bytes: Number(e.dataset.bytes), requests: Number(e.dataset.requests), stalls: Number(e.dataset.stalls) }));
+  async function openPage(query, latency) {
+    const context = await browser.newContext({ viewport: { width: 960, height: 640 } });
+    const page = await context.newPage();
+    await page.addInitScript(() => {
+      window.__long = 0;
+      new PerformanceObserver((l) => { for (const e of l.getEntries()) window.__long += e.duration; }).observe({ type: "longtask", buffered: true });
+    });
+    if (latency) {
+      const cdp = await context.newCDPSession(page);
+      await cdp.send("Network.enable");
+      await cdp.send("Network.emulateNetworkConditions", { offline: false, latency, downloadThroughput: -1, uploadThroughput: -1 });
+    }
+    await page.goto(`${base}/?${query}`);
+    await page.waitForFunction(() => Number(document.getElementById("overlay")?.dataset.shown ?? 0) > 0, null, { timeout: 120_000 });
+    return { page, context };
+  }
+  async function rate(latency) {
+    const logStart = log.length;
+    const { page, context } = await openPage(`asset=${asset}&budget=${info.triangles}`, latency);
+    await sleep(1000);
+    const a = await stat(page), la = await page.evaluate(() => window.__long);
+    await sleep(10_000);
+    const b = await stat(page), lb = await page.evaluate(() => window.__long);
+    await context.close();
+    const shown = b.shown - a.shown;
+    return { fps: shown / 10, mainMsPerFrame: (b.mainMs - a.mainMs) / shown, longTaskMsPerS: (lb - la) / 10, stalls: b.stalls - a.stalls, loops: (b.shown) / info.frames, bytes: b.bytes, requests: b.requests, logStart };
+  }
+  // Byte ranges the server answered for the container since `from` in its log.
+  function ranges(from) {
+    const out = [];
+    for (const line of log.slice(from).split("\n")) {
+      const m = /\/v\/[0-9a-f]+\/file range=bytes=(\d+)-(\d+) status=206/.exec(line);
+      if (m) out.push([Number(m[1]), Math.min(Number(m[2]) + 1, info.bytes)]);
+    }
+    return out;
+  }
+  function twice(rs) {
+    const seen = new Uint8Array(info.bytes);
+    let again = 0, total = 0;
+    for (const [s, e] of rs) for (let i = s; i < e; i++) { total++; if (seen[i]++) again++; }
+    return { again, total };
+  }
+
+  const loop = await rate(0);
+  await sleep(300);
+  const rs = ranges(loop.logStart), tw = twice(rs);
+  console.log(`loopback: ${loop.fps.toFixed(1)} frames/s at full resolution (${info.triangles} triangles), ${loop.stalls} stalls, page thread ${loop.mainMsPerFrame.toFixed(2)} ms per displayed frame, long tasks ${loop.longTaskMsPerS.toFixed(0)} ms/s`);
+  console.log(`bytes: ${loop.loops.toFixed(1)} loops, ${rs.length} range requests, ${tw.total} bytes of ${info.bytes}, bytes fetched more than once: ${tw.again}`);
+  const slow = await rate(50);
+  console.log(`50 ms latency: ${slow.fps.toFixed(1)} frames/s, ${slow.stalls} stalls, page thread ${slow.mainMsPerFrame.toFixed(2)} ms per displayed frame`);
+
+  // Budget: full, then 10% right after the first frame; bytes per frame over frames 20..40
+  // (past the next keyframe), against the same frames at full resolution.
+  async function window20to40(budgetAfter) {
+    const { page, context } = await openPage(`asset=${asset}&budget=${info.triangles}`, 0);
+    if (budgetAfter) await page.$eval("#budget", (e, v) => { e.value = String(v); e.dispatchEvent(new Event("input")); }, budgetAfter);
+    await page.waitForFunction(() => Number(document.getElementById("overlay")?.dataset.frame) >= 20, null, { timeout: 60_000 });
+    const a = await stat(page);
+    await page.waitForFunction(() => Number(document.getElementById("overlay")?.dataset.frame) >= 40, null, { timeout: 60_000 });
+    const b = await stat(page);
+    await context.close();
+    return (b.bytes - a.bytes) / (b.frame - a.frame);
+  }
+  const full = await window20to40(0), low = await window20to40(Math.round(info.triangles / 10));
+  console.log(`budget: ${full.toFixed(0)} B/frame at full resolution, ${low.toFixed(0)} B/frame after lowering to 10% (${((100 * low) / full).toFixed(1)}%), frames 20-40, keyframe interval ${info.keyframe_interval}`);
+
+  // Seeks: paused at frame 0, 20 random targets through the frame slider.
+  const { page, context } = await openPage(`asset=${asset}&budget=${info.triangles}&frame=0`, 0);
+  const times = [];
+  let seed = 12345;
+  for (let i = 0; i < 20; i++) {
+    seed = (seed * 1103515245 + 12345) % 2147483648;
+    let f = seed % info.frames;
+    if (f === (await stat(page)).frame) f = (f + 1) % info.frames;
+    times.push(await page.evaluate((f) => new Promise((res) => {
+      const slider = document.getElementById("frame");
+      const t0 = performance.now();
+      slider.value = String(f);
+      slider.dispatchEvent(new Event("input"));
+      // The rAF callback that shows the frame also renders it.
+      const poll = () => { if (Number(document.getElementById("overlay").dataset.frame) === f) res(performance.now() - t0); else requestAnimationFrame(poll); };
+      requestAnimationFrame(poll);
+    }), f));
+  }
+  await context.close();
+  times.sort((a, b) => a - b);
+  console.log(`seek: median ${times[10].toFixed(0)} ms to the first drawn frame (min ${times[0].toFixed(0)}, max ${times[19].toFixed(0)}), 20 random seeks`);
+} finally {
+  await browser?.close();
+  server.kill("SIGTERM");
+}
