@@ -252,6 +252,9 @@ function loop(now: number): void {
   requestAnimationFrame(loop);
 }
 
+// For the console and the end-to-end tests: what is on screen.
+Object.defineProperty(window, "pmcodecViewer", { value: { get player() { return player; }, camera, controls, renderer, scene } });
+
 const start = fromAddress();
 loadAssets(start.asset ?? undefined)
   .then(() => {
