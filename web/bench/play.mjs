@@ -8,9 +8,12 @@
 //   4. bytes per frame after lowering the budget from full to 10% during playback;
 //   5. median time from a seek to the first drawn frame of the new position, 20 random seeks.
 // Usage (from web/, after npm run build):
-//   node bench/play.mjs ASSETS_DIR [ASSET_ID]      (PMCODEC_BIN: the server binary)
+//   npx tsc -p tsconfig.test.json && node bench/play.mjs ASSETS_DIR [ASSET_ID]
+// (PMCODEC_BIN: the server binary; ASSETS_DIR/ASSET_ID.pmc is read to map bytes to frames.)
 import { chromium } from "playwright-core";
 import { spawn } from "node:child_process";
+import { readFileSync } from "node:fs";
+import { Container } from "../build-test/src/container.js";
 
 const root = new URL("../..", import.meta.url).pathname;
 const dir = process.argv[2];
@@ -80,6 +83,27 @@ try {
     return { again, total };
   }
 
+  // Which frame each fetched byte belongs to, from the container's index.
+  const file = new Uint8Array(readFileSync(`${dir}/${asset}.pmc`));
+  const container = await Container.open(async (o, n) => file.subarray(o, o + n), file.length);
+  function perFrame(rs) {
+    const out = new Float64Array(info.frames);
+    for (const e of container.index) {
+      const a = container.dataStart + e.offset, b = a + e.storedLen;
+      for (const [s, t] of rs) { const o = Math.min(b, t) - Math.max(a, s); if (o > 0) out[e.frame] += o; }
+    }
+    return out;
+  }
+
+  // The page's draw rate while paused, for scale (software rendering: the renderer's ceiling).
+  {
+    const { page, context } = await openPage(`asset=${asset}&budget=${info.triangles}&frame=0`, 0);
+    await sleep(1000);
+    const n = await page.evaluate(() => new Promise((res) => { let n = 0; const t0 = performance.now(); const tick = () => { n++; if (performance.now() - t0 < 5000) requestAnimationFrame(tick); else res(n); }; requestAnimationFrame(tick); }));
+    await context.close();
+    console.log(`paused draw rate: ${(n / 5).toFixed(1)} frames/s`);
+  }
+
   const loop = await rate(0);
   await sleep(300);
   const rs = ranges(loop.logStart), tw = twice(rs);
@@ -88,20 +112,22 @@ try {
   const slow = await rate(50);
   console.log(`50 ms latency: ${slow.fps.toFixed(1)} frames/s, ${slow.stalls} stalls, page thread ${slow.mainMsPerFrame.toFixed(2)} ms per displayed frame`);
 
-  // Budget: full, then 10% right after the first frame; bytes per frame over frames 20..40
-  // (past the next keyframe), against the same frames at full resolution.
-  async function window20to40(budgetAfter) {
-    const { page, context } = await openPage(`asset=${asset}&budget=${info.triangles}`, 0);
-    if (budgetAfter) await page.$eval("#budget", (e, v) => { e.value = String(v); e.dispatchEvent(new Event("input")); }, budgetAfter);
-    await page.waitForFunction(() => Number(document.getElementById("overlay")?.dataset.frame) >= 20, null, { timeout: 60_000 });
-    const a = await stat(page);
-    await page.waitForFunction(() => Number(document.getElementById("overlay")?.dataset.frame) >= 40, null, { timeout: 60_000 });
-    const b = await stat(page);
-    await context.close();
-    return (b.bytes - a.bytes) / (b.frame - a.frame);
-  }
-  const full = await window20to40(0), low = await window20to40(Math.round(info.triangles / 10));
-  console.log(`budget: ${full.toFixed(0)} B/frame at full resolution, ${low.toFixed(0)} B/frame after lowering to 10% (${((100 * low) / full).toFixed(1)}%), frames 20-40, keyframe interval ${info.keyframe_interval}`);
+  // Budget: full, then 10% while frame 0 or 1 plays; container bytes per frame fetched for the
+  // frames from the next keyframe on (one keyframe interval), against the same frames at full
+  // resolution (the first run's fetches), both from the server's log mapped through the index.
+  const full = perFrame(rs);
+  const from = log.length;
+  const { page: bp, context: bc } = await openPage(`asset=${asset}&budget=${info.triangles}`, 0);
+  const dropAt = (await stat(bp)).frame;
+  await bp.$eval("#budget", (e, v) => { e.value = String(v); e.dispatchEvent(new Event("input")); }, Math.round(info.triangles / 10));
+  await bp.waitForFunction(() => Number(document.getElementById("overlay")?.dataset.frame) >= 47, null, { timeout: 60_000 });
+  await sleep(500);
+  await bc.close();
+  const low = perFrame(ranges(from));
+  const k = info.keyframe_interval, next = (Math.floor(dropAt / k) + 1) * k;
+  let sumFull = 0, sumLow = 0;
+  for (let f = next; f < Math.min(info.frames, next + k); f++) { sumFull += full[f]; sumLow += low[f]; }
+  console.log(`budget: lowered to 10% at frame ${dropAt}; frames ${next}-${Math.min(info.frames, next + k) - 1}: ${(sumLow / k).toFixed(0)} B/frame against ${(sumFull / k).toFixed(0)} at full resolution (${((100 * sumLow) / sumFull).toFixed(1)}%)`);
 
   // Seeks: paused at frame 0, 20 random targets through the frame slider.
   const { page, context } = await openPage(`asset=${asset}&budget=${info.triangles}&frame=0`, 0);

@@ -144,3 +144,23 @@ test("the built package exports the player and says which container version it r
   const THREE = await import("three");
   assert.ok(m.PmcPlayer.prototype instanceof THREE.Object3D);
 });
+
+test("session: after a jump, a coarse cut comes from a coarse decoder, then the budget's at that frame", async () => {
+  const { fetch } = recorder(file);
+  const s = await Session.open(fetch, { readAhead: 0 });
+  const h = s.container.header, target = h.frameCount - 1;
+  const before = s.cache.fetched;
+  const q = await s.coarse(target);
+  assert.ok(q, "no coarse cut");
+  assert.equal(q.frame, target);
+  assert.ok(q.level > 0 && q.level >= h.levelSizes.length - 3, `coarse level ${q.level}`);
+  const coarseBytes = s.cache.fetched - before;
+  const p = await s.frame(target);
+  assert.equal(p.level, 0);
+  assert.ok(p.triangles > q.triangles);
+  assert.ok(coarseBytes < (s.cache.fetched - before - coarseBytes) / 2, `coarse cut read ${coarseBytes} bytes`);
+  // The budget's cut geomorphs from the coarse one.
+  assert.ok(p.starts && p.starts.length === p.positions.length);
+  // Stepping on from there needs no coarse cut.
+  assert.equal(await s.coarse(target), null);
+});

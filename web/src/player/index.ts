@@ -152,7 +152,7 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
     if (!Number.isFinite(this.triangleBudget)) this.triangleBudget = info.triangles;
     this.target = Math.min(this.target, info.frames - 1);
     this.seq++;
-    this.send({ type: "seek", frame: this.target, seq: this.seq });
+    this.send({ type: "seek", frame: this.target, seq: this.seq, coarse: true });
     this.send({ type: "playhead", frame: this.target, playing: this.isPlaying });
   }
 
@@ -173,20 +173,22 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
     if (!this.isPlaying) return;
     this.isPlaying = false;
     // Frames decoded ahead are dropped: the worker keeps its decoder at the frame shown.
-    this.seek(Math.max(0, this.current));
+    this.jump(Math.max(0, this.current), false);
   }
 
   /**
    * Shows frame f as soon as the worker has it (decoded from the keyframe before it; what is
    * already fetched is not fetched again), then plays on from there if playing.
    */
-  seek(f: number): void {
+  seek(f: number): void { this.jump(f, true); }
+
+  private jump(f: number, coarse: boolean): void {
     const n = this.frameCount;
     this.target = n ? Math.min(Math.max(0, Math.floor(f)), n - 1) : Math.max(0, Math.floor(f));
     this.seq++;
     this.queue.clear();
     this.due = 0;
-    this.send({ type: "seek", frame: this.target, seq: this.seq });
+    this.send({ type: "seek", frame: this.target, seq: this.seq, coarse });
     this.send({ type: "playhead", frame: this.target, playing: this.isPlaying });
   }
 

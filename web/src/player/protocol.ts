@@ -9,8 +9,11 @@ export type ToWorker =
   | { type: "open"; source: Source; cacheBytes?: number; readAhead?: number; headers?: Record<string, string> }
   /** The frame the page shows now, and whether it plays (the worker decodes ahead only then). */
   | { type: "playhead"; frame: number; playing: boolean }
-  /** A jump: frames decoded before it are of no use; `seq` tags what follows. */
-  | { type: "seek"; frame: number; seq: number }
+  /**
+   * A jump: frames decoded before it are of no use; `seq` tags what follows. With `coarse`, a
+   * coarse cut comes first when the budget's takes a keyframe and steps.
+   */
+  | { type: "seek"; frame: number; seq: number; coarse: boolean }
   | { type: "budget"; triangles: number }
   | { type: "colour"; mode: ColourMode };
 

@@ -31,6 +31,7 @@ export class Session {
   private byFrame: ChunkEntry[][] = [];
   private triangles: ChunkEntry | undefined;
   private decoder: Player | null = null;
+  private coarseDecoder: Player | null = null;
   private errorsOf: { decoder: Player; frame: number; positions: Float32Array; errors: Float64Array } | null = null;
   private last: { nodes: Uint32Array; budget: number; level: number; frame: number } | null = null;
   private aheadError: unknown = null;
@@ -126,6 +127,28 @@ export class Session {
     await d.seek(f);
     const tDecode = performance.now();
     return this.cut(d, f, performance.now() - t0, tDecode);
+  }
+
+  /**
+   * After a jump, the frame from a coarse decoder (two levels below the top, or the budget's
+   * level if coarser), which reads and decodes a small share of the bytes: something to show
+   * while the budget's decoder goes back to the keyframe and steps forward. Null when the
+   * budget's decoder gets there by stepping on, or is that coarse already.
+   */
+  async coarse(f: number): Promise<FramePayload | null> {
+    const t0 = performance.now();
+    const c = this.container, h = c.header;
+    const want = this.levelFor(this.budget), level = Math.max(want, h.levelSizes.length - 3);
+    const d = this.decoder, key = c.keyframeBefore(f);
+    if (level <= want || (d && d.frame >= key && d.frame <= f && d.minLevel <= want)) return null;
+    let cd = this.coarseDecoder;
+    if (!cd || cd.minLevel !== level) cd = this.coarseDecoder = new Player(c, level);
+    const from = cd.frame >= key && cd.frame <= f ? cd.frame + 1 : key;
+    const need: [number, number][] = [];
+    for (let g = from; g <= f; g++) this.spans(g, level, need);
+    await this.cache.ensure(need);
+    await cd.seek(f);
+    return this.cut(cd, f, performance.now() - t0, performance.now());
   }
 
   /** Cuts the decoder's frame at the budget again (a budget change while paused). */

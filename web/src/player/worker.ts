@@ -17,6 +17,8 @@ let seq = 0;
 let sent = -1;
 let recut = false;
 let running = false;
+/** Whether the coarse frame of the last jump was tried. */
+let coarseTried = false;
 /** Budget and colour mode as last asked for (they may come before the container is open). */
 let budget: number | null = null;
 let colour: ColourMode = "plain";
@@ -65,6 +67,13 @@ async function pump(): Promise<void> {
         if (p) { send(p); continue; }
       }
       recut = false;
+      if (sent < 0 && !coarseTried) {
+        // A jump: a coarse cut first, then the budget's.
+        coarseTried = true;
+        const q = await s.coarse(f);
+        if (mine !== seq) continue;
+        if (q) send(q);
+      }
       const p = await s.frame(f);
       if (mine !== seq) continue; // a seek came in meanwhile
       sent = f;
@@ -102,6 +111,7 @@ self.onmessage = (ev: MessageEvent<ToWorker>) => {
       seq = m.seq;
       playhead = m.frame;
       sent = -1;
+      coarseTried = !m.coarse;
       void pump();
       break;
     case "budget":
