@@ -8,7 +8,7 @@ import { execFileSync } from "node:child_process";
 import { existsSync, mkdtempSync, readFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { dirname, join } from "node:path";
-import { ChunkKind, VERSION } from "../src/container.js";
+import { ChunkKind, Player, VERSION } from "../src/container.js";
 import { RangeCache, type FetchRange } from "../src/player/ranges.js";
 import { Session } from "../src/player/session.js";
 
@@ -163,4 +163,33 @@ test("session: after a jump, a coarse cut comes from a coarse decoder, then the 
   assert.ok(p.starts && p.starts.length === p.positions.length);
   // Stepping on from there needs no coarse cut.
   assert.equal(await s.coarse(target), null);
+});
+
+test("session: the whole-mesh shortcut draws the triangles a full budget cut selects, and sends unchanged indices once", async () => {
+  const { fetch } = recorder(file);
+  const s = await Session.open(fetch, { readAhead: 0 });
+  const c = s.container, h = c.header;
+  const reference = new Player(c, 0);
+  const triples = (pos: Float32Array, idx: Uint32Array) => {
+    const out: string[] = [];
+    for (let t = 0; t < idx.length; t += 3) {
+      const v = [0, 1, 2].map((k) => Array.from(pos.subarray(3 * idx[t + k], 3 * idx[t + k] + 3)).join(","));
+      out.push(v.sort().join(";"));
+    }
+    return out.sort();
+  };
+  let omitted = 0;
+  const indexOf = new Map<number, Uint32Array>();
+  for (let f = 0; f < h.frameCount; f++) {
+    const p = await s.frame(f);
+    if (p.indices) indexOf.set(p.indexVersion, p.indices); else omitted++;
+    const idx = indexOf.get(p.indexVersion)!;
+    assert.equal(idx.length, p.indexCount);
+    await reference.seek(f);
+    const all = reference.positions();
+    reference.replay.selectTriangles(h.triangleCount, reference.replay.nodeErrors(all));
+    const m = reference.orderedMesh(all);
+    assert.deepEqual(triples(p.positions, idx), triples(m.positions, m.indices), `frame ${f}`);
+  }
+  assert.ok(omitted > 0, "every frame sent its index buffer");
 });

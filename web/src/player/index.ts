@@ -77,6 +77,8 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
   private mode: ColourMode = "plain";
   private morph: { from: Float32Array; to: Float32Array; start: number } | null = null;
   private disposed = false;
+  private indexes = new Map<number, Uint32Array>();
+  private uploadedIndex = -1;
 
   constructor(source: Source, options: PmcPlayerOptions = {}) {
     super();
@@ -106,8 +108,14 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
         const error = new Error(m.message);
         if (!this.info) failed(error);
         this.dispatchEvent({ type: "error", error });
-      } else if (m.seq === this.seq) {
-        this.queue.set(m.frame, m);
+      } else {
+        // Index buffers are sent only when they change: keep each (even a dropped frame's) until
+        // a frame that uses it is shown.
+        if (m.indices) {
+          this.indexes.set(m.indexVersion, m.indices);
+          for (const v of this.indexes.keys()) if (this.indexes.size > 16) this.indexes.delete(v);
+        }
+        if (m.seq === this.seq) this.queue.set(m.frame, m);
       }
       this.stats.mainMs += performance.now() - t0;
     };
@@ -272,7 +280,16 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
       upload(pos, p.positions);
     }
     upload(nrm, p.normals);
-    upload(idx, p.indices);
+    if (p.indexVersion !== this.uploadedIndex) {
+      const indices = this.indexes.get(p.indexVersion);
+      if (indices) {
+        upload(idx, indices);
+        this.uploadedIndex = p.indexVersion;
+      } else {
+        this.dispatchEvent({ type: "error", error: new Error(`pmcodec: the triangles of frame ${p.frame} (index version ${p.indexVersion}) never arrived`) });
+      }
+      for (const v of this.indexes.keys()) if (v < p.indexVersion) this.indexes.delete(v);
+    }
     if (p.colours) {
       let col = g.getAttribute("color") as THREE.BufferAttribute | undefined;
       if (!col || col.array.length < p.colours.length) {
@@ -281,7 +298,7 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
       }
       upload(col, p.colours);
     } else if (g.getAttribute("color")) g.deleteAttribute("color");
-    g.setDrawRange(0, p.indices.length);
+    g.setDrawRange(0, p.indexCount);
     const progressed = p.fetched !== this.stats.fetched;
     Object.assign(this.stats, { frame: p.frame, triangles: p.triangles, level: p.level, decodeMs: p.decodeMs, cutMs: p.cutMs, fetched: p.fetched, requests: p.requests, cached: p.cached });
     this.stats.shown++;

@@ -29,8 +29,11 @@ export interface FramePayload {
   /** The seek this frame answers (frames of an older seek are dropped). */
   seq: number;
   frame: number; budget: number; level: number; triangles: number;
-  /** The cut's vertices (3 floats each), their normals, and 3 indices per triangle. */
-  positions: Float32Array; normals: Float32Array; indices: Uint32Array;
+  /**
+   * The cut's vertices (3 floats each) and their normals; its 3 indices per triangle, left out
+   * when they equal those of the index version sent last (`indexVersion` names them).
+   */
+  positions: Float32Array; normals: Float32Array; indices?: Uint32Array; indexVersion: number; indexCount: number;
   /** Where each vertex starts a geomorph from, when the cut changed with the budget. */
   starts?: Float32Array;
   colours?: Float32Array;

@@ -32,7 +32,11 @@ export class Session {
   private triangles: ChunkEntry | undefined;
   private decoder: Player | null = null;
   private coarseDecoder: Player | null = null;
-  private errorsOf: { decoder: Player; frame: number; positions: Float32Array; errors: Float64Array } | null = null;
+  private errorsOf: { decoder: Player; frame: number; positions: Float32Array; errors: Float64Array | null } | null = null;
+  /** The decoder whose cut is the whole mesh of its level, every node expanded. */
+  private fullOn: Player | null = null;
+  private lastIndices: Uint32Array | null = null;
+  private indexVersion = 0;
   private last: { nodes: Uint32Array; budget: number; level: number; frame: number } | null = null;
   private aheadError: unknown = null;
   readonly trianglesPerLevel: number[];
@@ -161,14 +165,26 @@ export class Session {
 
   private cut(d: Player, f: number, decodeMs: number, t0: number): FramePayload {
     const r = d.replay;
+    // A budget that holds the level's whole mesh: every node stays expanded from frame to frame
+    // (a delta moves nodes, never collapses them), so the cut is the replay's as it stands and
+    // needs no split priorities (the two most expensive steps of a frame) unless they are shown.
+    const whole = this.fullOn === d && this.budget >= this.trianglesPerLevel[d.minLevel] && r.shown.length <= this.budget && allExpanded(r);
     let memo = this.errorsOf;
     if (!memo || memo.decoder !== d || memo.frame !== f) {
       const positions = d.positions();
-      memo = this.errorsOf = { decoder: d, frame: f, positions, errors: r.nodeErrors(positions) };
-    }
+      const errors = whole && this.colour !== "error" ? null : r.nodeErrors(positions);
+      memo = this.errorsOf = { decoder: d, frame: f, positions, errors };
+    } else if (!memo.errors && (!whole || this.colour === "error")) memo.errors = r.nodeErrors(memo.positions);
     const all = memo.positions;
-    r.selectTriangles(this.budget, memo.errors);
+    if (!whole) {
+      r.selectTriangles(this.budget, memo.errors!);
+      this.fullOn = this.budget >= this.trianglesPerLevel[d.minLevel] && allExpanded(r) ? d : null;
+    }
     const mesh = buildCutMesh(r);
+    // The index buffer only when it changed: at full resolution it rarely does.
+    let indices: Uint32Array | undefined = mesh.indices;
+    if (this.lastIndices && equal(this.lastIndices, mesh.indices)) indices = undefined;
+    else { this.lastIndices = mesh.indices.slice(); this.indexVersion++; }
     const n = mesh.nodes.length;
     const positions = new Float32Array(3 * n);
     for (let i = 0; i < n; i++) {
@@ -183,14 +199,25 @@ export class Session {
       starts = morphStarts(mesh, prev.nodes, all, (g) => r.parentGlobal(g));
     }
     let colours: Float32Array | undefined;
-    if (this.colour !== "plain") colours = colourOf(this.colour, mesh.nodes, r, memo.errors);
+    if (this.colour !== "plain") colours = colourOf(this.colour, mesh.nodes, r, memo.errors ?? new Float64Array(r.nodeCount));
     this.last = { nodes: mesh.nodes, budget: this.budget, level: d.minLevel, frame: f };
     return {
       type: "frame", seq: 0, frame: f, budget: this.budget, level: d.minLevel, triangles: mesh.indices.length / 3,
-      positions, normals, indices: mesh.indices, starts, colours,
+      positions, normals, indices, indexVersion: this.indexVersion, indexCount: mesh.indices.length, starts, colours,
       decodeMs, cutMs: performance.now() - t0, fetched: this.cache.fetched, requests: this.cache.requests, cached: this.cache.size,
     };
   }
+}
+
+function allExpanded(r: Player["replay"]): boolean {
+  for (let g = r.offsets[r.minLevel + 1] ?? r.nodeCount; g < r.nodeCount; g++) if (!r.expanded[g]) return false;
+  return true;
+}
+
+function equal(a: Uint32Array, b: Uint32Array): boolean {
+  if (a.length !== b.length) return false;
+  for (let i = 0; i < a.length; i++) if (a[i] !== b[i]) return false;
+  return true;
 }
 
 /** Area-weighted vertex normals: each face's unnormalized cross product added to its corners. */

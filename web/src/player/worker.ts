@@ -39,7 +39,8 @@ async function containerUrl(source: Source, headers: Record<string, string> | un
 
 function send(p: FramePayload): void {
   p.seq = seq;
-  const transfer: Transferable[] = [p.positions.buffer, p.normals.buffer, p.indices.buffer];
+  const transfer: Transferable[] = [p.positions.buffer, p.normals.buffer];
+  if (p.indices) transfer.push(p.indices.buffer);
   if (p.starts) transfer.push(p.starts.buffer);
   if (p.colours) transfer.push(p.colours.buffer);
   post(p, transfer);
