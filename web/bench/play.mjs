@@ -112,21 +112,25 @@ try {
   const slow = await rate(50);
   console.log(`50 ms latency: ${slow.fps.toFixed(1)} frames/s, ${slow.stalls} stalls, page thread ${slow.mainMsPerFrame.toFixed(2)} ms per displayed frame`);
 
-  // Budget: full, then 10% while frame 0 or 1 plays; container bytes per frame fetched for the
-  // frames from the next keyframe on (one keyframe interval), against the same frames at full
-  // resolution (the first run's fetches), both from the server's log mapped through the index.
+  // Budget: full, then 10% during the first frames; container bytes per frame fetched for the
+  // frames from one keyframe interval after the drop on (one interval's worth), against the same
+  // frames at full resolution (the first run's fetches), both from the server's log mapped to
+  // frames through the container's index.
   const full = perFrame(rs);
   const from = log.length;
   const { page: bp, context: bc } = await openPage(`asset=${asset}&budget=${info.triangles}`, 0);
-  const dropAt = (await stat(bp)).frame;
-  await bp.$eval("#budget", (e, v) => { e.value = String(v); e.dispatchEvent(new Event("input")); }, Math.round(info.triangles / 10));
+  // The frame on screen when the budget drops, read in the same task that drops it.
+  const dropAt = await bp.$eval("#budget", (e, v) => { e.value = String(v); e.dispatchEvent(new Event("input")); return Number(document.getElementById("overlay").dataset.frame); }, Math.round(info.triangles / 10));
   await bp.waitForFunction(() => Number(document.getElementById("overlay")?.dataset.frame) >= 47, null, { timeout: 60_000 });
   await sleep(500);
   await bc.close();
   const low = perFrame(ranges(from));
-  const k = info.keyframe_interval, next = (Math.floor(dropAt / k) + 1) * k;
+  // One keyframe interval after the drop (bytes read ahead before it may reach past the next
+  // keyframe), the next keyframe interval's frames.
+  const k = info.keyframe_interval, next = dropAt + k;
   let sumFull = 0, sumLow = 0;
   for (let f = next; f < Math.min(info.frames, next + k); f++) { sumFull += full[f]; sumLow += low[f]; }
+  if (process.env.VERBOSE) console.log(`per frame, full: ${Array.from(full).join(" ")}\nper frame, lowered: ${Array.from(low).join(" ")}`);
   console.log(`budget: lowered to 10% at frame ${dropAt}; frames ${next}-${Math.min(info.frames, next + k) - 1}: ${(sumLow / k).toFixed(0)} B/frame against ${(sumFull / k).toFixed(0)} at full resolution (${((100 * sumLow) / sumFull).toFixed(1)}%)`);
 
   // Seeks: paused at frame 0, 20 random targets through the frame slider.
