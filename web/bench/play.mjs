@@ -26,6 +26,8 @@ let log = "";
 server.stdout.on("data", (d) => { log += d; });
 server.stderr.on("data", (d) => { log += d; });
 const base = `http://127.0.0.1:${port}`;
+// VIEWPORT=WxH (default 960x640): a small one shows the rate when software rasterization is cheap.
+const [VW, VH] = (process.env.VIEWPORT ?? "960x640").split("x").map(Number);
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 let browser;
 try {
@@ -41,7 +43,7 @@ try {
   });
   const stat = (page) => page.$eval("#overlay", (e) => ({ frame: Number(e.dataset.frame), shown: Number(e.dataset.shown), mainMs: Number(e.dataset.mainMs), bytes: Number(e.dataset.bytes), requests: Number(e.dataset.requests), stalls: Number(e.dataset.stalls), renderMs: Number(e.dataset.renderMs), draws: Number(e.dataset.draws) }));
   async function openPage(query, latency) {
-    const context = await browser.newContext({ viewport: { width: 960, height: 640 } });
+    const context = await browser.newContext({ viewport: { width: VW, height: VH } });
     const page = await context.newPage();
     await page.addInitScript(() => {
       window.__long = 0;
