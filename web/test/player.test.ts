@@ -9,7 +9,7 @@ import { existsSync, mkdtempSync, readFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { dirname, join } from "node:path";
 import { ChunkKind, Player, VERSION } from "../src/container.js";
-import { RangeCache, type FetchRange } from "../src/player/ranges.js";
+import { httpRange, RangeCache, type FetchRange } from "../src/player/ranges.js";
 import { Session } from "../src/player/session.js";
 
 function repoRoot(): string {
@@ -58,6 +58,16 @@ test("range cache: adjacent ranges share a request, nothing is fetched twice, wa
   assert.equal(log.length, 3, `requests: ${JSON.stringify(log)}`);
   assert.equal(twice(log, bytes.length), 0);
   assert.equal(c.fetched, 25 + 10 + 10);
+});
+
+test("range cache: a host that sends the whole file is asked once", async () => {
+  const bytes = Uint8Array.from({ length: 5000 }, (_, i) => i & 0xff);
+  let calls = 0;
+  const c = new RangeCache(async () => { calls++; return { bytes: bytes.slice(), total: bytes.length, at: 0 }; });
+  assert.deepEqual(Array.from(await c.read(300, 3)), [300 & 0xff, 301 & 0xff, 302 & 0xff]);
+  await c.ensure([[4000, 4100], [10, 20]]);
+  assert.deepEqual(Array.from(await c.read(4999, 1)), [4999 & 0xff]);
+  assert.equal(calls, 1);
 });
 
 test("range cache: holds at most its limit, forgetting the least recently used", async () => {
@@ -192,4 +202,37 @@ test("session: the whole-mesh shortcut draws the triangles a full budget cut sel
     assert.deepEqual(triples(p.positions, idx), triples(m.positions, m.indices), `frame ${f}`);
   }
   assert.ok(omitted > 0, "every frame sent its index buffer");
+});
+
+test("httpRange: ranges from a real server, a whole file from one that ignores Range, and an oversized answer refused", async () => {
+  const { createServer } = await import("node:http");
+  const body = Buffer.from(Uint8Array.from({ length: 3000 }, (_, i) => (i * 7) & 0xff));
+  const server = createServer((req, res) => {
+    const m = /bytes=(\d+)-(\d+)/.exec(req.headers.range ?? "");
+    if (req.url === "/ranges" && m) {
+      const a = Number(m[1]), b = Math.min(Number(m[2]), body.length - 1);
+      res.writeHead(206, { "Content-Range": `bytes ${a}-${b}/${body.length}`, "Content-Length": b - a + 1 });
+      res.end(body.subarray(a, b + 1));
+    } else if (req.url === "/whole") {
+      res.writeHead(200, { "Content-Length": body.length });
+      res.end(body);
+    } else {
+      // Says more than the range asked for.
+      res.writeHead(206, { "Content-Range": `bytes 0-2999/${body.length}`, "Content-Length": body.length });
+      res.end(body);
+    }
+  });
+  await new Promise<void>((r) => server.listen(0, "127.0.0.1", r));
+  const port = (server.address() as { port: number }).port;
+  try {
+    const ranged = await httpRange(`http://127.0.0.1:${port}/ranges`)(100, 110);
+    assert.equal(ranged.total, 3000);
+    assert.deepEqual(Array.from(ranged.bytes), Array.from(body.subarray(100, 110)));
+    const whole = await httpRange(`http://127.0.0.1:${port}/whole`)(100, 110);
+    assert.equal(whole.at, 0);
+    assert.equal(whole.bytes.length, 3000);
+    await assert.rejects(httpRange(`http://127.0.0.1:${port}/liar`)(0, 10), /3000 bytes for a range of 10/);
+  } finally {
+    server.close();
+  }
 });

@@ -7,8 +7,14 @@
 // already waiting for, and forgets the least recently used spans past its memory limit. So a
 // looping animation is fetched once, as long as it fits.
 
-/** Fetches bytes [start, end) of the resource; resolves with them and the resource's length. */
-export type FetchRange = (start: number, end: number) => Promise<{ bytes: Uint8Array; total: number }>;
+/**
+ * Fetches bytes [start, end) of the resource; resolves with them and the resource's length.
+ * `at`: where the bytes start when that is not `start` (a host that sent the whole file).
+ */
+export type FetchRange = (start: number, end: number) => Promise<{ bytes: Uint8Array; total: number; at?: number }>;
+
+/** The most a host that ignores Range may send (the whole file, kept as one span). */
+export const MAX_WHOLE_FILE = 256 << 20;
 
 /** The default memory limit of a cache: 64 MiB of container bytes. */
 export const DEFAULT_CACHE_BYTES = 64 << 20;
@@ -64,10 +70,10 @@ export class RangeCache {
     for (const [s, e] of runs) {
       const entry = { start: s, end: e, done: Promise.resolve() };
       entry.done = this.fetchRange(s, e).then(
-        ({ bytes }) => {
+        ({ bytes, at }) => {
           this.requests++;
           this.fetched += bytes.length;
-          this.add({ start: s, bytes, used: ++this.clock });
+          this.add({ start: at ?? s, bytes, used: ++this.clock });
         },
       ).finally(() => { this.pending = this.pending.filter((x) => x !== entry); });
       this.pending.push(entry);
@@ -84,7 +90,10 @@ export class RangeCache {
       await this.ensure([[start, end]]);
       s = this.find(start, end);
       // Evicted between arrival and now (a limit smaller than one frame's span): fetch again.
-      if (!s) return (await this.fetchRange(start, end)).bytes;
+      if (!s) {
+        const r = await this.fetchRange(start, end), at = r.at ?? start;
+        return r.bytes.subarray(start - at, end - at);
+      }
     }
     s.used = ++this.clock;
     return s.bytes.subarray(start - s.start, end - s.start);
@@ -103,17 +112,27 @@ export class RangeCache {
   }
 }
 
-/** Range requests against a URL with `fetch`; a server that answers 200 gets its body cut. */
+/**
+ * Range requests against a URL with `fetch`. A host that answers 200 (it ignores Range) sent the
+ * whole file: it is kept whole (up to MAX_WHOLE_FILE), so it is fetched once all the same.
+ */
 export function httpRange(url: string, init?: RequestInit): FetchRange {
   return async (start, end) => {
     const headers = new Headers(init?.headers);
     headers.set("Range", `bytes=${start}-${end - 1}`);
     const r = await fetch(url, { ...init, headers });
     if (r.status !== 206 && r.status !== 200) throw new Error(`${url}: HTTP ${r.status} for bytes ${start}-${end - 1}`);
+    // Bound what is read before reading it.
+    const declared = Number(r.headers.get("Content-Length") ?? NaN);
+    const most = r.status === 200 ? MAX_WHOLE_FILE : end - start;
+    if (declared > most) {
+      await r.body?.cancel();
+      throw new Error(r.status === 200 ? `${url}: the host ignores range requests and the file has ${declared} bytes (at most ${MAX_WHOLE_FILE} are read whole)` : `${url}: ${declared} bytes for a range of ${end - start}`);
+    }
     const body = new Uint8Array(await r.arrayBuffer());
     if (r.status === 200) {
       if (body.length < end) throw new Error(`${url}: the file has ${body.length} bytes, the range ends at ${end}`);
-      return { bytes: body.slice(start, end), total: body.length };
+      return { bytes: body, total: body.length, at: 0 };
     }
     // Content-Range: bytes a-b/total.
     const m = /\/(\d+)\s*$/.exec(r.headers.get("Content-Range") ?? "");
