@@ -247,6 +247,18 @@ try {
     await waitFor(page, (f) => document.getElementById("status").dataset.frame !== f, f0);
   });
 
+  await check("the package plays a .pmc from its URL alone (range requests only)", async (page) => {
+    const from = log.length;
+    const requests = [];
+    page.on("request", (r) => { if (r.url().includes("/v/")) requests.push(r.headers()["range"] ?? "none"); });
+    await page.goto(`${base}/example.html?url=${encodeURIComponent(infos[first].file)}`);
+    await waitFor(page, () => document.getElementById("status").dataset.frame !== undefined, null, 120_000);
+    const f0 = await page.$eval("#status", (e) => e.dataset.frame);
+    await waitFor(page, (f) => document.getElementById("status").dataset.frame !== f, f0);
+    assert.ok(requests.length > 0 && requests.every((r) => r.startsWith("bytes=")), `container requests without a range: ${requests}`);
+    assert.ok(!log.slice(from).includes(`GET /v1/assets/${first} `), "the asset's metadata was asked for");
+  });
+
   await check("a zip of OBJ frames dropped on the page is uploaded, its job followed, and the new asset plays", async (page) => {
     const dir = mkdtempSync(join(tmpdir(), "pmc-upload-"));
     execFileSync(bin, ["sample", "twisting-tube", "-o", dir, "--frames", "3", "-q"]);
