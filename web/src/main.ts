@@ -121,6 +121,8 @@ async function loadAssets(select?: string): Promise<void> {
 
 assetSel.onchange = () => { open(assetSel.value); };
 $<HTMLButtonElement>("refresh").onclick = () => { loadAssets().catch((e) => showError(String(e))); };
+// Assets added elsewhere (another tab, curl) show up when the page comes back into view.
+window.addEventListener("focus", () => { loadAssets().catch((e) => showError(String(e))); });
 $<HTMLButtonElement>("reset").onclick = () => { if (player) frameView(player); };
 playBtn.onclick = () => {
   if (!player) return;
