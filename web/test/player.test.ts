@@ -236,3 +236,23 @@ test("httpRange: ranges from a real server, a whole file from one that ignores R
     server.close();
   }
 });
+
+test("session: a budget change geomorphs over the next frames, on one morph id, from the cut before it", async () => {
+  const { fetch } = recorder(file);
+  const s = await Session.open(fetch, { readAhead: 0 });
+  const h = s.container.header;
+  s.budget = Math.round(h.triangleCount / 4);
+  const a = await s.frame(0);
+  assert.equal(a.starts, undefined, "the first frame has nothing to morph from");
+  s.budget = h.triangleCount;
+  const morphs: (number | null)[] = [];
+  for (let f = 1; f < h.frameCount; f++) {
+    const p = await s.frame(f);
+    morphs.push(p.starts ? p.morphId : null);
+    if (p.starts) assert.equal(p.starts.length, p.positions.length);
+  }
+  const carried = morphs.filter((m) => m !== null);
+  assert.ok(carried.length > 1 && carried.length < morphs.length, `morph on ${carried.length} of ${morphs.length} frames`);
+  assert.ok(carried.every((m) => m === carried[0]), "one morph id");
+  assert.notEqual(morphs[0], null, "the morph starts with the change");
+});

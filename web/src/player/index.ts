@@ -75,7 +75,8 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
   private due = 0;
   private triangleBudget: number;
   private mode: ColourMode = "plain";
-  private morph: { from: Float32Array; to: Float32Array; start: number } | null = null;
+  private morph: { from: Float32Array; to: Float32Array; start: number; id: number } | null = null;
+  private morphClock = { id: -1, start: 0 };
   private disposed = false;
   private indexes = new Map<number, Uint32Array>();
   private uploadedIndex = -1;
@@ -273,8 +274,12 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
     const nrm = g.getAttribute("normal") as THREE.BufferAttribute;
     const idx = g.index as THREE.BufferAttribute;
     if (p.starts && this.morphMs > 0) {
-      this.morph = { from: p.starts, to: p.positions, start: now };
-      blendInto(p.starts, p.positions, 0, pos);
+      // The same morph carried on to a new frame keeps its clock (even once it has ended).
+      const start = this.morphClock.id === p.morphId ? this.morphClock.start : now;
+      this.morphClock = { id: p.morphId, start };
+      const a = Math.min(1, (now - start) / this.morphMs);
+      this.morph = a < 1 ? { from: p.starts, to: p.positions, start, id: p.morphId } : null;
+      blendInto(p.starts, p.positions, a, pos);
     } else {
       this.morph = null;
       upload(pos, p.positions);

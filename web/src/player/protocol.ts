@@ -34,8 +34,11 @@ export interface FramePayload {
    * when they equal those of the index version sent last (`indexVersion` names them).
    */
   positions: Float32Array; normals: Float32Array; indices?: Uint32Array; indexVersion: number; indexCount: number;
-  /** Where each vertex starts a geomorph from, when the cut changed with the budget. */
-  starts?: Float32Array;
+  /**
+   * Where each vertex starts a geomorph from, when the cut changed with the budget; frames of
+   * one morph share `morphId` (the page keeps one clock for them).
+   */
+  starts?: Float32Array; morphId: number;
   colours?: Float32Array;
   decodeMs: number; cutMs: number;
   /** Container bytes received and requests made so far, and bytes the cache holds. */

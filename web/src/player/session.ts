@@ -16,6 +16,8 @@ const FIRST_READ = 64 << 10;
  * LEVEL_SLACK: anchored levels come out a few triangles short of round shares).
  */
 const LEVEL_SLACK = 0.98;
+/** Frames a geomorph is carried over while playing (a quarter second at 30 frames per second). */
+const MORPH_FRAMES = 8;
 
 export interface SessionOptions {
   /** Memory limit of the byte cache (bytes). */
@@ -37,6 +39,9 @@ export class Session {
   private fullOn: Player | null = null;
   private lastIndices: Uint32Array | null = null;
   private indexVersion = 0;
+  /** The cut a geomorph starts from, which morph it is, and the frames it has lasted. */
+  private morphFrom: { nodes: Uint32Array; id: number; frames: number } | null = null;
+  private morphId = 0;
   private last: { nodes: Uint32Array; budget: number; level: number; frame: number } | null = null;
   private aheadError: unknown = null;
   readonly trianglesPerLevel: number[];
@@ -192,18 +197,23 @@ export class Session {
       positions[3 * i] = all[g]; positions[3 * i + 1] = all[g + 1]; positions[3 * i + 2] = all[g + 2];
     }
     const normals = vertexNormals(positions, mesh.indices);
-    // A geomorph when the cut moved for another reason than time: the budget or the level.
+    // A geomorph when the cut moved for another reason than time (the budget or the level): from
+    // the cut before the change, carried on over the next frames while playing (each frame's
+    // starts are the old cut's nodes at that frame's positions), so the page blends on one clock.
     let starts: Float32Array | undefined;
     const prev = this.last;
-    if (prev && (prev.budget !== this.budget || prev.level !== d.minLevel) && prev.nodes.every((g) => g >= r.offsets[d.minLevel])) {
-      starts = morphStarts(mesh, prev.nodes, all, (g) => r.parentGlobal(g));
-    }
+    if (prev && (prev.budget !== this.budget || prev.level !== d.minLevel)) this.morphFrom = { nodes: prev.nodes, id: ++this.morphId, frames: 0 };
+    const from = this.morphFrom;
+    if (from && from.frames < MORPH_FRAMES && from.nodes.every((g) => g >= r.offsets[d.minLevel])) {
+      starts = morphStarts(mesh, from.nodes, all, (g) => r.parentGlobal(g));
+      from.frames++;
+    } else this.morphFrom = null;
     let colours: Float32Array | undefined;
     if (this.colour !== "plain") colours = colourOf(this.colour, mesh.nodes, r, memo.errors ?? new Float64Array(r.nodeCount));
     this.last = { nodes: mesh.nodes, budget: this.budget, level: d.minLevel, frame: f };
     return {
       type: "frame", seq: 0, frame: f, budget: this.budget, level: d.minLevel, triangles: mesh.indices.length / 3,
-      positions, normals, indices, indexVersion: this.indexVersion, indexCount: mesh.indices.length, starts, colours,
+      positions, normals, indices, indexVersion: this.indexVersion, indexCount: mesh.indices.length, starts, morphId: this.morphId, colours,
       decodeMs, cutMs: performance.now() - t0, fetched: this.cache.fetched, requests: this.cache.requests, cached: this.cache.size,
     };
   }
