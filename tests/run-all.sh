@@ -37,6 +37,8 @@ fi
 # `cargo test` above already built target/debug/pmcodec for the CLI tests; build only if not.
 [ -x target/debug/pmcodec ] || cargo build --locked -p pmcodec 2>&1
 (cd web && PMCODEC_BIN="$PWD/../target/debug/pmcodec" node test/e2e.mjs)
+# The viewer and the pmcodec-three package, one check per bug of issue 18 (uploads included).
+(cd web && PMCODEC_BIN="$PWD/../target/debug/pmcodec" node test/viewer-e2e.mjs)
 
 # ---- glTF validator on `pmcodec lod` output --------------------------------------------------
 # LOD chains of the built-in test rig and of the shared models (when present; the Parrot is

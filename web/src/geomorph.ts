@@ -17,23 +17,30 @@ export interface CutMesh {
   indices: Uint32Array;
 }
 
+/** Slot of each global node in the mesh being built (-1: none), reused between calls. */
+let slotOf = new Int32Array(0);
+
 /** Builds the index buffer of the replay's shown triangles over its cut nodes. */
 export function buildCutMesh(replay: Replay): CutMesh {
   const rep = replay.cutNodes();
-  const vertexOf = new Map<number, number>();
-  const nodes: number[] = [];
-  const indices = new Uint32Array(replay.shown.length * 3);
-  let n = 0;
-  for (const t of replay.shown) {
+  if (slotOf.length < rep.length) slotOf = new Int32Array(rep.length).fill(-1);
+  const shown = replay.shown, corners = replay.corners, base = replay.offsets[replay.minLevel];
+  const indices = new Uint32Array(shown.length * 3);
+  // At most one vertex per corner; trimmed below.
+  const nodes = new Uint32Array(indices.length);
+  let n = 0, used = 0;
+  for (let k = 0; k < shown.length; k++) {
+    const t = shown[k];
     for (let c = 0; c < 3; c++) {
-      const corner = replay.corners[3 * t + c];
-      const g = rep[replay.offsets[replay.minLevel] + corner];
-      let i = vertexOf.get(g);
-      if (i === undefined) { i = nodes.length; vertexOf.set(g, i); nodes.push(g); }
+      const g = rep[base + corners[3 * t + c]];
+      let i = slotOf[g];
+      if (i < 0) { i = used++; slotOf[g] = i; nodes[i] = g; }
       indices[n++] = i;
     }
   }
-  return { nodes: Uint32Array.from(nodes), indices };
+  // Leave the table clean for the next call: only the slots this mesh set.
+  for (let i = 0; i < used; i++) slotOf[nodes[i]] = -1;
+  return { nodes: nodes.slice(0, used), indices };
 }
 
 /**

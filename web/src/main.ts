@@ -1,17 +1,14 @@
-// The pmcodec viewer: streams an asset's container with HTTP range requests (only the bands the
-// current triangle budget needs), replays frames in the browser (src/container.ts,
-// src/replay.ts), cuts each frame at the budget, and geomorphs cut changes (src/geomorph.ts,
-// Houle & Poulin section 5) instead of popping.
+// The pmcodec viewer, built on the pmcodec-three package (src/player): the asset list of the
+// server it is served by, playback controls, a triangle budget that geomorphs while dragged,
+// uploads by drag and drop or file picker (an encode job, followed over its event stream), and
+// an address that carries asset, frame and budget so a view can be shared.
 
 import * as THREE from "three";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
-import { Container, Player } from "./container.js";
-import { blend, buildCutMesh, CutMesh, morphStarts } from "./geomorph.js";
+import { PmcPlayer, type ColourMode } from "pmcodec-three";
 
-interface AssetSummary { id: string; frames: number; frame_rate: number; triangles: number; levels: number[]; file: string; bytes: number }
-interface AssetInfo extends AssetSummary { triangles_per_level: number[] }
+interface AssetSummary { id: string; frames: number; frame_rate: number; triangles: number }
 
-const MORPH_MS = 250;
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 const canvas = $<HTMLCanvasElement>("view");
 const assetSel = $<HTMLSelectElement>("asset");
@@ -21,8 +18,10 @@ const frameSlider = $<HTMLInputElement>("frame");
 const budgetSlider = $<HTMLInputElement>("budget");
 const wireBox = $<HTMLInputElement>("wire");
 const colourSel = $<HTMLSelectElement>("colour");
+const fileInput = $<HTMLInputElement>("file");
 const overlay = $<HTMLDivElement>("overlay");
 const errorBox = $<HTMLDivElement>("error");
+const jobBox = $<HTMLDivElement>("job");
 
 const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
 renderer.setPixelRatio(window.devicePixelRatio);
@@ -34,24 +33,11 @@ scene.add(new THREE.HemisphereLight(0xffffff, 0x404050, 1.2));
 const sun = new THREE.DirectionalLight(0xffffff, 1.5);
 sun.position.set(3, 5, 4);
 scene.add(sun);
-const material = new THREE.MeshStandardMaterial({ color: 0xc8b89a, roughness: 0.7, flatShading: true, side: THREE.DoubleSide });
-const geometry = new THREE.BufferGeometry();
-scene.add(new THREE.Mesh(geometry, material));
 
-/** Everything about the asset being played. */
-interface Session { info: AssetInfo; container: Container; player: Player; busy: boolean }
-let session: Session | null = null;
-let frame = 0;
-let playing = true;
-let lastAdvance = performance.now();
-let decodeMs = 0;
-let framed = false;
-// The cut on screen and its geomorph.
-let cut: CutMesh | null = null;
-let positions: Float32Array = new Float32Array(0);
-let starts: Float32Array = new Float32Array(0);
-let morphStart = 0;
-let morphed: Float32Array = new Float32Array(0);
+let player: PmcPlayer | null = null;
+let assets: AssetSummary[] = [];
+/** The last address written, so history gets one entry per change that matters. */
+let lastUrl = "";
 
 function resize(): void {
   const w = window.innerWidth, h = window.innerHeight;
@@ -67,171 +53,222 @@ function showError(msg: string): void {
   errorBox.style.display = msg ? "block" : "none";
 }
 
-/** Range reads of the container's immutable URL. */
-function rangeReader(url: string) {
-  return async (offset: number, len: number): Promise<Uint8Array> => {
-    if (len === 0) return new Uint8Array(0);
-    const r = await fetch(url, { headers: { Range: `bytes=${offset}-${offset + len - 1}` } });
-    if (r.status !== 206 && r.status !== 200) throw new Error(`${url}: HTTP ${r.status}`);
-    const b = new Uint8Array(await r.arrayBuffer());
-    // A server may answer a range with the whole file (200): cut the range out.
-    return r.status === 200 ? b.slice(offset, offset + len) : b;
-  };
+/** Frames the whole animation's bounds (not one frame's: limbs and wings leave those). */
+function frameView(p: PmcPlayer): void {
+  const box = p.boundingBox;
+  if (!box) return;
+  const sphere = box.getBoundingSphere(new THREE.Sphere());
+  const fit = sphere.radius / Math.sin(THREE.MathUtils.degToRad(camera.fov / 2)) * 1.05;
+  controls.target.copy(sphere.center);
+  camera.position.copy(sphere.center).add(new THREE.Vector3(0.6, 0.4, 1).normalize().multiplyScalar(fit));
+  camera.near = sphere.radius / 100;
+  camera.far = sphere.radius * 100;
+  camera.updateProjectionMatrix();
+  controls.update();
 }
 
-/**
- * The coarsest level whose whole mesh has at least `budget` triangles, less 2% (as the Rust
- * client's LEVEL_SLACK: anchored levels come out a few triangles short of round shares).
- */
-function levelFor(info: AssetInfo, budget: number): number {
-  let level = 0;
-  for (let l = 0; l < info.triangles_per_level.length; l++) if (info.triangles_per_level[l] >= budget * 0.98) level = l;
-  return level;
+/** The view's state from the address: ?asset=ID&frame=F&budget=N. */
+function fromAddress(): { asset: string | null; frame: number | null; budget: number | null } {
+  const q = new URLSearchParams(location.search);
+  const num = (k: string) => { const v = q.get(k); return v !== null && /^\d+$/.test(v) ? Number(v) : null; };
+  return { asset: q.get("asset"), frame: num("frame"), budget: num("budget") };
 }
 
-async function openAsset(summary: AssetSummary): Promise<void> {
-  const info = (await (await fetch(`/v1/assets/${summary.id}`)).json()) as AssetInfo;
-  const container = await Container.open(rangeReader(info.file), info.bytes);
-  const budget = Number(budgetSlider.value);
-  session = { info, container, player: new Player(container, levelFor(info, budget)), busy: false };
-  frame = 0;
-  framed = false;
-  cut = null;
-  frameSlider.max = String(info.frames - 1);
-  budgetSlider.max = String(info.triangles);
-  await showFrame(0);
+function writeAddress(): void {
+  if (!player?.info) return;
+  const q = new URLSearchParams({ asset: assetSel.value, budget: String(player.budget) });
+  // The frame only when paused: a playing view's frame changes 30 times a second.
+  if (!player.playing) q.set("frame", String(Math.max(0, player.frame)));
+  const url = `${location.pathname}?${q}`;
+  if (url !== lastUrl) { history.replaceState(null, "", url); lastUrl = url; }
 }
 
-/** A frame asked for while another was decoding: shown as soon as that one is done. */
-let pendingFrame: number | null = null;
-
-/**
- * Decodes frame f (reading finer bands first if the budget needs them), cuts it, starts a morph.
- * A request that arrives while a decode runs (a budget or frame change during playback, or
- * just after pausing) is kept and served when it ends, not dropped.
- */
-async function showFrame(f: number): Promise<void> {
-  const s = session;
-  if (!s) return;
-  if (s.busy) {
-    pendingFrame = f;
-    return;
-  }
-  s.busy = true;
-  try {
-    const budget = Number(budgetSlider.value);
-    const need = levelFor(s.info, budget);
-    if (need < s.player.minLevel) s.player = new Player(s.container, need); // raising the budget: fetch finer bands
-    const t0 = performance.now();
-    await s.player.seek(f);
-    positions = s.player.positions();
-    const r = s.player.replay;
-    r.selectTriangles(budget, r.nodeErrors(positions));
-    const next = buildCutMesh(r);
-    starts = cut ? morphStarts(next, cut.nodes, positions, (g) => r.parentGlobal(g)) : gather(next, positions);
-    morphStart = performance.now();
-    cut = next;
-    morphed = new Float32Array(next.nodes.length * 3);
-    geometry.setIndex(new THREE.BufferAttribute(next.indices, 1));
-    geometry.setAttribute("position", new THREE.BufferAttribute(morphed, 3));
-    colour(next, r);
-    decodeMs = performance.now() - t0;
-    frame = f;
-    frameSlider.value = String(f);
-    showError("");
-  } catch (e) {
-    showError(String(e));
-  } finally {
-    s.busy = false;
-    if (pendingFrame !== null && session === s) {
-      const next = pendingFrame;
-      pendingFrame = null;
-      void showFrame(next);
-    }
-  }
-}
-
-function gather(mesh: CutMesh, pos: Float32Array): Float32Array {
-  const out = new Float32Array(mesh.nodes.length * 3);
-  mesh.nodes.forEach((g, i) => out.set(pos.subarray(3 * g, 3 * g + 3), 3 * i));
-  return out;
-}
-
-/** Colour modes: the hierarchy level of each vertex's node, or its split priority (error bound). */
-function colour(mesh: CutMesh, r: Player["replay"]): void {
-  material.vertexColors = colourSel.value !== "plain";
-  material.needsUpdate = true;
-  if (colourSel.value === "plain") { geometry.deleteAttribute("color"); return; }
-  const c = new Float32Array(mesh.nodes.length * 3);
-  const errors = colourSel.value === "error" ? r.nodeErrors(positions) : null;
-  let maxErr = 1e-12;
-  if (errors) mesh.nodes.forEach((g) => { maxErr = Math.max(maxErr, errors[g]); });
-  mesh.nodes.forEach((g, i) => {
-    const k = errors ? errors[g] / maxErr : r.levelOf(g) / Math.max(1, r.top);
-    const col = new THREE.Color().setHSL(0.66 * (1 - k), 0.75, 0.55);
-    c.set([col.r, col.g, col.b], 3 * i);
+function open(id: string, at: { frame?: number | null; budget?: number | null } = {}): void {
+  player?.dispose();
+  showError("");
+  const a = assets.find((x) => x.id === id);
+  const budget = at.budget ?? Math.min(a?.triangles ?? 2000, Number(budgetSlider.value) || 2000);
+  const p = PmcPlayer.fromServer(location.origin, id, { budget, autoplay: at.frame === null || at.frame === undefined });
+  player = p;
+  p.colourMode = colourSel.value as ColourMode;
+  (p.mesh.material as THREE.MeshStandardMaterial).wireframe = wireBox.checked;
+  if (at.frame !== null && at.frame !== undefined) p.seek(at.frame);
+  scene.add(p);
+  p.addEventListener("load", ({ info }) => {
+    if (player !== p) return;
+    frameSlider.max = String(info.frames - 1);
+    budgetSlider.max = String(info.triangles);
+    budgetSlider.value = String(Math.min(p.budget, info.triangles));
+    playBtn.textContent = p.playing ? "pause" : "play";
+    frameView(p);
+    writeAddress();
   });
-  geometry.setAttribute("color", new THREE.BufferAttribute(c, 3));
+  p.addEventListener("frame", ({ frame }) => {
+    if (player !== p) return;
+    if (document.activeElement !== frameSlider) frameSlider.value = String(frame);
+  });
+  p.addEventListener("error", ({ error }) => { if (player === p) showError(`${id}: ${error.message}`); });
 }
 
-async function loadAssets(): Promise<void> {
+async function loadAssets(select?: string): Promise<void> {
   const r = await fetch("/v1/assets");
   if (!r.ok) throw new Error(`listing assets: HTTP ${r.status}`);
-  const list = (await r.json()).assets as AssetSummary[];
-  assetSel.replaceChildren(...list.map((a) => new Option(`${a.id} (${a.frames} frames)`, a.id)));
-  assetSel.onchange = () => {
-    const a = list.find((x) => x.id === assetSel.value);
-    if (a) openAsset(a).catch((e) => showError(String(e)));
-  };
-  if (list.length) await openAsset(list[0]);
+  assets = (await r.json()).assets as AssetSummary[];
+  const keep = select ?? assetSel.value;
+  assetSel.replaceChildren(...assets.map((a) => new Option(`${a.id} (${a.frames} frames)`, a.id)));
+  if (keep && assets.some((a) => a.id === keep)) assetSel.value = keep;
 }
 
-playBtn.onclick = () => { playing = !playing; playBtn.textContent = playing ? "pause" : "play"; };
-frameSlider.oninput = () => { void showFrame(Number(frameSlider.value)); };
-budgetSlider.onchange = () => { void showFrame(frame); };
-wireBox.onchange = () => { material.wireframe = wireBox.checked; };
-colourSel.onchange = () => { if (cut && session) colour(cut, session.player.replay); };
+assetSel.onchange = () => { open(assetSel.value); };
+$<HTMLButtonElement>("refresh").onclick = () => { loadAssets().catch((e) => showError(String(e))); };
+// Assets added elsewhere (another tab, curl) show up when the page comes back into view.
+window.addEventListener("focus", () => { loadAssets().catch((e) => showError(String(e))); });
+$<HTMLButtonElement>("reset").onclick = () => { if (player) frameView(player); };
+playBtn.onclick = () => {
+  if (!player) return;
+  if (player.playing) player.pause(); else player.play();
+  playBtn.textContent = player.playing ? "pause" : "play";
+  writeAddress();
+};
+speedSel.onchange = () => { if (player) player.speed = Number(speedSel.value); };
+// While dragging: the worker cuts again (and the mesh geomorphs) on every step, not on release.
+frameSlider.oninput = () => { player?.seek(Number(frameSlider.value)); };
+frameSlider.onchange = () => { frameSlider.blur(); writeAddress(); };
+budgetSlider.oninput = () => { if (player) player.budget = Number(budgetSlider.value); };
+budgetSlider.onchange = () => { writeAddress(); };
+wireBox.onchange = () => { if (player) (player.mesh.material as THREE.MeshStandardMaterial).wireframe = wireBox.checked; };
+colourSel.onchange = () => { if (player) player.colourMode = colourSel.value as ColourMode; };
+
+// ---- uploads -----------------------------------------------------------------------------------
+
+/** The write token, asked for once per tab. */
+function writeToken(): string | null {
+  let t = sessionStorage.getItem("pmcodec-write-token");
+  if (!t) {
+    t = window.prompt("Write token of this server (PMCODEC_WRITE_TOKEN):");
+    if (t) sessionStorage.setItem("pmcodec-write-token", t);
+  }
+  return t;
+}
+
+/** An asset id from a file name: letters, digits, '-' and '_', as the server accepts. */
+function idFrom(name: string): string {
+  const base = name.replace(/\.[^.]*$/, "").toLowerCase().replace(/[^a-z0-9_-]+/g, "-").replace(/^-+|-+$/g, "");
+  return (base || "upload").slice(0, 64);
+}
+
+function showJob(text: string): void {
+  jobBox.textContent = text;
+  jobBox.style.display = text ? "block" : "none";
+}
+
+async function upload(file: File): Promise<void> {
+  const lower = file.name.toLowerCase();
+  if (!lower.endsWith(".glb") && !lower.endsWith(".zip")) throw new Error(`${file.name}: not a .glb or a .zip of OBJ frames`);
+  const token = writeToken();
+  if (!token) throw new Error("uploading needs the server's write token");
+  const id = idFrom(file.name);
+  showJob(`uploading ${file.name} as ${id}...`);
+  const r = await fetch(`/v1/assets?id=${encodeURIComponent(id)}`, {
+    method: "POST",
+    headers: { Authorization: `Bearer ${token}`, "Content-Type": lower.endsWith(".glb") ? "model/gltf-binary" : "application/zip" },
+    body: file,
+  });
+  const body = await r.json().catch(() => ({}));
+  if (r.status === 401 || r.status === 403) sessionStorage.removeItem("pmcodec-write-token");
+  if (r.status !== 202) throw new Error(`upload of ${file.name}: HTTP ${r.status} ${body.detail ?? body.title ?? ""}`);
+  await followJob(String(body.events_url), id);
+}
+
+/** Shows an encode job's progress from its event stream; opens the asset when it succeeds. */
+function followJob(eventsUrl: string, id: string): Promise<void> {
+  return new Promise((resolve, reject) => {
+    const es = new EventSource(eventsUrl);
+    const status = (ev: MessageEvent) => {
+      const s = JSON.parse(ev.data);
+      const frames = s.frames_total ? ` ${s.frames_done}/${s.frames_total} frames` : "";
+      showJob(`${id}: ${s.stage} ${Math.round(100 * (s.progress ?? 0))}%${frames}`);
+      return s;
+    };
+    es.addEventListener("queued", (ev) => status(ev as MessageEvent));
+    es.addEventListener("running", (ev) => status(ev as MessageEvent));
+    es.addEventListener("succeeded", (ev) => {
+      status(ev as MessageEvent);
+      es.close();
+      showJob(`${id}: done`);
+      setTimeout(() => showJob(""), 3000);
+      loadAssets(id).then(() => { open(id); resolve(); }, reject);
+    });
+    es.addEventListener("failed", (ev) => {
+      es.close();
+      const s = JSON.parse((ev as MessageEvent).data);
+      showJob("");
+      reject(new Error(`${id}: encoding failed: ${s.message ?? "no reason given"}`));
+    });
+    es.onerror = () => {
+      if (es.readyState === EventSource.CLOSED) reject(new Error(`${id}: lost the job's event stream`));
+    };
+  });
+}
+
+fileInput.onchange = () => {
+  const f = fileInput.files?.[0];
+  fileInput.value = "";
+  if (f) upload(f).catch((e) => { showJob(""); showError(String(e instanceof Error ? e.message : e)); });
+};
+let dragDepth = 0;
+window.addEventListener("dragenter", (e) => { e.preventDefault(); dragDepth++; document.body.classList.add("dragging"); });
+window.addEventListener("dragleave", () => { if (--dragDepth <= 0) { dragDepth = 0; document.body.classList.remove("dragging"); } });
+window.addEventListener("dragover", (e) => { e.preventDefault(); });
+window.addEventListener("drop", (e) => {
+  e.preventDefault();
+  dragDepth = 0;
+  document.body.classList.remove("dragging");
+  const f = e.dataTransfer?.files?.[0];
+  if (f) upload(f).catch((err) => { showJob(""); showError(String(err instanceof Error ? err.message : err)); });
+});
+
+// ---- drawing -----------------------------------------------------------------------------------
+
+/** Time in three.js's render calls and animation frames drawn, for the benchmark. */
+let renderMs = 0, draws = 0;
 
 function loop(now: number): void {
-  const s = session;
-  if (s && playing && !s.busy) {
-    const period = 1000 / (s.info.frame_rate * Number(speedSel.value));
-    if (now - lastAdvance >= period) {
-      lastAdvance = now;
-      void showFrame((frame + 1) % s.info.frames);
-    }
-  }
-  if (cut && morphed.length) {
-    blend(cut, starts, positions, (now - morphStart) / MORPH_MS, morphed);
-    (geometry.getAttribute("position") as THREE.BufferAttribute).needsUpdate = true;
-    geometry.computeVertexNormals();
-    if (!framed) {
-      geometry.computeBoundingSphere();
-      const b = geometry.boundingSphere;
-      if (b) {
-        controls.target.copy(b.center);
-        camera.position.copy(b.center).add(new THREE.Vector3(0.6, 0.4, 1).normalize().multiplyScalar(b.radius * 3));
-        camera.near = b.radius / 100;
-        camera.far = b.radius * 100;
-        camera.updateProjectionMatrix();
-        framed = true;
-      }
-    }
-  }
+  const p = player;
+  if (p) p.update(now);
   controls.update();
+  const r0 = performance.now();
   renderer.render(scene, camera);
-  const tris = cut ? cut.indices.length / 3 : 0;
-  overlay.textContent =
-    `frame ${frame}${s ? " / " + (s.info.frames - 1) : ""}\n` +
-    `triangles ${tris} (budget ${budgetSlider.value}, levels >= ${s?.player.minLevel ?? "-"})\n` +
-    `downloaded ${((s?.container.bytesRead ?? 0) / 1024).toFixed(1)} KB\n` +
-    `decode ${decodeMs.toFixed(1)} ms`;
-  overlay.dataset.frame = String(frame);
-  overlay.dataset.triangles = String(tris);
-  overlay.dataset.level = String(s?.player.minLevel ?? "");
-  overlay.dataset.bytes = String(s?.container.bytesRead ?? 0);
+  renderMs += performance.now() - r0;
+  const s = p?.stats;
+  overlay.textContent = s && p?.info
+    ? `frame ${Math.max(0, s.frame)} / ${p.info.frames - 1}\n` +
+      `triangles ${s.triangles} (budget ${p.budget}, levels >= ${s.level})\n` +
+      `downloaded ${(s.fetched / 1024).toFixed(1)} KB in ${s.requests} requests (cache ${(s.cached / 1024).toFixed(0)} KB)\n` +
+      `worker: decode ${s.decodeMs.toFixed(1)} ms, cut ${s.cutMs.toFixed(1)} ms`
+    : "loading...";
+  overlay.dataset.frame = String(s?.frame ?? -1);
+  overlay.dataset.triangles = String(s?.triangles ?? 0);
+  overlay.dataset.level = String(s?.level ?? "");
+  overlay.dataset.bytes = String(s?.fetched ?? 0);
+  overlay.dataset.requests = String(s?.requests ?? 0);
+  overlay.dataset.asset = p ? assetSel.value : "";
+  overlay.dataset.shown = String(s?.shown ?? 0);
+  overlay.dataset.mainMs = String(s?.mainMs ?? 0);
+  overlay.dataset.stalls = String(s?.stalls ?? 0);
+  overlay.dataset.renderMs = String(renderMs);
+  overlay.dataset.draws = String(++draws);
   requestAnimationFrame(loop);
 }
 
-loadAssets().catch((e) => showError(String(e)));
+// For the console and the end-to-end tests: what is on screen.
+Object.defineProperty(window, "pmcodecViewer", { value: { get player() { return player; }, camera, controls, renderer, scene } });
+
+const start = fromAddress();
+loadAssets(start.asset ?? undefined)
+  .then(() => {
+    const id = start.asset && assets.some((a) => a.id === start.asset) ? start.asset : assets[0]?.id;
+    if (id) { assetSel.value = id; open(id, { frame: start.frame, budget: start.budget }); }
+  })
+  .catch((e) => showError(String(e)));
 requestAnimationFrame(loop);

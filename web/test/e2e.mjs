@@ -55,7 +55,7 @@ try {
   // (new range requests to the container's immutable URL, more bytes, a finer level).
   await page.click("#play");
   const before = await trianglesOf();
-  await page.$eval("#budget", (e) => { e.value = "200"; e.dispatchEvent(new Event("change")); });
+  await page.$eval("#budget", (e) => { e.value = "200"; e.dispatchEvent(new Event("input")); });
   // Wait for the budget itself, not for any change: a frame that was decoding when playback
   // paused may still land first, and budget cuts differ by a few triangles from frame to frame.
   await page.waitForFunction(() => { const t = Number(document.getElementById("overlay")?.dataset.triangles ?? 0); return t > 0 && t <= 200; }, null, { timeout: 60_000 });
@@ -64,7 +64,7 @@ try {
   const levelBefore = await page.$eval("#overlay", (e) => Number(e.dataset.level));
   const requestsBefore = fileRequests.length;
   const logBefore = serverLog.length;
-  await page.$eval("#budget", (e) => { e.value = e.max; e.dispatchEvent(new Event("change")); });
+  await page.$eval("#budget", (e) => { e.value = e.max; e.dispatchEvent(new Event("input")); });
   await page.waitForFunction((l) => Number(document.getElementById("overlay")?.dataset.level) < l, levelBefore, { timeout: 60_000 });
   await page.waitForFunction((a) => Number(document.getElementById("overlay")?.dataset.triangles ?? 0) > a, after, { timeout: 60_000 });
   const big = await trianglesOf();

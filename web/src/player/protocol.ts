@@ -1,0 +1,51 @@
+// Messages between a player (main thread) and its worker. Buffers travel by transfer.
+
+export type ColourMode = "plain" | "level" | "error";
+
+/** Where a container comes from: a pmcodec server and an asset id, or a .pmc URL on any host. */
+export type Source = { server: string; asset: string } | { url: string };
+
+export type ToWorker =
+  | { type: "open"; source: Source; cacheBytes?: number; readAhead?: number; headers?: Record<string, string> }
+  /** The frame the page shows now, and whether it plays (the worker decodes ahead only then). */
+  | { type: "playhead"; frame: number; playing: boolean }
+  /**
+   * A jump: frames decoded before it are of no use; `seq` tags what follows. With `coarse`, a
+   * coarse cut comes first when the budget's takes a keyframe and steps.
+   */
+  | { type: "seek"; frame: number; seq: number; coarse: boolean }
+  | { type: "budget"; triangles: number }
+  | { type: "colour"; mode: ColourMode };
+
+export interface OpenedInfo {
+  frames: number; frameRate: number; vertices: number; triangles: number; levels: number[];
+  trianglesPerLevel: number[]; keyframeInterval: number; bboxMin: number[]; bboxMax: number[];
+  /** Container bytes, and its format version. */
+  bytes: number; version: number;
+}
+
+export interface FramePayload {
+  type: "frame";
+  /** The seek this frame answers (frames of an older seek are dropped). */
+  seq: number;
+  frame: number; budget: number; level: number; triangles: number;
+  /**
+   * The cut's vertices (3 floats each) and their normals; its 3 indices per triangle, left out
+   * when they equal those of the index version sent last (`indexVersion` names them).
+   */
+  positions: Float32Array; normals: Float32Array; indices?: Uint32Array; indexVersion: number; indexCount: number;
+  /**
+   * Where each vertex starts a geomorph from, when the cut changed with the budget; frames of
+   * one morph share `morphId` (the page keeps one clock for them).
+   */
+  starts?: Float32Array; morphId: number;
+  colours?: Float32Array;
+  decodeMs: number; cutMs: number;
+  /** Container bytes received and requests made so far, and bytes the cache holds. */
+  fetched: number; requests: number; cached: number;
+}
+
+export type FromWorker =
+  | { type: "opened"; info: OpenedInfo }
+  | FramePayload
+  | { type: "error"; message: string };

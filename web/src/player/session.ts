@@ -1,0 +1,277 @@
+// The decoding side of a player (it runs in the worker; nothing here touches the DOM, so Node
+// tests drive it too): opens a container through a RangeCache, keeps one decoder (container.ts's
+// Player) at the finest level the triangle budget needs, fetches each frame's bands in one
+// request a few frames ahead, and turns a decoded frame into render-ready buffers: the budget
+// cut's vertices, smooth normals and indices, computed once per decoded frame.
+
+import { ChunkEntry, ChunkKind, Container, Player, readAt } from "../container.js";
+import { buildCutMesh, morphStarts } from "../geomorph.js";
+import { FetchRange, RangeCache } from "./ranges.js";
+import type { ColourMode, FramePayload, OpenedInfo } from "./protocol.js";
+
+/** The first request of a container: its preamble, header and index, and usually more. */
+const FIRST_READ = 64 << 10;
+/**
+ * Budgets within 2% of a level's triangle count take that level (as the Rust client's
+ * LEVEL_SLACK: anchored levels come out a few triangles short of round shares).
+ */
+const LEVEL_SLACK = 0.98;
+/** Frames a geomorph is carried over while playing (a quarter second at 30 frames per second). */
+const MORPH_FRAMES = 8;
+
+export interface SessionOptions {
+  /** Memory limit of the byte cache (bytes). */
+  cacheBytes?: number;
+  /** Frames whose bytes are fetched ahead of the one being decoded. */
+  readAhead?: number;
+  /** Whole-mesh triangles per level, when a server says so; estimated from node counts if not. */
+  trianglesPerLevel?: number[];
+}
+
+export class Session {
+  readonly cache: RangeCache;
+  private byFrame: ChunkEntry[][] = [];
+  private triangles: ChunkEntry | undefined;
+  private decoder: Player | null = null;
+  private coarseDecoder: Player | null = null;
+  private errorsOf: { decoder: Player; frame: number; positions: Float32Array; errors: Float64Array | null } | null = null;
+  /** The decoder whose cut is the whole mesh of its level, every node expanded. */
+  private fullOn: Player | null = null;
+  private lastIndices: Uint32Array | null = null;
+  private indexVersion = 0;
+  /** The cut a geomorph starts from, which morph it is, and the frames it has lasted. */
+  private morphFrom: { nodes: Uint32Array; id: number; frames: number } | null = null;
+  private morphId = 0;
+  private last: { nodes: Uint32Array; budget: number; level: number; frame: number } | null = null;
+  private aheadError: unknown = null;
+  readonly trianglesPerLevel: number[];
+  readonly readAhead: number;
+  budget: number;
+  colour: ColourMode = "plain";
+
+  private constructor(readonly container: Container, cache: RangeCache, opts: SessionOptions) {
+    this.cache = cache;
+    const h = container.header;
+    this.trianglesPerLevel = opts.trianglesPerLevel?.length === h.levelSizes.length
+      ? opts.trianglesPerLevel
+      : h.levelSizes.map((n) => Math.round((h.triangleCount * n) / h.vertexCount));
+    this.readAhead = Math.max(0, opts.readAhead ?? 8);
+    this.budget = h.triangleCount;
+    for (let f = 0; f < h.frameCount; f++) this.byFrame.push([]);
+    for (const e of container.index) {
+      if (e.kind === ChunkKind.Triangles) this.triangles = e;
+      else if (e.frame < h.frameCount) this.byFrame[e.frame].push(e);
+    }
+  }
+
+  /** Opens a container: one range request for its start, which tells the file's length too. */
+  static async open(fetchRange: FetchRange, opts: SessionOptions = {}): Promise<Session> {
+    let total = 0;
+    const cache = new RangeCache(async (s, e) => {
+      const r = await fetchRange(s, e);
+      if (s === 0) total = r.total;
+      return r;
+    }, opts.cacheBytes);
+    await cache.ensure([[0, FIRST_READ]]).catch((e) => { throw new Error(`reading the container's start: ${e instanceof Error ? e.message : e}`); });
+    if (!(total > 0)) throw new Error("the server did not say how long the container is (no Content-Range)");
+    // The first span may be shorter than FIRST_READ: the whole file.
+    const container = await Container.open((o, n) => cache.read(o, n), total);
+    return new Session(container, cache, opts);
+  }
+
+  info(): OpenedInfo {
+    const h = this.container.header;
+    return {
+      frames: h.frameCount, frameRate: h.frameRate, vertices: h.vertexCount, triangles: h.triangleCount,
+      levels: h.levelSizes.slice(), trianglesPerLevel: this.trianglesPerLevel.slice(), keyframeInterval: h.keyframeInterval,
+      bboxMin: h.bboxMin.slice(), bboxMax: h.bboxMax.slice(), bytes: this.container.fileLen, version: this.container.version,
+    };
+  }
+
+  /** The coarsest level whose whole mesh has the budget's triangles. */
+  levelFor(budget: number): number {
+    let level = 0;
+    for (let l = 0; l < this.trianglesPerLevel.length; l++) if (this.trianglesPerLevel[l] >= budget * LEVEL_SLACK) level = l;
+    return level;
+  }
+
+  /** The level of the decoder now (what is being fetched), or -1 before the first frame. */
+  get level(): number { return this.decoder?.minLevel ?? -1; }
+
+  /** Byte ranges of what a level-L decoder reads of frame f. */
+  private spans(f: number, level: number, out: [number, number][]): void {
+    const base = this.container.dataStart;
+    for (const e of this.byFrame[f]) if (readAt(e.kind, e.band, level)) out.push([base + e.offset, base + e.offset + e.storedLen]);
+  }
+
+  /**
+   * Decodes frame f and cuts it at the budget. Raising the budget past the decoder's level
+   * starts a finer decoder at once (from the keyframe before f); lowering it waits for a
+   * keyframe, so coarser playback stops fetching finer bands from the next keyframe on.
+   */
+  async frame(f: number): Promise<FramePayload> {
+    const t0 = performance.now();
+    const c = this.container, h = c.header;
+    if (!(f >= 0 && f < h.frameCount)) throw new Error(`frame ${f} is beyond the ${h.frameCount} frames`);
+    if (this.aheadError) { const e = this.aheadError; this.aheadError = null; throw e; }
+    const want = this.levelFor(this.budget);
+    const key = c.keyframeBefore(f);
+    let d = this.decoder;
+    const continues = d !== null && d.frame >= key && d.frame <= f;
+    if (!d || want < d.minLevel || (want > d.minLevel && (!continues || f === key))) d = this.decoder = new Player(c, want);
+    const from = d.frame >= key && d.frame <= f ? d.frame + 1 : key;
+    const need: [number, number][] = [];
+    if (d.minLevel === 0 && this.triangles) need.push([c.dataStart + this.triangles.offset, c.dataStart + this.triangles.offset + this.triangles.storedLen]);
+    for (let g = from; g <= f; g++) this.spans(g, d.minLevel, need);
+    const ahead: [number, number][] = [];
+    let passedKey = false;
+    for (let i = 1; i <= Math.min(this.readAhead, h.frameCount - 1); i++) {
+      const g = (f + i) % h.frameCount;
+      // From the next keyframe on, the level the budget wants (a loop restarts at keyframe 0).
+      if (c.isKeyframe(g)) passedKey = true;
+      this.spans(g, passedKey ? want : d.minLevel, ahead);
+    }
+    await this.cache.ensure(need);
+    this.cache.ensure(ahead).catch((e) => { this.aheadError = e; });
+    await d.seek(f);
+    const tDecode = performance.now();
+    return this.cut(d, f, performance.now() - t0, tDecode);
+  }
+
+  /**
+   * After a jump, the frame from a coarse decoder (two levels below the top, or the budget's
+   * level if coarser), which reads and decodes a small share of the bytes: something to show
+   * while the budget's decoder goes back to the keyframe and steps forward. Null when the
+   * budget's decoder gets there by stepping on, or is that coarse already.
+   */
+  async coarse(f: number): Promise<FramePayload | null> {
+    const t0 = performance.now();
+    const c = this.container, h = c.header;
+    const want = this.levelFor(this.budget), level = Math.max(want, h.levelSizes.length - 3);
+    const d = this.decoder, key = c.keyframeBefore(f);
+    if (level <= want || (d && d.frame >= key && d.frame <= f && d.minLevel <= want)) return null;
+    let cd = this.coarseDecoder;
+    if (!cd || cd.minLevel !== level) cd = this.coarseDecoder = new Player(c, level);
+    const from = cd.frame >= key && cd.frame <= f ? cd.frame + 1 : key;
+    const need: [number, number][] = [];
+    for (let g = from; g <= f; g++) this.spans(g, level, need);
+    await this.cache.ensure(need);
+    await cd.seek(f);
+    return this.cut(cd, f, performance.now() - t0, performance.now());
+  }
+
+  /** Cuts the decoder's frame at the budget again (a budget change while paused). */
+  recut(): FramePayload | null {
+    const d = this.decoder;
+    if (!d || d.frame < 0 || this.levelFor(this.budget) < d.minLevel) return null;
+    const t = performance.now();
+    return this.cut(d, d.frame, 0, t);
+  }
+
+  private cut(d: Player, f: number, decodeMs: number, t0: number): FramePayload {
+    const r = d.replay;
+    // A budget that holds the level's whole mesh: every node stays expanded from frame to frame
+    // (a delta moves nodes, never collapses them), so the cut is the replay's as it stands and
+    // needs no split priorities (the two most expensive steps of a frame) unless they are shown.
+    const whole = this.fullOn === d && this.budget >= this.trianglesPerLevel[d.minLevel] && r.shown.length <= this.budget && allExpanded(r);
+    let memo = this.errorsOf;
+    if (!memo || memo.decoder !== d || memo.frame !== f) {
+      const positions = d.positions();
+      const errors = whole && this.colour !== "error" ? null : r.nodeErrors(positions);
+      memo = this.errorsOf = { decoder: d, frame: f, positions, errors };
+    } else if (!memo.errors && (!whole || this.colour === "error")) memo.errors = r.nodeErrors(memo.positions);
+    const all = memo.positions;
+    if (!whole) {
+      r.selectTriangles(this.budget, memo.errors!);
+      this.fullOn = this.budget >= this.trianglesPerLevel[d.minLevel] && allExpanded(r) ? d : null;
+    }
+    const mesh = buildCutMesh(r);
+    // The index buffer only when it changed: at full resolution it rarely does.
+    let indices: Uint32Array | undefined = mesh.indices;
+    if (this.lastIndices && equal(this.lastIndices, mesh.indices)) indices = undefined;
+    else { this.lastIndices = mesh.indices.slice(); this.indexVersion++; }
+    const n = mesh.nodes.length;
+    const positions = new Float32Array(3 * n);
+    for (let i = 0; i < n; i++) {
+      const g = 3 * mesh.nodes[i];
+      positions[3 * i] = all[g]; positions[3 * i + 1] = all[g + 1]; positions[3 * i + 2] = all[g + 2];
+    }
+    const normals = vertexNormals(positions, mesh.indices);
+    // A geomorph when the cut moved for another reason than time (the budget or the level): from
+    // the cut before the change, carried on over the next frames while playing (each frame's
+    // starts are the old cut's nodes at that frame's positions), so the page blends on one clock.
+    let starts: Float32Array | undefined;
+    const prev = this.last;
+    if (prev && (prev.budget !== this.budget || prev.level !== d.minLevel)) this.morphFrom = { nodes: prev.nodes, id: ++this.morphId, frames: 0 };
+    const from = this.morphFrom;
+    if (from && from.frames < MORPH_FRAMES && from.nodes.every((g) => g >= r.offsets[d.minLevel])) {
+      starts = morphStarts(mesh, from.nodes, all, (g) => r.parentGlobal(g));
+      from.frames++;
+    } else this.morphFrom = null;
+    let colours: Float32Array | undefined;
+    if (this.colour !== "plain") colours = colourOf(this.colour, mesh.nodes, r, memo.errors ?? new Float64Array(r.nodeCount));
+    this.last = { nodes: mesh.nodes, budget: this.budget, level: d.minLevel, frame: f };
+    return {
+      type: "frame", seq: 0, frame: f, budget: this.budget, level: d.minLevel, triangles: mesh.indices.length / 3,
+      positions, normals, indices, indexVersion: this.indexVersion, indexCount: mesh.indices.length, starts, morphId: this.morphId, colours,
+      decodeMs, cutMs: performance.now() - t0, fetched: this.cache.fetched, requests: this.cache.requests, cached: this.cache.size,
+    };
+  }
+}
+
+function allExpanded(r: Player["replay"]): boolean {
+  for (let g = r.offsets[r.minLevel + 1] ?? r.nodeCount; g < r.nodeCount; g++) if (!r.expanded[g]) return false;
+  return true;
+}
+
+function equal(a: Uint32Array, b: Uint32Array): boolean {
+  if (a.length !== b.length) return false;
+  for (let i = 0; i < a.length; i++) if (a[i] !== b[i]) return false;
+  return true;
+}
+
+/** Area-weighted vertex normals: each face's unnormalized cross product added to its corners. */
+export function vertexNormals(pos: Float32Array, idx: Uint32Array): Float32Array {
+  const nrm = new Float32Array(pos.length);
+  for (let t = 0; t < idx.length; t += 3) {
+    const a = 3 * idx[t], b = 3 * idx[t + 1], c = 3 * idx[t + 2];
+    const e1x = pos[b] - pos[a], e1y = pos[b + 1] - pos[a + 1], e1z = pos[b + 2] - pos[a + 2];
+    const e2x = pos[c] - pos[a], e2y = pos[c + 1] - pos[a + 1], e2z = pos[c + 2] - pos[a + 2];
+    const nx = e1y * e2z - e1z * e2y, ny = e1z * e2x - e1x * e2z, nz = e1x * e2y - e1y * e2x;
+    nrm[a] += nx; nrm[a + 1] += ny; nrm[a + 2] += nz;
+    nrm[b] += nx; nrm[b + 1] += ny; nrm[b + 2] += nz;
+    nrm[c] += nx; nrm[c + 1] += ny; nrm[c + 2] += nz;
+  }
+  for (let i = 0; i < nrm.length; i += 3) {
+    const l = Math.hypot(nrm[i], nrm[i + 1], nrm[i + 2]);
+    if (l > 0) { nrm[i] /= l; nrm[i + 1] /= l; nrm[i + 2] /= l; }
+  }
+  return nrm;
+}
+
+/** Per-vertex colours: the hierarchy level of each vertex's node, or its split priority. */
+function colourOf(mode: ColourMode, nodes: Uint32Array, r: Player["replay"], errors: Float64Array): Float32Array {
+  const out = new Float32Array(nodes.length * 3);
+  let maxErr = 1e-12;
+  if (mode === "error") for (const g of nodes) maxErr = Math.max(maxErr, errors[g]);
+  for (let i = 0; i < nodes.length; i++) {
+    const g = nodes[i];
+    const k = mode === "error" ? errors[g] / maxErr : r.levelOf(g) / Math.max(1, r.top);
+    hsl(0.66 * (1 - k), 0.75, 0.55, out, 3 * i);
+  }
+  return out;
+}
+
+/** HSL to linear-free RGB (as three.js's Color.setHSL before colour management). */
+function hsl(h: number, s: number, l: number, out: Float32Array, at: number): void {
+  const q = l <= 0.5 ? l * (1 + s) : l + s - l * s, p = 2 * l - q;
+  const f = (t: number) => {
+    if (t < 0) t += 1;
+    if (t > 1) t -= 1;
+    if (t < 1 / 6) return p + (q - p) * 6 * t;
+    if (t < 1 / 2) return q;
+    if (t < 2 / 3) return p + (q - p) * 6 * (2 / 3 - t);
+    return p;
+  };
+  out[at] = f(h + 1 / 3); out[at + 1] = f(h); out[at + 2] = f(h - 1 / 3);
+}

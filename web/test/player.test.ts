@@ -1,0 +1,258 @@
+// The player's worker side without a browser: the byte-range cache (each byte fetched once,
+// adjacent chunks in one request, the memory limit) and the session over a real container
+// (one request per frame, loops fetch nothing again, a lowered budget stops fetching finer
+// bands at the next keyframe, one normal per vertex); and the built package's entry point.
+import { test } from "node:test";
+import assert from "node:assert/strict";
+import { execFileSync } from "node:child_process";
+import { existsSync, mkdtempSync, readFileSync } from "node:fs";
+import { tmpdir } from "node:os";
+import { dirname, join } from "node:path";
+import { ChunkKind, Player, VERSION } from "../src/container.js";
+import { httpRange, RangeCache, type FetchRange } from "../src/player/ranges.js";
+import { Session } from "../src/player/session.js";
+
+function repoRoot(): string {
+  let dir = import.meta.dirname;
+  while (!existsSync(join(dir, "Cargo.toml")) || !existsSync(join(dir, "web"))) {
+    const up = dirname(dir);
+    if (up === dir) throw new Error(`no repository root above ${import.meta.dirname}`);
+    dir = up;
+  }
+  return dir;
+}
+const root = repoRoot();
+const bin = process.env.PMCODEC_BIN ?? join(root, "target/debug/pmcodec");
+
+/** A range source over bytes in memory that records every request. */
+function recorder(bytes: Uint8Array): { fetch: FetchRange; log: [number, number][] } {
+  const log: [number, number][] = [];
+  const fetch: FetchRange = async (s, e) => {
+    const end = Math.min(e, bytes.length);
+    log.push([s, end]);
+    await new Promise((r) => setTimeout(r, 1));
+    return { bytes: bytes.slice(s, end), total: bytes.length };
+  };
+  return { fetch, log };
+}
+
+/** Bytes fetched more than once in a request log. */
+function twice(log: [number, number][], len: number): number {
+  const seen = new Uint8Array(len);
+  let again = 0;
+  for (const [s, e] of log) for (let i = s; i < e; i++) if (seen[i]++) again++;
+  return again;
+}
+
+test("range cache: adjacent ranges share a request, nothing is fetched twice, waiting reads share one request", async () => {
+  const bytes = Uint8Array.from({ length: 1000 }, (_, i) => i & 0xff);
+  const { fetch, log } = recorder(bytes);
+  const c = new RangeCache(fetch, 1 << 20);
+  await c.ensure([[10, 20], [20, 35], [50, 60]]);
+  assert.deepEqual(log, [[10, 35], [50, 60]]);
+  // Two readers of one missing range at once: one request.
+  const [a, b] = await Promise.all([c.read(100, 10), c.read(102, 4)]);
+  assert.deepEqual(Array.from(b), [102, 103, 104, 105]);
+  assert.equal(a.length, 10);
+  await c.ensure([[10, 35], [12, 14], [50, 60]]);
+  assert.equal(log.length, 3, `requests: ${JSON.stringify(log)}`);
+  assert.equal(twice(log, bytes.length), 0);
+  assert.equal(c.fetched, 25 + 10 + 10);
+});
+
+test("range cache: a host that sends the whole file is asked once", async () => {
+  const bytes = Uint8Array.from({ length: 5000 }, (_, i) => i & 0xff);
+  let calls = 0;
+  const c = new RangeCache(async () => { calls++; return { bytes: bytes.slice(), total: bytes.length, at: 0 }; });
+  assert.deepEqual(Array.from(await c.read(300, 3)), [300 & 0xff, 301 & 0xff, 302 & 0xff]);
+  await c.ensure([[4000, 4100], [10, 20]]);
+  assert.deepEqual(Array.from(await c.read(4999, 1)), [4999 & 0xff]);
+  assert.equal(calls, 1);
+});
+
+test("range cache: holds at most its limit, forgetting the least recently used", async () => {
+  const bytes = new Uint8Array(10_000);
+  const { fetch, log } = recorder(bytes);
+  const c = new RangeCache(fetch, 2500);
+  for (let i = 0; i < 5; i++) await c.ensure([[1000 * i, 1000 * i + 1000]]);
+  assert.ok(c.size <= 2500, `${c.size} bytes held`);
+  // The most recent spans are held, the oldest is fetched again.
+  await c.read(4000, 10);
+  assert.equal(log.length, 5);
+  await c.read(0, 10);
+  assert.equal(log.length, 6);
+});
+
+function sample(): string {
+  if (!existsSync(bin)) throw new Error(`${bin} is missing: build it with cargo build -p pmcodec (or set PMCODEC_BIN)`);
+  const dir = mkdtempSync(join(tmpdir(), "pmc-player-"));
+  execFileSync(bin, ["sample", "twisting-tube", "-o", join(dir, "frames"), "--frames", "20"]);
+  const pmc = join(dir, "tube.pmc");
+  execFileSync(bin, ["encode", "-q", join(dir, "frames"), "-o", pmc, "--keyframe-interval", "8"]);
+  return pmc;
+}
+const file = new Uint8Array(readFileSync(sample()));
+
+test("session: one request per frame at full resolution, and a second loop fetches nothing", async () => {
+  const { fetch, log } = recorder(file);
+  const s = await Session.open(fetch, { readAhead: 0 });
+  const frames = s.container.header.frameCount;
+  for (let f = 0; f < frames; f++) {
+    const before = log.length;
+    const p = await s.frame(f);
+    assert.ok(log.length - before <= 2, `frame ${f}: ${log.length - before} requests`);
+    assert.equal(p.triangles, s.container.header.triangleCount);
+    // One unit normal per vertex.
+    assert.equal(p.normals.length, p.positions.length);
+    for (let i = 0; i < p.normals.length; i += 3) assert.ok(Math.abs(Math.hypot(p.normals[i], p.normals[i + 1], p.normals[i + 2]) - 1) < 1e-4);
+  }
+  const firstLoop = log.length;
+  for (let f = 0; f < frames; f++) await s.frame(f);
+  assert.equal(log.length, firstLoop, "the second loop made requests");
+  assert.equal(twice(log, file.length), 0);
+});
+
+test("session: a lowered budget stops fetching finer bands at the next keyframe; a raised one fetches them at once", async () => {
+  const { fetch, log } = recorder(file);
+  const s = await Session.open(fetch, { readAhead: 4 });
+  const c = s.container, h = c.header;
+  const band0 = c.index.filter((e) => e.kind === ChunkKind.Positions && e.band === 0).map((e) => [c.dataStart + e.offset, c.dataStart + e.offset + e.storedLen]);
+  const finest = (from: number) => log.slice(from).filter(([a, b]) => band0.some(([x, y]) => x < b && a < y)).length;
+  await s.frame(0);
+  await s.frame(1);
+  assert.equal(s.level, 0);
+  s.budget = s.trianglesPerLevel[h.levelSizes.length - 2];
+  const coarse = s.levelFor(s.budget);
+  assert.ok(coarse > 0);
+  await s.frame(2);
+  assert.equal(s.level, 0, "the level holds until the keyframe");
+  const key = h.keyframeInterval;
+  for (let f = 3; f < key; f++) await s.frame(f);
+  const mark = log.length;
+  for (let f = key; f < Math.min(h.frameCount, 2 * key); f++) {
+    const p = await s.frame(f);
+    assert.equal(p.level, coarse);
+    assert.ok(p.triangles <= s.budget);
+  }
+  assert.equal(finest(mark), 0, "band-0 positions fetched after the keyframe");
+  s.budget = h.triangleCount;
+  const p = await s.frame(2 * key + 1 < h.frameCount ? 2 * key + 1 : h.frameCount - 1);
+  assert.equal(p.level, 0);
+  assert.ok(finest(mark) > 0);
+});
+
+test("the built package exports the player and says which container version it reads", async () => {
+  const pkg = join(root, "web/packages/pmcodec-three");
+  const manifest = JSON.parse(readFileSync(join(pkg, "package.json"), "utf8"));
+  assert.equal(Number(manifest.version.split(".")[0]), VERSION, "the package's major version is the container format's");
+  assert.ok(manifest.peerDependencies.three, "three.js is a peer dependency");
+  const entry = join(pkg, manifest.exports["."].import);
+  assert.ok(existsSync(entry), `${entry} is missing: npm run build:package`);
+  assert.ok(existsSync(join(pkg, manifest.exports["."].types)), "type declarations");
+  const m = await import(entry);
+  assert.equal(m.FORMAT_VERSION, VERSION);
+  const THREE = await import("three");
+  assert.ok(m.PmcPlayer.prototype instanceof THREE.Object3D);
+});
+
+test("session: after a jump, a coarse cut comes from a coarse decoder, then the budget's at that frame", async () => {
+  const { fetch } = recorder(file);
+  const s = await Session.open(fetch, { readAhead: 0 });
+  const h = s.container.header, target = h.frameCount - 1;
+  const before = s.cache.fetched;
+  const q = await s.coarse(target);
+  assert.ok(q, "no coarse cut");
+  assert.equal(q.frame, target);
+  assert.ok(q.level > 0 && q.level >= h.levelSizes.length - 3, `coarse level ${q.level}`);
+  const coarseBytes = s.cache.fetched - before;
+  const p = await s.frame(target);
+  assert.equal(p.level, 0);
+  assert.ok(p.triangles > q.triangles);
+  assert.ok(coarseBytes < (s.cache.fetched - before - coarseBytes) / 2, `coarse cut read ${coarseBytes} bytes`);
+  // The budget's cut geomorphs from the coarse one.
+  assert.ok(p.starts && p.starts.length === p.positions.length);
+  // Stepping on from there needs no coarse cut.
+  assert.equal(await s.coarse(target), null);
+});
+
+test("session: the whole-mesh shortcut draws the triangles a full budget cut selects, and sends unchanged indices once", async () => {
+  const { fetch } = recorder(file);
+  const s = await Session.open(fetch, { readAhead: 0 });
+  const c = s.container, h = c.header;
+  const reference = new Player(c, 0);
+  const triples = (pos: Float32Array, idx: Uint32Array) => {
+    const out: string[] = [];
+    for (let t = 0; t < idx.length; t += 3) {
+      const v = [0, 1, 2].map((k) => Array.from(pos.subarray(3 * idx[t + k], 3 * idx[t + k] + 3)).join(","));
+      out.push(v.sort().join(";"));
+    }
+    return out.sort();
+  };
+  let omitted = 0;
+  const indexOf = new Map<number, Uint32Array>();
+  for (let f = 0; f < h.frameCount; f++) {
+    const p = await s.frame(f);
+    if (p.indices) indexOf.set(p.indexVersion, p.indices); else omitted++;
+    const idx = indexOf.get(p.indexVersion)!;
+    assert.equal(idx.length, p.indexCount);
+    await reference.seek(f);
+    const all = reference.positions();
+    reference.replay.selectTriangles(h.triangleCount, reference.replay.nodeErrors(all));
+    const m = reference.orderedMesh(all);
+    assert.deepEqual(triples(p.positions, idx), triples(m.positions, m.indices), `frame ${f}`);
+  }
+  assert.ok(omitted > 0, "every frame sent its index buffer");
+});
+
+test("httpRange: ranges from a real server, a whole file from one that ignores Range, and an oversized answer refused", async () => {
+  const { createServer } = await import("node:http");
+  const body = Buffer.from(Uint8Array.from({ length: 3000 }, (_, i) => (i * 7) & 0xff));
+  const server = createServer((req, res) => {
+    const m = /bytes=(\d+)-(\d+)/.exec(req.headers.range ?? "");
+    if (req.url === "/ranges" && m) {
+      const a = Number(m[1]), b = Math.min(Number(m[2]), body.length - 1);
+      res.writeHead(206, { "Content-Range": `bytes ${a}-${b}/${body.length}`, "Content-Length": b - a + 1 });
+      res.end(body.subarray(a, b + 1));
+    } else if (req.url === "/whole") {
+      res.writeHead(200, { "Content-Length": body.length });
+      res.end(body);
+    } else {
+      // Says more than the range asked for.
+      res.writeHead(206, { "Content-Range": `bytes 0-2999/${body.length}`, "Content-Length": body.length });
+      res.end(body);
+    }
+  });
+  await new Promise<void>((r) => server.listen(0, "127.0.0.1", r));
+  const port = (server.address() as { port: number }).port;
+  try {
+    const ranged = await httpRange(`http://127.0.0.1:${port}/ranges`)(100, 110);
+    assert.equal(ranged.total, 3000);
+    assert.deepEqual(Array.from(ranged.bytes), Array.from(body.subarray(100, 110)));
+    const whole = await httpRange(`http://127.0.0.1:${port}/whole`)(100, 110);
+    assert.equal(whole.at, 0);
+    assert.equal(whole.bytes.length, 3000);
+    await assert.rejects(httpRange(`http://127.0.0.1:${port}/liar`)(0, 10), /3000 bytes for a range of 10/);
+  } finally {
+    server.close();
+  }
+});
+
+test("session: a budget change geomorphs over the next frames, on one morph id, from the cut before it", async () => {
+  const { fetch } = recorder(file);
+  const s = await Session.open(fetch, { readAhead: 0 });
+  const h = s.container.header;
+  s.budget = Math.round(h.triangleCount / 4);
+  const a = await s.frame(0);
+  assert.equal(a.starts, undefined, "the first frame has nothing to morph from");
+  s.budget = h.triangleCount;
+  const morphs: (number | null)[] = [];
+  for (let f = 1; f < h.frameCount; f++) {
+    const p = await s.frame(f);
+    morphs.push(p.starts ? p.morphId : null);
+    if (p.starts) assert.equal(p.starts.length, p.positions.length);
+  }
+  const carried = morphs.filter((m) => m !== null);
+  assert.ok(carried.length > 1 && carried.length < morphs.length, `morph on ${carried.length} of ${morphs.length} frames`);
+  assert.ok(carried.every((m) => m === carried[0]), "one morph id");
+  assert.notEqual(morphs[0], null, "the morph starts with the change");
+});
