@@ -5,9 +5,9 @@
 
 mod common;
 
-use common::check_chain;
+use common::{check_chain, check_glb_levels};
 use pmcodec_lod::fixture::{CharacterSpec, multi_part_character};
-use pmcodec_lod::{LodChain, LodOptions, Placement, RefitOptions, build_chain, build_chain_with};
+use pmcodec_lod::{LodChain, LodOptions, Placement, RefitOptions, build_chain, build_chain_with, gltf_out};
 use pmcodec_mesh::gltf_input::RiggedMesh;
 use proptest::prelude::*;
 
@@ -64,6 +64,7 @@ fn issue_budgets_with_every_placement() {
         let chain = build_chain(rig.clone(), &targets, &LodOptions { placement, ..Default::default() })
             .unwrap_or_else(|e| panic!("{placement:?} at {targets:?}: {e}"));
         check_multi_part(&chain, &targets, placement.name());
+        check_glb_levels(&chain, &gltf_out::chain_glb(&chain, placement.name()).expect("glb"));
     }
 }
 
