@@ -57,6 +57,11 @@ pub fn check_chain(chain: &LodChain) {
             assert!(level.to_coarser.iter().all(|&c| c < coarse), "level {k}: table points into level {}", k + 1);
             let used: std::collections::HashSet<u32> = chain.levels[k + 1].rig.triangles.iter().flatten().copied().collect();
             assert!(level.to_coarser.iter().all(|c| used.contains(c)), "level {k}: table targets are used vertices");
+            let mut hit = vec![false; coarse as usize];
+            for &c in &level.to_coarser {
+                hit[c as usize] = true;
+            }
+            assert!(hit.iter().all(|&h| h), "level {k}: every vertex of level {} is the geomorph target of one of its vertices", k + 1);
         } else {
             assert!(level.to_coarser.is_empty());
         }
