@@ -1,5 +1,5 @@
 // Validates GLB files with the Khronos glTF validator (npm `gltf-validator`) and fails on any
-// error. Usage: node gltf-validate.mjs FILE.glb [FILE.glb ...]
+// error or warning (issue 13: the bar is 0 and 0). Usage: node gltf-validate.mjs FILE.glb [...]
 // Prints the first 20 messages with severity error or warning; infos and hints are counted only.
 import { readFile } from 'node:fs/promises';
 import { basename } from 'node:path';
@@ -26,9 +26,9 @@ for (const file of files) {
       console.log(`  ${m.severity === 0 ? 'ERROR' : 'warning'} ${m.code} at ${m.pointer ?? ''}: ${m.message}`);
     }
   }
-  if (numErrors > 0) failed++;
+  if (numErrors > 0 || numWarnings > 0) failed++;
 }
 if (failed > 0) {
-  console.error(`${failed} of ${files.length} files have validation errors`);
+  console.error(`${failed} of ${files.length} files have validation errors or warnings`);
   process.exit(1);
 }

@@ -41,8 +41,10 @@ fi
 (cd web && PMCODEC_BIN="$PWD/../target/debug/pmcodec" node test/viewer-e2e.mjs)
 
 # ---- glTF validator on `pmcodec lod` output --------------------------------------------------
-# LOD chains of the built-in test rig and of the shared models (when present; the Parrot is
-# Draco-compressed, so it is decoded first with glTF Transform) must have no validator errors.
+# LOD chains of the built-in test rig, of a generated multi-part character (many small parts on
+# one skeleton, the kind that crashed `pmcodec lod` in issue 13) and of every shared model at
+# 50%, 25%, 10% and 5% (the Parrot is Draco-compressed, so it is decoded first with glTF
+# Transform) must have no validator errors and no warnings. A missing model is a failure.
 echo "== glTF validator on pmcodec lod output"
 (cd tests && npm ci --no-audit --no-fund)
 bin="${CARGO_TARGET_DIR:-target}/debug/pmcodec"
@@ -51,24 +53,24 @@ lod_out="$(mktemp -d)"
 trap 'rm -rf "$lod_out"' EXIT
 cargo run --locked -q -p pmcodec-lod --example write_fixture -- "$lod_out/fixture.glb"
 "$bin" -q lod "$lod_out/fixture.glb" --triangles 50%,20% -o "$lod_out/fixture-lod.glb"
+cargo run --locked -q -p pmcodec-lod --example write_fixture -- --character 13 "$lod_out/character.glb"
+"$bin" -q lod "$lod_out/character.glb" --triangles 50%,25%,10%,5% -o "$lod_out/character-lod.glb"
+"$bin" -q lod "$lod_out/character.glb" --triangles 25%,10% --placement endpoint -o "$lod_out/character-endpoint-lod.glb"
 models=../shared/data/gltf
-# The shared models are required, as the Rust tests require ../shared/data: a missing one fails
-# the run by name instead of skipping its validator and three.js checks.
 for m in Fox RobotExpressive Horse Parrot; do
-  [ -f "$models/$m.glb" ] || { echo "error: $models/$m.glb is missing (../shared/data beside the repository)" >&2; exit 1; }
-done
-for m in Fox RobotExpressive Horse; do
-  if [ -f "$models/$m.glb" ]; then
-    "$bin" -q lod "$models/$m.glb" --triangles 25%,10% -o "$lod_out/$m-lod.glb"
+  if [ ! -f "$models/$m.glb" ]; then
+    echo "run-all: $models/$m.glb is missing: the LOD checks need the shared models beside the repository" >&2
+    exit 1
   fi
 done
-if [ -f "$models/Parrot.glb" ]; then
-  node tests/draco-decompress.mjs "$models/Parrot.glb" "$lod_out/Parrot-plain.glb"
-  "$bin" -q lod "$lod_out/Parrot-plain.glb" --triangles 25%,10% -o "$lod_out/Parrot-lod.glb"
-  # The container round trip on it too (the other models' run in `cargo test`).
-  PMCODEC_PARROT_PLAIN="$(cd "$lod_out" && pwd)/Parrot-plain.glb" \
-    cargo test --locked -q -p pmcodec-container --test roundtrip -- --ignored draco_parrot_decoded_round_trips 2>&1
-fi
+for m in Fox RobotExpressive Horse; do
+  "$bin" -q lod "$models/$m.glb" --triangles 50%,25%,10%,5% -o "$lod_out/$m-lod.glb"
+done
+node tests/draco-decompress.mjs "$models/Parrot.glb" "$lod_out/Parrot-plain.glb"
+"$bin" -q lod "$lod_out/Parrot-plain.glb" --triangles 50%,25%,10%,5% -o "$lod_out/Parrot-lod.glb"
+# The container round trip on it too (the other models' run in `cargo test`).
+PMCODEC_PARROT_PLAIN="$(cd "$lod_out" && pwd)/Parrot-plain.glb" \
+  cargo test --locked -q -p pmcodec-container --test roundtrip -- --ignored draco_parrot_decoded_round_trips 2>&1
 node tests/gltf-validate.mjs "$lod_out"/*.glb
 # Every level of every chain plays in three.js's stock glTF loader (web/lod.html in headless
 # Chromium): loads, skins or morphs, animates, draws, and has fewer triangles than the last.

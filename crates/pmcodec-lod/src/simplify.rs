@@ -11,7 +11,8 @@
 //! A collapse is refused when it would break the surface: the two vertices must be of one class
 //! ([`crate::attrs`]), their common neighbours must be exactly the third corners of the
 //! triangles on the edge (the link condition, so the mesh stays manifold where it was), the
-//! survivor must keep a triangle, and no remaining triangle may flip in the first example pose
+//! survivor and every third corner of the triangles on the edge must keep a triangle (no
+//! vertex is left alive outside the mesh), and no remaining triangle may flip in the first example pose
 //! (the rest pose; checking every pose refused too many collapses, see `allowed`).
 //! Snapshots at the targets are nested: the vertices of a coarser LOD are survivors among the
 //! finer one's, which gives the geomorph correspondence (see [`crate::chain`]).
@@ -114,10 +115,28 @@ impl State<'_> {
         if shared.is_empty() {
             return false;
         }
+        // The link condition: the common neighbours are exactly the third corners of the
+        // triangles on the edge, one triangle each.
+        let mut third: Vec<u32> =
+            shared.iter().map(|&t| self.tris[t as usize].into_iter().find(|&c| c != u && c != v).unwrap_or(u)).collect();
+        third.sort_unstable();
+        third.dedup();
+        if third.len() != shared.len() {
+            return false;
+        }
         let nu = self.neighbours(u);
         let nv = self.neighbours(v);
         let common = nu.iter().filter(|x| nv.contains(x)).count();
         if common != shared.len() {
+            return false;
+        }
+        // A third corner whose only triangle is on the edge would be left without one: alive,
+        // in no triangle, so absent from the level, while the finer level's geomorph table
+        // points at it. Closed surfaces never have such a corner (every vertex has three
+        // triangles or more); the small open parts of multi-part characters do (a sheet's
+        // corner, a strip cut at a seam, a fin on a shared edge), which is what made
+        // `pmcodec lod` fail on them (issue 13).
+        if third.iter().any(|&w| self.vert_tris[w as usize].len() < 2) {
             return false;
         }
         let remaining = self.vert_tris[u as usize].len() + self.vert_tris[v as usize].len() - 2 * shared.len();

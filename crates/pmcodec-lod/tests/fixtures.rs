@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{bending_tube_and_face, check_chain, max_pose_gap};
+use common::{bending_tube_and_face, check_chain, check_glb_levels, max_pose_gap};
 use pmcodec_lod::{LodError, LodOptions, Placement, PoseOptions, PoseWeights, build_chain, gltf_out};
 use pmcodec_mesh::gltf_input::{GltfOptions, RiggedMesh, load_gltf_bytes};
 
@@ -56,6 +56,7 @@ fn written_glb_reads_back() {
     let total = rig.triangles.len();
     let chain = build_chain(rig, &[total / 2, total / 5], &LodOptions::default()).expect("chain");
     let bytes = gltf_out::chain_glb(&chain, "houle-poulin").expect("glb");
+    check_glb_levels(&chain, &bytes);
     let back = RiggedMesh::from_bytes(&bytes).expect("our reader reads it");
     assert_eq!(back.animations.len(), 1);
     assert_eq!(back.instances.len(), chain.levels[0].rig.instances.len());

@@ -103,6 +103,17 @@ pub fn run(args: LodArgs, quiet: bool) -> Result<(), Exit> {
     })?;
     let bytes = pmcodec_lod::gltf_out::chain_glb(&chain, placement.name())?;
     pmcodec_mesh::write::write_atomic(&args.output, &bytes)?;
+    // A target is an upper bound the simplifier may not reach: every collapse left would break
+    // the surface (a part already down to its last triangles, a pinch, a fin). Said even when
+    // quiet, since the level is not what was asked for.
+    for (k, level) in chain.levels.iter().enumerate() {
+        if let Some(t) = level.target.filter(|&t| level.rig.triangles.len() > t) {
+            eprintln!(
+                "warning: lod{k} has {} triangles, above its target {t}: no collapse was left that keeps the surface (small disconnected parts stop at a few triangles each)",
+                level.rig.triangles.len()
+            );
+        }
+    }
     if !quiet {
         for (k, level) in chain.levels.iter().enumerate() {
             eprintln!(

@@ -1,5 +1,7 @@
-//! `pmcodec lod` end to end on the built-in test rig: a chain written, read back by the `gltf`
-//! crate and by our reader, the report printed; bad requests get exit code 3 and no output.
+//! `pmcodec lod` end to end on the built-in test rigs: a chain written, read back by the `gltf`
+//! crate and by our reader, the report printed; a generated multi-part character with the
+//! options that crashed on the Khronos one (issue 13); bad requests get exit code 3 and no
+//! output.
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -65,4 +67,35 @@ fn lod_bad_requests_exit_3() {
     assert_eq!(run.status.code(), Some(3));
     assert!(!String::from_utf8_lossy(&run.stderr).is_empty());
     assert!(!out.exists());
+}
+
+/// The commands of issue 13 that failed on a multi-part skinned character ("level 0 vertex N
+/// merged into N, which level 1 does not use"), on a generated one: many small parts, some
+/// touching, some split at seams, several meshes on one 18-joint skeleton.
+#[test]
+fn lod_multi_part_character() {
+    use pmcodec_lod::fixture::{CharacterSpec, multi_part_character};
+    let dir = temp("character");
+    let spec = CharacterSpec { seed: 13, parts: 50, meshes: 6, unwelded: true, touching: true, morph: false };
+    let chain = pmcodec_lod::LodChain::single(multi_part_character(&spec)).unwrap();
+    let input = dir.join("character.glb");
+    std::fs::write(&input, pmcodec_lod::gltf_out::chain_glb(&chain, "none").unwrap()).unwrap();
+    for (triangles, placement) in [("25%,10%", "endpoint"), ("50%,25%,10%,5%", "endpoint"), ("25%,10%", "houle-poulin")] {
+        let out = dir.join(format!("lod-{placement}-{}.glb", triangles.len()));
+        let run = bin().args(["lod", "--triangles", triangles, "--placement", placement]).arg(&input).arg("-o").arg(&out).output().unwrap();
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert!(run.status.success(), "--triangles {triangles} --placement {placement}: {stderr}");
+        let bytes = std::fs::read(&out).unwrap();
+        let g = gltf::Gltf::from_slice(&bytes).expect("gltf crate reads it");
+        let levels = triangles.split(',').count() + 1;
+        assert_eq!(g.scenes().count(), levels);
+        // Every level above its target is named in a warning.
+        let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        let json: serde_json::Value = serde_json::from_slice(&bytes[20..20 + json_len]).unwrap();
+        let described = json["extras"]["pmcodec_lod"]["levels"].as_array().unwrap();
+        for (k, level) in described.iter().enumerate() {
+            let above = level["target"].as_u64().is_some_and(|t| level["triangles"].as_u64().unwrap() > t);
+            assert_eq!(stderr.contains(&format!("warning: lod{k} has")), above, "level {k} {level}: {stderr}");
+        }
+    }
 }

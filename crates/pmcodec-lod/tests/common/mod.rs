@@ -11,15 +11,14 @@ pub fn data_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/gltf")
 }
 
-/// Loads and welds a model of the shared data, or `None` (with a note) when it is not there.
-pub fn shared_model(name: &str) -> Option<RiggedMesh> {
+/// Loads and welds a model of the shared data; a missing model fails the test, saying where it
+/// was looked for.
+pub fn shared_model(name: &str) -> RiggedMesh {
     let path = data_dir().join(name);
-    if !path.exists() {
-        panic!("{} is absent: these tests read the real models in ../shared/data beside the repository", path.display());
-    }
-    let mut rig = RiggedMesh::from_path(&path).expect("shared model loads");
+    assert!(path.exists(), "{} is absent: these tests read the real models in ../shared/data beside the repository", path.display());
+    let mut rig = RiggedMesh::from_path(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     rig.weld();
-    Some(rig)
+    rig
 }
 
 /// Skin validity, morph target counts, kept animations and the correspondence tables.
@@ -58,6 +57,11 @@ pub fn check_chain(chain: &LodChain) {
             assert!(level.to_coarser.iter().all(|&c| c < coarse), "level {k}: table points into level {}", k + 1);
             let used: std::collections::HashSet<u32> = chain.levels[k + 1].rig.triangles.iter().flatten().copied().collect();
             assert!(level.to_coarser.iter().all(|c| used.contains(c)), "level {k}: table targets are used vertices");
+            let mut hit = vec![false; coarse as usize];
+            for &c in &level.to_coarser {
+                hit[c as usize] = true;
+            }
+            assert!(hit.iter().all(|&h| h), "level {k}: every vertex of level {} is the geomorph target of one of its vertices", k + 1);
         } else {
             assert!(level.to_coarser.is_empty());
         }
@@ -70,4 +74,113 @@ pub fn max_pose_gap(a: &RiggedMesh, b: &RiggedMesh, anim: Option<usize>, t: f32)
     let pb = b.pose(anim.and_then(|i| b.animations.get(i)), t);
     assert_eq!(pa.len(), pb.len(), "same vertex count");
     pa.iter().zip(&pb).map(|(x, y)| (*x - *y).length()).fold(0.0, f32::max)
+}
+
+/// Reads every level (scene k = level k) of a written chain back with the `gltf` crate and
+/// compares it with the chain that wrote it: the level description, scene, skeleton, vertex
+/// and triangle counts, triangles, positions, skin joints and weights, morph deltas, and the
+/// geomorph table. Rigid parts are written skinned to one joint in that node's rest world
+/// space, so their positions and deltas are compared through the inverse bind matrix.
+pub fn check_glb_levels(chain: &LodChain, bytes: &[u8]) {
+    use glam::{Mat4, Vec3};
+    let g = gltf::Gltf::from_slice(bytes).expect("the gltf crate reads the GLB");
+    let blob: &[u8] = g.blob.as_deref().expect("a GLB binary chunk");
+    let data = |_: gltf::Buffer| Some(blob);
+    let root: serde_json::Value =
+        serde_json::from_slice(&bytes[20..20 + u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize]).unwrap();
+    let levels = root["extras"]["pmcodec_lod"]["levels"].as_array().expect("extras.pmcodec_lod.levels");
+    assert_eq!(levels.len(), chain.levels.len(), "one level description per level");
+    let scenes: Vec<gltf::Scene> = g.scenes().collect();
+    assert_eq!(scenes.len(), chain.levels.len(), "one scene per level");
+    assert_eq!(g.default_scene().map(|s| s.index()), Some(0), "scene 0 is the default");
+    let input_nodes = chain.input.nodes.len();
+    let close = |a: Vec3, b: Vec3, what: &str| {
+        let tol = 1e-4 * (1.0 + a.abs().max_element().max(b.abs().max_element()));
+        assert!((a - b).abs().max_element() <= tol, "{what}: {a} read back, {b} written");
+    };
+    for (k, (level, desc)) in chain.levels.iter().zip(levels).enumerate() {
+        let rig = &level.rig;
+        assert_eq!(desc["scene"], k);
+        assert_eq!(desc["vertices"], rig.positions.len(), "level {k}: vertices");
+        assert_eq!(desc["triangles"], rig.triangles.len(), "level {k}: triangles");
+        assert_eq!(desc["target"].as_u64().map(|t| t as usize), level.target, "level {k}: target");
+        let skeleton = desc["skeleton"].as_u64().expect("skeleton") as usize;
+        let mesh_nodes: Vec<usize> = desc["nodes"].as_array().expect("nodes").iter().map(|n| n.as_u64().unwrap() as usize).collect();
+        assert_eq!(mesh_nodes.len(), rig.instances.len(), "level {k}: one mesh node per instance");
+        let in_scene: Vec<usize> = scenes[k].nodes().map(|n| n.index()).collect();
+        let (mut vertices, mut triangles) = (0, 0);
+        for (i, (inst, &node_index)) in rig.instances.iter().zip(&mesh_nodes).enumerate() {
+            let what = format!("level {k} mesh {i}");
+            assert!(in_scene.contains(&node_index), "{what}: its node is in scene {k}");
+            let node = g.nodes().nth(node_index).expect("mesh node");
+            let skin = node.skin().expect("every level mesh is skinned");
+            for j in skin.joints() {
+                assert!(
+                    (skeleton..skeleton + input_nodes).contains(&j.index()),
+                    "{what}: joint {} outside the level's skeleton",
+                    j.index()
+                );
+            }
+            let ibm: Vec<Mat4> = skin
+                .reader(data)
+                .read_inverse_bind_matrices()
+                .expect("inverse bind matrices")
+                .map(|m| Mat4::from_cols_array_2d(&m))
+                .collect();
+            let to_rest = if inst.skin.is_none() { ibm[0] } else { Mat4::IDENTITY };
+            let mesh = node.mesh().expect("mesh");
+            let prims: Vec<gltf::Primitive> = mesh.primitives().collect();
+            assert_eq!(prims.len(), 1, "{what}: one primitive");
+            let r = prims[0].reader(data);
+            let range = inst.vertices.clone();
+            let positions: Vec<Vec3> = r.read_positions().expect("positions").map(Vec3::from_array).collect();
+            assert_eq!(positions.len(), range.len(), "{what}: vertex count");
+            for (p, v) in positions.iter().zip(range.clone()) {
+                close(to_rest.transform_point3(*p), rig.positions[v], &format!("{what} vertex {v} position"));
+            }
+            let joints: Vec<[u16; 4]> = r.read_joints(0).expect("joints").into_u16().collect();
+            let weights: Vec<[f32; 4]> = r.read_weights(0).expect("weights").into_f32().collect();
+            assert_eq!((joints.len(), weights.len()), (range.len(), range.len()), "{what}: one influence set per vertex");
+            for ((j, w), v) in joints.iter().zip(&weights).zip(range.clone()) {
+                let sum: f32 = w.iter().sum();
+                assert!((sum - 1.0).abs() < 1e-5, "{what} vertex {v}: weights {w:?}");
+                if inst.skin.is_none() {
+                    assert_eq!((*j, *w), ([0; 4], [1.0, 0.0, 0.0, 0.0]), "{what} vertex {v}: rigid part");
+                    continue;
+                }
+                let cw = rig.weights[v];
+                let csum: f32 = cw.iter().sum();
+                for s in 0..4 {
+                    assert!((w[s] - cw[s] / csum).abs() < 1e-6, "{what} vertex {v}: weights {w:?} read back, {cw:?} written");
+                    if cw[s] > 0.0 {
+                        assert_eq!(j[s], rig.joints[v][s], "{what} vertex {v}: joints {j:?} read back, {:?} written", rig.joints[v]);
+                    }
+                }
+            }
+            let indices: Vec<u32> = r.read_indices().expect("indices").into_u32().collect();
+            let written: Vec<u32> =
+                rig.triangles.iter().filter(|t| range.contains(&(t[0] as usize))).flatten().map(|&c| c - range.start as u32).collect();
+            assert_eq!(indices, written, "{what}: triangles");
+            let targets: Vec<Vec<Vec3>> =
+                r.read_morph_targets().map(|(p, _, _)| p.expect("morph positions").map(Vec3::from_array).collect()).collect();
+            assert_eq!(targets.len(), inst.morph_targets.len(), "{what}: morph targets");
+            for (t, (read, wrote)) in targets.iter().zip(&inst.morph_targets).enumerate() {
+                assert_eq!(read.len(), wrote.len(), "{what} target {t}: one delta per vertex");
+                for (v, (a, b)) in read.iter().zip(wrote).enumerate() {
+                    close(to_rest.transform_vector3(*a), *b, &format!("{what} target {t} vertex {v}"));
+                }
+            }
+            vertices += positions.len();
+            triangles += indices.len() / 3;
+        }
+        assert_eq!((vertices, triangles), (rig.positions.len(), rig.triangles.len()), "level {k}: the meshes hold the level");
+        match desc["toCoarser"].as_u64() {
+            None => assert!(level.to_coarser.is_empty() && k + 1 == chain.levels.len(), "level {k}: only the last has no table"),
+            Some(a) => {
+                let acc = g.accessors().nth(a as usize).expect("table accessor");
+                let table: Vec<u32> = gltf::accessor::Iter::<u32>::new(acc, data).expect("table").collect();
+                assert_eq!(table, level.to_coarser, "level {k}: geomorph table");
+            }
+        }
+    }
 }
