@@ -108,6 +108,8 @@ pub struct LimitsConfig {
     pub decode_queue: usize,
     /// Time given to open connections after SIGINT/SIGTERM.
     pub shutdown_grace_secs: u64,
+    /// Vertices, triangles, frames and frames x vertices an upload may hold (`[limits.input]`).
+    pub input: pmcodec_mesh::InputLimits,
 }
 
 impl Default for LimitsConfig {
@@ -124,6 +126,7 @@ impl Default for LimitsConfig {
             finished_jobs_kept: 256,
             decode_queue: 256,
             shutdown_grace_secs: 10,
+            input: pmcodec_mesh::InputLimits::default(),
         }
     }
 }

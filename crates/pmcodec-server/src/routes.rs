@@ -318,8 +318,13 @@ async fn check_upload(app: &AppState, q: UploadQuery) -> Result<(AssetId, Upload
     if app.jobs.is_pending(&id) {
         return Err(ApiError::Conflict(format!("an encode job for asset {id} is already queued or running")));
     }
-    let opts =
-        UploadOptions { frame_rate, animation, unpacked_limit: app.config.limits.unpacked_bytes, replace: q.replace.unwrap_or(false) };
+    let opts = UploadOptions {
+        frame_rate,
+        animation,
+        unpacked_limit: app.config.limits.unpacked_bytes,
+        replace: q.replace.unwrap_or(false),
+        input_limits: app.config.limits.input,
+    };
     Ok((id, opts))
 }
 

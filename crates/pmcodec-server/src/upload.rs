@@ -6,9 +6,9 @@ use crate::ApiError;
 use axum::body::Body;
 use axum::http::{HeaderMap, header};
 use bytes::Bytes;
-use pmcodec_mesh::Sequence;
 use pmcodec_mesh::gltf_input::{AnimationSelector, GltfOptions, load_gltf_bytes};
-use pmcodec_mesh::obj::{natural_cmp, parse_obj};
+use pmcodec_mesh::obj::{natural_cmp, parse_obj_with};
+use pmcodec_mesh::{InputLimits, Sequence};
 use std::path::Path;
 
 /// An upload, read and classified but not yet parsed.
@@ -30,6 +30,8 @@ pub struct UploadOptions {
     pub unpacked_limit: u64,
     /// Whether the job may replace an asset of the same id that exists when it stores.
     pub replace: bool,
+    /// Vertices, triangles and frames the meshes may hold, checked while they are parsed.
+    pub input_limits: InputLimits,
 }
 
 /// Parts of a multipart upload beyond this are refused (frames of one sequence).
@@ -72,11 +74,16 @@ impl UploadBody {
     pub fn into_sequence(self, opts: &UploadOptions) -> Result<Sequence, String> {
         match self {
             UploadBody::Glb(b) => {
-                let o = GltfOptions { animation: opts.animation.clone(), frame_rate: opts.frame_rate, ..GltfOptions::default() };
+                let o = GltfOptions {
+                    animation: opts.animation.clone(),
+                    frame_rate: opts.frame_rate,
+                    limits: opts.input_limits,
+                    ..GltfOptions::default()
+                };
                 load_gltf_bytes(&b, &o).map_err(|e| format!("GLB: {e}"))
             }
-            UploadBody::Objs(files) => sequence_from_objs(files, opts.frame_rate),
-            UploadBody::Zip(b) => sequence_from_objs(unzip_objs(b, opts.unpacked_limit)?, opts.frame_rate),
+            UploadBody::Objs(files) => sequence_from_objs(files, opts.frame_rate, &opts.input_limits),
+            UploadBody::Zip(b) => sequence_from_objs(unzip_objs(b, opts.unpacked_limit)?, opts.frame_rate, &opts.input_limits),
         }
     }
 }
@@ -206,15 +213,17 @@ fn unzip_objs(bytes: Bytes, limit: u64) -> Result<Vec<(String, Bytes)>, String> 
 }
 
 /// Frames in natural name order, each the same mesh with other positions.
-fn sequence_from_objs(mut files: Vec<(String, Bytes)>, frame_rate: f32) -> Result<Sequence, String> {
+fn sequence_from_objs(mut files: Vec<(String, Bytes)>, frame_rate: f32, limits: &InputLimits) -> Result<Sequence, String> {
     if files.is_empty() {
         return Err("the upload holds no .obj files".into());
     }
+    let frames = files.len();
+    limits.check_frames(frames, "the upload").map_err(|e| e.to_string())?;
     files.sort_by(|a, b| natural_cmp(&a.0, &b.0));
     let mut seq = Sequence { frame_rate, ..Default::default() };
     for (name, data) in files {
         let text = std::str::from_utf8(&data).map_err(|e| format!("{name}: not UTF-8 text ({e})"))?;
-        let frame = parse_obj(text, Path::new(&name)).map_err(|e| e.to_string())?;
+        let frame = parse_obj_with(text, Path::new(&name), limits, frames).map_err(|e| e.to_string())?;
         if seq.frames.is_empty() {
             seq.triangles = frame.triangles;
         } else {
@@ -249,13 +258,13 @@ mod tests {
     #[test]
     fn frames_sort_naturally_and_must_match() {
         let files = vec![("f10.obj".into(), obj(0.3)), ("f2.obj".into(), obj(0.2)), ("f1.obj".into(), obj(0.1))];
-        let seq = sequence_from_objs(files, 24.0).unwrap();
+        let seq = sequence_from_objs(files, 24.0, &InputLimits::default()).unwrap();
         assert_eq!(seq.frame_names, ["f1.obj", "f2.obj", "f10.obj"]);
         assert_eq!(seq.frames[2][0].x, 0.3);
         let bad = vec![("a.obj".into(), obj(0.0)), ("b.obj".into(), Bytes::from_static(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"))];
-        assert!(sequence_from_objs(bad, 24.0).unwrap_err().contains("b.obj"));
+        assert!(sequence_from_objs(bad, 24.0, &InputLimits::default()).unwrap_err().contains("b.obj"));
         let broken = vec![("a.obj".into(), Bytes::from_static(b"v 0 0 zero\n"))];
-        assert!(sequence_from_objs(broken, 24.0).unwrap_err().contains("a.obj:1"));
+        assert!(sequence_from_objs(broken, 24.0, &InputLimits::default()).unwrap_err().contains("a.obj:1"));
     }
 
     #[test]
