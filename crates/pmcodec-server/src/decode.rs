@@ -17,7 +17,9 @@
 //! **Fair turns.** Requests wait in one queue per asset version, and a free worker takes the
 //! next request from the asset whose turn it is (round robin over assets with waiting requests),
 //! so a request for a small asset waits for at most one request of each other asset, not for a
-//! slow asset's whole backlog. A request for a frame a worker is decoding right now waits until
+//! slow asset's whole backlog. One asset takes at most three quarters of the workers (all of two
+//! or three), so with four or more workers others find a free one even when its requests take
+//! seconds each. A request for a frame a worker is decoding right now waits until
 //! that state is in the cache (it is then a hit) instead of decoding the same frame twice.
 //!
 //! The container's `Decoder` owns its `Reader`, which counts bytes in a `Cell`, so a state is
@@ -107,13 +109,14 @@ impl<T> Turns<T> {
         self.len += 1;
     }
 
-    /// The next request to serve, skipping requests for a key in `busy`.
-    fn pop(&mut self, busy: &HashSet<Key>) -> Option<(Key, T)> {
+    /// The next request to serve, skipping requests for a key in `busy` and assets for which
+    /// `full` is true.
+    fn pop(&mut self, busy: &HashSet<Key>, full: impl Fn(&str) -> bool) -> Option<(Key, T)> {
         // Each pass looks at one asset's line; every asset gets one look.
         for _ in 0..self.order.len() {
             let version = self.order.pop_front()?;
             let Some(line) = self.lines.get_mut(&version) else { continue };
-            let found = line.iter().position(|(k, _)| !busy.contains(k)).and_then(|i| line.remove(i));
+            let found = if full(&version) { None } else { line.iter().position(|(k, _)| !busy.contains(k)).and_then(|i| line.remove(i)) };
             if line.is_empty() {
                 self.lines.remove(&version);
             } else {
@@ -159,6 +162,11 @@ struct Inner {
     waiting: Turns<Job>,
     /// Keys a worker is serving now.
     busy: HashSet<Key>,
+    /// Workers serving each asset version now, and the most one version may have: a quarter of
+    /// the workers (none of two or three) stay free for other assets even when one asset's
+    /// requests take seconds each.
+    running: HashMap<String, usize>,
+    per_asset: usize,
     cache: Lru<Key, StateCell>,
     /// The one kept state heavier than the whole cache, with its key and weight.
     oversized: Option<(Key, StateCell, u64)>,
@@ -226,6 +234,8 @@ impl DecodePool {
             inner: Mutex::new(Inner {
                 waiting: Turns::new(),
                 busy: HashSet::new(),
+                running: HashMap::new(),
+                per_asset: n - n / 4,
                 cache: Lru::new(capacity),
                 oversized: None,
                 purges: 0,
@@ -323,9 +333,10 @@ fn worker(shared: &Shared) {
                 if inner.stopping {
                     return;
                 }
-                let Inner { waiting, busy, .. } = &mut *inner;
-                if let Some(next) = waiting.pop(busy) {
+                let Inner { waiting, busy, running, per_asset, .. } = &mut *inner;
+                if let Some(next) = waiting.pop(busy, |v| running.get(v).is_some_and(|&r| r >= *per_asset)) {
                     busy.insert(next.0.clone());
+                    *running.entry(next.0.0.clone()).or_default() += 1;
                     break next;
                 }
                 inner = shared.work.wait(inner).unwrap_or_else(|p| p.into_inner());
@@ -340,8 +351,17 @@ fn worker(shared: &Shared) {
                 Err(ApiError::Internal(format!("decoder panicked on {} frame {}", job.asset.id, job.req.frame)))
             })
         });
-        shared.lock().busy.remove(&key);
-        // A request for this key may have waited for it; another worker may take it.
+        {
+            let mut inner = shared.lock();
+            inner.busy.remove(&key);
+            if let Some(r) = inner.running.get_mut(&key.0) {
+                *r -= 1;
+                if *r == 0 {
+                    inner.running.remove(&key.0);
+                }
+            }
+        }
+        // A request for this key or asset may have waited for it; another worker may take it.
         shared.work.notify_one();
         if let Some(result) = result {
             let _ = job.reply.send(result);
@@ -433,7 +453,7 @@ mod tests {
         t.push(key("other", 0), 200);
         t.push(key("small", 1), 101);
         let none = HashSet::new();
-        let order: Vec<u32> = std::iter::from_fn(|| t.pop(&none).map(|(_, v)| v)).collect();
+        let order: Vec<u32> = std::iter::from_fn(|| t.pop(&none, |_| false).map(|(_, v)| v)).collect();
         assert_eq!(order, [0, 100, 200, 1, 101, 2, 3, 4, 5]);
         assert_eq!(t.len, 0);
         assert!(t.lines.is_empty() && t.order.is_empty());
@@ -447,14 +467,33 @@ mod tests {
         t.push(key("a", 4), 3);
         t.push(key("b", 0), 4);
         let busy: HashSet<Key> = [key("a", 3)].into();
-        assert_eq!(t.pop(&busy).map(|(_, v)| v), Some(3));
-        assert_eq!(t.pop(&busy).map(|(_, v)| v), Some(4));
+        assert_eq!(t.pop(&busy, |_| false).map(|(_, v)| v), Some(3));
+        assert_eq!(t.pop(&busy, |_| false).map(|(_, v)| v), Some(4));
         // Only requests for the busy key are left: none is handed out.
-        assert_eq!(t.pop(&busy).map(|(_, v)| v), None);
+        assert_eq!(t.pop(&busy, |_| false).map(|(_, v)| v), None);
         assert_eq!(t.len, 2);
         let none = HashSet::new();
-        assert_eq!(t.pop(&none).map(|(_, v)| v), Some(1));
-        assert_eq!(t.pop(&none).map(|(_, v)| v), Some(2));
-        assert_eq!(t.pop(&none).map(|(_, v)| v), None);
+        assert_eq!(t.pop(&none, |_| false).map(|(_, v)| v), Some(1));
+        assert_eq!(t.pop(&none, |_| false).map(|(_, v)| v), Some(2));
+        assert_eq!(t.pop(&none, |_| false).map(|(_, v)| v), None);
+    }
+
+    #[test]
+    fn an_asset_at_its_worker_limit_waits_and_others_go_on() {
+        let mut t = Turns::new();
+        t.push(key("slow", 0), 1);
+        t.push(key("slow", 1), 2);
+        t.push(key("small", 0), 3);
+        let none = HashSet::new();
+        let slow_full = |v: &str| v == "slow";
+        assert_eq!(t.pop(&none, slow_full).map(|(_, v)| v), Some(3));
+        assert_eq!(t.pop(&none, slow_full).map(|(_, v)| v), None);
+        assert_eq!(t.pop(&none, |_| false).map(|(_, v)| v), Some(1));
+    }
+
+    #[test]
+    fn a_quarter_of_the_workers_stay_free_for_other_assets() {
+        let per_asset = |n: usize| DecodePool::new(n, 1 << 20, 1).map(|p| p.shared.lock().per_asset).expect("pool");
+        assert_eq!((per_asset(1), per_asset(2), per_asset(3), per_asset(4), per_asset(16)), (1, 2, 3, 3, 12));
     }
 }
