@@ -7,7 +7,8 @@
                                       half a second
   soak.py uploads BASE SECONDS DIR    an upload of 8 OBJ frames of DIR every 15 s (replace=true,
                                       three ids in turn), each job polled to its end
-  soak.py summary OUT WARMUP          RSS over time, and whether it is flat after WARMUP seconds
+  soak.py summary OUT WARMUP [END]    RSS over time, and its trend between WARMUP and END seconds
+                                      (the load's end) and over the second half of that
 Each traffic mode prints one line: requests, and errors (any status other than 200/206/202, or a
 socket error).
 """
@@ -168,22 +169,30 @@ def rss(pid, seconds, out):
             time.sleep(10)
 
 
-def summary(out, warmup):
+def trend(samples):
+    """Least-squares slope of (seconds, MiB) samples, in MiB per minute."""
+    n = len(samples)
+    mt = sum(t for t, _ in samples) / n
+    mm = sum(m for _, m in samples) / n
+    return 60 * sum((t - mt) * (m - mm) for t, m in samples) / sum((t - mt) ** 2 for t, _ in samples)
+
+
+def summary(out, warmup, end=None):
     rows = [tuple(map(float, line.split())) for line in open(out) if line.strip()]
     print("seconds  RSS MiB")
     for t, kib in rows:
         print(f"{t:7.0f}  {kib / 1024:7.1f}")
-    after = [(t, kib / 1024) for t, kib in rows if t >= warmup]
-    if len(after) < 3:
+    end = end if end is not None else rows[-1][0]
+    loaded = [(t, kib / 1024) for t, kib in rows if warmup <= t <= end]
+    if len(loaded) < 6:
         print("too few samples after warm-up")
         return
-    n = len(after)
-    mt = sum(t for t, _ in after) / n
-    mm = sum(m for _, m in after) / n
-    slope = sum((t - mt) * (m - mm) for t, m in after) / sum((t - mt) ** 2 for t, _ in after)
-    lo, hi = min(m for _, m in after), max(m for _, m in after)
-    print(f"after {warmup:.0f} s: {lo:.1f}..{hi:.1f} MiB (spread {hi - lo:.1f} MiB), "
-          f"least-squares trend {slope * 60:+.2f} MiB/min, first {after[0][1]:.1f}, last {after[-1][1]:.1f} MiB")
+    lo, hi = min(m for _, m in loaded), max(m for _, m in loaded)
+    half = [s for s in loaded if s[0] >= (warmup + end) / 2]
+    idle = [kib / 1024 for t, kib in rows if t > end]
+    print(f"under load after {warmup:.0f} s: {lo:.1f}..{hi:.1f} MiB (spread {hi - lo:.1f} MiB), trend {trend(loaded):+.2f} MiB/min, "
+          f"over the second half {trend(half):+.2f} MiB/min; first {loaded[0][1]:.1f}, last {loaded[-1][1]:.1f} MiB"
+          + (f"; idle after the load: {idle[-1]:.1f} MiB" if idle else ""))
 
 
 if __name__ == "__main__":
@@ -195,6 +204,6 @@ if __name__ == "__main__":
     elif mode == "uploads":
         uploads(args[0], float(args[1]), args[2])
     elif mode == "summary":
-        summary(args[0], float(args[1]))
+        summary(args[0], float(args[1]), float(args[2]) if len(args) > 2 else None)
     else:
         sys.exit(__doc__)
