@@ -77,7 +77,7 @@ if [ $mode = soak ]; then
   cat "$out/slow.txt" "$out/uploads.txt"
   head -n 5 "$out/slow.err" "$out/uploads.err"
   curl -fs $base/metrics | grep -E "^pmcodec_(decode_|jobs_finished)" | tee "$out/metrics.txt"
-  python3 $LOADTEST_DIR/soak.py summary "$out/rss.tsv" 60 | tee "$out/rss-summary.txt"
+  python3 $LOADTEST_DIR/soak.py summary "$out/rss.tsv" 60 $secs | tee "$out/rss-summary.txt"
   exit 0
 fi
 
