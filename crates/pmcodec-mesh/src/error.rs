@@ -18,6 +18,10 @@ pub enum MeshError {
     Empty { what: String },
     #[error("the mesh is too large: {what}")]
     TooLarge { what: String },
+    /// The input goes past one of the [`crate::InputLimits`]; `at` is the file and line, or
+    /// the file and frame, where the reader stopped.
+    #[error("{at}: {what}, past the input limit {limit} = {value}")]
+    LimitExceeded { at: String, what: String, limit: &'static str, value: usize },
     #[error("frame {frame} does not match frame 0: {detail}")]
     FrameMismatch { frame: String, detail: String },
     #[error("frame {frame}: vertex {vertex} has a NaN or infinite coordinate")]

@@ -37,7 +37,7 @@
 //! stride and component type is checked here instead, and buffers (including GLB chunks and
 //! `data:` URIs) are decoded here. A file path may only reference buffers inside its own folder.
 
-use crate::{MeshError, Sequence, SourceVertex};
+use crate::{InputLimits, MeshError, Sequence, SourceVertex};
 use glam::{Mat4, Quat, Vec3, Vec4};
 use gltf::json;
 use json::accessor::{ComponentType, GenericComponentType, IndexComponentType, Type};
@@ -70,11 +70,14 @@ pub struct GltfOptions {
     /// Merge vertices that coincide in every pose so that the surface is connected (default on;
     /// see [`RiggedMesh::weld`]).
     pub weld: bool,
+    /// What the file may expand to: vertices and triangles are checked as each primitive is
+    /// read, frames and frames times vertices before the animation is sampled.
+    pub limits: InputLimits,
 }
 
 impl Default for GltfOptions {
     fn default() -> Self {
-        GltfOptions { animation: None, frame_rate: 30.0, weld: true }
+        GltfOptions { animation: None, frame_rate: 30.0, weld: true, limits: InputLimits::default() }
     }
 }
 
@@ -120,7 +123,7 @@ fn animation_infos(file: &GltfFile) -> Result<Vec<AnimationInfo>, MeshError> {
 }
 
 fn file_to_sequence(file: &GltfFile, opts: &GltfOptions) -> Result<Sequence, MeshError> {
-    let mut rig = RiggedMesh::from_file(file)?;
+    let mut rig = RiggedMesh::from_file(file, &opts.limits)?;
     if opts.weld {
         rig.weld();
     }
@@ -128,7 +131,7 @@ fn file_to_sequence(file: &GltfFile, opts: &GltfOptions) -> Result<Sequence, Mes
         Some(selector) => Some(rig.find_animation(selector)?),
         None => (!rig.animations.is_empty()).then_some(0),
     };
-    rig.to_sequence(animation, opts.frame_rate)
+    rig.to_sequence_with(animation, opts.frame_rate, &opts.limits)
 }
 
 /// Names the file in messages about its content (I/O errors name it already).
@@ -299,6 +302,13 @@ pub struct Channel {
     pub width: usize,
 }
 
+/// What the rest of a file may still add while it is read: vertex records (a vertex plus one per
+/// morph target) up to [`MAX_ELEMENTS`], and vertices and triangles up to the input limits.
+struct Budget<'a> {
+    records: usize,
+    limits: &'a InputLimits,
+}
+
 /// Most positions a sequence may hold (frames times vertices), and most frames: a hostile
 /// duration or frame rate must not exhaust memory.
 const MAX_POSITIONS: usize = 1 << 28;
@@ -312,22 +322,32 @@ const MAX_ELEMENTS: usize = 1 << 27;
 impl RiggedMesh {
     /// Reads a `.glb` or `.gltf` file (external buffers from its folder).
     pub fn from_path(path: &Path) -> Result<Self, MeshError> {
+        Self::from_path_with(path, &InputLimits::default())
+    }
+
+    /// [`RiggedMesh::from_path`] under the given limits on vertices and triangles.
+    pub fn from_path_with(path: &Path, limits: &InputLimits) -> Result<Self, MeshError> {
         let file = GltfFile::open(path)?;
-        Self::from_file(&file).map_err(|e| at_path(path, e))
+        Self::from_file(&file, limits).map_err(|e| at_path(path, e))
     }
 
     /// Reads a GLB or a self-contained `.gltf` from memory.
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, MeshError> {
-        Self::from_file(&GltfFile::parse(bytes, None)?)
+        Self::from_bytes_with(bytes, &InputLimits::default())
     }
 
-    fn from_file(file: &GltfFile) -> Result<Self, MeshError> {
+    /// [`RiggedMesh::from_bytes`] under the given limits on vertices and triangles.
+    pub fn from_bytes_with(bytes: &[u8], limits: &InputLimits) -> Result<Self, MeshError> {
+        Self::from_file(&GltfFile::parse(bytes, None)?, limits)
+    }
+
+    fn from_file(file: &GltfFile, limits: &InputLimits) -> Result<Self, MeshError> {
         let root = &file.root;
         let mut rig = RiggedMesh { nodes: read_nodes(root)?, parents: node_parents(root)?, ..Default::default() };
         for (s, skin) in root.skins.iter().enumerate() {
             rig.skins.push(read_skin(file, s, skin)?);
         }
-        let mut budget = MAX_ELEMENTS;
+        let mut budget = Budget { records: MAX_ELEMENTS, limits };
         for node in scene_mesh_nodes(root, &rig.parents) {
             rig.add_instance(file, node, &mut budget)?;
         }
@@ -364,6 +384,12 @@ impl RiggedMesh {
     /// Samples `animation` (an index into [`RiggedMesh::animations`]; `None` for the rest pose)
     /// at `frame_rate` into a validated sequence. See the module documentation for the times.
     pub fn to_sequence(&self, animation: Option<usize>, frame_rate: f32) -> Result<Sequence, MeshError> {
+        self.to_sequence_with(animation, frame_rate, &InputLimits::default())
+    }
+
+    /// [`RiggedMesh::to_sequence`] under the given limits on frames and frames times vertices,
+    /// checked before any frame is sampled.
+    pub fn to_sequence_with(&self, animation: Option<usize>, frame_rate: f32, limits: &InputLimits) -> Result<Sequence, MeshError> {
         if !(frame_rate.is_finite() && frame_rate > 0.0) {
             return Err(MeshError::Invalid(format!("frame rate {frame_rate} is not a positive number")));
         }
@@ -383,6 +409,7 @@ impl RiggedMesh {
             return Err(MeshError::TooLarge { what: format!("{duration} s at {frame_rate} frames per second for {n} vertices") });
         }
         let label = anim.map_or_else(|| "rest".to_string(), Animation::label);
+        limits.check_positions(count, n, &format!("animation {label}, {duration} s at {frame_rate} frames per second"))?;
         let mut seq = Sequence { triangles: self.triangles.clone(), frame_rate, source: self.source.clone(), ..Default::default() };
         for i in 0..count {
             let t = i as f32 / frame_rate;
@@ -613,7 +640,7 @@ impl RiggedMesh {
     }
 
     /// Appends the primitives of the mesh on `node_index` as a new instance.
-    fn add_instance(&mut self, file: &GltfFile, node_index: usize, budget: &mut usize) -> Result<(), MeshError> {
+    fn add_instance(&mut self, file: &GltfFile, node_index: usize, budget: &mut Budget) -> Result<(), MeshError> {
         let root = &file.root;
         let Some(node) = root.nodes.get(node_index) else { return Ok(()) };
         let Some(mesh_index) = node.mesh.map(|m| m.value()) else { return Ok(()) };
@@ -660,8 +687,9 @@ impl RiggedMesh {
         inst: &mut MeshInstance,
         number: u32,
         what: &str,
-        budget: &mut usize,
+        budget: &mut Budget,
     ) -> Result<(), MeshError> {
+        let limits = budget.limits;
         use json::mesh::{Mode, Semantic};
         let attribute = |s: Semantic| prim.attributes.get(&Checked::Valid(s)).map(|a| a.value());
         let mode = match prim.mode {
@@ -680,10 +708,14 @@ impl RiggedMesh {
             return Err(MeshError::Unsupported(format!("{what} has mode {name}; only triangle modes make a mesh")));
         }
         let positions_at = attribute(Semantic::Positions).ok_or_else(|| gltf_error(format!("{what} has no POSITION")))?;
+        // Checked on the accessor's declared count, before its elements are read.
+        if self.positions.len().saturating_add(file.accessor_count(positions_at)) > limits.max_vertices {
+            return Err(limits.too_many_vertices(1, limits.max_vertices, &format!("{what} POSITION")));
+        }
         let positions = to_vec3(&file.read_floats(positions_at, 3, ANY_NUMBER, &format!("{what} POSITION"))?);
         let n = positions.len();
         let records = n.saturating_mul(1 + inst.morph_targets.len());
-        *budget = budget.checked_sub(records).ok_or_else(|| MeshError::TooLarge {
+        budget.records = budget.records.checked_sub(records).ok_or_else(|| MeshError::TooLarge {
             what: format!("{what} brings the scene past {MAX_ELEMENTS} vertex records (vertices times morph targets)"),
         })?;
         let indices: Vec<u32> = match prim.indices.map(|i| i.value()) {
@@ -692,6 +724,13 @@ impl RiggedMesh {
         };
         if let Some(&bad) = indices.iter().find(|&&i| i as usize >= n) {
             return Err(gltf_error(format!("{what}: index {bad} is out of range for its {n} vertices")));
+        }
+        let new_triangles = match mode {
+            Mode::TriangleStrip | Mode::TriangleFan => indices.len().saturating_sub(2),
+            _ => indices.len() / 3,
+        };
+        if self.triangles.len().saturating_add(new_triangles) > limits.max_triangles {
+            return Err(limits.too_many_triangles(&format!("{what} indices")));
         }
         // Topology per §3.7.2.1: strips alternate winding, fans pivot on the first vertex.
         let triangles: Vec<[u32; 3]> = match mode {
@@ -1171,6 +1210,12 @@ fn extension_is_supported(name: &str) -> bool {
 }
 
 impl GltfFile {
+    /// The element count an accessor declares (0 for an accessor that does not exist: reading
+    /// it says so).
+    fn accessor_count(&self, index: usize) -> usize {
+        self.root.accessors.get(index).map_or(0, |a| usize::try_from(a.count.0).unwrap_or(usize::MAX))
+    }
+
     fn open(path: &Path) -> Result<Self, MeshError> {
         let bytes = std::fs::read(path).map_err(|error| MeshError::Io { path: path.to_path_buf(), error })?;
         let base = path.parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });

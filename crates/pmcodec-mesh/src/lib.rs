@@ -11,12 +11,14 @@
 pub mod binmesh;
 pub mod error;
 pub mod gltf_input;
+pub mod limits;
 pub mod obj;
 pub mod samples;
 pub mod write;
 
 pub use error::MeshError;
 use glam::Vec3;
+pub use limits::InputLimits;
 
 /// An indexed triangle mesh: the unit every writer and every measurement works on.
 #[derive(Clone, Debug, Default, PartialEq)]

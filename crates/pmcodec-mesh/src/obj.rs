@@ -5,7 +5,7 @@
 //! triangulated as fans, which is exact for the convex quads and n-gons that deforming-mesh
 //! exporters write.
 
-use crate::{MeshError, Sequence};
+use crate::{InputLimits, MeshError, Sequence};
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 
@@ -16,67 +16,141 @@ pub struct ObjFrame {
     pub triangles: Vec<[u32; 3]>,
 }
 
-/// Parses the text of one OBJ file. `path` is only used to name the file in errors.
+/// Parses the text of one OBJ file, a sequence of one frame under the default
+/// [`InputLimits`]. `path` is only used to name the file in errors.
 pub fn parse_obj(text: &str, path: &Path) -> Result<ObjFrame, MeshError> {
-    let mut out = ObjFrame::default();
-    let mut polygon: Vec<u32> = Vec::with_capacity(8);
-    let err = |line: usize, message: String| MeshError::Parse { path: path.to_path_buf(), line, message };
-    for (lineno, raw) in text.lines().enumerate() {
-        let line = raw.trim();
-        let lineno = lineno + 1;
-        let mut words = line.split_ascii_whitespace();
+    parse_obj_with(text, path, &InputLimits::default(), 1)
+}
+
+/// Parses the text of one OBJ file, one of `frames` frames of a sequence: the parser stops at
+/// the first vertex or triangle past `limits` (the vertex limit shared out over the frames),
+/// before it takes the memory, and the error names the file and line.
+pub fn parse_obj_with(text: &str, path: &Path, limits: &InputLimits, frames: usize) -> Result<ObjFrame, MeshError> {
+    let mut parser = ObjParser::new(path, limits, frames);
+    for (i, line) in text.lines().enumerate() {
+        parser.line(i + 1, line)?;
+    }
+    parser.finish()
+}
+
+/// Reads one OBJ file as a sequence of one frame under the default [`InputLimits`].
+pub fn read_obj(path: &Path) -> Result<ObjFrame, MeshError> {
+    read_obj_with(path, &InputLimits::default(), 1)
+}
+
+/// Longest line [`read_obj_with`] reads: a file without line breaks must not be read whole.
+const MAX_LINE: u64 = 16 << 20;
+
+/// [`parse_obj_with`] over a file, read a line at a time (the text is never all in memory).
+pub fn read_obj_with(path: &Path, limits: &InputLimits, frames: usize) -> Result<ObjFrame, MeshError> {
+    use std::io::{BufRead, Read};
+    let io = |error| MeshError::Io { path: path.to_path_buf(), error };
+    let mut reader = std::io::BufReader::new(std::fs::File::open(path).map_err(io)?);
+    let mut parser = ObjParser::new(path, limits, frames);
+    let mut line = String::new();
+    for lineno in 1.. {
+        line.clear();
+        match (&mut reader).take(MAX_LINE).read_line(&mut line) {
+            Ok(0) => break,
+            Ok(n) if n as u64 == MAX_LINE && !line.ends_with('\n') => {
+                return Err(parser.error(lineno, format!("line longer than {MAX_LINE} bytes")));
+            }
+            Ok(_) => parser.line(lineno, &line)?,
+            Err(e) if e.kind() == std::io::ErrorKind::InvalidData => {
+                return Err(parser.error(lineno, "not UTF-8 text".into()));
+            }
+            Err(e) => return Err(io(e)),
+        }
+    }
+    parser.finish()
+}
+
+/// The state of one file's parse: what has been read, the caps, and where the largest face
+/// index was seen (an index past the last vertex is only known to be wrong at the end, since
+/// OBJ lets faces name vertices defined after them).
+struct ObjParser<'a> {
+    path: &'a Path,
+    limits: &'a InputLimits,
+    frames: usize,
+    vertex_cap: usize,
+    out: ObjFrame,
+    polygon: Vec<u32>,
+    /// Largest 0-based position index any face used, and the first line that used it.
+    max_index: Option<(u32, usize)>,
+}
+
+impl<'a> ObjParser<'a> {
+    fn new(path: &'a Path, limits: &'a InputLimits, frames: usize) -> Self {
+        let vertex_cap = limits.vertices_per_frame(frames);
+        ObjParser { path, limits, frames, vertex_cap, out: ObjFrame::default(), polygon: Vec::with_capacity(8), max_index: None }
+    }
+
+    fn error(&self, line: usize, message: String) -> MeshError {
+        MeshError::Parse { path: self.path.to_path_buf(), line, message }
+    }
+
+    fn at(&self, line: usize) -> String {
+        format!("{}:{line}", self.path.display())
+    }
+
+    fn line(&mut self, lineno: usize, raw: &str) -> Result<(), MeshError> {
+        let mut words = raw.split_ascii_whitespace();
         match words.next() {
             Some("v") => {
+                if self.out.positions.len() >= self.vertex_cap {
+                    return Err(self.limits.too_many_vertices(self.frames, self.vertex_cap, &self.at(lineno)));
+                }
                 let mut p = [0f32; 3];
                 for (axis, slot) in p.iter_mut().enumerate() {
-                    let word = words.next().ok_or_else(|| err(lineno, format!("vertex has {axis} coordinates, expected 3")))?;
-                    *slot = word.parse().map_err(|_| err(lineno, format!("vertex coordinate {word:?} is not a number")))?;
+                    let word = words.next().ok_or_else(|| self.error(lineno, format!("vertex has {axis} coordinates, expected 3")))?;
+                    *slot = word.parse().map_err(|_| self.error(lineno, format!("vertex coordinate {word:?} is not a number")))?;
                 }
                 // An optional fourth (w) or vertex colours may follow: ignored.
-                out.positions.push(Vec3::from_array(p));
+                self.out.positions.push(Vec3::from_array(p));
             }
             Some("f") => {
-                polygon.clear();
+                self.polygon.clear();
                 for word in words {
                     // `v`, `v/vt`, `v//vn` or `v/vt/vn`: only the position index matters.
                     let index = word.split('/').next().unwrap_or(word);
-                    let i: i64 = index.parse().map_err(|_| err(lineno, format!("face index {word:?} is not an integer")))?;
+                    let i: i64 = index.parse().map_err(|_| self.error(lineno, format!("face index {word:?} is not an integer")))?;
                     // OBJ indices are 1-based; negative ones count back from the latest vertex.
                     let resolved = match i {
-                        0 => return Err(err(lineno, "face index 0 (OBJ indices start at 1)".into())),
+                        0 => return Err(self.error(lineno, "face index 0 (OBJ indices start at 1)".into())),
                         i if i > 0 => i - 1,
-                        i => out.positions.len() as i64 + i,
+                        i => self.out.positions.len() as i64 + i,
                     };
                     if resolved < 0 || resolved >= u32::MAX as i64 {
-                        return Err(err(lineno, format!("face index {i} is out of range")));
+                        return Err(self.error(lineno, format!("face index {i} is out of range")));
                     }
-                    polygon.push(resolved as u32);
+                    let resolved = resolved as u32;
+                    if self.max_index.is_none_or(|(m, _)| resolved > m) {
+                        self.max_index = Some((resolved, lineno));
+                    }
+                    self.polygon.push(resolved);
                 }
-                if polygon.len() < 3 {
-                    return Err(err(lineno, format!("face has {} corners, expected at least 3", polygon.len())));
+                let corners = self.polygon.len();
+                if corners < 3 {
+                    return Err(self.error(lineno, format!("face has {corners} corners, expected at least 3")));
                 }
-                for k in 1..polygon.len() - 1 {
-                    out.triangles.push([polygon[0], polygon[k], polygon[k + 1]]);
+                if self.out.triangles.len() + (corners - 2) > self.limits.max_triangles {
+                    return Err(self.limits.too_many_triangles(&self.at(lineno)));
                 }
+                let p = &self.polygon;
+                self.out.triangles.extend((1..corners - 1).map(|k| [p[0], p[k], p[k + 1]]));
             }
             _ => {}
         }
+        Ok(())
     }
-    let n = out.positions.len();
-    if let Some((t, &i)) = out.triangles.iter().enumerate().find_map(|(t, tri)| tri.iter().find(|&&i| i as usize >= n).map(|i| (t, i))) {
-        return Err(MeshError::Parse {
-            path: path.to_path_buf(),
-            line: 0,
-            message: format!("face {t} uses vertex {} but the file has {n} vertices", i + 1),
-        });
-    }
-    Ok(out)
-}
 
-/// Reads one OBJ file.
-pub fn read_obj(path: &Path) -> Result<ObjFrame, MeshError> {
-    let text = std::fs::read_to_string(path).map_err(|error| MeshError::Io { path: path.to_path_buf(), error })?;
-    parse_obj(&text, path)
+    fn finish(self) -> Result<ObjFrame, MeshError> {
+        let n = self.out.positions.len();
+        if let Some((i, line)) = self.max_index.filter(|&(i, _)| i as usize >= n) {
+            return Err(self.error(line, format!("face uses vertex {} but the file has {n} vertices", i + 1)));
+        }
+        Ok(self.out)
+    }
 }
 
 /// Resolves the frames of a sequence: a folder (every `.obj` in it), a glob whose last component
@@ -187,15 +261,30 @@ fn trim_zeros(d: &[u8]) -> &[u8] {
 /// Loads an OBJ sequence (folder, glob or single file) as a [`Sequence`]. Every frame must have
 /// frame 0's vertex count and faces; the error names the first differing frame and face.
 pub fn load_obj_sequence(input: &Path, frame_rate: f32) -> Result<Sequence, MeshError> {
+    load_obj_sequence_with(input, frame_rate, &InputLimits::default())
+}
+
+/// [`load_obj_sequence`] under the given limits.
+pub fn load_obj_sequence_with(input: &Path, frame_rate: f32, limits: &InputLimits) -> Result<Sequence, MeshError> {
     let paths = frame_paths(input)?;
-    load_obj_files(&paths, frame_rate)
+    limits.check_frames(paths.len(), &input.display().to_string())?;
+    load_obj_files_with(&paths, frame_rate, limits)
 }
 
 /// Loads the given files, in the given order, as the frames of one sequence.
 pub fn load_obj_files(paths: &[PathBuf], frame_rate: f32) -> Result<Sequence, MeshError> {
+    load_obj_files_with(paths, frame_rate, &InputLimits::default())
+}
+
+/// [`load_obj_files`] under the given limits: the frame count is checked before any file is
+/// read, and each file's vertices and triangles while it is read.
+pub fn load_obj_files_with(paths: &[PathBuf], frame_rate: f32, limits: &InputLimits) -> Result<Sequence, MeshError> {
+    if let Some(first) = paths.first() {
+        limits.check_frames(paths.len(), &format!("{} and the {} files after it", first.display(), paths.len() - 1))?;
+    }
     let mut seq = Sequence { frame_rate, ..Default::default() };
     for path in paths {
-        let frame = read_obj(path)?;
+        let frame = read_obj_with(path, limits, paths.len())?;
         let label = || path.display().to_string();
         if seq.frames.is_empty() {
             seq.triangles = frame.triangles;
@@ -261,8 +350,10 @@ mod tests {
     fn errors_name_line() {
         let e = parse_obj("v 0 0 0\nv 1 x 0\n", Path::new("bad.obj")).unwrap_err().to_string();
         assert!(e.contains("bad.obj:2") && e.contains("\"x\""), "{e}");
-        let e = parse_obj("v 0 0 0\nf 1 2 3\n", Path::new("bad.obj")).unwrap_err().to_string();
-        assert!(e.contains("face 0 uses vertex 2"), "{e}");
+        // Found only at the end of the file (faces may name later vertices), but the error
+        // still names the line of the face.
+        let e = parse_obj("v 0 0 0\nv 1 0 0\nf 1 2 5\nv 1 1 0\nf 1 2 3\n# end\n", Path::new("bad.obj")).unwrap_err().to_string();
+        assert!(e.contains("bad.obj:3:") && e.contains("vertex 5 but the file has 3 vertices"), "{e}");
         let e = parse_obj("v 0 0 0\nf 1 0 1\n", Path::new("bad.obj")).unwrap_err().to_string();
         assert!(e.contains("index 0"), "{e}");
     }

@@ -5,7 +5,7 @@ use glam::Vec3;
 use pmcodec_mesh::gltf_input::{
     AnimationSelector, GltfOptions, RiggedMesh, list_animations, list_animations_bytes, load_gltf, load_gltf_bytes,
 };
-use pmcodec_mesh::{MeshError, Sequence};
+use pmcodec_mesh::{InputLimits, MeshError, Sequence};
 use serde_json::{Value, json};
 use std::collections::BTreeSet;
 use std::path::PathBuf;
@@ -14,19 +14,15 @@ use std::path::PathBuf;
 // Helpers
 // ------------------------------------------------------------------------------------------------
 
-/// A real file from ../shared/data/gltf; the test fails with a message when that folder is
-/// absent (always `Some`), and a missing file in it fails the test when it is opened.
-fn data(name: &str) -> Option<PathBuf> {
-    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/gltf"));
-    if dir.is_dir() {
-        Some(dir.join(name))
-    } else {
-        panic!("{} is absent; these tests read the real models in ../shared/data beside the repository", dir.display());
-    }
+/// A real file from ../shared/data/gltf; the test fails with a message when it is absent.
+fn data(name: &str) -> PathBuf {
+    let path = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/gltf")).join(name);
+    assert!(path.is_file(), "{} is absent; these tests read the real models in ../shared/data beside the repository", path.display());
+    path
 }
 
 fn opts(animation: Option<AnimationSelector>, frame_rate: f32, weld: bool) -> GltfOptions {
-    GltfOptions { animation, frame_rate, weld }
+    GltfOptions { animation, frame_rate, weld, ..Default::default() }
 }
 
 fn diag(points: &[Vec3]) -> f32 {
@@ -219,7 +215,7 @@ fn triangle_x(path_values: &[f32], interpolation: &str, times: &[f32], fps: f32)
 
 #[test]
 fn fox_is_welded_into_one_connected_skinned_surface() {
-    let Some(path) = data("Fox.glb") else { return };
+    let path = data("Fox.glb");
     let anims = list_animations(&path).unwrap();
     let names: Vec<&str> = anims.iter().map(|a| a.name.as_deref().unwrap()).collect();
     assert_eq!(names, ["Run", "Survey", "Walk"]);
@@ -288,7 +284,7 @@ fn fox_is_welded_into_one_connected_skinned_surface() {
 
 #[test]
 fn robot_merges_nineteen_primitives_of_rigid_skinned_and_morphing_parts() {
-    let Some(path) = data("RobotExpressive.glb") else { return };
+    let path = data("RobotExpressive.glb");
     let rig = RiggedMesh::from_path(&path).unwrap();
     assert_eq!(rig.primitives.len(), 19);
     assert_eq!(rig.instances.len(), 14);
@@ -342,7 +338,7 @@ fn robot_merges_nineteen_primitives_of_rigid_skinned_and_morphing_parts() {
 
 #[test]
 fn horse_gallop_hits_each_morph_target_on_its_keyframe() {
-    let Some(path) = data("Horse.glb") else { return };
+    let path = data("Horse.glb");
     let rig = {
         let mut r = RiggedMesh::from_path(&path).unwrap();
         r.weld();
@@ -380,7 +376,7 @@ fn horse_gallop_hits_each_morph_target_on_its_keyframe() {
 
 #[test]
 fn draco_compressed_parrot_is_refused_by_name() {
-    let Some(path) = data("Parrot.glb") else { return };
+    let path = data("Parrot.glb");
     let e = load_gltf(&path, &GltfOptions::default()).unwrap_err();
     assert!(matches!(e, MeshError::Unsupported(_)) && e.to_string().contains("KHR_draco_mesh_compression"), "{e}");
 }
@@ -910,11 +906,15 @@ fn oversized_requests_are_refused_or_handled_in_linear_time() {
         "meshes": [{"primitives": [{"attributes": {"POSITION": pos}, "targets": targets}]}]}));
     let start = std::time::Instant::now();
     assert!(matches!(load(&bytes, 30.0), Err(MeshError::TooLarge { .. })));
-    // An accessor without a bufferView may not claim billions of (zero) elements.
+    // An accessor without a bufferView may not claim billions of (zero) elements: as POSITION,
+    // the vertex limit refuses it on its declared count; as anything else, the element bound.
     let mut doc = bin.document(json!({"scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
         "meshes": [{"primitives": [{"attributes": {"POSITION": pos}}]}]}));
     doc["accessors"][0] = json!({"componentType": 5126, "count": 4_000_000_000u64, "type": "VEC3"});
-    assert!(matches!(load(&glb(&doc, &bin.bytes), 30.0), Err(MeshError::TooLarge { .. })));
+    assert!(matches!(load(&glb(&doc, &bin.bytes), 30.0), Err(MeshError::LimitExceeded { limit: "max_vertices", .. })));
+    let no_limits = InputLimits { max_vertices: usize::MAX, ..Default::default() };
+    let e = load_gltf_bytes(&glb(&doc, &bin.bytes), &GltfOptions { limits: no_limits, ..Default::default() });
+    assert!(matches!(e, Err(MeshError::TooLarge { .. })), "{e:?}");
 
     // A chain of 100 000 nodes with the mesh at the bottom: fine, and not quadratic.
     let mut tri = Bin::default();

@@ -10,12 +10,26 @@
 #      beside a full-resolution client.
 # Usage: crates/pmcodec-server/loadtest/run.sh [seconds per run, default 20]
 # Installs wrk (apt) and oha (cargo install, a few minutes the first time) when missing.
+#
+# Soak (issue 13): crates/pmcodec-server/loadtest/run.sh soak [seconds, default 600]
+#   64 connections of mixed traffic for the whole time: LOD on demand at random frames and
+#   budgets (wrk: 24 on the horse, 8 on the cat), range requests for random chunks (wrk, 24),
+#   8 slow clients (soak.py: 4 KiB receive buffers read 1 KiB per 20 ms, request heads sent in
+#   pieces), and an upload of 8 OBJ frames every 15 s polled to its job's end; the server's
+#   VmRSS every 10 s into $SOAK_OUT/rss.tsv (default /tmp/pmcodec-soak-DATE); then errors per
+#   client, the decode metrics, and RSS over time with its trend after a 60 s warm-up.
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
-secs=${1:-20}
+mode=bench
+if [ "${1:-}" = soak ]; then
+  mode=soak
+  secs=${2:-600}
+else
+  secs=${1:-20}
+fi
 export LOADTEST_DIR=crates/pmcodec-server/loadtest
 command -v wrk >/dev/null || { apt-get update -qq && apt-get install -y -qq wrk >/dev/null; }
-command -v oha >/dev/null || cargo install oha@1.16.0 --locked -q
+[ $mode = soak ] || command -v oha >/dev/null || cargo install oha@1.16.0 --locked -q
 cargo build --release --locked -q -p pmcodec
 bin=target/release/pmcodec
 work=$(mktemp -d)
@@ -23,7 +37,9 @@ trap 'kill $server 2>/dev/null || true; rm -rf "$work"' EXIT
 mkdir -p "$work/assets"
 $bin encode ../shared/data/horse-gallop -o "$work/assets/horse.pmc" --quiet
 $bin encode ../shared/data/cat-poses -o "$work/assets/cat.pmc" --quiet
-port=18480
+port=${LOADTEST_PORT:-18480}
+# Uploads need a write token; only the soak uploads.
+[ $mode = soak ] && export PMCODEC_WRITE_TOKEN="soak-$RANDOM$RANDOM"
 $bin serve --assets "$work/assets" --listen 127.0.0.1:$port --no-viewer --quiet &
 server=$!
 for _ in $(seq 100); do curl -fs http://127.0.0.1:$port/readyz >/dev/null && break; sleep 0.1; done
@@ -33,6 +49,37 @@ file=$(echo "$info" | python3 -c 'import json,sys; print(json.load(sys.stdin)["f
 index=$(echo "$info" | python3 -c 'import json,sys; print(json.load(sys.stdin)["index"])')
 curl -fs "$base$index" | python3 -c 'import json,sys
 for c in json.load(sys.stdin)["chunks"]: print(c["offset"], c["length"])' > "$work/chunks.txt"
+
+if [ $mode = soak ]; then
+  out=${SOAK_OUT:-/tmp/pmcodec-soak-$(date -u +%Y%m%d-%H%M%S)}
+  mkdir -p "$out"
+  echo "== soak: ${secs}s, 64 connections: LOD horse 24 + cat 8, chunk ranges 24, 8 slow clients, an upload every 15 s; output in $out"
+  # Sampling goes on for 30 s after the load stops: what the server holds when idle again.
+  python3 $LOADTEST_DIR/soak.py rss $server $((secs + 30)) "$out/rss.tsv" &
+  sampler=$!
+  pids=()
+  ASSET=horse FRAMES=48 wrk -t1 -c24 -d${secs}s --timeout 10s --latency -s $LOADTEST_DIR/lod.lua $base > "$out/lod-horse.txt" &
+  pids+=($!)
+  ASSET=cat FRAMES=10 MAX_TRIS=14410 wrk -t1 -c8 -d${secs}s --timeout 10s --latency -s $LOADTEST_DIR/lod.lua $base > "$out/lod-cat.txt" &
+  pids+=($!)
+  FILE=$file CHUNKS=$work/chunks.txt wrk -t1 -c24 -d${secs}s --timeout 10s --latency -s $LOADTEST_DIR/chunks.lua $base > "$out/chunks.txt" &
+  pids+=($!)
+  python3 $LOADTEST_DIR/soak.py slow $base $secs 8 "$file" > "$out/slow.txt" 2> "$out/slow.err" &
+  pids+=($!)
+  python3 $LOADTEST_DIR/soak.py uploads $base $secs ../shared/data/horse-gallop > "$out/uploads.txt" 2> "$out/uploads.err" &
+  pids+=($!)
+  wait "${pids[@]}"
+  wait $sampler
+  for f in lod-horse lod-cat chunks; do
+    echo "-- $f"
+    grep -E "requests in|Requests/sec|non-2xx|p50|p99:" "$out/$f.txt"
+  done
+  cat "$out/slow.txt" "$out/uploads.txt"
+  head -n 5 "$out/slow.err" "$out/uploads.err"
+  curl -fs $base/metrics | grep -E "^pmcodec_(decode_|jobs_finished)" | tee "$out/metrics.txt"
+  python3 $LOADTEST_DIR/soak.py summary "$out/rss.tsv" 60 $secs | tee "$out/rss-summary.txt"
+  exit 0
+fi
 
 echo "== warm-up (decoder states for every keyframe interval)"
 ASSET=horse FRAMES=48 wrk -t2 -c8 -d3s -s crates/pmcodec-server/loadtest/lod.lua $base >/dev/null

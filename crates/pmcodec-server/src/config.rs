@@ -123,6 +123,8 @@ pub struct LimitsConfig {
     /// Most frames an uploaded sequence may have (an OBJ per frame, or a glTF animation's
     /// duration times the frame rate).
     pub max_frames: u32,
+    /// Vertices, triangles, frames and frames x vertices an upload may hold (`[limits.input]`).
+    pub input: pmcodec_mesh::InputLimits,
 }
 
 impl Default for LimitsConfig {
@@ -143,6 +145,7 @@ impl Default for LimitsConfig {
             header_read_timeout_secs: 10,
             idle_timeout_secs: 60,
             max_frames: 2000,
+            input: pmcodec_mesh::InputLimits::default(),
         }
     }
 }

@@ -93,6 +93,10 @@ impl<K: Hash + Eq + Clone, V> Lru<K, V> {
     pub fn weight(&self) -> u64 {
         self.weight
     }
+
+    pub fn capacity(&self) -> u64 {
+        self.capacity
+    }
 }
 
 #[cfg(test)]

@@ -45,12 +45,7 @@ pub struct Gauges {
     pub ready: bool,
     pub asset_cache_bytes: u64,
     pub asset_cache_entries: usize,
-    pub decode_state_bytes: u64,
-    pub decode_states: u64,
-    pub decode_hits: u64,
-    pub decode_misses: u64,
-    pub decode_requests: u64,
-    pub decode_workers: usize,
+    pub decode: crate::decode::DecodeGauges,
     pub jobs_pending: usize,
 }
 
@@ -91,21 +86,29 @@ impl Metrics {
         metric("pmcodec_ready", "gauge", "1 when the server is ready to serve.", u8::from(g.ready).to_string());
         metric("pmcodec_asset_cache_bytes", "gauge", "Container bytes held in the asset LRU.", g.asset_cache_bytes.to_string());
         metric("pmcodec_asset_cache_entries", "gauge", "Assets held in the asset LRU.", g.asset_cache_entries.to_string());
+        let d = &g.decode;
         metric(
             "pmcodec_decode_state_bytes",
             "gauge",
-            "Estimated bytes of decoder states held by the decode workers.",
-            g.decode_state_bytes.to_string(),
+            "Estimated bytes of the decoder states kept (all workers).",
+            d.state_bytes.to_string(),
         );
-        metric("pmcodec_decode_states", "gauge", "Decoder states held by the decode workers.", g.decode_states.to_string());
-        metric("pmcodec_decode_workers", "gauge", "Decode worker threads.", g.decode_workers.to_string());
-        metric("pmcodec_decode_requests_total", "counter", "Mesh requests sent to the decode workers.", g.decode_requests.to_string());
-        metric("pmcodec_decode_state_hits_total", "counter", "Mesh requests served from a kept decoder state.", g.decode_hits.to_string());
+        metric("pmcodec_decode_states", "gauge", "Decoder states kept (all workers).", d.states.to_string());
+        metric("pmcodec_decode_workers", "gauge", "Decode worker threads.", d.workers.to_string());
+        metric("pmcodec_decode_queued", "gauge", "Mesh requests waiting for a decode worker.", d.queued.to_string());
+        metric("pmcodec_decode_requests_total", "counter", "Mesh requests sent to the decode workers.", d.requests.to_string());
+        metric("pmcodec_decode_state_hits_total", "counter", "Mesh requests served from a kept decoder state.", d.hits.to_string());
         metric(
             "pmcodec_decode_state_misses_total",
             "counter",
-            "Mesh requests that had to load a keyframe into a new state.",
-            g.decode_misses.to_string(),
+            "Mesh requests that found no state at their frame and built one.",
+            d.misses.to_string(),
+        );
+        metric(
+            "pmcodec_decode_keyframe_starts_total",
+            "counter",
+            "Misses that found no earlier state of the keyframe interval and decoded from the keyframe.",
+            d.keyframe_starts.to_string(),
         );
         metric("pmcodec_jobs_pending", "gauge", "Encode jobs queued or running.", g.jobs_pending.to_string());
         let _ = writeln!(
@@ -156,12 +159,7 @@ mod tests {
             ready: true,
             asset_cache_bytes: 1,
             asset_cache_entries: 1,
-            decode_state_bytes: 0,
-            decode_states: 0,
-            decode_hits: 0,
-            decode_misses: 0,
-            decode_requests: 0,
-            decode_workers: 2,
+            decode: crate::decode::DecodeGauges { workers: 2, keyframe_starts: 7, ..Default::default() },
             jobs_pending: 0,
         };
         let text = m.render(&g);
@@ -171,5 +169,6 @@ mod tests {
         assert!(text.contains("le=\"10\"} 2\n"), "{text}");
         assert!(text.contains("le=\"+Inf\"} 3\n"), "{text}");
         assert!(text.contains("pmcodec_ready 1\n"));
+        assert!(text.contains("pmcodec_decode_keyframe_starts_total 7\n"), "{text}");
     }
 }

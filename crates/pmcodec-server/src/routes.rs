@@ -191,19 +191,12 @@ async fn readyz(State(app): State<AppState>) -> Result<&'static str, ApiError> {
 
 /// `GET /metrics`: Prometheus text exposition.
 async fn metrics(State(app): State<AppState>) -> Response {
-    use std::sync::atomic::Ordering::Relaxed;
     let (asset_bytes, asset_entries) = app.assets.usage();
-    let s = &app.decoder.stats;
     let g = crate::metrics::Gauges {
         ready: app.is_ready(),
         asset_cache_bytes: asset_bytes,
         asset_cache_entries: asset_entries,
-        decode_state_bytes: s.state_bytes.iter().map(|a| a.load(Relaxed)).sum(),
-        decode_states: s.states.iter().map(|a| a.load(Relaxed)).sum(),
-        decode_hits: s.hits.load(Relaxed),
-        decode_misses: s.misses.load(Relaxed),
-        decode_requests: s.requests.load(Relaxed),
-        decode_workers: app.decoder.workers(),
+        decode: app.decoder.gauges(),
         jobs_pending: app.jobs.pending(),
     };
     ([(header::CONTENT_TYPE, "text/plain; version=0.0.4; charset=utf-8")], app.metrics.render(&g)).into_response()
@@ -370,6 +363,7 @@ async fn check_upload(app: &AppState, q: UploadQuery) -> Result<(AssetId, Upload
         unpacked_limit: app.config.limits.unpacked_bytes,
         max_frames: app.config.limits.max_frames,
         replace: q.replace.unwrap_or(false),
+        input_limits: app.config.limits.input,
     };
     Ok((id, opts))
 }

@@ -10,9 +10,9 @@ use crate::ApiError;
 use axum::body::Body;
 use axum::http::{HeaderMap, header};
 use bytes::Bytes;
-use pmcodec_mesh::Sequence;
 use pmcodec_mesh::gltf_input::{AnimationSelector, GltfOptions, list_animations_bytes, load_gltf_bytes};
-use pmcodec_mesh::obj::{natural_cmp, parse_obj};
+use pmcodec_mesh::obj::{natural_cmp, parse_obj_with};
+use pmcodec_mesh::{InputLimits, Sequence};
 use std::ops::Range;
 use std::path::Path;
 use tokio::io::AsyncWriteExt;
@@ -39,6 +39,8 @@ pub struct UploadOptions {
     pub max_frames: u32,
     /// Whether the job may replace an asset of the same id that exists when it stores.
     pub replace: bool,
+    /// Vertices, triangles and frames the meshes may hold, checked while they are parsed.
+    pub input_limits: InputLimits,
 }
 
 /// Where and how much an upload may write.
@@ -110,16 +112,26 @@ impl UploadBody {
             Kind::Glb => {
                 let b = self.parts.first().map(|(_, r)| slice(r)).unwrap_or_default();
                 check_animation_frames(&b, opts)?;
-                let o = GltfOptions { animation: opts.animation.clone(), frame_rate: opts.frame_rate, ..GltfOptions::default() };
+                let o = GltfOptions {
+                    animation: opts.animation.clone(),
+                    frame_rate: opts.frame_rate,
+                    limits: opts.input_limits,
+                    ..GltfOptions::default()
+                };
                 load_gltf_bytes(&b, &o).map_err(|e| format!("GLB: {e}"))?
             }
             Kind::Objs => {
                 let files: Vec<_> = self.parts.iter().map(|(n, r)| (n.clone(), slice(r))).collect();
-                sequence_from_objs(files, opts.frame_rate, opts.max_frames)?
+                sequence_from_objs(files, opts.frame_rate, opts.max_frames, &opts.input_limits)?
             }
             Kind::Zip => {
                 let b = self.parts.first().map(|(_, r)| slice(r)).unwrap_or_default();
-                sequence_from_objs(unzip_objs(b, opts.unpacked_limit, opts.max_frames)?, opts.frame_rate, opts.max_frames)?
+                sequence_from_objs(
+                    unzip_objs(b, opts.unpacked_limit, opts.max_frames)?,
+                    opts.frame_rate,
+                    opts.max_frames,
+                    &opts.input_limits,
+                )?
             }
         };
         // Whatever the path above, the cap holds for what is encoded.
@@ -401,18 +413,20 @@ fn unzip_objs(bytes: Bytes, limit: u64, max_frames: u32) -> Result<Vec<(String, 
 }
 
 /// Frames in natural name order, each the same mesh with other positions.
-fn sequence_from_objs(mut files: Vec<(String, Bytes)>, frame_rate: f32, max_frames: u32) -> Result<Sequence, String> {
+fn sequence_from_objs(mut files: Vec<(String, Bytes)>, frame_rate: f32, max_frames: u32, limits: &InputLimits) -> Result<Sequence, String> {
     if files.is_empty() {
         return Err("the upload holds no .obj files".into());
     }
     if files.len() > max_frames as usize {
         return Err(too_many_frames(files.len(), max_frames));
     }
+    let frames = files.len();
+    limits.check_frames(frames, "the upload").map_err(|e| e.to_string())?;
     files.sort_by(|a, b| natural_cmp(&a.0, &b.0));
     let mut seq = Sequence { frame_rate, ..Default::default() };
     for (name, data) in files {
         let text = std::str::from_utf8(&data).map_err(|e| format!("{name}: not UTF-8 text ({e})"))?;
-        let frame = parse_obj(text, Path::new(&name)).map_err(|e| e.to_string())?;
+        let frame = parse_obj_with(text, Path::new(&name), limits, frames).map_err(|e| e.to_string())?;
         if seq.frames.is_empty() {
             seq.triangles = frame.triangles;
         } else {
@@ -447,14 +461,14 @@ mod tests {
     #[test]
     fn frames_sort_naturally_and_must_match() {
         let files = vec![("f10.obj".into(), obj(0.3)), ("f2.obj".into(), obj(0.2)), ("f1.obj".into(), obj(0.1))];
-        let seq = sequence_from_objs(files.clone(), 24.0, 3).unwrap();
+        let seq = sequence_from_objs(files.clone(), 24.0, 3, &InputLimits::default()).unwrap();
         assert_eq!(seq.frame_names, ["f1.obj", "f2.obj", "f10.obj"]);
         assert_eq!(seq.frames[2][0].x, 0.3);
-        assert!(sequence_from_objs(files, 24.0, 2).unwrap_err().contains("limit of 2 frames"));
+        assert!(sequence_from_objs(files, 24.0, 2, &InputLimits::default()).unwrap_err().contains("limit of 2 frames"));
         let bad = vec![("a.obj".into(), obj(0.0)), ("b.obj".into(), Bytes::from_static(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"))];
-        assert!(sequence_from_objs(bad, 24.0, 10).unwrap_err().contains("b.obj"));
+        assert!(sequence_from_objs(bad, 24.0, 10, &InputLimits::default()).unwrap_err().contains("b.obj"));
         let broken = vec![("a.obj".into(), Bytes::from_static(b"v 0 0 zero\n"))];
-        assert!(sequence_from_objs(broken, 24.0, 10).unwrap_err().contains("a.obj:1"));
+        assert!(sequence_from_objs(broken, 24.0, 10, &InputLimits::default()).unwrap_err().contains("a.obj:1"));
     }
 
     #[test]

@@ -4,8 +4,8 @@
 use crate::{EXIT_BAD_INPUT, Exit};
 use anyhow::Context;
 use clap::Args;
-use pmcodec_mesh::Sequence;
 use pmcodec_mesh::gltf_input::{AnimationSelector, GltfOptions};
+use pmcodec_mesh::{InputLimits, Sequence};
 use std::path::Path;
 
 /// Options that say how to read the input.
@@ -19,18 +19,20 @@ pub struct InputArgs {
     pub animation: Option<String>,
 }
 
-/// Reads and validates the input sequence.
+/// Reads and validates the input sequence, under the default [`InputLimits`] (checked while
+/// parsing; the error names the limit, the file and the line).
 pub fn load(path: &Path, args: &InputArgs) -> Result<Sequence, Exit> {
+    let limits = InputLimits::default();
     let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     let seq = if ext == "glb" || ext == "gltf" {
         let animation = args.animation.as_ref().map(|a| match a.parse::<usize>() {
             Ok(i) => AnimationSelector::Index(i),
             Err(_) => AnimationSelector::Name(a.clone()),
         });
-        let opts = GltfOptions { animation, frame_rate: args.fps, ..Default::default() };
+        let opts = GltfOptions { animation, frame_rate: args.fps, limits, ..Default::default() };
         pmcodec_mesh::gltf_input::load_gltf(path, &opts)
     } else {
-        pmcodec_mesh::obj::load_obj_sequence(path, args.fps)
+        pmcodec_mesh::obj::load_obj_sequence_with(path, args.fps, &limits)
     };
     seq.with_context(|| format!("reading {}", path.display())).map_err(|e| Exit(EXIT_BAD_INPUT, e))
 }
