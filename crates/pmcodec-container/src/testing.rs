@@ -354,8 +354,110 @@ fn interesting_sizes(u: &Unsealed) -> Vec<u64> {
     s
 }
 
+/// One damage that keeps a payload well formed: the chunk is parsed with the payload readers,
+/// one of its values is changed to another that is in range (a parent, a move, a corner, a
+/// triangle's vertex, a residual, extreme ones included), and it is written back with the
+/// payload writers. Such files get past every parser to the replay and the predictors, which
+/// must then refuse what the values break (an empty cluster, a degenerate triangle, a
+/// prediction that overflows) or decode it. `false` if the chunk did not parse.
+pub fn mutate_semantic(u: &mut Unsealed, rng: &mut Rng) -> bool {
+    use crate::payload;
+    let (Some(h), false) = (u.parsed_header(), u.chunks.is_empty()) else { return false };
+    let sizes = &h.level_sizes;
+    let i = rng.below(u.chunks.len());
+    let (e, raw) = (u.chunks[i].entry, &u.chunks[i].raw);
+    let j = e.band as usize;
+    let (Some(&n), top) = (sizes.get(j), j + 1 >= sizes.len()) else { return false };
+    let above = sizes.get(j + 1).copied().unwrap_or(0);
+    let out = match e.kind {
+        ChunkKind::Triangles => {
+            let Ok(mut t) = payload::read_triangles(raw, "t", h.triangle_count, h.vertex_count) else { return false };
+            if t.is_empty() {
+                return false;
+            }
+            let k = rng.below(t.len());
+            let c = rng.below(3);
+            // Another vertex, or a corner repeated (a degenerate input triangle).
+            t[k][c] = if rng.chance(2) { rng.below(h.vertex_count as usize) as u32 } else { t[k][(c + 1) % 3] };
+            payload::write_triangles(&t)
+        }
+        ChunkKind::Key if !top => {
+            let Ok(mut p) = payload::read_key(raw, "t", sizes, j) else { return false };
+            if p.is_empty() || above == 0 {
+                return false;
+            }
+            let k = rng.below(p.len());
+            p[k] = if rng.chance(2) { rng.below(above as usize) as u32 } else { p[rng.below(p.len())] };
+            if rng.chance(4) {
+                // Every node under one parent: all other clusters empty.
+                let to = p[k];
+                p.iter_mut().for_each(|x| *x = to);
+            }
+            payload::write_key(&p)
+        }
+        ChunkKind::Delta if !top && above > 0 => {
+            let Ok(mut m) = payload::read_delta(raw, "t", sizes, j) else { return false };
+            match rng.below(3) {
+                0 if !m.is_empty() => {
+                    let k = rng.below(m.len());
+                    m[k].1 = rng.below(above as usize) as u32;
+                }
+                1 if !m.is_empty() => {
+                    m.remove(rng.below(m.len()));
+                }
+                _ => {
+                    let v = rng.below(n as usize) as u32;
+                    m.retain(|x| x.0 != v);
+                    m.push((v, rng.below(above as usize) as u32));
+                    m.sort_unstable();
+                }
+            }
+            payload::write_delta(&m)
+        }
+        ChunkKind::Positions => {
+            let Ok((shift, mut r)) = payload::read_positions(raw, "t", n) else { return false };
+            if r.is_empty() {
+                return false;
+            }
+            let k = rng.below(r.len());
+            let a = rng.below(3);
+            r[k][a] = [i32::MIN, i32::MAX, -1, 1 << 30, r[k][a].wrapping_neg(), rng.next_u64() as i32][rng.below(6)];
+            if rng.chance(4) {
+                // A whole band far off: sums of many extreme values.
+                let v = r[k][a];
+                r.iter_mut().for_each(|x| x[a] = v);
+            }
+            let shift = if rng.chance(4) { rng.below(crate::payload::MAX_SHIFT as usize + 1) as u32 } else { shift };
+            payload::write_positions(shift, &r)
+        }
+        ChunkKind::Faces if u.version >= 5 && n > 0 => {
+            let Ok(mut f) = payload::read_faces(raw, "t", n, h.triangle_count, u.version) else { return false };
+            match rng.below(3) {
+                0 if !f.is_empty() => {
+                    let k = rng.below(f.len());
+                    let c = rng.below(3);
+                    f[k].1[c] = if rng.chance(2) { rng.below(n as usize) as u32 } else { f[k].1[(c + 1) % 3] };
+                }
+                1 if !f.is_empty() => {
+                    f.remove(rng.below(f.len()));
+                }
+                _ => {
+                    let t = rng.below(h.triangle_count.max(1) as usize) as u32;
+                    f.retain(|x| x.0 != t);
+                    f.push((t, [0, 1, 2].map(|_| rng.below(n as usize) as u32)));
+                    f.sort_unstable();
+                }
+            }
+            payload::write_faces(&f)
+        }
+        _ => return false,
+    };
+    u.chunks[i].raw = out;
+    true
+}
+
 /// Applies one to four random structural damages to `u`: most to chunk payloads (numbers and
-/// bytes), the rest to the header (fields or bytes), the index (entries reordered, dropped,
+/// bytes, or values changed within range and the payload rewritten), the rest to the header (fields or bytes), the index (entries reordered, dropped,
 /// duplicated, relabelled, payloads swapped, a field that lies) and the file (version, trailing
 /// bytes, a second container appended).
 pub fn mutate(u: &mut Unsealed, rng: &mut Rng) {
@@ -367,7 +469,8 @@ pub fn mutate(u: &mut Unsealed, rng: &mut Rng) {
 fn mutate_once(u: &mut Unsealed, rng: &mut Rng) {
     let sizes = interesting_sizes(u);
     let n = u.chunks.len();
-    match rng.below(20) {
+    match rng.below(24) {
+        20..=23 if mutate_semantic(u, rng) => {}
         0..=9 if n > 0 => {
             let i = rng.below(n);
             mutate_bytes(rng, &mut u.chunks[i].raw, &sizes);

@@ -123,3 +123,26 @@ fn fuzz_corpus_and_crashers_give_their_recorded_outcome() {
     assert_eq!(checked, files, "every .pmc file of tests/resealed has a line in outcomes.txt");
     assert!(refused * 2 >= checked, "{refused} of {checked} corpus files refused");
 }
+
+/// A keyframe whose parent map leaves a cluster empty is refused by name (the replay would
+/// otherwise play a hierarchy no encoder wrote).
+#[test]
+fn a_keyframe_with_an_empty_cluster_is_refused() {
+    use pmcodec_container::{ChunkKind, payload};
+    let (name, bytes) = seeds().into_iter().find(|(n, _)| n.contains("tube-k2")).expect("valid-tube-k2.pmc");
+    let file = reseal(&bytes, |u| {
+        let sizes = u.parsed_header().expect("header").level_sizes;
+        let c =
+            u.chunks.iter_mut().find(|c| c.entry.kind == ChunkKind::Key && c.entry.frame == 0 && c.entry.band == 0).expect("key band 0");
+        let n = payload::read_key(&c.raw, "t", &sizes, 0).expect("key").len();
+        c.raw = payload::write_key(&vec![0; n]);
+    })
+    .expect("reseal");
+    match exercise(&file) {
+        Err(ContainerError::Corrupt { what, detail }) => {
+            assert_eq!(what, "frame 0 band 0 keyframe", "{name}");
+            assert!(detail.contains("level 1 node 1 has no children"), "{name}: {detail}");
+        }
+        other => panic!("{name}: {other:?}"),
+    }
+}
