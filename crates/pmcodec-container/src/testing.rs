@@ -539,7 +539,7 @@ fn mutate_once(u: &mut Unsealed, rng: &mut Rng) {
 /// Everything a client does with a file: open it, verify it, and decode every frame at full
 /// resolution, at level 1 (which reads the faces and corners chunks a full client skips) and at
 /// the top level, cutting meshes at a triangle budget, a vertex budget, an error bound and a
-/// level. The first error is returned.
+/// level, then seeking back and forth with kept keyframes. The first error is returned.
 pub fn exercise(bytes: &[u8]) -> Result<(), ContainerError> {
     let reader = Reader::open(bytes)?;
     verify(&reader)?;
@@ -554,9 +554,16 @@ pub fn exercise(bytes: &[u8]) -> Result<(), ContainerError> {
         for target in [MeshTarget::Triangles(50), MeshTarget::Vertices(20), MeshTarget::MaxError(0.01), MeshTarget::Level(level)] {
             d.mesh(target)?;
         }
-        // A seek back to the start goes through the keyframe again.
-        d.seek(0)?;
+        // Seeks back and forth through kept keyframes (as a server does), and the cut's
+        // triangles by node (as the eval tool does).
+        d.keep_keyframes(2);
+        let last = h.frame_count - 1;
+        for f in [0, last / 2, last, 0] {
+            let _ = d.chunks_for(f);
+            d.seek(f)?;
+        }
         d.mesh(MeshTarget::Triangles(30))?;
+        d.cut_triangles(MeshTarget::Vertices(15))?;
     }
     Ok(())
 }
