@@ -217,6 +217,7 @@ impl<S: ByteSource> Reader<S> {
         let area = self.file_len - self.data_start;
         let mut last = None;
         let mut end = 0u64;
+        let mut triangles_seen = false;
         for e in &self.index.chunks {
             let what = e.describe();
             let bad = |detail: String| ContainerError::Corrupt { what: what.clone(), detail };
@@ -226,6 +227,15 @@ impl<S: ByteSource> Reader<S> {
             end = end.max(chunk_end);
             if e.kind != ChunkKind::Triangles && (e.frame >= h.frame_count || e.band as usize >= h.levels()) {
                 return Err(bad("frame or band beyond the header's counts".into()));
+            }
+            if e.kind == ChunkKind::Triangles {
+                if e.frame != 0 || e.band != 0 {
+                    return Err(bad(format!("frame {} band {}, where the triangles chunk is frame 0 band 0", e.frame, e.band)));
+                }
+                if triangles_seen {
+                    return Err(bad("a second triangles chunk".into()));
+                }
+                triangles_seen = true;
             }
             let (least, most) = raw_len_range(h, e.kind, e.band as usize);
             if e.raw_len as u64 > most {

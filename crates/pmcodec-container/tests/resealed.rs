@@ -146,3 +146,25 @@ fn a_keyframe_with_an_empty_cluster_is_refused() {
         other => panic!("{name}: {other:?}"),
     }
 }
+
+/// The triangles chunk is frame 0 band 0, and there is one (the TypeScript decoder looks it up
+/// so, and a file that plays in one decoder must play in the other).
+#[test]
+fn a_misplaced_or_second_triangles_chunk_is_refused() {
+    use pmcodec_container::ChunkKind;
+    let (name, bytes) = seeds().into_iter().next().expect("a seed");
+    let moved = reseal(&bytes, |u| {
+        let c = u.chunks.iter_mut().find(|c| c.entry.kind == ChunkKind::Triangles).expect("triangles");
+        c.entry.band = 1;
+    })
+    .expect("reseal");
+    let e = Reader::open(moved.as_slice()).err().unwrap_or_else(|| panic!("{name}: accepted"));
+    assert!(e.to_string().contains("where the triangles chunk is frame 0 band 0"), "{name}: {e}");
+    let twice = reseal(&bytes, |u| {
+        let c = u.chunks.iter().find(|c| c.entry.kind == ChunkKind::Triangles).expect("triangles").clone();
+        u.chunks.insert(0, c);
+    })
+    .expect("reseal");
+    let e = Reader::open(twice.as_slice()).err().unwrap_or_else(|| panic!("{name}: accepted"));
+    assert!(e.to_string().contains("a second triangles chunk"), "{name}: {e}");
+}
