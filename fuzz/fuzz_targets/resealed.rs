@@ -12,7 +12,11 @@
 #![no_main]
 
 use libfuzzer_sys::{fuzz_mutator, fuzz_target, fuzzer_mutate};
-use pmcodec_container::testing::{Rng, Unsealed, exercise, mutate};
+use pmcodec_container::Reader;
+use pmcodec_container::testing::{Rng, Unsealed, allocation_bound, allocation_bound_unopened, exercise, mutate};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::AtomicUsize;
+use std::sync::atomic::Ordering::Relaxed;
 
 static SEEDS: [&[u8]; 5] = [
     include_bytes!("../../crates/pmcodec-container/tests/corpus/valid-cloth-k0.pmc"),
@@ -22,8 +26,41 @@ static SEEDS: [&[u8]; 5] = [
     include_bytes!("../../crates/pmcodec-container/tests/corpus/valid-tube-mean-input.pmc"),
 ];
 
+/// Counts the bytes Rust code holds (zstd's own buffers are C allocations, bounded by the
+/// chunk sizes), and the most it held, so that each input is held to the allocation bound.
+struct Counting;
+
+static LIVE: AtomicUsize = AtomicUsize::new(0);
+static PEAK: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        let p = unsafe { System.alloc(l) };
+        if !p.is_null() {
+            let now = LIVE.fetch_add(l.size(), Relaxed) + l.size();
+            PEAK.fetch_max(now, Relaxed);
+        }
+        p
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        unsafe { System.dealloc(p, l) };
+        LIVE.fetch_sub(l.size(), Relaxed);
+    }
+}
+
+#[global_allocator]
+static ALLOC: Counting = Counting;
+
 fuzz_target!(|data: &[u8]| {
+    let base = LIVE.load(Relaxed);
+    PEAK.store(base, Relaxed);
     let _ = exercise(data);
+    let peak = PEAK.load(Relaxed).saturating_sub(base);
+    let bound = match Reader::open(data) {
+        Ok(reader) => allocation_bound(&reader),
+        Err(_) => allocation_bound_unopened(data.len()),
+    };
+    assert!(peak <= bound, "held {peak} bytes, bound {bound}");
 });
 
 fuzz_mutator!(|data: &mut [u8], size: usize, max_size: usize, seed: u32| {

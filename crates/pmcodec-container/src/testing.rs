@@ -599,3 +599,24 @@ pub fn outcome(bytes: &[u8]) -> &'static str {
         Err(e) => variant(&e),
     }
 }
+
+/// The most bytes opening, verifying and decoding a file may allocate (proto/container.md,
+/// "Limits"): per declared node, triangle and frame, per byte of the largest chunk (stored and
+/// decompressed, with the payload parsed), per byte of the file (its tables parsed), and a
+/// constant. `tests/memory.rs` and the fuzz target hold the decoder to it.
+pub fn allocation_bound<S: crate::ByteSource>(reader: &Reader<S>) -> usize {
+    let h = reader.header();
+    let largest = reader.index().chunks.iter().map(|e| e.raw_len as u64 + e.stored_len as u64).max().unwrap_or(0);
+    let declared = h.node_count() as usize + h.triangle_count as usize + h.frame_count as usize;
+    BYTES_PER_ELEMENT * declared + BYTES_PER_CHUNK_BYTE * largest as usize + BYTES_PER_FILE_BYTE * reader.file_len() as usize + SLACK
+}
+
+/// What a file that does not open may allocate: its tables, parsed.
+pub fn allocation_bound_unopened(file_len: usize) -> usize {
+    BYTES_PER_FILE_BYTE * file_len + SLACK
+}
+
+const BYTES_PER_ELEMENT: usize = 1024;
+const BYTES_PER_CHUNK_BYTE: usize = 16;
+const BYTES_PER_FILE_BYTE: usize = 16;
+const SLACK: usize = 1 << 20;

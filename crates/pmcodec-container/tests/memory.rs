@@ -4,7 +4,7 @@
 //! the stated multiple of the header's declared sizes.
 
 use pmcodec_container::format::{MAX_FRAMES, MAX_NODES, MAX_TRIANGLES, MAX_VERTICES};
-use pmcodec_container::testing::{Rng, Unsealed, exercise, mutate, reseal};
+use pmcodec_container::testing::{Rng, Unsealed, allocation_bound, allocation_bound_unopened, exercise, mutate, reseal};
 use pmcodec_container::{ContainerError, Header, Reader, payload};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -65,18 +65,6 @@ fn peak_of<T>(f: impl FnOnce() -> T) -> (T, usize) {
     let out = f();
     (out, (PEAK.with(Cell::get) - base).max(0) as usize)
 }
-
-/// The bound proto/container.md states for a reader and decoders of a file: per declared node
-/// and triangle, and per byte of the largest chunk (compressed and decompressed, with the
-/// parsed payload), and per byte of the file (its header and index, parsed).
-fn bound(file_len: usize, h: &Header, largest_chunk: u64) -> usize {
-    let declared = h.node_count() as usize + h.triangle_count as usize + h.frame_count as usize;
-    BYTES_PER_ELEMENT * declared + BYTES_PER_CHUNK_BYTE * largest_chunk as usize + BYTES_PER_FILE_BYTE * file_len + SLACK
-}
-const BYTES_PER_ELEMENT: usize = 1024;
-const BYTES_PER_CHUNK_BYTE: usize = 16;
-const BYTES_PER_FILE_BYTE: usize = 16;
-const SLACK: usize = 1 << 20;
 
 /// The committed seed files (a few hundred nodes each), and one larger file (some thousands),
 /// on which the per-element part of the bound, not its constant, is what is measured.
@@ -196,11 +184,11 @@ fn decoding_stays_within_the_stated_multiple_of_the_declared_sizes() {
             // The bound of the header as declared (files that do not open have allocated only
             // while reading their tables).
             let Ok(reader) = Reader::open(file.as_slice()) else {
-                assert!(peak <= BYTES_PER_FILE_BYTE * file.len() + SLACK, "a file that does not open held {peak} bytes");
+                let b = allocation_bound_unopened(file.len());
+                assert!(peak <= b, "a file that does not open held {peak} bytes, bound {b}");
                 continue;
             };
-            let largest = reader.index().chunks.iter().map(|e| e.raw_len as u64 + e.stored_len as u64).max().unwrap_or(0);
-            let b = bound(file.len(), reader.header(), largest);
+            let b = allocation_bound(&reader);
             assert!(peak <= b, "seed {k} mutation {i}: held {peak} bytes, bound {b}");
             worst = worst.max(peak as f64 / b as f64);
             let h = reader.header();
