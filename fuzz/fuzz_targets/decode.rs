@@ -10,7 +10,7 @@ fuzz_target!(|data: &[u8]| {
         let _ = verify(&reader);
         // Full resolution, and a level-1 client (which reads the faces and corners chunks).
         for level in [0, 1] {
-            if let Ok(mut d) = Decoder::new(&reader, level) {
+            if let Ok(mut d) = Decoder::new(reader.borrowed(), level) {
                 if d.seek(reader.header().frame_count.saturating_sub(1)).is_ok() {
                     let _ = d.mesh(MeshTarget::Triangles(100));
                 }

@@ -162,7 +162,21 @@ export class Container {
     }, 1 << 24);
     const h = header;
     if (h.levelSizes.length === 0 || h.levelSizes[0] !== h.vertexCount || h.frameCount === 0 || !(h.step > 0)) throw new DecodeError("header: inconsistent counts");
-    for (const e of index) if (e.offset + e.storedLen > fileLen - dataStart) throw new DecodeError(`${describe(e)}: the file ends before it does`);
+    if (h.levelSizes.some((s, i) => i > 0 && (s === 0 || s > h.levelSizes[i - 1]))) throw new DecodeError(`header: level sizes ${h.levelSizes} do not shrink`);
+    // Declared sizes are capped, so what a player allocates from them is bounded (proto/container.md, "Limits").
+    const nodes = h.levelSizes.reduce((a, b) => a + b, 0);
+    if (h.vertexCount > MAX_VERTICES || h.triangleCount > MAX_TRIANGLES || nodes > MAX_NODES || h.frameCount > MAX_FRAMES) {
+      throw new DecodeError(`header: ${h.vertexCount} vertices, ${h.triangleCount} triangles, ${nodes} nodes, ${h.frameCount} frames: beyond the limits`);
+    }
+    let end = 0;
+    for (const e of index) {
+      if (e.offset + e.storedLen > fileLen - dataStart) throw new DecodeError(`${describe(e)}: the file ends before it does`);
+      end = Math.max(end, e.offset + e.storedLen);
+      if (e.kind !== ChunkKind.Triangles && (e.frame >= h.frameCount || e.band >= h.levelSizes.length)) throw new DecodeError(`${describe(e)}: frame or band beyond the header's counts`);
+      const [least, most] = rawLenRange(h, e.kind, e.band);
+      if (e.rawLen < least || e.rawLen > most) throw new DecodeError(`${describe(e)}: declared size ${e.rawLen} outside ${least}..${most}`);
+    }
+    if (end < fileLen - dataStart) throw new DecodeError(`${fileLen - dataStart - end} bytes after the end of the container`);
     const c = new Container(readAt, version, header, index, dataStart, fileLen);
     c.bytesRead = PREAMBLE_LEN + headerLen + indexLen;
     return c;
@@ -181,9 +195,31 @@ export class Container {
     const stored = await this.readAt(this.dataStart + e.offset, e.storedLen);
     this.bytesRead += stored.length;
     if (crc32(stored) !== e.crc32) throw new DecodeError(`${describe(e)}: checksum mismatch`);
-    const raw = decompress(stored, new Uint8Array(e.rawLen));
+    let raw: Uint8Array;
+    try {
+      raw = decompress(stored, new Uint8Array(e.rawLen));
+    } catch (err) {
+      // fzstd throws plain Errors on a frame that does not fit or does not parse.
+      throw new DecodeError(`${describe(e)}: zstd: ${err instanceof Error ? err.message : String(err)}`);
+    }
     if (raw.length !== e.rawLen) throw new DecodeError(`${describe(e)}: ${raw.length} bytes where the index says ${e.rawLen}`);
     return raw;
+  }
+}
+
+/** Caps on a header's declared sizes (proto/container.md, "Limits"). */
+export const MAX_VERTICES = 1 << 24, MAX_TRIANGLES = 1 << 25, MAX_NODES = 1 << 25, MAX_FRAMES = 1 << 20;
+
+/** The decompressed sizes a chunk may declare (proto/container.md, "Limits"). */
+function rawLenRange(h: Header, kind: ChunkKind, band: number): [number, number] {
+  const t = h.triangleCount, n = h.levelSizes[band] ?? 0, belowTop = band < h.levelSizes.length - 1;
+  switch (kind) {
+    case ChunkKind.Triangles: return [1 + 3 * t, 5 + 15 * t];
+    case ChunkKind.Key: return belowTop ? [1 + n, 5 + 5 * n] : [1, 5];
+    case ChunkKind.Delta: return [1, 5 + 10 * n];
+    case ChunkKind.Faces: return [1, 5 + 20 * t];
+    case ChunkKind.Corners: return [1, 5 + 25 * t];
+    default: return [1, 1024 + 24 * n];
   }
 }
 

@@ -237,6 +237,19 @@ impl<S: ByteSource> Decoder<S> {
             let what = format!("frame {frame} band {j} keyframe");
             let raw = self.chunk(ChunkKind::Key, frame, j)?;
             key.bands[j].parent = payload::read_key(&raw, &what, sizes, j)?;
+            // Clusters are never empty (proto/container.md, "The model the file encodes"): a
+            // parent map that leaves one empty is not a hierarchy the encoder wrote.
+            if let Some(&above) = sizes.get(j + 1) {
+                let mut used = vec![false; above as usize];
+                for &p in &key.bands[j].parent {
+                    if let Some(u) = used.get_mut(p as usize) {
+                        *u = true;
+                    }
+                }
+                if let Some(p) = used.iter().position(|&u| !u) {
+                    return Err(ContainerError::Corrupt { what, detail: format!("level {} node {p} has no children", j + 1) });
+                }
+            }
         }
         if self.min_level > 0 {
             let j = self.min_level;

@@ -17,6 +17,16 @@ pub const OLDEST_READABLE: u16 = 3;
 pub const PREAMBLE_LEN: usize = 32;
 /// Upper bound on the header and index sizes a reader accepts (protects allocations).
 pub const MAX_TABLE_LEN: u32 = 64 << 20;
+/// Caps on the sizes a header may declare, so that what a decoder allocates, which is
+/// proportional to them (proto/container.md, "Limits"), stays bounded whatever the input:
+/// input vertices, input triangles, nodes of all levels, frames and levels. They are far above
+/// any mesh the encoder is meant for (a million vertices) and far below what would exhaust a
+/// server.
+pub const MAX_VERTICES: u32 = 1 << 24;
+pub const MAX_TRIANGLES: u32 = 1 << 25;
+pub const MAX_NODES: u64 = 1 << 25;
+pub const MAX_FRAMES: u32 = 1 << 20;
+pub const MAX_LEVELS: usize = 64;
 /// zstd level for chunks: files are written once and read many times.
 pub const ZSTD_LEVEL: i32 = 19;
 

@@ -15,6 +15,8 @@ pub mod payload;
 pub mod predict;
 pub mod rans;
 mod read;
+#[cfg(feature = "test-support")]
+pub mod testing;
 
 pub use decode::{Decoder, MeshTarget};
 pub use encode::{EncodeOptions, QuantizationChoice, encode, write_file};
@@ -48,6 +50,8 @@ pub enum ContainerError {
     Delta { what: String, source: pmcodec_hierarchy::progressive::DeltaError },
     #[error("invalid options: {0}")]
     Options(String),
+    #[error("{bytes} bytes after the end of the container (its last chunk ends before the file does)")]
+    TrailingBytes { bytes: u64 },
     #[error("frame {frame} is beyond the {frames} frames of the file")]
     NoSuchFrame { frame: u32, frames: u32 },
 }

@@ -71,6 +71,17 @@ impl<'a> Cursor<'a> {
         Ok(v as usize)
     }
 
+    /// A count of items of at least `min_bytes` bytes each that must not exceed `limit` nor
+    /// what the rest of the payload can hold: checked before anything is sized from it.
+    pub fn count_within(&mut self, limit: u64, min_bytes: usize, name: &str) -> Result<usize, ContainerError> {
+        let n = self.count(limit, name)?;
+        let left = self.bytes.len() - self.pos;
+        if n.saturating_mul(min_bytes) > left {
+            return Err(self.corrupt(format!("{n} {name} in {left} bytes (each takes at least {min_bytes})")));
+        }
+        Ok(n)
+    }
+
     /// The next id of an ascending list: previous + delta.
     pub fn ascending(&mut self, prev: &mut Option<u32>, limit: u32, name: &str) -> Result<u32, ContainerError> {
         let d = self.get()?;
@@ -115,7 +126,7 @@ pub fn write_triangles(tris: &[[u32; 3]]) -> Vec<u8> {
 
 pub fn read_triangles(bytes: &[u8], what: &str, triangles: u32, vertices: u32) -> Result<Vec<[u32; 3]>, ContainerError> {
     let mut c = Cursor::new(bytes, what);
-    let n = c.count(triangles as u64, "triangles")?;
+    let n = c.count_within(triangles as u64, 3, "triangles")?;
     if n != triangles as usize {
         return Err(c.corrupt(format!("{n} triangles where the header says {triangles}")));
     }
@@ -140,7 +151,7 @@ pub fn write_key(parent: &[u32]) -> Vec<u8> {
 pub fn read_key(bytes: &[u8], what: &str, sizes: &[u32], band: usize) -> Result<Vec<u32>, ContainerError> {
     let mut c = Cursor::new(bytes, what);
     let top = sizes.len() - 1;
-    let n = c.count(sizes[band] as u64, "parents")?;
+    let n = c.count_within(sizes[band] as u64, 1, "parents")?;
     let expected = if band < top { sizes[band] as usize } else { 0 };
     if n != expected {
         return Err(c.corrupt(format!("{n} parents for {expected} nodes")));
@@ -180,7 +191,7 @@ pub fn write_faces(faces: &[(u32, [u32; 3])]) -> Vec<u8> {
 /// and 4 code their CORNERS chunks.
 pub fn read_faces(bytes: &[u8], what: &str, size: u32, triangles: u32, version: u16) -> Result<Vec<(u32, [u32; 3])>, ContainerError> {
     let mut c = Cursor::new(bytes, what);
-    let m = c.count(triangles as u64, "faces")?;
+    let m = c.count_within(triangles as u64, 4, "faces")?;
     let mut faces = Vec::with_capacity(m);
     let mut prev = None;
     let mut last = [0u32; 3];
@@ -238,7 +249,7 @@ pub fn write_corner_updates(updates: &[(u32, [u32; 3])], before: &[[u32; 3]]) ->
 pub fn read_corner_updates(bytes: &[u8], what: &str, size: u32, before: &[[u32; 3]]) -> Result<Vec<(u32, [u32; 3])>, ContainerError> {
     let mut c = Cursor::new(bytes, what);
     let triangles = before.len() as u32;
-    let m = c.count(triangles as u64, "corner updates")?;
+    let m = c.count_within(triangles as u64, 2, "corner updates")?;
     let mut updates = Vec::with_capacity(m);
     let mut prev = None;
     for _ in 0..m {
@@ -284,7 +295,7 @@ pub fn write_delta(moves: &[(u32, u32)]) -> Vec<u8> {
 pub fn read_delta(bytes: &[u8], what: &str, sizes: &[u32], band: usize) -> Result<Vec<(u32, u32)>, ContainerError> {
     let mut c = Cursor::new(bytes, what);
     let top = sizes.len() - 1;
-    let n = c.count(if band < top { sizes[band] as u64 } else { 0 }, "moves")?;
+    let n = c.count_within(if band < top { sizes[band] as u64 } else { 0 }, 2, "moves")?;
     let mut moves = Vec::with_capacity(n);
     let mut prev = None;
     for _ in 0..n {
@@ -387,6 +398,10 @@ pub fn read_positions(bytes: &[u8], what: &str, count: u32) -> Result<(u32, Vec<
     match coding {
         CODING_RANS => {}
         CODING_VARINTS => {
+            let left = bytes.len() - c.pos;
+            if (count as usize).saturating_mul(3) > left {
+                return Err(c.corrupt(format!("{count} nodes in {left} bytes (each takes at least 3)")));
+            }
             let mut out = Vec::with_capacity(count as usize);
             for _ in 0..count {
                 out.push([unzigzag(c.get()?), unzigzag(c.get()?), unzigzag(c.get()?)]);

@@ -3,7 +3,9 @@
 //! decompresses chunks on demand.
 
 use crate::ContainerError;
-use crate::format::{ChunkEntry, ChunkKind, Header, Index, PREAMBLE_LEN, Preamble};
+use crate::format::{
+    ChunkEntry, ChunkKind, Header, Index, MAX_FRAMES, MAX_LEVELS, MAX_NODES, MAX_TRIANGLES, MAX_VERTICES, PREAMBLE_LEN, Preamble,
+};
 use std::cell::Cell;
 use std::path::Path;
 
@@ -195,6 +197,13 @@ impl<S: ByteSource> Reader<S> {
         if crc32fast::hash(&stored) != e.crc32 {
             return Err(ContainerError::Checksum { what });
         }
+        // A zstd frame states its content size: one that disagrees with the index is refused
+        // before a buffer of the index's size is set aside for it.
+        if let Ok(Some(n)) = zstd::zstd_safe::get_frame_content_size(&stored)
+            && n != e.raw_len as u64
+        {
+            return Err(ContainerError::Corrupt { what, detail: format!("zstd frame of {n} bytes where the index says {}", e.raw_len) });
+        }
         let raw = decompress(&stored, e.raw_len as usize)
             .map_err(|err| ContainerError::Corrupt { what: what.clone(), detail: format!("zstd: {err}") })?;
         if raw.len() != e.raw_len as usize {
@@ -206,36 +215,78 @@ impl<S: ByteSource> Reader<S> {
     fn check_index(&self) -> Result<(), ContainerError> {
         let h = &self.header;
         let area = self.file_len - self.data_start;
-        // A chunk never needs more than 5 bytes per number, and no chunk holds more numbers
-        // than 4 per triangle plus 3 per node: a bound on decompression that input cannot raise.
-        let max_raw = 5 * (4 * h.triangle_count as u64 + 3 * h.node_count()) + 64;
         let mut last = None;
+        let mut end = 0u64;
+        let mut triangles_seen = false;
         for e in &self.index.chunks {
             let what = e.describe();
-            let bad = |detail: &str| ContainerError::Corrupt { what: what.clone(), detail: detail.to_string() };
-            if e.offset.checked_add(e.stored_len as u64).is_none_or(|end| end > area) {
+            let bad = |detail: String| ContainerError::Corrupt { what: what.clone(), detail };
+            let Some(chunk_end) = e.offset.checked_add(e.stored_len as u64).filter(|&x| x <= area) else {
                 return Err(ContainerError::Truncated { what });
-            }
-            if e.raw_len as u64 > max_raw {
-                return Err(bad("declared size beyond what the header allows"));
-            }
+            };
+            end = end.max(chunk_end);
             if e.kind != ChunkKind::Triangles && (e.frame >= h.frame_count || e.band as usize >= h.levels()) {
-                return Err(bad("frame or band beyond the header's counts"));
+                return Err(bad("frame or band beyond the header's counts".into()));
+            }
+            if e.kind == ChunkKind::Triangles {
+                if e.frame != 0 || e.band != 0 {
+                    return Err(bad(format!("frame {} band {}, where the triangles chunk is frame 0 band 0", e.frame, e.band)));
+                }
+                if triangles_seen {
+                    return Err(bad("a second triangles chunk".into()));
+                }
+                triangles_seen = true;
+            }
+            let (least, most) = raw_len_range(h, e.kind, e.band as usize);
+            if e.raw_len as u64 > most {
+                return Err(bad(format!("declared size {} beyond the {most} bytes the header allows", e.raw_len)));
+            }
+            if (e.raw_len as u64) < least {
+                return Err(bad(format!("declared size {} below the {least} bytes the header's counts need", e.raw_len)));
             }
             let key = (e.kind != ChunkKind::Triangles, e.frame);
             if last.is_some_and(|l| l > key) {
-                return Err(bad("index entries out of order"));
+                return Err(bad("index entries out of order".into()));
             }
             last = Some(key);
+        }
+        // The container ends with its last chunk: bytes after it (garbage, or a second
+        // container appended) are refused rather than ignored.
+        if end < area {
+            return Err(ContainerError::TrailingBytes { bytes: area - end });
         }
         Ok(())
     }
 }
 
+/// The decompressed sizes a chunk of this kind and band may declare, from the header's
+/// counts: every number takes 1 to 5 bytes, and the formats say how many numbers a chunk holds
+/// (proto/container.md, "Limits"). The upper end bounds decompression; the lower end makes a
+/// header that claims more triangles or nodes than its chunks hold fail at open, before a
+/// decoder sizes anything from it.
+fn raw_len_range(h: &Header, kind: ChunkKind, band: usize) -> (u64, u64) {
+    let t = h.triangle_count as u64;
+    let n = h.level_sizes.get(band).map_or(0, |&n| n as u64);
+    let below_top = band < h.top();
+    match kind {
+        ChunkKind::Triangles => (1 + 3 * t, 5 + 15 * t),
+        ChunkKind::Key if below_top => (1 + n, 5 + 5 * n),
+        ChunkKind::Key => (1, 5),
+        ChunkKind::Delta => (1, 5 + 10 * n),
+        ChunkKind::Faces => (1, 5 + 20 * t),
+        ChunkKind::Corners => (1, 5 + 25 * t),
+        ChunkKind::Positions => (1, POSITIONS_SLACK + 24 * n),
+    }
+}
+
+/// Bytes a positions chunk may hold beyond 24 per node: its first number, three frequency
+/// tables of up to 32 entries, and the stream length and rANS states.
+const POSITIONS_SLACK: u64 = 1024;
+
 /// Checks the header's own consistency before anything is sized from it.
 fn check_header(h: &Header) -> Result<(), ContainerError> {
     let bad = |d: String| Err(ContainerError::Corrupt { what: "header".into(), detail: d });
-    if h.level_sizes.is_empty() || h.level_sizes.len() > 64 {
+    if h.level_sizes.is_empty() || h.level_sizes.len() > MAX_LEVELS {
         return bad(format!("{} levels", h.level_sizes.len()));
     }
     if h.level_sizes[0] != h.vertex_count {
@@ -244,11 +295,20 @@ fn check_header(h: &Header) -> Result<(), ContainerError> {
     if h.level_sizes.windows(2).any(|w| w[1] == 0 || w[1] > w[0]) {
         return bad(format!("level sizes {:?} do not shrink", h.level_sizes));
     }
-    if h.node_count() > u32::MAX as u64 / 2 || h.triangle_count > u32::MAX / 4 {
-        return bad("more nodes or triangles than a 32-bit id allows".into());
+    if h.vertex_count > MAX_VERTICES {
+        return bad(format!("{} vertices, more than the {MAX_VERTICES} a file may have", h.vertex_count));
+    }
+    if h.triangle_count > MAX_TRIANGLES {
+        return bad(format!("{} triangles, more than the {MAX_TRIANGLES} a file may have", h.triangle_count));
+    }
+    if h.node_count() > MAX_NODES {
+        return bad(format!("{} nodes in all levels, more than the {MAX_NODES} a file may have", h.node_count()));
     }
     if h.frame_count == 0 {
         return bad("no frames".into());
+    }
+    if h.frame_count > MAX_FRAMES {
+        return bad(format!("{} frames, more than the {MAX_FRAMES} a file may have", h.frame_count));
     }
     if !(h.quantization.step.is_finite() && h.quantization.step > 0.0) {
         return bad(format!("quantization step {}", h.quantization.step));
