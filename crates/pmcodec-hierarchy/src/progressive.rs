@@ -7,7 +7,8 @@
 //! where two of its corners' ancestor chains first meet, and a swap of node v changes only the
 //! chains of the triangles with a corner under v. So a replay *derives* them, for just those
 //! triangles, and a stream needs to carry only the swaps (the paper's "swaps only" figure,
-//! section 6). [`FrameDelta::degenerate`] still lists them, for measurement and tests.
+//! section 6); [`Encoder::degeneration`] gives the encoder's side of them, for measurement and
+//! tests.
 //!
 //! Everything is organised by *band*: band j is what a client needs to refine down to level j.
 //! A client that stops at level L reads bands top..=L only, so what it reads grows with |M_L|:
@@ -34,14 +35,6 @@ use glam::Vec3;
 /// node lies at or below that level, which such a replay does not track).
 pub const BELOW: u32 = u32::MAX - 1;
 
-/// A degenerate-set delta: triangle `t` moves from D_old to D_new (global ids or [`NONE`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct DegenerateDelta {
-    pub t: u32,
-    pub old: u32,
-    pub new: u32,
-}
-
 /// New level-`level` corners of triangle `t` (two equal corners: t is no longer alive there).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct CornerUpdate {
@@ -55,9 +48,6 @@ pub struct CornerUpdate {
 pub struct FrameDelta {
     /// Swaps in the order they were made (coarse levels first).
     pub swaps: Vec<Swap>,
-    /// Triangles whose degeneration node changed, ascending by triangle. Derivable from the
-    /// swaps and corners (see the module docs): a [`Replay`] does not read them.
-    pub degenerate: Vec<DegenerateDelta>,
     /// Corner updates, by level then triangle.
     pub corners: Vec<CornerUpdate>,
 }
@@ -68,27 +58,11 @@ pub fn node_level(h: &Hierarchy, g: u32) -> usize {
     if g == NONE { h.levels() } else { h.local(g).0 }
 }
 
-/// Band of a degenerate-set delta (see the module docs).
-#[inline]
-pub fn degenerate_band(h: &Hierarchy, d: &DegenerateDelta) -> usize {
-    node_level(h, d.old).max(node_level(h, d.new)) - 1
-}
-
 impl FrameDelta {
-    /// The part of this delta in band j.
-    pub fn band(&self, h: &Hierarchy, j: usize) -> FrameDelta {
-        FrameDelta {
-            swaps: self.swaps.iter().filter(|s| s.level as usize == j).copied().collect(),
-            degenerate: self.degenerate.iter().filter(|d| degenerate_band(h, d) == j).copied().collect(),
-            corners: self.corners.iter().filter(|c| c.level as usize == j).copied().collect(),
-        }
-    }
-
     /// The parts of this delta in bands `min_level..`.
-    pub fn from_level(&self, h: &Hierarchy, min_level: usize) -> FrameDelta {
+    pub fn from_level(&self, min_level: usize) -> FrameDelta {
         FrameDelta {
             swaps: self.swaps.iter().filter(|s| s.level as usize >= min_level).copied().collect(),
-            degenerate: self.degenerate.iter().filter(|d| degenerate_band(h, d) >= min_level).copied().collect(),
             corners: self.corners.iter().filter(|c| c.level as usize >= min_level).copied().collect(),
         }
     }
@@ -111,18 +85,17 @@ pub struct Keyframe {
 /// Produces frame deltas and keyframes by reclustering.
 pub struct Encoder {
     pub recluster: Reclusterer,
-    node_of: Vec<u32>,
+    /// Degeneration node of every triangle in H_f, derived on first request: the stream does not
+    /// carry them (see the module docs), so only measurement and tests pay for them.
+    node_of: std::sync::OnceLock<Vec<u32>>,
     /// Level-j ancestors of every triangle's corners, for j >= 1 (alive at j iff distinct).
     corners: Vec<Vec<[u32; 3]>>,
-    scratch: Vec<u32>,
 }
 
 impl Encoder {
     pub fn new(base: Hierarchy, topo: FineTopology, triangles: Vec<[u32; 3]>, opts: ReclusterOptions) -> Self {
-        let mut node_of = Vec::new();
-        degeneration_nodes(&base, &triangles, &mut node_of);
         let mut enc =
-            Encoder { recluster: Reclusterer::new(base, topo, triangles, opts), node_of, corners: Vec::new(), scratch: Vec::new() };
+            Encoder { recluster: Reclusterer::new(base, topo, triangles, opts), node_of: Default::default(), corners: Vec::new() };
         enc.corners = enc.current_corners();
         enc
     }
@@ -134,7 +107,11 @@ impl Encoder {
 
     /// Degeneration node of every triangle in H_f.
     pub fn degeneration(&self) -> &[u32] {
-        &self.node_of
+        self.node_of.get_or_init(|| {
+            let mut node_of = Vec::new();
+            degeneration_nodes(&self.recluster.h, self.recluster.triangles(), &mut node_of);
+            node_of
+        })
     }
 
     /// Level-j ancestors of every triangle's corners, j >= 1 (distinct iff alive at j).
@@ -157,13 +134,7 @@ impl Encoder {
     pub fn encode_frame(&mut self, positions: &[Vec3]) -> (FrameDelta, FrameStats) {
         let mut delta = FrameDelta::default();
         let stats = self.recluster.frame(positions, &mut delta.swaps);
-        degeneration_nodes(&self.recluster.h, self.recluster.triangles(), &mut self.scratch);
-        for (t, (old, new)) in self.node_of.iter_mut().zip(&self.scratch).enumerate() {
-            if old != new {
-                delta.degenerate.push(DegenerateDelta { t: t as u32, old: *old, new: *new });
-                *old = *new;
-            }
-        }
+        self.node_of = Default::default();
         let corners = self.current_corners();
         for (j, (now, before)) in corners.iter().zip(&self.corners).enumerate().skip(1) {
             for (t, (c, b)) in now.iter().zip(before).enumerate() {
