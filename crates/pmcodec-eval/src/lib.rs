@@ -11,14 +11,20 @@
 // `!(x > 0.0)` is written on purpose: it is also true for NaN, which these checks must reject.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+mod approx;
 mod bvh;
+mod coherence;
+mod rebalance;
 mod sample;
 pub mod triangle;
 
+pub use approx::{ApproxOptions, ApproxTarget, Method, approximate};
 pub use bvh::SurfaceIndex;
+pub use coherence::{Approximation, changed_share};
 use glam::Vec3;
 use pmcodec_mesh::TriMesh;
 use rayon::prelude::*;
+pub use rebalance::{rebalance, repair};
 use serde::Serialize;
 
 /// How many points to sample on each mesh, and from which seed. The same meshes, options and

@@ -6,7 +6,7 @@ use crate::input::{self, InputArgs};
 use crate::{EXIT_BAD_INPUT, Exit, progress};
 use anyhow::Context;
 use clap::{Args, ValueEnum};
-use pmcodec_hierarchy::approx::{self, ApproxOptions, ApproxTarget, Approximation, Method};
+use pmcodec_eval::{self as approx, ApproxOptions, ApproxTarget, Approximation, Method};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::path::PathBuf;
