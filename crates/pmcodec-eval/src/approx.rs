@@ -114,9 +114,9 @@ pub fn approximate(
                 let c = match (previous.take(), method) {
                     (Some(c), Method::FirstFrameStatic) => c,
                     (Some(mut c), Method::Reclustered) => {
-                        let d = DegenerateSets::new(&rc.h, &seq.triangles);
-                        let children = cut::ChildIndex::new(&rc.h);
-                        repair(&rc.h, &d, &children, &mut c);
+                        let d = DegenerateSets::new(rc.hierarchy(), &seq.triangles);
+                        let children = cut::ChildIndex::new(rc.hierarchy());
+                        repair(rc.hierarchy(), &d, &children, &mut c);
                         // Hysteresis: leave a cut that is within 2% under its budget alone.
                         let (used, budget) = match cut_target {
                             CutTarget::Triangles(n) => (c.triangles, n),
@@ -124,13 +124,13 @@ pub fn approximate(
                             _ => (0, 0),
                         };
                         if used > budget || (used as f64) < 0.98 * budget as f64 {
-                            rebalance(&rc.h, &d, &children, &rc.nodes, &mut c, cut_target);
+                            rebalance(rc.hierarchy(), &d, &children, rc.nodes(), &mut c, cut_target);
                         }
                         c
                     }
-                    _ => select(&rc.h, &seq.triangles, &rc.nodes, cut_target),
+                    _ => select(rc.hierarchy(), &seq.triangles, rc.nodes(), cut_target),
                 };
-                out.push(approximation(&rc.h, &seq.triangles, &rc.nodes, &c, Identity::NodeIds));
+                out.push(approximation(rc.hierarchy(), &seq.triangles, rc.nodes(), &c, Identity::NodeIds));
                 previous = Some(c);
                 progress(f);
             }

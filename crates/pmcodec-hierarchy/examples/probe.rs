@@ -7,8 +7,8 @@ use pmcodec_hierarchy::recluster::{ReclusterOptions, Reclusterer};
 use std::time::Instant;
 
 fn level_error(rc: &Reclusterer, level: usize) -> f64 {
-    let h = &rc.h;
-    (h.offsets[level]..h.offsets[level + 1]).map(|g| rc.nodes.error(g)).sum()
+    let h = rc.hierarchy();
+    (h.offsets[level]..h.offsets[level + 1]).map(|g| rc.nodes().error(g)).sum()
 }
 
 fn main() {

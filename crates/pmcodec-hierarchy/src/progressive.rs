@@ -27,6 +27,7 @@
 use crate::Hierarchy;
 use crate::degenerate::degeneration_nodes;
 use crate::hierarchy::NONE;
+use crate::nodes::NodeState;
 use crate::recluster::{FrameStats, ReclusterOptions, Reclusterer, Swap};
 use crate::topology::FineTopology;
 use glam::Vec3;
@@ -84,7 +85,7 @@ pub struct Keyframe {
 
 /// Produces frame deltas and keyframes by reclustering.
 pub struct Encoder {
-    pub recluster: Reclusterer,
+    recluster: Reclusterer,
     /// Degeneration node of every triangle in H_f, derived on first request: the stream does not
     /// carry them (see the module docs), so only measurement and tests pay for them.
     node_of: std::sync::OnceLock<Vec<u32>>,
@@ -102,14 +103,25 @@ impl Encoder {
 
     /// The current hierarchy H_f.
     pub fn hierarchy(&self) -> &Hierarchy {
-        &self.recluster.h
+        self.recluster.hierarchy()
+    }
+
+    /// Every node's quadric and position in H_f for the frame last encoded.
+    pub fn nodes(&self) -> &NodeState {
+        self.recluster.nodes()
+    }
+
+    /// Positions of every node of H_f (global ids) in the frame last encoded: level 0 is that
+    /// frame's input, coarser nodes sit at their quadric-optimal positions.
+    pub fn node_positions(&self) -> &[Vec3] {
+        &self.recluster.nodes().positions
     }
 
     /// Degeneration node of every triangle in H_f.
     pub fn degeneration(&self) -> &[u32] {
         self.node_of.get_or_init(|| {
             let mut node_of = Vec::new();
-            degeneration_nodes(&self.recluster.h, self.recluster.triangles(), &mut node_of);
+            degeneration_nodes(self.recluster.hierarchy(), self.recluster.triangles(), &mut node_of);
             node_of
         })
     }
@@ -120,7 +132,7 @@ impl Encoder {
     }
 
     fn current_corners(&self) -> Vec<Vec<[u32; 3]>> {
-        let h = &self.recluster.h;
+        let h = self.recluster.hierarchy();
         let anc = h.all_ancestors();
         let tris = self.recluster.triangles();
         let mut out = vec![Vec::new()];
@@ -149,7 +161,7 @@ impl Encoder {
 
     /// The current state as a keyframe.
     pub fn keyframe(&self) -> Keyframe {
-        let h = &self.recluster.h;
+        let h = self.recluster.hierarchy();
         let bands = (0..h.levels())
             .map(|j| KeyBand {
                 parent: h.parent.get(j).cloned().unwrap_or_default(),

@@ -180,8 +180,8 @@ fn reclustering_lowers_level_error() {
         enc.encode_frame(frame);
         stat.fit(frame);
         let h = enc.hierarchy();
-        sum_rc += (h.offsets[level]..h.offsets[level + 1]).map(|g| enc.recluster.nodes.error(g)).sum::<f64>();
-        sum_static += (h.offsets[level]..h.offsets[level + 1]).map(|g| stat.nodes.error(g)).sum::<f64>();
+        sum_rc += (h.offsets[level]..h.offsets[level + 1]).map(|g| enc.nodes().error(g)).sum::<f64>();
+        sum_static += (h.offsets[level]..h.offsets[level + 1]).map(|g| stat.nodes().error(g)).sum::<f64>();
     }
     assert!(sum_rc < 0.8 * sum_static, "reclustered {sum_rc:e} vs static {sum_static:e}");
 }
