@@ -1,247 +1,8 @@
-//! The progressive representation (section 5): a keyframe holding a whole hierarchy H_f, then
-//! per frame the swaps and degenerate-set deltas that turn H_{f-1} into H_f. [`Encoder`]
-//! produces it; [`Replay`] plays it back and keeps a cut's shown triangles up to date
-//! incrementally (section 5.1), without re-deriving them from scratch.
-//!
-//! The degenerate-set deltas are a function of the swaps: a triangle's degeneration node is
-//! where two of its corners' ancestor chains first meet, and a swap of node v changes only the
-//! chains of the triangles with a corner under v. So a replay *derives* them, for just those
-//! triangles, and a stream needs to carry only the swaps (the paper's "swaps only" figure,
-//! section 6); [`Encoder::degeneration`] gives the encoder's side of them, for measurement and
-//! tests.
-//!
-//! Everything is organised by *band*: band j is what a client needs to refine down to level j.
-//! A client that stops at level L reads bands top..=L only, so what it reads grows with |M_L|:
-//! - swaps of level-j nodes are in band j;
-//! - corner updates: a triangle *alive at level j* (its corners have three distinct level-j
-//!   ancestors) is drawn by a level-j client through its level-j corners; when those change
-//!   (swaps at finer levels, invisible to that client), band j carries the new corners, also
-//!   when the triangle becomes alive at j or stops being alive (then the new corners repeat a
-//!   node). Only a client whose finest level is exactly j needs them. Level-0 corners are the
-//!   input triangles and never change.
-//!
-//! Convention: frame 0 has a delta too (reclustering the built base to fit frame 0), so the
-//! hierarchy of frame f is the base plus the deltas of frames 0..=f; the keyframe of frame f is
-//! the state after frame f's delta.
+//! The decoder side: playing a progressive representation back down to a finest level and
+//! keeping one cut's shown triangles up to date (section 5.1).
 
-use crate::Hierarchy;
-use crate::degenerate::degeneration_nodes;
-use crate::hierarchy::NONE;
-use crate::nodes::NodeState;
-use crate::recluster::{FrameStats, ReclusterOptions, Reclusterer, Swap};
-use crate::topology::FineTopology;
-use glam::Vec3;
-
-/// Sentinel degeneration node of a triangle that is not alive at a replay's finest level (its
-/// node lies at or below that level, which such a replay does not track).
-pub const BELOW: u32 = u32::MAX - 1;
-
-/// New level-`level` corners of triangle `t` (two equal corners: t is no longer alive there).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct CornerUpdate {
-    pub level: u32,
-    pub t: u32,
-    pub corners: [u32; 3],
-}
-
-/// What turns H_{f-1} into H_f.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct FrameDelta {
-    /// Swaps in the order they were made (coarse levels first).
-    pub swaps: Vec<Swap>,
-    /// Corner updates, by level then triangle.
-    pub corners: Vec<CornerUpdate>,
-}
-
-/// Level of a global node id, with level(NONE) = top + 1.
-#[inline]
-pub fn node_level(h: &Hierarchy, g: u32) -> usize {
-    if g == NONE { h.levels() } else { h.local(g).0 }
-}
-
-impl FrameDelta {
-    /// The parts of this delta in bands `min_level..`.
-    pub fn from_level(&self, min_level: usize) -> FrameDelta {
-        FrameDelta {
-            swaps: self.swaps.iter().filter(|s| s.level as usize >= min_level).copied().collect(),
-            corners: self.corners.iter().filter(|c| c.level as usize >= min_level).copied().collect(),
-        }
-    }
-}
-
-/// One band of a keyframe: level j's parent map and the triangles alive at level j with their
-/// level-j corners (empty for band 0, whose corners are the input triangles).
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct KeyBand {
-    pub parent: Vec<u32>,
-    pub faces: Vec<(u32, [u32; 3])>,
-}
-
-/// A whole hierarchy, by band (index = level).
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct Keyframe {
-    pub bands: Vec<KeyBand>,
-}
-
-/// Produces frame deltas and keyframes by reclustering.
-pub struct Encoder {
-    recluster: Reclusterer,
-    /// Degeneration node of every triangle in H_f, derived on first request: the stream does not
-    /// carry them (see the module docs), so only measurement and tests pay for them.
-    node_of: std::sync::OnceLock<Vec<u32>>,
-    /// Level-j ancestors of every triangle's corners, for j >= 1 (alive at j iff distinct).
-    corners: Vec<Vec<[u32; 3]>>,
-}
-
-impl Encoder {
-    pub fn new(base: Hierarchy, topo: FineTopology, triangles: Vec<[u32; 3]>, opts: ReclusterOptions) -> Self {
-        let mut enc =
-            Encoder { recluster: Reclusterer::new(base, topo, triangles, opts), node_of: Default::default(), corners: Vec::new() };
-        enc.corners = enc.current_corners();
-        enc
-    }
-
-    /// The current hierarchy H_f.
-    pub fn hierarchy(&self) -> &Hierarchy {
-        self.recluster.hierarchy()
-    }
-
-    /// Every node's quadric and position in H_f for the frame last encoded.
-    pub fn nodes(&self) -> &NodeState {
-        self.recluster.nodes()
-    }
-
-    /// Positions of every node of H_f (global ids) in the frame last encoded: level 0 is that
-    /// frame's input, coarser nodes sit at their quadric-optimal positions.
-    pub fn node_positions(&self) -> &[Vec3] {
-        &self.recluster.nodes().positions
-    }
-
-    /// Degeneration node of every triangle in H_f.
-    pub fn degeneration(&self) -> &[u32] {
-        self.node_of.get_or_init(|| {
-            let mut node_of = Vec::new();
-            degeneration_nodes(self.recluster.hierarchy(), self.recluster.triangles(), &mut node_of);
-            node_of
-        })
-    }
-
-    /// Level-j ancestors of every triangle's corners, j >= 1 (distinct iff alive at j).
-    pub fn corners_at(&self, j: usize) -> &[[u32; 3]] {
-        &self.corners[j]
-    }
-
-    fn current_corners(&self) -> Vec<Vec<[u32; 3]>> {
-        let h = self.recluster.hierarchy();
-        let anc = h.all_ancestors();
-        let tris = self.recluster.triangles();
-        let mut out = vec![Vec::new()];
-        for anc_j in anc.iter().skip(1) {
-            out.push(tris.iter().map(|t| t.map(|v| anc_j[v as usize])).collect());
-        }
-        out
-    }
-
-    /// Reclusters for the next frame and returns its delta.
-    pub fn encode_frame(&mut self, positions: &[Vec3]) -> (FrameDelta, FrameStats) {
-        let mut delta = FrameDelta::default();
-        let stats = self.recluster.frame(positions, &mut delta.swaps);
-        self.node_of = Default::default();
-        let corners = self.current_corners();
-        for (j, (now, before)) in corners.iter().zip(&self.corners).enumerate().skip(1) {
-            for (t, (c, b)) in now.iter().zip(before).enumerate() {
-                if c != b && (distinct(*c) || distinct(*b)) {
-                    delta.corners.push(CornerUpdate { level: j as u32, t: t as u32, corners: *c });
-                }
-            }
-        }
-        self.corners = corners;
-        (delta, stats)
-    }
-
-    /// The current state as a keyframe.
-    pub fn keyframe(&self) -> Keyframe {
-        let h = self.recluster.hierarchy();
-        let bands = (0..h.levels())
-            .map(|j| KeyBand {
-                parent: h.parent.get(j).cloned().unwrap_or_default(),
-                faces: if j == 0 {
-                    Vec::new()
-                } else {
-                    self.corners[j].iter().enumerate().filter(|(_, c)| distinct(**c)).map(|(t, c)| (t as u32, *c)).collect()
-                },
-            })
-            .collect();
-        Keyframe { bands }
-    }
-}
-
-/// Whether three corners are three different nodes (the triangle is alive at their level).
-#[inline]
-pub fn distinct(c: [u32; 3]) -> bool {
-    c[0] != c[1] && c[1] != c[2] && c[0] != c[2]
-}
-
-/// Triangles by level-L corner: a flat list per node built at a keyframe (CSR), plus the
-/// additions corner updates make until the next keyframe. Removals are not recorded: a reader
-/// checks that the triangle still has that corner. (Thousands of small vectors made keyframe
-/// loads, and so seeks, a tenth slower.)
-#[derive(Clone, Debug, Default)]
-struct Incidence {
-    offsets: Vec<u32>,
-    list: Vec<u32>,
-    extra: std::collections::HashMap<u32, Vec<u32>>,
-}
-
-impl Incidence {
-    /// Over `size` nodes, from every triangle whose corners are distinct.
-    fn new(size: usize, corners: &[[u32; 3]]) -> Self {
-        let alive = |c: &[u32; 3]| c[0] != NONE && distinct(*c);
-        let mut offsets = vec![0u32; size + 1];
-        for c in corners.iter().filter(|c| alive(c)) {
-            for &x in c {
-                offsets[x as usize + 1] += 1;
-            }
-        }
-        for i in 0..size {
-            offsets[i + 1] += offsets[i];
-        }
-        let mut fill = offsets.clone();
-        let mut list = vec![0u32; offsets[size] as usize];
-        for (t, c) in corners.iter().enumerate().filter(|(_, c)| alive(c)) {
-            for &x in c {
-                list[fill[x as usize] as usize] = t as u32;
-                fill[x as usize] += 1;
-            }
-        }
-        Incidence { offsets, list, extra: Default::default() }
-    }
-
-    fn add(&mut self, x: u32, t: u32) {
-        self.extra.entry(x).or_default().push(t);
-    }
-
-    /// Triangles that have, or had, corner x (callers filter stale entries).
-    fn of(&self, x: u32) -> (&[u32], &[u32]) {
-        let (a, b) = (self.offsets[x as usize] as usize, self.offsets[x as usize + 1] as usize);
-        (&self.list[a..b], self.extra.get(&x).map_or(&[], Vec::as_slice))
-    }
-}
-
-/// Data that does not fit the hierarchy it is applied to.
-#[derive(Debug, thiserror::Error, PartialEq, Eq)]
-pub enum DeltaError {
-    #[error("swap {index}: level {level} has no node {v} or no cluster {to} above it")]
-    SwapOutOfRange { index: usize, level: u32, v: u32, to: u32 },
-    #[error("swap {index}: node {v} of level {level} is in cluster {actual}, not {from}")]
-    SwapMismatch { index: usize, level: u32, v: u32, from: u32, actual: u32 },
-    #[error("swap {index}: cluster {from} of level {} would be left empty", level + 1)]
-    EmptyCluster { index: usize, level: u32, from: u32 },
-    #[error("corner update {index}: triangle {triangle} or a corner out of range at level {level}")]
-    CornerOutOfRange { index: usize, level: u32, triangle: u32 },
-    #[error("keyframe: {0}")]
-    Keyframe(String),
-}
+use super::incidence::Incidence;
+use super::*;
 
 /// Plays back a progressive representation down to a finest level `L` and maintains one cut.
 ///
@@ -257,21 +18,21 @@ pub struct Replay {
     /// Finest level this replay tracks.
     pub min_level: usize,
     /// Level-L corners of every triangle (`[NONE; 3]` or a repeated node where not alive).
-    corners: Vec<[u32; 3]>,
+    pub(super) corners: Vec<[u32; 3]>,
     /// For every level-L node (local id), the triangles alive at L with a corner there.
-    incident: Incidence,
-    node_of: Vec<u32>,
+    pub(super) incident: Incidence,
+    pub(super) node_of: Vec<u32>,
     /// Scratch of `apply`: triangles whose degeneration node may have changed, and a mark per
     /// triangle so each is listed once.
-    affected: Vec<u32>,
-    marked: Vec<bool>,
+    pub(super) affected: Vec<u32>,
+    pub(super) marked: Vec<bool>,
     /// D sets per node (global id), unordered, and each triangle's slot in its set.
-    sets: Vec<Vec<u32>>,
-    slot_in_set: Vec<u32>,
-    children: Vec<Vec<u32>>,
-    expanded: Vec<bool>,
-    shown: Vec<u32>,
-    slot_in_shown: Vec<u32>,
+    pub(super) sets: Vec<Vec<u32>>,
+    pub(super) slot_in_set: Vec<u32>,
+    pub(super) children: Vec<Vec<u32>>,
+    pub(super) expanded: Vec<bool>,
+    pub(super) shown: Vec<u32>,
+    pub(super) slot_in_shown: Vec<u32>,
 }
 
 impl Replay {
@@ -369,7 +130,7 @@ impl Replay {
     }
 
     /// Level-L corners from the input triangles (L = 0) or the keyframe's faces.
-    fn fill_corners(&mut self, key: &Keyframe, triangles: Option<&[[u32; 3]]>) -> Result<(), DeltaError> {
+    pub(super) fn fill_corners(&mut self, key: &Keyframe, triangles: Option<&[[u32; 3]]>) -> Result<(), DeltaError> {
         let (min_level, triangle_count) = (self.min_level, self.corners.len());
         if min_level == 0 {
             let tris = triangles.ok_or_else(|| DeltaError::Keyframe("level 0 needs the input triangles".into()))?;
@@ -389,7 +150,7 @@ impl Replay {
         Ok(())
     }
 
-    fn empty(h: Hierarchy, min_level: usize, triangle_count: usize) -> Self {
+    pub(super) fn empty(h: Hierarchy, min_level: usize, triangle_count: usize) -> Self {
         let total = h.node_count();
         Replay {
             h,
@@ -411,7 +172,7 @@ impl Replay {
     /// Degeneration node of triangle t from its level-L corners and the parent maps: the node
     /// where two corners' ancestor chains first meet ([`NONE`] if they never do, [`BELOW`] if
     /// they meet at L already, i.e. t is not alive here).
-    fn degeneration_of(&self, t: usize) -> u32 {
+    pub(super) fn degeneration_of(&self, t: usize) -> u32 {
         let h = &self.h;
         let [mut x, mut y, mut z] = self.corners[t];
         if x == NONE || !distinct([x, y, z]) {
@@ -432,7 +193,7 @@ impl Replay {
 
     /// Derives degeneration nodes, D sets, incidence and children from corners and parent
     /// maps, with the coarsest cut.
-    fn rebuild(&mut self) {
+    pub(super) fn rebuild(&mut self) {
         let h = &self.h;
         let l = self.min_level;
         for t in 0..self.corners.len() {
@@ -508,7 +269,7 @@ impl Replay {
     }
 
     #[inline]
-    fn show(&mut self, t: u32) {
+    pub(super) fn show(&mut self, t: u32) {
         if self.slot_in_shown[t as usize] == NONE {
             self.slot_in_shown[t as usize] = self.shown.len() as u32;
             self.shown.push(t);
@@ -516,7 +277,7 @@ impl Replay {
     }
 
     #[inline]
-    fn hide(&mut self, t: u32) {
+    pub(super) fn hide(&mut self, t: u32) {
         let slot = self.slot_in_shown[t as usize];
         if slot != NONE {
             self.shown.swap_remove(slot as usize);
@@ -677,7 +438,7 @@ impl Replay {
     }
 
     #[inline]
-    fn mark(&mut self, t: u32) {
+    pub(super) fn mark(&mut self, t: u32) {
         if !self.marked[t as usize] {
             self.marked[t as usize] = true;
             self.affected.push(t);
@@ -685,7 +446,7 @@ impl Replay {
     }
 
     /// Moves triangle t into D_g (g may be [`NONE`] or [`BELOW`]) and shows or hides it.
-    fn set_degeneration(&mut self, t: u32, g: u32) {
+    pub(super) fn set_degeneration(&mut self, t: u32, g: u32) {
         let old = self.node_of[t as usize];
         if old == g {
             return;
@@ -708,168 +469,5 @@ impl Replay {
         }
         self.node_of[t as usize] = g;
         if g == NONE || (g != BELOW && self.expanded[g as usize]) { self.show(t) } else { self.hide(t) }
-    }
-}
-
-/// Cuts chosen from decoded data alone. The file carries no quadrics, so a decoder makes them
-/// from what it decodes (Garland & Heckbert's plane quadrics, as the encoder's clusters are
-/// built on; Kircher & Garland section 3): each triangle alive at the replay's finest level L
-/// gives its three level-L corners the quadric of its plane weighted by a third of its area, a
-/// node's quadric is the sum over its cluster, and its *own error* is the RMS distance
-/// `sqrt(Q(x) / area)` of its cluster's faces from its decoded position `x`. A node's split
-/// priority is the largest own error in its subtree, so priorities are monotone (a node's is
-/// at least each child's) and "every split above an error bound" is a prefix of the order.
-///
-/// Against the largest distance to any finer node (what versions up to 4 of the spec used), a
-/// flat cluster, however wide, no longer asks to be split first: on the horse, vertex-budget
-/// cuts at 843 vertices have 28% less RMS surface error (0.094% -> 0.068% of the diagonal,
-/// as good as the level of that size), 35% less at 3,000. Specified in proto/container.md
-/// ("Cuts"), operation by operation, so every decoder picks the same cut.
-impl Replay {
-    /// Split priorities of every node from node positions (global ids).
-    pub fn node_errors(&self, positions: &[Vec3]) -> Vec<f64> {
-        let mut err = Vec::new();
-        self.node_errors_into(positions, &mut err);
-        err
-    }
-
-    /// [`Self::node_errors`] into a buffer (resized to the node count).
-    pub fn node_errors_into(&self, positions: &[Vec3], err: &mut Vec<f64>) {
-        let h = &self.h;
-        let nodes = h.node_count();
-        err.clear();
-        err.resize(nodes, 0.0);
-        // Quadric coefficients per node: a00 a01 a02 a11 a12 a22 b0 b1 b2 c, then the area.
-        let mut q = vec![[0f64; 11]; nodes];
-        let (base, size) = (h.offsets[self.min_level] as usize, h.level_sizes[self.min_level] as usize);
-        let at = |v: u32| positions.get(base + v as usize).map(|p| [p.x as f64, p.y as f64, p.z as f64]);
-        for c in &self.corners {
-            if !distinct(*c) || c.iter().any(|&v| v as usize >= size) {
-                continue;
-            }
-            let (Some(p0), Some(p1), Some(p2)) = (at(c[0]), at(c[1]), at(c[2])) else { continue };
-            let e1 = [p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]];
-            let e2 = [p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]];
-            let n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
-            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-            if !(len > 0.0 && len.is_finite()) {
-                continue;
-            }
-            let u = [n[0] / len, n[1] / len, n[2] / len];
-            let d = -(u[0] * p0[0] + u[1] * p0[1] + u[2] * p0[2]);
-            let w = len / 6.0;
-            let plane = [
-                w * (u[0] * u[0]),
-                w * (u[0] * u[1]),
-                w * (u[0] * u[2]),
-                w * (u[1] * u[1]),
-                w * (u[1] * u[2]),
-                w * (u[2] * u[2]),
-                w * (d * u[0]),
-                w * (d * u[1]),
-                w * (d * u[2]),
-                w * (d * d),
-                w,
-            ];
-            for &v in c {
-                let acc = &mut q[base + v as usize];
-                for i in 0..11 {
-                    acc[i] += plane[i];
-                }
-            }
-        }
-        // Sums over clusters, finest level first; then each node's own error at its position.
-        for k in self.min_level..h.levels() - 1 {
-            for (v, &p) in h.parent[k].iter().enumerate() {
-                let (c, a) = ((h.offsets[k] + v as u32) as usize, (h.offsets[k + 1] + p) as usize);
-                if let (Some(&child), Some(_)) = (q.get(c), q.get(a)) {
-                    for i in 0..11 {
-                        q[a][i] += child[i];
-                    }
-                }
-            }
-        }
-        let first_above = h.offsets.get(self.min_level + 1).map_or(nodes, |&o| o as usize);
-        for ((out, m), x) in err.iter_mut().zip(&q).zip(positions).skip(first_above) {
-            let x = [x.x as f64, x.y as f64, x.z as f64];
-            let ax = m[0] * x[0] + m[1] * x[1] + m[2] * x[2];
-            let ay = m[1] * x[0] + m[3] * x[1] + m[4] * x[2];
-            let az = m[2] * x[0] + m[4] * x[1] + m[5] * x[2];
-            let e = x[0] * ax + x[1] * ay + x[2] * az + 2.0 * (m[6] * x[0] + m[7] * x[1] + m[8] * x[2]) + m[9];
-            *out = if m[10] > 0.0 && e > 0.0 { (e / m[10]).sqrt() } else { 0.0 };
-        }
-        // The largest own error in each subtree, finest level first.
-        for k in self.min_level..h.levels() - 1 {
-            for (v, &p) in h.parent[k].iter().enumerate() {
-                let (c, a) = ((h.offsets[k] + v as u32) as usize, (h.offsets[k + 1] + p) as usize);
-                if let (Some(&e), Some(_)) = (err.get(c), err.get(a))
-                    && e > err[a]
-                {
-                    err[a] = e;
-                }
-            }
-        }
-    }
-
-    /// Collapses the whole cut, in time proportional to it: the cut is closed upward, so every
-    /// expanded node lies under an expanded top-level node.
-    fn collapse_all(&mut self) {
-        let top = self.h.top();
-        for g in self.h.offsets[top]..self.h.offsets[top + 1] {
-            if self.expanded[g as usize] {
-                self.collapse(g);
-            }
-        }
-        debug_assert!(!self.expanded.iter().any(|&e| e), "the cut was not closed upward");
-    }
-
-    /// The cut node standing for level-L node `v` (local id): its highest ancestor (itself
-    /// included) whose parent is expanded, or its top-level ancestor. Walks up the local
-    /// parent maps, so its cost is the node's depth below the cut.
-    #[inline]
-    pub fn cut_node_of(&self, v: u32) -> u32 {
-        let h = &self.h;
-        let (mut k, mut v) = (self.min_level, v);
-        while k < h.top() {
-            let p = h.parent[k][v as usize];
-            if self.expanded[(h.offsets[k + 1] + p) as usize] {
-                break;
-            }
-            (k, v) = (k + 1, p);
-        }
-        h.offsets[k] + v
-    }
-
-    /// Every node above `level` expanded (clamped to what this replay tracks). Budgets and
-    /// error bounds are prefixes of the frame's [`crate::split_order::SplitOrder`].
-    pub fn select_level(&mut self, level: usize) {
-        self.collapse_all();
-        let level = level.max(self.min_level).min(self.h.top());
-        for g in self.h.offsets[level + 1]..self.h.offsets[self.h.levels()] {
-            self.expand(g);
-        }
-    }
-
-    /// The mesh the current cut shows, with node positions (global ids): its vertices are the
-    /// cut nodes used by shown triangles, in first-use order.
-    pub fn mesh(&self, positions: &[Vec3]) -> (pmcodec_mesh::TriMesh, Vec<u32>) {
-        let rep = self.cut_nodes();
-        let base = self.h.offsets[self.min_level];
-        let mut index_of = std::collections::HashMap::new();
-        let mut nodes = Vec::new();
-        let mut mesh = pmcodec_mesh::TriMesh::default();
-        for &t in &self.shown {
-            let c = self.corners[t as usize];
-            let tri = c.map(|x| {
-                let g = rep.get((base + x) as usize).copied().unwrap_or(NONE);
-                *index_of.entry(g).or_insert_with(|| {
-                    nodes.push(g);
-                    mesh.positions.push(positions.get(g as usize).copied().unwrap_or(Vec3::ZERO));
-                    nodes.len() as u32 - 1
-                })
-            });
-            mesh.triangles.push(tri);
-        }
-        (mesh, nodes)
     }
 }
