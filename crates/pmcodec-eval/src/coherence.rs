@@ -1,6 +1,7 @@
 //! Temporal coherence: the identity of every shown triangle from frame to frame, and the share
 //! of each frame's triangles that the previous frame did not show.
 
+use crate::SplitMix64;
 use pmcodec_hierarchy::cut::{self, Cut};
 use pmcodec_hierarchy::{DegenerateSets, Hierarchy, NONE, NodeState};
 use pmcodec_mesh::TriMesh;
@@ -13,11 +14,10 @@ pub struct Approximation {
     pub keys: Vec<[u64; 3]>,
 }
 
+/// A 64-bit fingerprint of input vertex `v` (splitmix64's mix, so XORs of them over a cluster
+/// practically never collide).
 fn vertex_hash(v: u32) -> u64 {
-    let mut z = (v as u64).wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
+    SplitMix64::new(v as u64).next_u64()
 }
 
 /// How triangles are identified from frame to frame for coherence.

@@ -15,6 +15,7 @@ mod approx;
 mod bvh;
 mod coherence;
 mod rebalance;
+mod rng;
 mod sample;
 pub mod triangle;
 
@@ -25,6 +26,7 @@ use glam::Vec3;
 use pmcodec_mesh::TriMesh;
 use rayon::prelude::*;
 pub use rebalance::{rebalance, repair};
+pub use rng::SplitMix64;
 use serde::Serialize;
 
 /// How many points to sample on each mesh, and from which seed. The same meshes, options and
@@ -168,7 +170,7 @@ fn one_sided_stats(from: &TriMesh, to: &SurfaceIndex, seed: u64, opts: &SampleOp
 /// The seed of the second direction of a symmetric measure: a different stream from the
 /// first, so two identical meshes are not sampled at identical points.
 fn second_seed(seed: u64) -> u64 {
-    sample::SplitMix64::new(seed ^ 0x0005_ECD0_5EED).next_u64()
+    SplitMix64::new(seed ^ 0x0005_ECD0_5EED).next_u64()
 }
 
 /// One-sided distance from the surface of `from` to the surface `to` was indexed from.
