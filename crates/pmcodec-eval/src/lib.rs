@@ -7,6 +7,12 @@
 //!
 //! For many approximations of one original frame, build the original's [`SurfaceIndex`] once
 //! and use [`one_sided_indexed`] / [`symmetric_indexed`].
+//!
+//! What is measured also lives here: [`approximate`] makes every frame's approximation by this
+//! project's reclustering and by the two baselines of Kircher & Garland figure 11 (first-frame
+//! static, each frame simplified on its own), [`changed_share`] measures their temporal
+//! coherence, and [`rebalance`] carries a cut from frame to frame as a player does. All
+//! sampling draws from [`SplitMix64`].
 
 // `!(x > 0.0)` is written on purpose: it is also true for NaN, which these checks must reject.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
