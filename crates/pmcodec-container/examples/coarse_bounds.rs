@@ -40,11 +40,9 @@ fn main() {
         enc.encode_frame(frame);
         let h = enc.hierarchy();
         let total = h.node_count();
-        let x: Vec<glam::DVec3> =
-            (0..total).map(|g| if g < n0 { frame[g].as_dvec3() } else { enc.recluster.nodes.positions[g].as_dvec3() } / step).collect();
-        let c: Vec<glam::DVec3> = (0..total)
-            .map(|g| if g < n0 { frame[g].as_dvec3() / step } else { enc.recluster.nodes.quadrics[g].centroid() / step })
-            .collect();
+        let x: Vec<glam::DVec3> = (0..total).map(|g| enc.node_positions()[g].as_dvec3() / step).collect();
+        let c: Vec<glam::DVec3> =
+            (0..total).map(|g| if g < n0 { frame[g].as_dvec3() / step } else { enc.nodes().quadrics[g].centroid() / step }).collect();
         let fine: Vec<glam::DVec3> = frame.iter().map(|p| p.as_dvec3() / step).collect();
         if f > 0 {
             bits.resize(h.levels(), vec![0.0; names.len()]);

@@ -70,7 +70,7 @@ fn main() {
         enc.encode_frame(frame);
         let h = enc.hierarchy();
         let total = h.node_count();
-        let truth: Vec<[f64; 3]> = (0..total).map(|g| tq(if g < n0 { frame[g] } else { enc.recluster.nodes.positions[g] })).collect();
+        let truth: Vec<[f64; 3]> = (0..total).map(|g| tq(enc.node_positions()[g])).collect();
         let mut cur = vec![[0i32; 3]; total];
         if coarse.is_empty() {
             coarse = (0..h.levels()).map(|_| Hist::default()).collect();

@@ -221,9 +221,9 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
         }
         let (delta, _) = enc.encode_frame(frame);
         let h = enc.hierarchy();
-        let positions = &enc.recluster.nodes.positions;
+        let positions = enc.node_positions();
         let truth = |g: usize| {
-            let p = if g < frame.len() { frame[g] } else { positions[g] } - lo;
+            let p = positions[g] - lo;
             [p.x as f64 * inv, p.y as f64 * inv, p.z as f64 * inv]
         };
         let intra = header.is_keyframe(f as u32);

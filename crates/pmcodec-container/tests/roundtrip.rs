@@ -54,7 +54,7 @@ fn round_trip(seq: &Sequence, opts: &EncodeOptions) -> Vec<u8> {
             let (k, _) = enc.hierarchy().local(g as u32);
             let s = pmcodec_container::coarse_shift(h, k, opts.coarse_grid);
             let b = if s == 0 { bound } else { h.quantization.step * (1u32 << s) as f32 * 0.5 * 3f32.sqrt() * 1.0001 };
-            assert!((*p - enc.recluster.nodes.positions[g]).length() <= b, "frame {f} node {g}");
+            assert!((*p - enc.node_positions()[g]).length() <= b, "frame {f} node {g}");
         }
     }
     // Level 0 is the input, in input order.

@@ -7,18 +7,32 @@
 //!
 //! For many approximations of one original frame, build the original's [`SurfaceIndex`] once
 //! and use [`one_sided_indexed`] / [`symmetric_indexed`].
+//!
+//! What is measured also lives here: [`approximate`] makes every frame's approximation by this
+//! project's reclustering and by the two baselines of Kircher & Garland figure 11 (first-frame
+//! static, each frame simplified on its own), [`changed_share`] measures their temporal
+//! coherence, and [`rebalance`] carries a cut from frame to frame as a player does. All
+//! sampling draws from [`SplitMix64`].
 
 // `!(x > 0.0)` is written on purpose: it is also true for NaN, which these checks must reject.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+mod approx;
 mod bvh;
+mod coherence;
+mod rebalance;
+mod rng;
 mod sample;
 pub mod triangle;
 
+pub use approx::{ApproxOptions, ApproxTarget, Method, approximate};
 pub use bvh::SurfaceIndex;
+pub use coherence::{Approximation, changed_share};
 use glam::Vec3;
 use pmcodec_mesh::TriMesh;
 use rayon::prelude::*;
+pub use rebalance::{rebalance, repair};
+pub use rng::SplitMix64;
 use serde::Serialize;
 
 /// How many points to sample on each mesh, and from which seed. The same meshes, options and
@@ -162,7 +176,7 @@ fn one_sided_stats(from: &TriMesh, to: &SurfaceIndex, seed: u64, opts: &SampleOp
 /// The seed of the second direction of a symmetric measure: a different stream from the
 /// first, so two identical meshes are not sampled at identical points.
 fn second_seed(seed: u64) -> u64 {
-    sample::SplitMix64::new(seed ^ 0x0005_ECD0_5EED).next_u64()
+    SplitMix64::new(seed ^ 0x0005_ECD0_5EED).next_u64()
 }
 
 /// One-sided distance from the surface of `from` to the surface `to` was indexed from.

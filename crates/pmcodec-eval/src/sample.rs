@@ -1,32 +1,8 @@
 //! Deterministic area-uniform sampling of a triangle mesh's surface.
 
+use crate::rng::SplitMix64;
 use glam::{DVec3, Vec3};
 use pmcodec_mesh::TriMesh;
-
-/// splitmix64: one add and two multiply-xorshift rounds per output. Statistically far better
-/// than this use needs, tiny, and fully reproducible from the seed on every platform, which is
-/// what matters here: the same meshes and seed must give the same reported figures.
-#[derive(Clone, Debug)]
-pub(crate) struct SplitMix64(u64);
-
-impl SplitMix64 {
-    pub(crate) fn new(seed: u64) -> Self {
-        SplitMix64(seed)
-    }
-
-    pub(crate) fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1) with the full 53 bits of an `f64` mantissa.
-    pub(crate) fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-    }
-}
 
 /// `count` points uniformly distributed by area over the mesh's triangles, followed by every
 /// vertex that a triangle uses (in index order; unused vertices are not on the surface).
@@ -88,17 +64,6 @@ pub(crate) fn sample_surface(mesh: &TriMesh, count: usize, seed: u64) -> Vec<Vec
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn unit_is_in_range_and_deterministic() {
-        let mut a = SplitMix64::new(7);
-        let mut b = SplitMix64::new(7);
-        for _ in 0..10_000 {
-            let x = a.unit();
-            assert!((0.0..1.0).contains(&x));
-            assert_eq!(x.to_bits(), b.unit().to_bits());
-        }
-    }
 
     #[test]
     fn samples_follow_area() {

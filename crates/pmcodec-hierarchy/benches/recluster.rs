@@ -63,7 +63,7 @@ fn replay_inputs() -> &'static Vec<(Replay, FrameDelta)> {
                 replay.apply(&delta).expect("delta");
                 let h = enc.hierarchy();
                 let d = DegenerateSets::from_nodes(h.node_count(), enc.degeneration().to_vec());
-                let c = cut::select(h, &d, &ChildIndex::new(h), &enc.recluster.nodes, CutTarget::Triangles(2000));
+                let c = cut::select(h, &d, &ChildIndex::new(h), enc.nodes(), CutTarget::Triangles(2000));
                 replay.set_cut(&c.expanded);
                 continue;
             }

@@ -1,14 +1,14 @@
 //! Development probe: per-frame swaps, time and level QEM error of reclustering vs static.
 //! `cargo run --release -p pmcodec-hierarchy --example probe -- ../shared/data/horse-gallop 800`
 use pmcodec_hierarchy::FineTopology;
-use pmcodec_hierarchy::approx::anchored_build;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
+use pmcodec_hierarchy::build::anchored_build;
 use pmcodec_hierarchy::recluster::{ReclusterOptions, Reclusterer};
 use std::time::Instant;
 
 fn level_error(rc: &Reclusterer, level: usize) -> f64 {
-    let h = &rc.h;
-    (h.offsets[level]..h.offsets[level + 1]).map(|g| rc.nodes.error(g)).sum()
+    let h = rc.hierarchy();
+    (h.offsets[level]..h.offsets[level + 1]).map(|g| rc.nodes().error(g)).sum()
 }
 
 fn main() {

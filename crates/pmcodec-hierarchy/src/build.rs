@@ -252,6 +252,20 @@ pub fn build(topo: &FineTopology, quadrics: &[Quadric], opts: &BuildOptions) -> 
     Ok(Hierarchy::from_parents(opts.branching, n, parents))
 }
 
+/// Builds the hierarchy with one level at exactly `vertices` nodes; returns it and that level.
+pub fn anchored_build(
+    topo: &FineTopology,
+    quadrics: &[crate::Quadric],
+    vertices: u32,
+    branching: u32,
+) -> Result<(Hierarchy, usize), BuildError> {
+    let b = if branching == 0 { 4 } else { branching };
+    let sizes = anchored_sizes(topo.vertex_count, vertices, b, 8);
+    let h = build(topo, quadrics, &BuildOptions { branching: b, level_sizes: Some(sizes.clone()), ..Default::default() })?;
+    let level = h.level_sizes.iter().position(|&s| s == vertices).unwrap_or(0);
+    Ok((h, level))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -77,17 +77,6 @@ impl Hierarchy {
         if k + 1 < self.levels() { self.offsets[k + 1] + self.parent[k][v as usize] } else { NONE }
     }
 
-    /// For every fine vertex, its level-`k` ancestor (index within level k).
-    pub fn ancestors_at(&self, k: usize) -> Vec<u32> {
-        let mut anc: Vec<u32> = (0..self.level_sizes[0]).collect();
-        for p in &self.parent[..k] {
-            for a in &mut anc {
-                *a = p[*a as usize];
-            }
-        }
-        anc
-    }
-
     /// For every level, the ancestor of every fine vertex: `out[k][v]`.
     pub fn all_ancestors(&self) -> Vec<Vec<u32>> {
         let mut out = Vec::with_capacity(self.levels());

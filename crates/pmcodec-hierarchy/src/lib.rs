@@ -8,7 +8,6 @@
 // `!(x > 0.0)` is written on purpose: it is also true for NaN, which these checks must reject.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-pub mod approx;
 pub mod base;
 pub mod build;
 pub mod cut;

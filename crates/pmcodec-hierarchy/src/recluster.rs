@@ -77,9 +77,9 @@ pub struct FrameStats {
 
 /// The reclustering state: the current hierarchy and its node quadrics and positions.
 pub struct Reclusterer {
-    pub h: Hierarchy,
-    pub nodes: NodeState,
-    pub opts: ReclusterOptions,
+    h: Hierarchy,
+    nodes: NodeState,
+    opts: ReclusterOptions,
     topo: FineTopology,
     triangles: Vec<[u32; 3]>,
     /// (|M_{j+1}| / |M_j|)^beta for each level j: the factor between consecutive weights.
@@ -121,6 +121,21 @@ impl Reclusterer {
             stack: Vec::new(),
             seen: Vec::new(),
         }
+    }
+
+    /// The current hierarchy.
+    pub fn hierarchy(&self) -> &Hierarchy {
+        &self.h
+    }
+
+    /// Every node's quadric and position for the frame last fitted (level 0 is that frame's
+    /// input).
+    pub fn nodes(&self) -> &NodeState {
+        &self.nodes
+    }
+
+    pub fn options(&self) -> &ReclusterOptions {
+        &self.opts
     }
 
     pub fn topology(&self) -> &FineTopology {

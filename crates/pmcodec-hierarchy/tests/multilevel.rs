@@ -125,8 +125,8 @@ fn anchor_of_zero_vertices_is_refused() {
     let seq = grid(12, 10, 1);
     let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
     let q = base_quadrics(&seq, &topo, &BaseOptions::default());
-    let e = pmcodec_hierarchy::approx::anchored_build(&topo, &q, 0, 4).unwrap_err();
+    let e = pmcodec_hierarchy::build::anchored_build(&topo, &q, 0, 4).unwrap_err();
     assert!(e.to_string().contains("above 0"), "{e}");
-    let (h, level) = pmcodec_hierarchy::approx::anchored_build(&topo, &q, 30, 4).expect("anchor 30");
+    let (h, level) = pmcodec_hierarchy::build::anchored_build(&topo, &q, 30, 4).expect("anchor 30");
     assert_eq!(h.level_sizes[level], 30);
 }

@@ -180,8 +180,8 @@ fn reclustering_lowers_level_error() {
         enc.encode_frame(frame);
         stat.fit(frame);
         let h = enc.hierarchy();
-        sum_rc += (h.offsets[level]..h.offsets[level + 1]).map(|g| enc.recluster.nodes.error(g)).sum::<f64>();
-        sum_static += (h.offsets[level]..h.offsets[level + 1]).map(|g| stat.nodes.error(g)).sum::<f64>();
+        sum_rc += (h.offsets[level]..h.offsets[level + 1]).map(|g| enc.nodes().error(g)).sum::<f64>();
+        sum_static += (h.offsets[level]..h.offsets[level + 1]).map(|g| stat.nodes().error(g)).sum::<f64>();
     }
     assert!(sum_rc < 0.8 * sum_static, "reclustered {sum_rc:e} vs static {sum_static:e}");
 }
@@ -201,7 +201,7 @@ fn corrupt_deltas_are_rejected() {
     let seq = grid(10, 10, 1);
     let (_, base) = encoder_for(&seq, ReclusterOptions::default());
     let mut r = Replay::new(base.clone(), &seq.triangles);
-    let bad = |swaps: Vec<Swap>, _: Vec<(u32, u32)>| FrameDelta { swaps, degenerate: vec![], corners: vec![] };
+    let bad = |swaps: Vec<Swap>, _: Vec<(u32, u32)>| FrameDelta { swaps, corners: vec![] };
     let e = r.apply(&bad(vec![Swap { level: 99, v: 0, from: 0, to: 0 }], vec![])).unwrap_err();
     assert!(matches!(e, DeltaError::SwapOutOfRange { .. }));
     let actual = base.parent[0][0];
@@ -213,8 +213,7 @@ fn corrupt_deltas_are_rejected() {
     let key = enc.keyframe();
     let h = enc.hierarchy().clone();
     let mut r1 = Replay::from_keyframe(&h.level_sizes, h.branching, &key, 1, seq.triangles.len(), None).expect("keyframe");
-    let corner =
-        |t: u32, corners: [u32; 3]| FrameDelta { swaps: vec![], degenerate: vec![], corners: vec![CornerUpdate { level: 1, t, corners }] };
+    let corner = |t: u32, corners: [u32; 3]| FrameDelta { swaps: vec![], corners: vec![CornerUpdate { level: 1, t, corners }] };
     let e = r1.apply(&corner(u32::MAX - 1, [0, 1, 2])).unwrap_err();
     assert!(matches!(e, DeltaError::CornerOutOfRange { .. }), "{e}");
     let e = r1.apply(&corner(0, [0, 1, h.level_sizes[1]])).unwrap_err();
@@ -243,7 +242,7 @@ fn level_limited_replay_matches(seq: &pmcodec_mesh::Sequence, key_frame: usize, 
             }
             None => continue,
             Some(r) => {
-                let part = delta.from_level(&h, min_level);
+                let part = delta.from_level(min_level);
                 r.apply(&part).unwrap_or_else(|e| panic!("frame {f}: {e}"));
             }
         }

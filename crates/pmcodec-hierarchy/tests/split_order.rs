@@ -34,7 +34,6 @@ fn check_sequence(seq: &pmcodec_mesh::Sequence, every: usize, budgets: &[u32]) {
     let h = build(&topo, &q, &BuildOptions::default()).expect("build");
     let mut enc = Encoder::new(h.clone(), topo, seq.triangles.clone(), Default::default());
     let mut replay = Replay::new(h, &seq.triangles);
-    let n0 = seq.vertex_count();
     // One order reset frame after frame (as a player's decoder keeps it) must equal fresh ones.
     let mut reused = SplitOrder::default();
     for (f, frame) in seq.frames.iter().enumerate() {
@@ -43,8 +42,7 @@ fn check_sequence(seq: &pmcodec_mesh::Sequence, every: usize, budgets: &[u32]) {
         if f % every != 0 {
             continue;
         }
-        let positions: Vec<Vec3> =
-            (0..replay.h.node_count()).map(|g| if g < n0 { frame[g] } else { enc.recluster.nodes.positions[g] }).collect();
+        let positions: Vec<Vec3> = enc.node_positions().to_vec();
         let errors = replay.node_errors(&positions);
         let mut order = SplitOrder::new(&replay, &errors);
         for &n in budgets {

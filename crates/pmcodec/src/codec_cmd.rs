@@ -9,6 +9,7 @@ use pmcodec_container::{
     summary, verify, write_file,
 };
 use pmcodec_hierarchy::base::{PoseSet, VertexWeights};
+use pmcodec_hierarchy::recluster::ReclusterOptions;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -78,18 +79,60 @@ pub struct EncodeArgs {
     /// Per-vertex weights from morph-target or per-frame displacement (Berner & Rieger).
     #[arg(long, value_enum, default_value_t = WeightsArg::None)]
     pub base_weights: WeightsArg,
-    /// Hierarchical QEM growth exponent (equation 2).
+    #[command(flatten)]
+    pub recluster: ReclusterArgs,
+}
+
+/// The reclustering flags `encode` and `eval` share; a flag left out keeps the library's
+/// default ([`ReclusterOptions::default`]).
+#[derive(Args, Debug, Default)]
+pub struct ReclusterArgs {
+    /// Hierarchical QEM growth exponent (Kircher & Garland equation 2; the paper used 1.9127)
+    /// [default: 4].
     #[arg(long, allow_hyphen_values = true)]
     pub beta: Option<f64>,
-    /// Smallest swap benefit relative to the moving node's error (hysteresis).
+    /// Smallest swap benefit relative to the moving node's error (hysteresis) [default: 1].
     #[arg(long, allow_hyphen_values = true)]
     pub min_benefit: Option<f64>,
-    /// At most this many swaps per frame.
+    /// At most this many swaps per frame [default: no limit].
     #[arg(long)]
     pub max_swaps: Option<u32>,
+    /// Independent-set passes per level per frame [default: 16].
+    #[arg(long)]
+    pub max_passes: Option<u32>,
+    /// Rank swaps by equation 1's conservative estimate instead of the exact error change.
+    #[arg(long)]
+    pub estimated_benefit: bool,
     /// Keep approximations homeomorphic (section 4.2's optional rule).
     #[arg(long)]
     pub homeomorphism: bool,
+}
+
+impl ReclusterArgs {
+    /// The library's options with these flags applied; a value out of range is bad input.
+    pub fn options(&self) -> Result<ReclusterOptions, Exit> {
+        for (flag, v) in [("--beta", self.beta), ("--min-benefit", self.min_benefit)] {
+            if let Some(v) = v.filter(|v| !(v.is_finite() && *v >= 0.0)) {
+                return Err(Exit(EXIT_BAD_INPUT, anyhow!("{flag} {v}: use a finite number >= 0")));
+            }
+        }
+        let mut opts = ReclusterOptions::default();
+        if let Some(b) = self.beta {
+            opts.beta = b;
+        }
+        if let Some(m) = self.min_benefit {
+            opts.min_relative_benefit = m;
+        }
+        if let Some(m) = self.max_swaps {
+            opts.max_swaps_per_frame = m;
+        }
+        if let Some(m) = self.max_passes {
+            opts.max_passes = m;
+        }
+        opts.exact_benefit = !self.estimated_benefit;
+        opts.homeomorphism = self.homeomorphism;
+        Ok(opts)
+    }
 }
 
 /// Anchors as percentages: a value that is not a number is a usage error (2), one out of range
@@ -162,21 +205,7 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
         WeightsArg::Tertiles => VertexWeights::Tertiles,
         WeightsArg::Smooth => VertexWeights::Smooth,
     };
-    if let Some(b) = args.beta {
-        opts.recluster.beta = b;
-    }
-    if let Some(m) = args.min_benefit {
-        opts.recluster.min_relative_benefit = m;
-    }
-    if let Some(m) = args.max_swaps {
-        opts.recluster.max_swaps_per_frame = m;
-    }
-    opts.recluster.homeomorphism = args.homeomorphism;
-    for (flag, v) in [("--beta", args.beta), ("--min-benefit", args.min_benefit)] {
-        if let Some(v) = v.filter(|v| !(v.is_finite() && *v >= 0.0)) {
-            return Err(Exit(EXIT_BAD_INPUT, anyhow!("{flag} {v}: use a finite number >= 0")));
-        }
-    }
+    opts.recluster = args.recluster.options()?;
     opts.quantization = match (args.max_error, args.quant_bits) {
         (_, Some(b)) => QuantizationChoice::Bits(b),
         (Some(e), None) => QuantizationChoice::MaxError(e),

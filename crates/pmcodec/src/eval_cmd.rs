@@ -2,11 +2,12 @@
 //! box diagonal) between approximations and the original frames, for this method and the two
 //! baselines of Kircher & Garland figure 11, plus temporal coherence at a triangle budget.
 
+use crate::codec_cmd::ReclusterArgs;
 use crate::input::{self, InputArgs};
 use crate::{EXIT_BAD_INPUT, Exit, progress};
 use anyhow::Context;
 use clap::{Args, ValueEnum};
-use pmcodec_hierarchy::approx::{self, ApproxOptions, ApproxTarget, Approximation, Method};
+use pmcodec_eval::{self as approx, ApproxOptions, ApproxTarget, Approximation, Method};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::path::PathBuf;
@@ -53,21 +54,8 @@ pub struct EvalArgs {
     /// Branching factor of the hierarchies.
     #[arg(long, default_value_t = 4)]
     pub branching: u32,
-    /// Hierarchical QEM growth exponent (Kircher & Garland equation 2; the paper used 1.9127).
-    #[arg(long, default_value_t = 4.0, allow_hyphen_values = true)]
-    pub beta: f64,
-    /// Smallest swap benefit, relative to the moving node's error (hysteresis).
-    #[arg(long, allow_hyphen_values = true)]
-    pub min_benefit: Option<f64>,
-    /// Independent-set passes per level per frame.
-    #[arg(long)]
-    pub max_passes: Option<u32>,
-    /// Rank swaps by equation 1's conservative estimate instead of the exact error change.
-    #[arg(long)]
-    pub estimated_benefit: bool,
-    /// Apply the homeomorphism rule of section 4.2 to swaps.
-    #[arg(long)]
-    pub homeomorphism: bool,
+    #[command(flatten)]
+    pub recluster: ReclusterArgs,
     /// Only the first N frames.
     #[arg(long)]
     pub frames: Option<usize>,
@@ -114,16 +102,7 @@ pub fn run(args: EvalArgs, quiet: bool) -> Result<(), Exit> {
     }
     let frames = seq.frame_count();
     check_args(&args, seq.vertex_count())?;
-    let mut opts = ApproxOptions { branching: args.branching, ..Default::default() };
-    opts.recluster.beta = args.beta;
-    opts.recluster.homeomorphism = args.homeomorphism;
-    opts.recluster.exact_benefit = !args.estimated_benefit;
-    if let Some(x) = args.min_benefit {
-        opts.recluster.min_relative_benefit = x;
-    }
-    if let Some(x) = args.max_passes {
-        opts.recluster.max_passes = x;
-    }
+    let opts = ApproxOptions { branching: args.branching, recluster: args.recluster.options()?, ..Default::default() };
     let sample = pmcodec_eval::SampleOptions { samples: args.samples, ..Default::default() };
     let originals: Vec<_> = (0..frames).filter_map(|f| seq.frame_mesh(f)).collect();
     let mut reports: Vec<MethodReport> = Vec::new();
@@ -188,11 +167,6 @@ fn check_args(args: &EvalArgs, input_vertices: usize) -> Result<(), Exit> {
     }
     if !(2..=16).contains(&args.branching) {
         return bad(format!("--branching {}: use 2..=16", args.branching));
-    }
-    for (flag, v) in [("--beta", Some(args.beta)), ("--min-benefit", args.min_benefit)] {
-        if let Some(v) = v.filter(|v| !(v.is_finite() && *v >= 0.0)) {
-            return bad(format!("{flag} {v}: use a finite number >= 0"));
-        }
     }
     Ok(())
 }

@@ -361,3 +361,46 @@ fn play_exit_codes_follow_the_server_answers() {
     fails(bin().args(["play", "--asset", "cloth"]).arg(format!("http://127.0.0.1:{port}")), 1);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `encode` and `eval` take the same reclustering flags (one flattened set): what `encode` was
+/// given is what the file says it was encoded with, a flag left out keeps the library's default,
+/// and both commands refuse the same out-of-range value the same way.
+#[test]
+fn encode_and_eval_share_the_reclustering_flags() {
+    let dir = temp("recluster");
+    let frames_dir = dir.join("in");
+    std::fs::create_dir_all(&frames_dir).unwrap();
+    write_sequence(&frames_dir, 3);
+    let pmc = dir.join("seq.pmc");
+    ok(bin()
+        .args(["encode", "-q", "--max-passes", "3", "--max-swaps", "5", "--estimated-benefit", "--beta", "2.5"])
+        .arg(&frames_dir)
+        .arg("-o")
+        .arg(&pmc));
+    let table = ok(bin().arg("info").arg(&pmc));
+    for says in ["max passes      3", "exact benefit   no", "beta            2.5", "min benefit     1"] {
+        assert!(table.contains(says), "{says}: {table}");
+    }
+    let defaults = dir.join("defaults.pmc");
+    ok(bin().args(["encode", "-q"]).arg(&frames_dir).arg("-o").arg(&defaults));
+    let table = ok(bin().arg("info").arg(&defaults));
+    for says in ["max passes      16", "exact benefit   yes", "beta            4"] {
+        assert!(table.contains(says), "{says}: {table}");
+    }
+    ok(bin()
+        .args(["eval", "-q", "--methods", "pmcodec", "--vertices", "40", "--samples", "200", "--max-swaps", "5", "--max-passes", "2"])
+        .arg(&frames_dir));
+    for cmd in ["encode", "eval"] {
+        let mut c = bin();
+        c.args([cmd, "-q", "--max-passes", "2", "--min-benefit", "-1"]).arg(&frames_dir);
+        if cmd == "encode" {
+            c.arg("-o").arg(dir.join("bad.pmc"));
+        } else {
+            c.args(["--vertices", "40"]);
+        }
+        let err = fails(&mut c, 3);
+        assert!(err.contains("--min-benefit -1: use a finite number >= 0"), "{cmd}: {err}");
+    }
+    assert!(!dir.join("bad.pmc").exists());
+    std::fs::remove_dir_all(&dir).ok();
+}

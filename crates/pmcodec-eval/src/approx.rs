@@ -8,15 +8,15 @@
 //! All three take the hierarchy level that has exactly the requested vertex count, so they
 //! differ only in how the clusters were chosen.
 
-use crate::base::{BaseOptions, base_quadrics};
-use crate::build::{BuildError, BuildOptions, anchored_sizes, build};
-use crate::cut::{self, CutTarget};
-use crate::degenerate::DegenerateSets;
-use crate::quadric::vertex_quadrics;
-use crate::recluster::{ReclusterOptions, Reclusterer};
-use crate::topology::FineTopology;
-use crate::{Hierarchy, NodeState};
-use pmcodec_mesh::{Sequence, TriMesh};
+use crate::coherence::{Approximation, Identity, approximation};
+use crate::rebalance::{rebalance, repair};
+use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
+use pmcodec_hierarchy::build::{BuildError, BuildOptions, anchored_build, build};
+use pmcodec_hierarchy::cut::{self, CutTarget};
+use pmcodec_hierarchy::quadric::vertex_quadrics;
+use pmcodec_hierarchy::recluster::{ReclusterOptions, Reclusterer};
+use pmcodec_hierarchy::{DegenerateSets, FineTopology, Hierarchy, NodeState, Quadric};
+use pmcodec_mesh::Sequence;
 
 /// The approximation methods.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -44,85 +44,15 @@ pub struct ApproxOptions {
     pub recluster: ReclusterOptions,
 }
 
-/// Builds the hierarchy with one level at exactly `vertices` nodes; returns it and that level.
-pub fn anchored_build(
-    topo: &FineTopology,
-    quadrics: &[crate::Quadric],
-    vertices: u32,
-    branching: u32,
-) -> Result<(Hierarchy, usize), BuildError> {
-    let b = if branching == 0 { 4 } else { branching };
-    let sizes = anchored_sizes(topo.vertex_count, vertices, b, 8);
-    let h = build(topo, quadrics, &BuildOptions { branching: b, level_sizes: Some(sizes.clone()), ..Default::default() })?;
-    let level = h.level_sizes.iter().position(|&s| s == vertices).unwrap_or(0);
-    Ok((h, level))
-}
-
 /// What each frame's approximation is held to.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ApproxTarget {
     /// Exactly this many vertices: the hierarchy gets a level of that size (see
-    /// [`anchored_sizes`]) and every method shows that level.
+    /// [`pmcodec_hierarchy::build::anchored_sizes`]) and every method shows that level.
     Vertices(u32),
     /// At most this many triangles: a greedy budget cut (by this frame's node errors) on the
     /// default hierarchy. First-frame static keeps frame 0's cut.
     Triangles(u32),
-}
-
-/// One frame's approximation, and the identity of each of its triangles for coherence: the
-/// three corner clusters' fingerprints (an order-free hash of their input vertices), sorted.
-#[derive(Clone, Debug, Default)]
-pub struct Approximation {
-    pub mesh: TriMesh,
-    pub keys: Vec<[u64; 3]>,
-}
-
-fn vertex_hash(v: u32) -> u64 {
-    let mut z = (v as u64).wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// How triangles are identified from frame to frame for coherence.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Identity {
-    /// By the ids of their corner nodes: nodes of one evolving hierarchy persist across frames
-    /// (a client keeps their vertex slots and only moves them).
-    NodeIds,
-    /// By the exact input-vertex sets of their corner clusters: for hierarchies rebuilt per
-    /// frame, which share no node identity.
-    Clusters,
-}
-
-fn approximation(h: &Hierarchy, triangles: &[[u32; 3]], nodes: &NodeState, c: &cut::Cut, identity: Identity) -> Approximation {
-    let d = DegenerateSets::new(h, triangles);
-    let (mesh, _) = cut::extract(h, &d, triangles, c, &nodes.positions);
-    let rep = cut::cut_nodes(h, c);
-    let mut sig = vec![0u64; h.node_count()];
-    match identity {
-        Identity::Clusters => {
-            for v in 0..h.level_sizes[0] {
-                sig[rep[v as usize] as usize] ^= vertex_hash(v);
-            }
-        }
-        Identity::NodeIds => {
-            for (g, s) in sig.iter_mut().enumerate() {
-                *s = vertex_hash(g as u32);
-            }
-        }
-    }
-    let keys = triangles
-        .iter()
-        .zip(&d.node_of)
-        .filter(|&(_, &g)| g == crate::NONE || c.expanded[g as usize])
-        .map(|(t, _)| {
-            let mut k = t.map(|v| sig[rep[v as usize] as usize]);
-            k.sort_unstable();
-            k
-        })
-        .collect();
-    Approximation { mesh, keys }
 }
 
 fn select(h: &Hierarchy, triangles: &[[u32; 3]], nodes: &NodeState, target: CutTarget) -> cut::Cut {
@@ -130,12 +60,7 @@ fn select(h: &Hierarchy, triangles: &[[u32; 3]], nodes: &NodeState, target: CutT
     cut::select(h, &d, &cut::ChildIndex::new(h), nodes, target)
 }
 
-fn hierarchy_for(
-    topo: &FineTopology,
-    q: &[crate::Quadric],
-    target: ApproxTarget,
-    branching: u32,
-) -> Result<(Hierarchy, CutTarget), BuildError> {
+fn hierarchy_for(topo: &FineTopology, q: &[Quadric], target: ApproxTarget, branching: u32) -> Result<(Hierarchy, CutTarget), BuildError> {
     match target {
         ApproxTarget::Vertices(n) => {
             let (h, level) = anchored_build(topo, q, n, branching)?;
@@ -189,9 +114,9 @@ pub fn approximate(
                 let c = match (previous.take(), method) {
                     (Some(c), Method::FirstFrameStatic) => c,
                     (Some(mut c), Method::Reclustered) => {
-                        let d = DegenerateSets::new(&rc.h, &seq.triangles);
-                        let children = cut::ChildIndex::new(&rc.h);
-                        cut::repair(&rc.h, &d, &children, &mut c);
+                        let d = DegenerateSets::new(rc.hierarchy(), &seq.triangles);
+                        let children = cut::ChildIndex::new(rc.hierarchy());
+                        repair(rc.hierarchy(), &d, &children, &mut c);
                         // Hysteresis: leave a cut that is within 2% under its budget alone.
                         let (used, budget) = match cut_target {
                             CutTarget::Triangles(n) => (c.triangles, n),
@@ -199,29 +124,17 @@ pub fn approximate(
                             _ => (0, 0),
                         };
                         if used > budget || (used as f64) < 0.98 * budget as f64 {
-                            cut::rebalance(&rc.h, &d, &children, &rc.nodes, &mut c, cut_target);
+                            rebalance(rc.hierarchy(), &d, &children, rc.nodes(), &mut c, cut_target);
                         }
                         c
                     }
-                    _ => select(&rc.h, &seq.triangles, &rc.nodes, cut_target),
+                    _ => select(rc.hierarchy(), &seq.triangles, rc.nodes(), cut_target),
                 };
-                out.push(approximation(&rc.h, &seq.triangles, &rc.nodes, &c, Identity::NodeIds));
+                out.push(approximation(rc.hierarchy(), &seq.triangles, rc.nodes(), &c, Identity::NodeIds));
                 previous = Some(c);
                 progress(f);
             }
         }
     }
     Ok(out)
-}
-
-/// Share of frame f's triangles that frame f-1 did not show (by corner-cluster identity), for
-/// f >= 1 (0 for frame 0).
-pub fn changed_share(frames: &[Approximation]) -> Vec<f64> {
-    let mut out = vec![0.0];
-    for w in frames.windows(2) {
-        let prev: std::collections::HashSet<[u64; 3]> = w[0].keys.iter().copied().collect();
-        let changed = w[1].keys.iter().filter(|k| !prev.contains(*k)).count();
-        out.push(if w[1].keys.is_empty() { 0.0 } else { changed as f64 / w[1].keys.len() as f64 });
-    }
-    out
 }

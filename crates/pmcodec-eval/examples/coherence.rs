@@ -1,6 +1,6 @@
 //! Development probe: share of shown triangles changing per frame at a triangle budget.
-//! `cargo run --release -p pmcodec-hierarchy --example coherence -- ../shared/data/horse-gallop 1600`
-use pmcodec_hierarchy::approx::{self, ApproxOptions, ApproxTarget, Method};
+//! `cargo run --release -p pmcodec-eval --example coherence -- ../shared/data/horse-gallop 1600`
+use pmcodec_eval::{self as approx, ApproxOptions, ApproxTarget, Method};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();

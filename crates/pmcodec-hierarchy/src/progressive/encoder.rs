@@ -1,0 +1,96 @@
+//! The encoder side: reclustering frame by frame into deltas and keyframes.
+
+use super::*;
+
+/// Produces frame deltas and keyframes by reclustering.
+pub struct Encoder {
+    recluster: Reclusterer,
+    /// Degeneration node of every triangle in H_f, derived on first request: the stream does not
+    /// carry them (see the module docs), so only measurement and tests pay for them.
+    node_of: std::sync::OnceLock<Vec<u32>>,
+    /// Level-j ancestors of every triangle's corners, for j >= 1 (alive at j iff distinct).
+    corners: Vec<Vec<[u32; 3]>>,
+}
+
+impl Encoder {
+    pub fn new(base: Hierarchy, topo: FineTopology, triangles: Vec<[u32; 3]>, opts: ReclusterOptions) -> Self {
+        let mut enc =
+            Encoder { recluster: Reclusterer::new(base, topo, triangles, opts), node_of: Default::default(), corners: Vec::new() };
+        enc.corners = enc.current_corners();
+        enc
+    }
+
+    /// The current hierarchy H_f.
+    pub fn hierarchy(&self) -> &Hierarchy {
+        self.recluster.hierarchy()
+    }
+
+    /// Every node's quadric and position in H_f for the frame last encoded.
+    pub fn nodes(&self) -> &NodeState {
+        self.recluster.nodes()
+    }
+
+    /// Positions of every node of H_f (global ids) in the frame last encoded: level 0 is that
+    /// frame's input, coarser nodes sit at their quadric-optimal positions.
+    pub fn node_positions(&self) -> &[Vec3] {
+        &self.recluster.nodes().positions
+    }
+
+    /// Degeneration node of every triangle in H_f.
+    pub fn degeneration(&self) -> &[u32] {
+        self.node_of.get_or_init(|| {
+            let mut node_of = Vec::new();
+            degeneration_nodes(self.recluster.hierarchy(), self.recluster.triangles(), &mut node_of);
+            node_of
+        })
+    }
+
+    /// Level-j ancestors of every triangle's corners, j >= 1 (distinct iff alive at j).
+    pub fn corners_at(&self, j: usize) -> &[[u32; 3]] {
+        &self.corners[j]
+    }
+
+    fn current_corners(&self) -> Vec<Vec<[u32; 3]>> {
+        let h = self.recluster.hierarchy();
+        let anc = h.all_ancestors();
+        let tris = self.recluster.triangles();
+        let mut out = vec![Vec::new()];
+        for anc_j in anc.iter().skip(1) {
+            out.push(tris.iter().map(|t| t.map(|v| anc_j[v as usize])).collect());
+        }
+        out
+    }
+
+    /// Reclusters for the next frame and returns its delta.
+    pub fn encode_frame(&mut self, positions: &[Vec3]) -> (FrameDelta, FrameStats) {
+        let mut delta = FrameDelta::default();
+        let stats = self.recluster.frame(positions, &mut delta.swaps);
+        self.node_of = Default::default();
+        let corners = self.current_corners();
+        for (j, (now, before)) in corners.iter().zip(&self.corners).enumerate().skip(1) {
+            for (t, (c, b)) in now.iter().zip(before).enumerate() {
+                if c != b && (distinct(*c) || distinct(*b)) {
+                    delta.corners.push(CornerUpdate { level: j as u32, t: t as u32, corners: *c });
+                }
+            }
+        }
+        self.corners = corners;
+        (delta, stats)
+    }
+
+    /// The current state as a keyframe.
+    pub fn keyframe(&self) -> Keyframe {
+        let h = self.recluster.hierarchy();
+        let bands = (0..h.levels())
+            .map(|j| KeyBand {
+                parent: h.parent.get(j).cloned().unwrap_or_default(),
+                faces: if j == 0 {
+                    Vec::new()
+                } else {
+                    self.corners[j].iter().enumerate().filter(|(_, c)| distinct(**c)).map(|(t, c)| (t as u32, *c)).collect()
+                },
+            })
+            .collect();
+        Keyframe { bands }
+    }
+}
