@@ -11,6 +11,7 @@ use pmcodec_hierarchy::recluster::ReclusterOptions;
 use pmcodec_hierarchy::{BuildOptions, FineTopology, build};
 use pmcodec_mesh::Sequence;
 use std::collections::HashMap;
+use std::ops::ControlFlow;
 use std::path::Path;
 
 /// How positions are quantized.
@@ -122,6 +123,20 @@ fn pose_name(p: PoseSet) -> String {
 
 /// Encodes a sequence; `progress(f)` is called after each frame.
 pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usize)) -> Result<Vec<u8>, ContainerError> {
+    encode_until(seq, opts, |f| {
+        progress(f);
+        ControlFlow::Continue(())
+    })
+}
+
+/// Encodes a sequence, asking `progress(f)` after each frame whether to go on: a
+/// [`ControlFlow::Break`] stops the work at once with [`ContainerError::Cancelled`] (a
+/// server's cancelled job), and nothing is returned.
+pub fn encode_until(
+    seq: &Sequence,
+    opts: &EncodeOptions,
+    mut progress: impl FnMut(usize) -> ControlFlow<()>,
+) -> Result<Vec<u8>, ContainerError> {
     seq.validate()?;
     let (lo, hi) = seq.bounds().ok_or_else(|| ContainerError::Options("empty sequence".into()))?;
     let diag = (hi - lo).length().max(f32::MIN_POSITIVE);
@@ -279,7 +294,9 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
             }
         }
         std::mem::swap(&mut previous, &mut current);
-        progress(f);
+        if progress(f).is_break() {
+            return Err(ContainerError::Cancelled);
+        }
     }
 
     // Offsets are relative to the chunk area, so the index's own length does not feed back.

@@ -19,7 +19,7 @@ mod read;
 pub mod testing;
 
 pub use decode::{Decoder, MeshTarget};
-pub use encode::{EncodeOptions, QuantizationChoice, encode, write_file};
+pub use encode::{EncodeOptions, QuantizationChoice, encode, encode_until, write_file};
 pub use format::{ChunkEntry, ChunkKind, Header, Index, Motion, VertexOrder};
 pub use predict::coarse_shift;
 pub use read::{ByteSource, FileSource, Reader};
@@ -52,6 +52,8 @@ pub enum ContainerError {
     Options(String),
     #[error("{bytes} bytes after the end of the container (its last chunk ends before the file does)")]
     TrailingBytes { bytes: u64 },
+    #[error("encoding cancelled")]
+    Cancelled,
     #[error("frame {frame} is beyond the {frames} frames of the file")]
     NoSuchFrame { frame: u32, frames: u32 },
 }

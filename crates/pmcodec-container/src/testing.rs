@@ -149,19 +149,15 @@ pub fn reseal(bytes: &[u8], mutate: impl FnOnce(&mut Unsealed)) -> Result<Vec<u8
 /// A small deterministic generator (SplitMix64, Steele, Lea & Flood, *Fast splittable
 /// pseudorandom number generators*, 2014): mutations must replay from a seed.
 #[derive(Clone, Debug)]
-pub struct Rng(u64);
+pub struct Rng(pmcodec_eval::SplitMix64);
 
 impl Rng {
     pub fn new(seed: u64) -> Rng {
-        Rng(seed)
+        Rng(pmcodec_eval::SplitMix64::new(seed))
     }
 
     pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
 
     /// Uniform in `0..n` (0 when n is 0).
@@ -589,6 +585,7 @@ pub fn variant(e: &ContainerError) -> &'static str {
         ContainerError::Options(_) => "Options",
         ContainerError::TrailingBytes { .. } => "TrailingBytes",
         ContainerError::NoSuchFrame { .. } => "NoSuchFrame",
+        ContainerError::Cancelled => "Cancelled",
     }
 }
 

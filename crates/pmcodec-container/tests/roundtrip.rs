@@ -432,3 +432,17 @@ mod props {
         }
     }
 }
+
+#[test]
+fn encoding_stops_when_progress_says_so() {
+    let seq = wave(6);
+    let mut seen = Vec::new();
+    let r = encode_until(&seq, &EncodeOptions::default(), |f| {
+        seen.push(f);
+        if f == 2 { std::ops::ControlFlow::Break(()) } else { std::ops::ControlFlow::Continue(()) }
+    });
+    assert!(matches!(r, Err(ContainerError::Cancelled)), "{r:?}");
+    assert_eq!(seen, [0, 1, 2], "no frame is encoded after the break");
+    let all = encode_until(&seq, &EncodeOptions::default(), |_| std::ops::ControlFlow::Continue(())).unwrap();
+    assert_eq!(all, encode(&seq, &EncodeOptions::default(), |_| {}).unwrap());
+}

@@ -149,17 +149,13 @@ impl Default for CharacterSpec {
     }
 }
 
-/// SplitMix64 (Steele, Lea & Flood, *Fast splittable pseudorandom number generators*, 2014):
-/// deterministic on every platform, which is all a fixture needs.
-struct Rng(u64);
+/// The fixture's random choices, from the workspace's one deterministic generator
+/// ([`pmcodec_eval::SplitMix64`]): the same seed gives the same character on every platform.
+struct Rng(pmcodec_eval::SplitMix64);
 
 impl Rng {
     fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
 
     /// Uniform in `lo..=hi`.
@@ -273,7 +269,7 @@ fn cube(n: usize) -> Part {
 /// same spec always gives the same character. Positions are rest (bind) space; call
 /// [`RiggedMesh::weld`] before making LODs, as `pmcodec lod` does.
 pub fn multi_part_character(spec: &CharacterSpec) -> RiggedMesh {
-    let mut rng = Rng(spec.seed);
+    let mut rng = Rng(pmcodec_eval::SplitMix64::new(spec.seed));
     let meshes = spec.meshes.max(1);
     // The skeleton: hips, spine (3), neck, head, two arms and two legs of three joints each.
     let parents: Vec<Option<usize>> = vec![

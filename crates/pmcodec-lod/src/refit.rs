@@ -90,26 +90,12 @@ fn metric(n: DVec3, share: f64) -> DMat3 {
     nn * (1.0 - share) + DMat3::IDENTITY * share
 }
 
-/// Tiny deterministic generator for the sample positions.
-struct SplitMix(u64);
-
-impl SplitMix {
-    fn unit(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
 /// Barycentric sample points `(triangle, b)`: about `count` spread by `areas`, plus every
 /// corner once (the error measure samples the vertices too).
 fn sample_bary(triangles: &[[u32; 3]], areas: &[f64], count: usize, seed: u64) -> Vec<(u32, [f64; 3])> {
     let total: f64 = areas.iter().sum();
     let mut out = Vec::with_capacity(count + triangles.len() * 3);
-    let mut rng = SplitMix(seed);
+    let mut rng = pmcodec_eval::SplitMix64::new(seed);
     let mut carry = 0.0;
     for (t, &a) in areas.iter().enumerate() {
         if !(total > 0.0) {

@@ -15,9 +15,10 @@
 use crate::store::PutMode;
 use crate::upload::{UploadBody, UploadOptions};
 use crate::{ApiError, AppState, AssetId, StoreError};
-use pmcodec_container::{EncodeOptions, encode};
+use pmcodec_container::{ContainerError, EncodeOptions, encode_until};
 use serde::Serialize;
 use std::collections::{HashMap, HashSet, VecDeque};
+use std::ops::ControlFlow;
 use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 use tokio::sync::{Semaphore, watch};
@@ -238,10 +239,13 @@ fn created_meanwhile(asset: &AssetId) -> String {
     format!("asset {asset} was created while this job ran; upload again with replace=true to replace it")
 }
 
-/// The unwind payload that stops an encode between frames when its job is cancelled. It is
-/// raised with `resume_unwind`, which does not run the panic hook (nothing is printed), and
-/// caught where the blocking task is joined; the encoder holds nothing that outlives it.
-struct Cancelled;
+/// Why the blocking part of a job stopped without a container.
+enum Stopped {
+    /// Cancelled between parsing and encoding, or between two encoded frames.
+    Cancelled,
+    /// Bad input or an encoder error; the message is the job's.
+    Failed(String),
+}
 
 enum Outcome {
     Stored,
@@ -331,40 +335,42 @@ async fn encode_and_store(
     let progress_tx = tx.clone();
     let replace = opts.replace;
     let stop = cancelled.clone();
-    let work = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, String> {
-        let seq = body.into_sequence(&opts)?;
+    let work = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, Stopped> {
+        let seq = body.into_sequence(&opts).map_err(Stopped::Failed)?;
         // The body's temporary file is gone with `body`; only the parsed frames remain.
         let frames = seq.frame_count() as u32;
         if *stop.borrow() {
-            std::panic::resume_unwind(Box::new(Cancelled));
+            return Err(Stopped::Cancelled);
         }
         progress_tx.send_modify(|s| {
             s.stage = "encoding";
             s.frames_total = Some(frames);
         });
-        encode(&seq, &encode_opts, |f| {
+        encode_until(&seq, &encode_opts, |f| {
             if *stop.borrow() {
-                std::panic::resume_unwind(Box::new(Cancelled));
+                return ControlFlow::Break(());
             }
             progress_tx.send_modify(|s| {
                 s.frames_done = (f as u32 + 1).min(frames);
                 // Storing is the last few percent.
                 s.progress = 0.95 * s.frames_done as f64 / frames.max(1) as f64;
-            })
+            });
+            ControlFlow::Continue(())
         })
-        .map_err(|e| format!("encoding: {e}"))
+        .map_err(|e| match e {
+            ContainerError::Cancelled => Stopped::Cancelled,
+            e => Stopped::Failed(format!("encoding: {e}")),
+        })
     })
     .await;
     let bytes = match work {
         Ok(Ok(bytes)) => bytes,
-        Ok(Err(message)) => return Outcome::Failed(message),
-        Err(join) if join.is_panic() => match join.into_panic().downcast::<Cancelled>() {
-            Ok(_) => return Outcome::Cancelled,
-            Err(_) => {
-                tracing::error!("the encoder panicked (a bug)");
-                return Outcome::Failed("the encoder stopped unexpectedly (a bug); the server log has the details".into());
-            }
-        },
+        Ok(Err(Stopped::Cancelled)) => return Outcome::Cancelled,
+        Ok(Err(Stopped::Failed(message))) => return Outcome::Failed(message),
+        Err(join) if join.is_panic() => {
+            tracing::error!("the encoder panicked (a bug)");
+            return Outcome::Failed("the encoder stopped unexpectedly (a bug); the server log has the details".into());
+        }
         Err(join) => return Outcome::Failed(format!("the encoder stopped unexpectedly: {join}")),
     };
     // The last point where a cancel is honoured: the store write below is one atomic step.

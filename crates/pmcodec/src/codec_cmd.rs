@@ -237,7 +237,7 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
 /// failure of the work.
 pub(crate) fn container_exit(e: &ContainerError) -> u8 {
     match e {
-        ContainerError::Io(_) => EXIT_FAILURE,
+        ContainerError::Io(_) | ContainerError::Cancelled => EXIT_FAILURE,
         _ => EXIT_BAD_INPUT,
     }
 }
