@@ -1,27 +1,17 @@
 // The TypeScript container decoder against files the Rust encoder writes: same hierarchy-driven
 // cut, same triangles, positions equal to the Rust decoder's (and so within the stated bound).
 import { test } from "node:test";
+import { pmcodecBin, repoRoot } from "./paths.js";
 import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
 import { existsSync, mkdtempSync, readdirSync, readFileSync } from "node:fs";
 import { tmpdir } from "node:os";
-import { dirname, join } from "node:path";
+import { join } from "node:path";
 import { Container, Motion, Player, VertexOrder } from "../src/container.js";
 import { BELOW, DecodeError, NONE } from "../src/replay.js";
 
-// The repository root: the nearest folder above this file (compiled into build-test/ or not)
-// that holds the workspace's Cargo.toml.
-function repoRoot(): string {
-  let dir = import.meta.dirname;
-  while (!existsSync(join(dir, "Cargo.toml")) || !existsSync(join(dir, "web"))) {
-    const up = dirname(dir);
-    if (up === dir) throw new Error(`no repository root above ${import.meta.dirname}`);
-    dir = up;
-  }
-  return dir;
-}
 const root = repoRoot();
-const bin = process.env.PMCODEC_BIN ?? join(root, "target/debug/pmcodec");
+const bin = pmcodecBin(root);
 
 function fixtures(): { dir: string; pmc: string } {
   if (!existsSync(bin)) throw new Error(`${bin} is missing: build it with cargo build -p pmcodec (or set PMCODEC_BIN)`);

@@ -3,26 +3,18 @@
 // (one request per frame, loops fetch nothing again, a lowered budget stops fetching finer
 // bands at the next keyframe, one normal per vertex); and the built package's entry point.
 import { test } from "node:test";
+import { pmcodecBin, repoRoot } from "./paths.js";
 import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
 import { existsSync, mkdtempSync, readFileSync } from "node:fs";
 import { tmpdir } from "node:os";
-import { dirname, join } from "node:path";
+import { join } from "node:path";
 import { ChunkKind, Player, VERSION } from "../src/container.js";
 import { httpRange, RangeCache, type FetchRange } from "../src/player/ranges.js";
 import { Session } from "../src/player/session.js";
 
-function repoRoot(): string {
-  let dir = import.meta.dirname;
-  while (!existsSync(join(dir, "Cargo.toml")) || !existsSync(join(dir, "web"))) {
-    const up = dirname(dir);
-    if (up === dir) throw new Error(`no repository root above ${import.meta.dirname}`);
-    dir = up;
-  }
-  return dir;
-}
 const root = repoRoot();
-const bin = process.env.PMCODEC_BIN ?? join(root, "target/debug/pmcodec");
+const bin = pmcodecBin(root);
 
 /** A range source over bytes in memory that records every request. */
 function recorder(bytes: Uint8Array): { fetch: FetchRange; log: [number, number][] } {

@@ -4,9 +4,10 @@
 // play, or fail with a DecodeError (a TypeError, a RangeError or an out-of-memory is a bug),
 // within the time limit per file; and every file the Rust decoder accepts, this one accepts too.
 import { test } from "node:test";
+import { repoRoot } from "./paths.js";
 import assert from "node:assert/strict";
-import { existsSync, readdirSync, readFileSync } from "node:fs";
-import { dirname, join } from "node:path";
+import { readdirSync, readFileSync } from "node:fs";
+import { join } from "node:path";
 import { isMainThread, parentPort, Worker, workerData } from "node:worker_threads";
 import { Container, Player } from "../src/container.js";
 import { DecodeError } from "../src/replay.js";
@@ -54,15 +55,7 @@ if (!isMainThread) {
     parentPort?.postMessage({ path, out });
   }
 } else {
-  const root = (() => {
-    let dir = import.meta.dirname;
-    while (!existsSync(join(dir, "Cargo.toml")) || !existsSync(join(dir, "web"))) {
-      const up = dirname(dir);
-      if (up === dir) throw new Error(`no repository root above ${import.meta.dirname}`);
-      dir = up;
-    }
-    return dir;
-  })();
+  const root = repoRoot();
   const corpus = join(root, "crates/pmcodec-container/tests/resealed");
 
   /** Plays the files in a worker; one that takes longer than the time limit, or that
