@@ -8,6 +8,7 @@
 // `!(x > 0.0)` is written on purpose: it is also true for NaN, which these checks must reject.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod appearance;
 pub mod binmesh;
 pub mod error;
 pub mod gltf_input;
@@ -16,6 +17,7 @@ pub mod obj;
 pub mod samples;
 pub mod write;
 
+pub use appearance::Appearance;
 pub use error::MeshError;
 use glam::Vec3;
 pub use limits::InputLimits;
@@ -70,6 +72,9 @@ pub struct Sequence {
     pub morph_displacement: Vec<f32>,
     /// Human-readable names of the frames (file names for OBJ, `anim@time` for glTF).
     pub frame_names: Vec<String>,
+    /// Texture coordinates, colours, input normals and materials, the same in every frame;
+    /// `None` for a bare surface. Its `corner_wedges` are parallel to `triangles`.
+    pub appearance: Option<Appearance>,
 }
 
 impl Sequence {
@@ -127,6 +132,9 @@ impl Sequence {
         }
         if !self.morph_displacement.is_empty() && self.morph_displacement.len() != n {
             return Err(MeshError::Invalid(format!("{} morph displacement weights for {n} vertices", self.morph_displacement.len())));
+        }
+        if let Some(appearance) = &self.appearance {
+            appearance.validate(n, &self.triangles)?;
         }
         Ok(())
     }

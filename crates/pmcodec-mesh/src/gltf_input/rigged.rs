@@ -47,6 +47,8 @@ pub struct RiggedMesh {
     pub skins: Vec<Skin>,
     /// Every animation of the file, in file order.
     pub animations: Vec<Animation>,
+    /// Per-corner attributes and materials, parallel to `triangles`; `None` when not read.
+    pub appearance: Option<crate::Appearance>,
 }
 
 /// A mesh placed in the scene by one node.

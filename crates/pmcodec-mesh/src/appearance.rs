@@ -1,0 +1,216 @@
+//! Appearance: what a surface looks like, apart from where it is.
+//!
+//! A deforming sequence has one connectivity, so its appearance (texture coordinates, vertex
+//! colours, the input's normals, materials and their textures) is the same in every frame and
+//! is stored once. Attributes live on *wedges* (Hoppe, "New quadric metric for simplifying
+//! meshes with appearance attributes", 1999): a wedge is one (vertex, attribute record) pair, and
+//! each triangle corner names its wedge. A vertex on a seam (a UV island's border, a crease in
+//! the input normals, a material boundary) has several wedges; elsewhere it has one. Positions
+//! stay per vertex (the simplifier and the codec weld across seams), attributes per wedge.
+//!
+//! Arrays are flat and indexed by `u32`: every per-wedge array is either empty (the input has no
+//! such attribute) or has exactly `wedge_vertex.len()` entries.
+
+use crate::MeshError;
+
+/// The appearance of a [`crate::Sequence`] (or a rig), constant over frames.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Appearance {
+    /// `corner_wedges[t][i]` is the wedge of corner `i` of triangle `t`. Parallel to the
+    /// triangles it describes; the wedge's vertex is that corner's vertex.
+    pub corner_wedges: Vec<[u32; 3]>,
+    /// The vertex of each wedge.
+    pub wedge_vertex: Vec<u32>,
+    /// `TEXCOORD_0` per wedge (glTF convention: origin top left, v down), or empty.
+    pub uv0: Vec<[f32; 2]>,
+    /// `TEXCOORD_1` per wedge, or empty.
+    pub uv1: Vec<[f32; 2]>,
+    /// The input's unit normals per wedge in rest (bind) space, or empty. Decoders recompute
+    /// normals from decoded positions; these tell them where the creases are.
+    pub normals: Vec<[f32; 3]>,
+    /// `COLOR_0` per wedge as linear RGBA, or empty.
+    pub colors: Vec<[f32; 4]>,
+    /// Material of each triangle, an index into `materials`; empty means every triangle uses
+    /// material 0 (or the default material when `materials` is empty too).
+    pub triangle_material: Vec<u32>,
+    pub materials: Vec<Material>,
+    pub textures: Vec<Texture>,
+    pub samplers: Vec<Sampler>,
+    pub images: Vec<Image>,
+}
+
+/// glTF 2.0's metallic-roughness material (§3.9), the core fields.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    pub name: Option<String>,
+    pub base_color_factor: [f32; 4],
+    pub base_color_texture: Option<TextureRef>,
+    pub metallic_factor: f32,
+    pub roughness_factor: f32,
+    pub metallic_roughness_texture: Option<TextureRef>,
+    pub normal_texture: Option<TextureRef>,
+    /// `normalTexture.scale`.
+    pub normal_scale: f32,
+    pub occlusion_texture: Option<TextureRef>,
+    /// `occlusionTexture.strength`.
+    pub occlusion_strength: f32,
+    pub emissive_texture: Option<TextureRef>,
+    pub emissive_factor: [f32; 3],
+    pub alpha_mode: AlphaMode,
+    pub alpha_cutoff: f32,
+    pub double_sided: bool,
+}
+
+impl Default for Material {
+    /// glTF's defaults (and its default material, §3.9.6).
+    fn default() -> Self {
+        Material {
+            name: None,
+            base_color_factor: [1.0; 4],
+            base_color_texture: None,
+            metallic_factor: 1.0,
+            roughness_factor: 1.0,
+            metallic_roughness_texture: None,
+            normal_texture: None,
+            normal_scale: 1.0,
+            occlusion_texture: None,
+            occlusion_strength: 1.0,
+            emissive_texture: None,
+            emissive_factor: [0.0; 3],
+            alpha_mode: AlphaMode::Opaque,
+            alpha_cutoff: 0.5,
+            double_sided: false,
+        }
+    }
+}
+
+/// glTF `alphaMode`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum AlphaMode {
+    #[default]
+    Opaque,
+    Mask,
+    Blend,
+}
+
+/// A material's use of a texture.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TextureRef {
+    /// Index into [`Appearance::textures`].
+    pub texture: u32,
+    /// Which texture coordinates: 0 for `uv0`, 1 for `uv1`.
+    pub tex_coord: u32,
+    /// `KHR_texture_transform`, when present.
+    pub transform: Option<TextureTransform>,
+}
+
+/// `KHR_texture_transform`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TextureTransform {
+    pub offset: [f32; 2],
+    pub rotation: f32,
+    pub scale: [f32; 2],
+    /// Overrides [`TextureRef::tex_coord`] when set.
+    pub tex_coord: Option<u32>,
+}
+
+/// A texture: an image and how it is sampled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Texture {
+    /// Index into [`Appearance::images`].
+    pub image: u32,
+    /// Index into [`Appearance::samplers`]; `None` is glTF's default (repeat, auto filtering).
+    pub sampler: Option<u32>,
+}
+
+/// glTF sampler (§3.8.4), its numeric enums as in the file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Sampler {
+    pub mag_filter: Option<u32>,
+    pub min_filter: Option<u32>,
+    pub wrap_s: u32,
+    pub wrap_t: u32,
+}
+
+impl Default for Sampler {
+    fn default() -> Self {
+        Sampler { mag_filter: None, min_filter: None, wrap_s: 10497, wrap_t: 10497 }
+    }
+}
+
+/// An encoded image, kept as the input's bytes (PNG or JPEG); never re-encoded.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Image {
+    pub name: Option<String>,
+    /// `image/png` or `image/jpeg`.
+    pub mime_type: String,
+    pub bytes: Vec<u8>,
+}
+
+impl Appearance {
+    /// Number of wedges.
+    pub fn wedge_count(&self) -> usize {
+        self.wedge_vertex.len()
+    }
+
+    /// Checks that every index is in range and every per-wedge array has one entry per wedge
+    /// (or none), for a mesh of `vertex_count` vertices and `triangles`. Names the first thing
+    /// that is wrong.
+    pub fn validate(&self, vertex_count: usize, triangles: &[[u32; 3]]) -> Result<(), MeshError> {
+        let bad = |what: String| Err(MeshError::Invalid(format!("appearance: {what}")));
+        let wedges = self.wedge_count();
+        if self.corner_wedges.len() != triangles.len() {
+            return bad(format!("{} triangles but {} corner wedge triples", triangles.len(), self.corner_wedges.len()));
+        }
+        for (name, len) in [("uv0", self.uv0.len()), ("uv1", self.uv1.len()), ("normals", self.normals.len()), ("colors", self.colors.len())] {
+            if len != 0 && len != wedges {
+                return bad(format!("{name} has {len} entries for {wedges} wedges"));
+            }
+        }
+        if let Some(w) = self.wedge_vertex.iter().position(|&v| v as usize >= vertex_count) {
+            return bad(format!("wedge {w} names vertex {} of {vertex_count}", self.wedge_vertex[w]));
+        }
+        for (t, (tri, cw)) in triangles.iter().zip(&self.corner_wedges).enumerate() {
+            for i in 0..3 {
+                match self.wedge_vertex.get(cw[i] as usize) {
+                    Some(&v) if v == tri[i] => {}
+                    Some(&v) => return bad(format!("triangle {t} corner {i}: wedge {} is on vertex {v}, the corner on {}", cw[i], tri[i])),
+                    None => return bad(format!("triangle {t} corner {i}: wedge {} of {wedges}", cw[i])),
+                }
+            }
+        }
+        if let Some(w) = self.uv0.iter().chain(&self.uv1).position(|uv| !uv.iter().all(|x| x.is_finite())) {
+            return bad(format!("texture coordinates of wedge {} are not finite", w % wedges.max(1)));
+        }
+        if let Some(w) = self.normals.iter().position(|n| !n.iter().all(|x| x.is_finite())) {
+            return bad(format!("the normal of wedge {w} is not finite"));
+        }
+        if let Some(w) = self.colors.iter().position(|c| !c.iter().all(|x| x.is_finite())) {
+            return bad(format!("the colour of wedge {w} is not finite"));
+        }
+        if !self.triangle_material.is_empty() && self.triangle_material.len() != triangles.len() {
+            return bad(format!("{} triangles but {} triangle materials", triangles.len(), self.triangle_material.len()));
+        }
+        let materials = self.materials.len().max(1);
+        if let Some(t) = self.triangle_material.iter().position(|&m| m as usize >= materials) {
+            return bad(format!("triangle {t} uses material {} of {materials}", self.triangle_material[t]));
+        }
+        for (m, mat) in self.materials.iter().enumerate() {
+            let refs = [&mat.base_color_texture, &mat.metallic_roughness_texture, &mat.normal_texture, &mat.occlusion_texture, &mat.emissive_texture];
+            for r in refs.into_iter().flatten() {
+                if r.texture as usize >= self.textures.len() {
+                    return bad(format!("material {m} uses texture {} of {}", r.texture, self.textures.len()));
+                }
+            }
+        }
+        for (i, tex) in self.textures.iter().enumerate() {
+            if tex.image as usize >= self.images.len() {
+                return bad(format!("texture {i} uses image {} of {}", tex.image, self.images.len()));
+            }
+            if tex.sampler.is_some_and(|s| s as usize >= self.samplers.len()) {
+                return bad(format!("texture {i} uses a sampler out of range"));
+            }
+        }
+        Ok(())
+    }
+}
