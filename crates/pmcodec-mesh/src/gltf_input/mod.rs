@@ -47,14 +47,20 @@ use std::ops::Range;
 use std::path::{Component, Path, PathBuf};
 
 mod animation;
+#[cfg(test)]
+mod compressed_tests;
+mod draco;
 mod file;
+mod meshopt;
 mod rigged;
 mod scene;
 #[cfg(test)]
 mod tests;
 
 use self::animation::*;
+use self::draco::*;
 use self::file::*;
+use self::meshopt::*;
 pub use self::rigged::*;
 use self::scene::*;
 
@@ -108,25 +114,25 @@ pub struct AnimationInfo {
 ///
 /// External buffers of a `.gltf` are read from the file's folder (never from outside it).
 pub fn load_gltf(path: &Path, opts: &GltfOptions) -> Result<Sequence, MeshError> {
-    let file = GltfFile::open(path)?;
+    let file = GltfFile::open(path, &opts.limits)?;
     file_to_sequence(&file, opts).map_err(|e| at_path(path, e))
 }
 
 /// Reads a GLB, or a `.gltf` whose buffers are embedded as `data:` URIs, from memory (uploads).
 /// A `.gltf` that references external files can only be read from a path.
 pub fn load_gltf_bytes(bytes: &[u8], opts: &GltfOptions) -> Result<Sequence, MeshError> {
-    file_to_sequence(&GltfFile::parse(bytes, None)?, opts)
+    file_to_sequence(&GltfFile::parse(bytes, None, &opts.limits)?, opts)
 }
 
 /// Every animation of a file, in file order, with its duration.
 pub fn list_animations(path: &Path) -> Result<Vec<AnimationInfo>, MeshError> {
-    let file = GltfFile::open(path)?;
+    let file = GltfFile::open(path, &InputLimits::default())?;
     animation_infos(&file).map_err(|e| at_path(path, e))
 }
 
 /// [`list_animations`] for a file in memory.
 pub fn list_animations_bytes(bytes: &[u8]) -> Result<Vec<AnimationInfo>, MeshError> {
-    animation_infos(&GltfFile::parse(bytes, None)?)
+    animation_infos(&GltfFile::parse(bytes, None, &InputLimits::default())?)
 }
 
 fn animation_infos(file: &GltfFile) -> Result<Vec<AnimationInfo>, MeshError> {
