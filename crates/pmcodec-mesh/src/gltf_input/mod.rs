@@ -20,6 +20,12 @@
 //!   follows §3.11 and Appendix C: STEP, LINEAR (rotations by spherical interpolation on the
 //!   shorter arc) and CUBICSPLINE (Hermite, tangents scaled by the key interval), clamped to the
 //!   first and last key outside the keyed range.
+//! * **Compressed geometry.** `KHR_draco_mesh_compression` primitives and
+//!   `EXT_meshopt_compression` / `KHR_meshopt_compression` bufferViews are decoded when the file
+//!   is parsed (see the `draco` and `meshopt` modules), into the same accessor and bufferView
+//!   bytes an uncompressed file has: every accessor read (positions, indices, skins, morph
+//!   targets, UVs, normals, colours, animation keys) sees decoded data without knowing it was
+//!   compressed. Morph targets of a Draco primitive stay plain accessors, as the extension says.
 //! * **Welding.** Exporters split vertices at UV and normal seams, and some write every triangle
 //!   with its own three vertices, which leaves a surface in pieces. [`RiggedMesh::weld`] merges
 //!   vertices that land on the same bits in every pose: same rest position, same skin influences,
@@ -36,6 +42,9 @@
 //! `count: 0`, and hit `unreachable!()` on unexpected component types. Every index, length,
 //! stride and component type is checked here instead, and buffers (including GLB chunks and
 //! `data:` URIs) are decoded here. A file path may only reference buffers inside its own folder.
+//! Compressed data is decoded only to the sizes its accessors and views declare, checked first
+//! against the input limits (Draco) or a cap on decoded bytes (meshopt); a truncated or corrupt
+//! stream is an error naming its primitive or bufferView.
 
 use crate::{InputLimits, MeshError, Sequence, SourceVertex};
 use glam::{Mat4, Quat, Vec3, Vec4};
