@@ -13,6 +13,10 @@ pub(super) struct GltfFile {
     /// The elements of every accessor a Draco primitive stands for (see [`super::draco`]),
     /// tightly packed in the accessor's component type, read in place of a bufferView.
     decoded_accessors: HashMap<usize, Vec<u8>>,
+    /// Materials, textures, samplers and images as serialized (see `looks`).
+    pub(super) looks: looks_raw::RawLooks,
+    /// The folder external images are read from (`None` for bytes in memory).
+    pub(super) base: Option<PathBuf>,
 }
 
 pub(super) const ANY_NUMBER: &[ComponentType] =
@@ -71,6 +75,7 @@ impl GltfFile {
         }
         let meshopt = meshopt_views(json_bytes)?;
         let draco = draco_primitives(json_bytes)?;
+        let looks: looks_raw::RawLooks = serde_json::from_slice(json_bytes).map_err(|e| gltf_error(format!("materials or images: {e}")))?;
         let mut needed = vec![false; root.buffers.len()];
         let mut need_view = |view: usize| {
             // A compressed view needs the buffer of its compressed bytes, not its own.
@@ -94,6 +99,9 @@ impl GltfFile {
                 need_view(sparse.values.buffer_view.value());
             }
         }
+        for view in looks.images.iter().filter_map(|i| i.buffer_view) {
+            need_view(view as usize);
+        }
         let mut buffers = Vec::with_capacity(root.buffers.len());
         for (i, buffer) in root.buffers.iter().enumerate() {
             if !needed.get(i).copied().unwrap_or(false) {
@@ -114,7 +122,14 @@ impl GltfFile {
             data.truncate(declared);
             buffers.push(Some(data));
         }
-        let mut file = GltfFile { root, buffers, decoded_views: HashMap::new(), decoded_accessors: HashMap::new() };
+        let mut file = GltfFile {
+            root,
+            buffers,
+            looks,
+            base: base.map(Path::to_path_buf),
+            decoded_views: HashMap::new(),
+            decoded_accessors: HashMap::new(),
+        };
         file.decoded_views = decode_meshopt(&file, &meshopt)?;
         file.decoded_accessors = decode_draco(&file, &draco, limits)?;
         Ok(file)
