@@ -56,3 +56,29 @@ fn parrot_draco_accessors_match_the_reference_decoder() {
         }
     }
 }
+
+/// The appearance reader reads attributes through the same accessor lookup, so it sees the
+/// Parrot's Draco-decoded TEXCOORD_0 with no code of its own: every wedge's UV is one of the
+/// decoded values, and their range is the reference decoder's.
+#[test]
+fn appearance_sees_draco_decoded_uvs() {
+    let rig = RiggedMesh::from_path(&shared_model("Parrot.glb")).unwrap();
+    let looks = rig.appearance.as_ref().expect("the Parrot's appearance is read");
+    assert!(!looks.uv0.is_empty());
+    let text = std::fs::read_to_string(fixture("parrot-draco-reference.json")).unwrap();
+    let reference: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let uv = &reference["accessors"]["1"];
+    assert_eq!(uv["what"], "mesh 0 primitive 0 TEXCOORD_0");
+    for c in 0..2 {
+        let column = || looks.uv0.iter().map(|w| w[c]);
+        let (lo, hi) = (column().fold(f32::INFINITY, f32::min), column().fold(f32::NEG_INFINITY, f32::max));
+        assert_eq!(lo, uv["min"][c].as_f64().unwrap() as f32, "u/v {c} min");
+        assert_eq!(hi, uv["max"][c].as_f64().unwrap() as f32, "u/v {c} max");
+    }
+    let file = GltfFile::open(&shared_model("Parrot.glb"), &InputLimits::default()).unwrap();
+    let decoded = file.read_floats(1, 2, ANY_NUMBER, "TEXCOORD_0").unwrap();
+    for (w, &vertex) in looks.wedge_vertex.iter().enumerate() {
+        let source = rig.source[vertex as usize].index as usize;
+        assert_eq!(looks.uv0[w], [decoded[2 * source], decoded[2 * source + 1]], "wedge {w}");
+    }
+}

@@ -70,9 +70,9 @@ mod animation;
 mod compressed_tests;
 mod draco;
 mod file;
-mod meshopt;
 mod looks;
 mod looks_raw;
+mod meshopt;
 mod rigged;
 mod scene;
 #[cfg(test)]
@@ -81,9 +81,9 @@ mod tests;
 use self::animation::*;
 use self::draco::*;
 use self::file::*;
-use self::meshopt::*;
 pub use self::looks::image_mime_type;
 use self::looks::*;
+use self::meshopt::*;
 pub use self::rigged::*;
 use self::scene::*;
 
