@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
-# Makes the meshopt-compressed fixtures of tests/compressed_gltf.rs from the shared Fox:
-#   bash crates/pmcodec-mesh/tests/compressed/make-fixtures.sh
+# Makes the compressed fixtures of tests/compressed_gltf.rs from the shared Fox:
+#   (cd tests && npm ci) && bash crates/pmcodec-mesh/tests/compressed/make-fixtures.sh
 # The Fox's texture is dropped first (the fixtures test geometry, skin and animation, and stay
 # small), then gltfpack 1.3.0 (npm) compresses it with its defaults plus -cc: quantized
 # positions, UVs and normals, the octahedral filter on normals, the quaternion filter on
 # rotations, and the index codec. One fixture per extension name (EXT_ and KHR_).
-# gltfpack is deterministic, so the same inputs give the same bytes.
+# tests/draco-fixture.mjs (glTF Transform + draco3dgltf) makes the Draco one: edgebreaker, with a
+# COLOR_0 added so every attribute the extension maps is there.
+# gltfpack and the Draco encoder are deterministic, so the same inputs give the same bytes.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 fox="$here/../../../../../shared/data/gltf/Fox.glb"
@@ -30,3 +32,4 @@ open(sys.argv[2], 'wb').write(out)
 PY
 npx -y gltfpack@1.3.0 -i "$tmp/fox-untextured.glb" -o "$here/fox-meshopt-ext.glb" -cc -ce ext
 npx -y gltfpack@1.3.0 -i "$tmp/fox-untextured.glb" -o "$here/fox-meshopt-khr.glb" -cc -ce khr
+node "$here/../../../../tests/draco-fixture.mjs" "$tmp/fox-untextured.glb" "$here/fox-draco.glb"
