@@ -241,3 +241,57 @@ fn copy_back(data: &mut [u8], bytes: impl Iterator<Item = u8>) {
         *slot = b;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The paths gltfpack's Fox does not take: index sequences (INDICES), 32-bit indices,
+    /// 16-bit octahedral normals, colour filters, and vertex strides up to 256.
+    #[test]
+    fn every_mode_stride_and_filter_decodes_what_was_encoded() {
+        let sequence: Vec<u32> = (0..300u32).map(|i| (i * 7919) % 1000).collect();
+        let encoded = ::meshopt::encode_index_sequence(&sequence, 1000).unwrap();
+        let as_u32 = |b: Vec<u8>| b.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect::<Vec<_>>();
+        assert_eq!(as_u32(decode_indices(&encoded, 300, 4, false).unwrap().unwrap()), sequence);
+        let triangles: Vec<u32> = (0..99u32).map(|i| i / 3 + i % 3).collect();
+        let encoded = ::meshopt::encode_index_buffer(&triangles, 40).unwrap();
+        // The index codec keeps each triangle but may start it at another corner.
+        let canonical = |t: &[u32]| {
+            let r = (0..3).min_by_key(|&r| t[r]).unwrap_or(0);
+            [t[r], t[(r + 1) % 3], t[(r + 2) % 3]]
+        };
+        let decoded = as_u32(decode_indices(&encoded, 99, 4, true).unwrap().unwrap());
+        let got: Vec<[u32; 3]> = decoded.chunks_exact(3).map(canonical).collect();
+        assert_eq!(got, triangles.chunks_exact(3).map(canonical).collect::<Vec<_>>());
+        assert!(decode_indices(&encoded, 99, 3, true).is_none());
+
+        // A 256-byte vertex round trips through the largest stride.
+        let vertices: Vec<[u32; 64]> = (0..50u32).map(|v| std::array::from_fn(|c| v * 64 + c as u32)).collect();
+        let encoded = ::meshopt::encode_vertex_buffer(&vertices).unwrap();
+        let want: Vec<u8> = vertices.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+        assert_eq!(decode_vertices(&encoded, 50, 256).unwrap(), want);
+        assert!(decode_vertices(&encoded[..encoded.len() / 2], 50, 256).is_err(), "truncated data decodes");
+
+        let normals: Vec<[f32; 4]> = (0..64).map(|i| (i as f32 * 0.37).sin_cos()).map(|(s, c)| [s * 0.6, c * 0.6, 0.8, 0.0]).collect();
+        let oct: Vec<[i16; 4]> = ::meshopt::encode_filter_oct(&normals, 16);
+        let mut bytes: Vec<u8> = oct.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+        apply_filter(&mut bytes, "OCTAHEDRAL", 8, false).unwrap();
+        for (n, c) in normals.iter().zip(bytes.chunks_exact(8)) {
+            let x = |k: usize| f32::from(i16::from_le_bytes([c[2 * k], c[2 * k + 1]])) / 32767.0;
+            assert!((x(0) - n[0]).abs() < 1e-3 && (x(1) - n[1]).abs() < 1e-3 && (x(2) - n[2]).abs() < 1e-3, "{n:?}");
+        }
+
+        let colors: Vec<[f32; 4]> = (0..64).map(|i| [i as f32 / 63.0, 1.0 - i as f32 / 63.0, 0.5, 1.0]).collect();
+        let ycocg: Vec<[u8; 4]> = ::meshopt::encode_filter_color(&colors, 8);
+        let mut bytes: Vec<u8> = ycocg.iter().flatten().copied().collect();
+        assert!(apply_filter(&mut bytes.clone(), "COLOR", 4, false).is_err(), "COLOR is KHR_meshopt_compression only");
+        apply_filter(&mut bytes, "COLOR", 4, true).unwrap();
+        for (c, got) in colors.iter().zip(bytes.chunks_exact(4)) {
+            for k in 0..4 {
+                assert!((f32::from(got[k]) / 255.0 - c[k]).abs() <= 2.0 / 255.0, "{c:?} -> {got:?}");
+            }
+        }
+        assert!(apply_filter(&mut [0; 12], "QUATERNION", 12, false).is_err());
+    }
+}
