@@ -139,14 +139,6 @@ impl Sequence {
         Ok(())
     }
 
-    /// Removes triangles that repeat a corner (they carry no surface) and returns how many went.
-    /// OBJ exports from some tools contain them; everything downstream assumes none.
-    pub fn drop_degenerate_faces(&mut self) -> usize {
-        let before = self.triangles.len();
-        self.triangles.retain(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
-        before - self.triangles.len()
-    }
-
     /// Bounding box over all frames.
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         self.frames.iter().filter_map(|f| bounds_of(f)).reduce(|(a, b), (c, d)| (a.min(c), b.max(d)))
