@@ -3,6 +3,7 @@
 //! the version 4 encoder with affine motion. Each must verify and decode to exactly what
 //! today's encoder makes of the same input with the options those versions had (band 0 in
 //! input order; mean motion, or affine), frame by frame.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use pmcodec_container::{Decoder, EncodeOptions, MeshTarget, Motion, QuantizationChoice, Reader, VertexOrder, encode, verify};
 
