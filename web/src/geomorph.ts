@@ -8,7 +8,7 @@
 // cut node that is an ancestor of old cut nodes starts at their centroid (a coarsening: the
 // parts slide together); a node in both cuts does not morph.
 
-import { NONE, Replay } from "./replay.js";
+import { NONE, Replay } from "./container/index.js";
 
 /** Render-ready mesh of a cut: one vertex per used cut node, indices into them. */
 export interface CutMesh {
