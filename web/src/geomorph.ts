@@ -1,4 +1,5 @@
-// Geomorphs between cuts (Houle & Poulin, seed 000, section 5): when the cut changes (the
+// Geomorphs between cuts (J. Houle and P. Poulin, "Simplification and Real-time Smooth
+// Transitions of Articulated Meshes", 2001, section 5): when the cut changes (the
 // budget moved, or the hierarchy changed between frames), each vertex of the new mesh starts at
 // the position of the node that stood for it before and moves to its own position over a short
 // time, instead of popping.
