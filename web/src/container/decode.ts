@@ -5,7 +5,7 @@
 import { DecodeError } from "./error.js";
 import { ChunkKind, Motion } from "./format.js";
 import { readCornerUpdates, readDelta, readFaces, readKey, readPositions, readTriangles } from "./payload.js";
-import { LowerNeighbours, Siblings, lowerNeighbours, predict, stencilWeights } from "./predict.js";
+import { LowerNeighbours, affineMotion, keyedMotion, lowerNeighbours, stencilWeights } from "./predict.js";
 import type { Reader } from "./read.js";
 import { FrameDelta, KeyBand, Replay } from "./replay.js";
 
@@ -79,20 +79,26 @@ export class Decoder {
     this.frame = f;
   }
 
-  /** Positions of bands top..minLevel (proto/container.md, "Positions, band j"). */
+  /**
+   * Positions of bands top..minLevel (proto/container.md, "Positions, band j"): each node's
+   * prediction plus its residual. The prediction is inline rather than a function as in
+   * predict.rs: V8 does not inline a call this size, and with a call per node decoding measured
+   * up to 10% slower (CPU time, horse, node bench).
+   */
   private async decodePositions(f: number, fromKey: boolean): Promise<void> {
     const h = this.reader.header, r = this.replay;
     const intra = fromKey || this.reader.isKeyframe(f);
     const cur = this.current, prev = this.previous;
     const top = h.levelSizes.length - 1;
-    const pred = new Int32Array(3);
     for (let j = top; j >= this.minLevel; j--) {
       const what = `frame ${f} band ${j} positions`;
       const { shift, res } = readPositions(await this.reader.chunk(this.reader.find(ChunkKind.Positions, f, j)), what, h.levelSizes[j]);
       const lower = j === 0 ? this.lower : null;
-      const sib = new Siblings(j < top ? h.levelSizes[j + 1] : 0);
-      // Band 0's motion on inter frames; the mean elsewhere.
-      const motion = j === 0 && !intra ? h.motion : Motion.Mean;
+      // Motion sums of the band's decoded nodes per parent (inter frames), exact in doubles.
+      const nParents = j < top ? h.levelSizes[j + 1] : 0;
+      const sibSum = new Float64Array(3 * nParents), sibCount = new Uint32Array(nParents);
+      const fit = new Int32Array(3), inter0 = j === 0 && !intra;
+      const affineBand = inter0 && h.motion === Motion.Affine, keyedBand = inter0 && h.motion === Motion.KeyframeAffine && this.weights !== null;
       // Band 0 in its decoding order, coarser bands in node order; `before`: the node decoded last.
       const sequence = lower ? lower.sequence : null;
       let before = -1;
@@ -101,9 +107,31 @@ export class Decoder {
         const g = r.offsets[j] + v;
         const local = j < top ? r.parent[j][v] : -1;
         const parent = j < top ? r.offsets[j + 1] + local : -1;
-        predict(v, g, before, parent, local, lower, motion, this.weights, sib, intra, cur, prev, pred);
-        for (let a = 0; a < 3; a++) cur[3 * g + a] = (pred[a] + (res[3 * k + a] << shift)) | 0;
-        if (local >= 0) sib.add(local, g, cur, prev);
+        const lo = lower ? lower.offsets[v] : 0, hi = lower ? lower.offsets[v + 1] : 0;
+        const sib = !intra && local >= 0 && hi === lo ? sibCount[local] : 0;
+        // Band 0 on inter frames: the affine motion of the vertex's stencil, when it fits.
+        const affine = hi > lo && ((affineBand && affineMotion(lower!, v, cur, prev, fit)) || (keyedBand && keyedMotion(lower!, this.weights!, v, cur, prev, fit)));
+        for (let a = 0; a < 3; a++) {
+          let pred: number;
+          if (affine) {
+            pred = fit[a];
+          } else if (sib > 0) {
+            pred = (prev[3 * g + a] + Math.floor((2 * sibSum[3 * local + a] + sib) / (2 * sib))) | 0;
+          } else if (hi > lo) {
+            // Mean over the lower neighbours, rounded half up: floor((2 sum + c) / (2 c)).
+            // Sums stay far below 2^53, so double arithmetic is exact here.
+            const c = hi - lo, items = lower!.items;
+            let sum = 0;
+            if (intra) for (let i = lo; i < hi; i++) sum += cur[3 * items[i] + a];
+            else for (let i = lo; i < hi; i++) sum += cur[3 * items[i] + a] - prev[3 * items[i] + a];
+            const mean = Math.floor((2 * sum + c) / (2 * c));
+            pred = intra ? mean | 0 : (prev[3 * g + a] + mean) | 0;
+          } else if (intra) pred = parent >= 0 ? cur[3 * parent + a] : before >= 0 ? cur[3 * before + a] : 0;
+          else pred = parent >= 0 ? prev[3 * g + a] + cur[3 * parent + a] - prev[3 * parent + a] : prev[3 * g + a];
+          cur[3 * g + a] = (pred + (res[3 * k + a] << shift)) | 0;
+          if (local >= 0) sibSum[3 * local + a] += cur[3 * g + a] - prev[3 * g + a];
+        }
+        if (local >= 0) sibCount[local]++;
         before = g;
       }
     }

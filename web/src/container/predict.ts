@@ -1,10 +1,11 @@
 // Position prediction (proto/container.md, "Positions, band j"), as
 // `pmcodec_container::predict`: band 0's lower neighbours and stencils in its decoding order,
 // the affine motion of a stencil (fitted on the previous frame, or weighted from the
-// keyframe), and the prediction of one node from its parent, siblings or neighbours. Every
-// operation is the spec's, in its order, so both decoders predict the same integers.
+// keyframe). Every operation is the spec's, in its order, so both decoders predict the same
+// integers. The per-node prediction itself (predict.rs's `predict`) is inline in decode.ts's
+// band loop, where V8 keeps it fast.
 
-import { Motion, VertexOrder } from "./format.js";
+import { VertexOrder } from "./format.js";
 
 /**
  * For each input vertex, the distinct vertices sharing a triangle with it and decoded before it
@@ -211,55 +212,3 @@ export function keyedMotion(lower: LowerNeighbours, weights: Float64Array, v: nu
 }
 
 
-/** Motion sums of a band's decoded nodes per parent (inter frames), exact in doubles. */
-export class Siblings {
-  sum: Float64Array;
-  count: Uint32Array;
-  constructor(parents: number) { this.sum = new Float64Array(3 * parents); this.count = new Uint32Array(parents); }
-  /** Adds node g's motion (its position now minus before) to its parent's sums (local id). */
-  add(local: number, g: number, cur: Int32Array, prev: Int32Array): void {
-    for (let a = 0; a < 3; a++) this.sum[3 * local + a] += cur[3 * g + a] - prev[3 * g + a];
-    this.count[local]++;
-  }
-}
-
-/** Scratch for a fitted motion. */
-const FITTED = new Int32Array(3);
-
-/**
- * The prediction of node v (global id g) of a band into `out` (3 quantized coordinates).
- * `before`: the global id of the node decoded just before it in the band (-1 for the first);
- * `parent` and `local`: its parent's global and local ids (-1 in the top band); `lower`: band
- * 0's lower neighbours (null in other bands); `motion`: band 0's motion on inter frames (Mean
- * elsewhere), `weights` the keyframe's stencil weights for KeyframeAffine; `intra` on
- * keyframes. In order: the stencil's affine motion when it fits, the siblings' mean motion,
- * the lower neighbours' mean (position or motion), then the parent's position or motion.
- */
-export function predict(
-  v: number, g: number, before: number, parent: number, local: number, lower: LowerNeighbours | null,
-  motion: Motion, weights: Float64Array | null, sib: Siblings, intra: boolean, cur: Int32Array, prev: Int32Array, out: Int32Array,
-): void {
-  const lo = lower ? lower.offsets[v] : 0, hi = lower ? lower.offsets[v + 1] : 0;
-  const siblings = !intra && local >= 0 && hi === lo ? sib.count[local] : 0;
-  const fit = FITTED;
-  const affine = hi > lo && ((motion === Motion.Affine && affineMotion(lower!, v, cur, prev, fit)) || (motion === Motion.KeyframeAffine && weights !== null && keyedMotion(lower!, weights, v, cur, prev, fit)));
-  for (let a = 0; a < 3; a++) {
-    let pred: number;
-    if (affine) {
-      pred = fit[a];
-    } else if (siblings > 0) {
-      pred = (prev[3 * g + a] + Math.floor((2 * sib.sum[3 * local + a] + siblings) / (2 * siblings))) | 0;
-    } else if (hi > lo) {
-      // Mean over the lower neighbours, rounded half up: floor((2 sum + c) / (2 c)).
-      // Sums stay far below 2^53, so double arithmetic is exact here.
-      const c = hi - lo, items = lower!.items;
-      let sum = 0;
-      if (intra) for (let i = lo; i < hi; i++) sum += cur[3 * items[i] + a];
-      else for (let i = lo; i < hi; i++) sum += cur[3 * items[i] + a] - prev[3 * items[i] + a];
-      const mean = Math.floor((2 * sum + c) / (2 * c));
-      pred = intra ? mean | 0 : (prev[3 * g + a] + mean) | 0;
-    } else if (intra) pred = parent >= 0 ? cur[3 * parent + a] : before >= 0 ? cur[3 * before + a] : 0;
-    else pred = parent >= 0 ? prev[3 * g + a] + cur[3 * parent + a] - prev[3 * parent + a] : prev[3 * g + a];
-    out[a] = pred;
-  }
-}
