@@ -11,6 +11,7 @@
 pub mod appearance;
 pub mod binmesh;
 pub mod error;
+pub mod glb;
 pub mod gltf_input;
 pub mod limits;
 pub mod obj;
