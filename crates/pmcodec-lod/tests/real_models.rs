@@ -3,6 +3,7 @@
 //! back with the `gltf` crate and compared with the chain, the GLB posed through our reader,
 //! and the error against meshoptimizer on the Fox. (The Parrot is Draco-compressed, which the
 //! reader decodes.)
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 

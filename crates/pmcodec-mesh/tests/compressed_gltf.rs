@@ -2,6 +2,7 @@
 //! Fox compressed with Draco by glTF Transform and with meshopt by gltfpack (tests/compressed/,
 //! made by make-fixtures.sh) against the uncompressed Fox, and truncated, corrupt and oversized
 //! compressed data.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use glam::Vec3;
 use pmcodec_mesh::gltf_input::{GltfOptions, RiggedMesh, load_gltf, load_gltf_bytes};
