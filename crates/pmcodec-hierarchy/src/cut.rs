@@ -10,6 +10,7 @@ use crate::Hierarchy;
 use crate::degenerate::DegenerateSets;
 use crate::hierarchy::NONE;
 use crate::nodes::NodeState;
+use crate::rows::compressed_rows;
 use glam::Vec3;
 use pmcodec_mesh::TriMesh;
 use std::cmp::Ordering;
@@ -45,25 +46,12 @@ pub struct ChildIndex {
 
 impl ChildIndex {
     pub fn new(h: &Hierarchy) -> Self {
-        let total = h.node_count();
-        let mut offsets = vec![0u32; total + 1];
-        for k in 0..h.levels() - 1 {
-            for &p in &h.parent[k] {
-                offsets[(h.offsets[k + 1] + p) as usize + 1] += 1;
-            }
-        }
-        for i in 0..total {
-            offsets[i + 1] += offsets[i];
-        }
-        let mut fill = offsets.clone();
-        let mut children = vec![0u32; offsets[total] as usize];
-        for k in 0..h.levels() - 1 {
-            for (v, &p) in h.parent[k].iter().enumerate() {
-                let g = (h.offsets[k + 1] + p) as usize;
-                children[fill[g] as usize] = h.offsets[k] + v as u32;
-                fill[g] += 1;
-            }
-        }
+        // Every node below the top, as (global parent, global child).
+        let edges = || {
+            (0..h.levels().saturating_sub(1))
+                .flat_map(move |k| h.parent[k].iter().enumerate().map(move |(v, &p)| (h.offsets[k + 1] + p, h.offsets[k] + v as u32)))
+        };
+        let (offsets, children) = compressed_rows(h.node_count(), edges);
         ChildIndex { offsets, children }
     }
 

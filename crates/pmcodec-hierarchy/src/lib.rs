@@ -18,6 +18,7 @@ pub mod nodes;
 pub mod progressive;
 pub mod quadric;
 pub mod recluster;
+pub mod rows;
 pub mod split_order;
 pub mod topology;
 
