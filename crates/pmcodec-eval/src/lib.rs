@@ -25,7 +25,7 @@ mod rng;
 mod sample;
 pub mod triangle;
 
-pub use approx::{ApproxOptions, ApproxTarget, Method, approximate};
+pub use approx::{ApproxOptions, Method, approximate};
 pub use bvh::SurfaceIndex;
 pub use coherence::{Approximation, changed_share};
 use glam::Vec3;
