@@ -33,6 +33,7 @@ use pmcodec_mesh::TriMesh;
 use rayon::prelude::*;
 pub use rebalance::{rebalance, repair};
 pub use rng::SplitMix64;
+pub use sample::{area_samples, triangle_area};
 use serde::Serialize;
 
 /// How many points to sample on each mesh, and from which seed. The same meshes, options and
