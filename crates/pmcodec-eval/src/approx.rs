@@ -21,12 +21,16 @@ use pmcodec_mesh::Sequence;
 /// The approximation methods.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Method {
+    /// Frame 0's clusters kept for every frame, node positions re-solved per frame.
     FirstFrameStatic,
+    /// Every frame simplified on its own.
     Direct,
+    /// This project's method: the base hierarchy reclustered frame by frame.
     Reclustered,
 }
 
 impl Method {
+    /// The method's name in reports and on the command line.
     pub fn name(self) -> &'static str {
         match self {
             Method::FirstFrameStatic => "static",
@@ -39,8 +43,11 @@ impl Method {
 /// Shared settings.
 #[derive(Clone, Debug, Default)]
 pub struct ApproxOptions {
+    /// Branching factor of the hierarchy (0: the default).
     pub branching: u32,
+    /// The quadrics the base hierarchy is built from.
     pub base: BaseOptions,
+    /// Per-frame reclustering (the reclustered method).
     pub recluster: ReclusterOptions,
 }
 
