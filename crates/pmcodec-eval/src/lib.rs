@@ -14,7 +14,6 @@
 //! coherence, and [`rebalance`] carries a cut from frame to frame as a player does. All
 //! sampling draws from [`SplitMix64`].
 #![warn(missing_docs)]
-
 // `!(x > 0.0)` is written on purpose: it is also true for NaN, which these checks must reject.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
