@@ -3,7 +3,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use pmcodec_container::{Decoder, MeshTarget, Reader, verify};
+use pmcodec_container::{CutTarget, Decoder, Reader, verify};
 
 fuzz_target!(|data: &[u8]| {
     if let Ok(reader) = Reader::open(data) {
@@ -12,7 +12,7 @@ fuzz_target!(|data: &[u8]| {
         for level in [0, 1] {
             if let Ok(mut d) = Decoder::new(reader.borrowed(), level) {
                 if d.seek(reader.header().frame_count.saturating_sub(1)).is_ok() {
-                    let _ = d.mesh(MeshTarget::Triangles(100));
+                    let _ = d.mesh(CutTarget::Triangles(100));
                 }
             }
         }

@@ -6,7 +6,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use pmcodec_client::Client;
-use pmcodec_container::{Decoder, MeshTarget, Reader};
+use pmcodec_container::{CutTarget, Decoder, Distance, Reader};
 use pmcodec_server::config::{S3Config, Secret, StoreConfig};
 use pmcodec_server::{Config, RunningServer};
 use serde_json::Value;
@@ -125,11 +125,11 @@ async fn uploaded_obj_sequence_is_served_bit_for_bit_and_plays_through_the_clien
     let client = Client::new(&base).unwrap();
     let mut local = Decoder::new(Reader::open(file.as_slice()).unwrap(), 0).unwrap();
     for (frame, target) in [
-        (7, MeshTarget::Triangles(1600)),
-        (2, MeshTarget::Triangles(300)),
-        (9, MeshTarget::Level(2)),
-        (0, MeshTarget::Level(0)),
-        (5, MeshTarget::MaxError(0.01)),
+        (7, CutTarget::Triangles(1600)),
+        (2, CutTarget::Triangles(300)),
+        (9, CutTarget::Level(2)),
+        (0, CutTarget::Level(0)),
+        (5, CutTarget::MaxError(Distance::DiagonalFraction(0.01))),
     ] {
         let served = client.mesh("horse", frame, target).await.unwrap();
         local.seek(frame).unwrap();
@@ -144,7 +144,7 @@ async fn uploaded_obj_sequence_is_served_bit_for_bit_and_plays_through_the_clien
     for f in 0..10 {
         let frame = session.frame(f).await.unwrap();
         local.seek(f).unwrap();
-        assert_eq!(frame.mesh, local.mesh(MeshTarget::Triangles(budget)).unwrap(), "frame {f}");
+        assert_eq!(frame.mesh, local.mesh(CutTarget::Triangles(budget)).unwrap(), "frame {f}");
     }
     let share = session.bytes_downloaded() as f64 / file.len() as f64;
     assert!(share < 0.5, "a 10% session downloaded {:.0}% of the file", share * 100.0);
@@ -447,8 +447,8 @@ async fn two_servers_share_one_s3_bucket() {
     let ia: Value = http.get(format!("{}/v1/assets/cat", a.url())).send().await.unwrap().json().await.unwrap();
     let ib: Value = http.get(format!("{}/v1/assets/cat", b.url())).send().await.unwrap().json().await.unwrap();
     assert_eq!(ia["version"], ib["version"]);
-    let ma = Client::new(&a.url()).unwrap().mesh("cat", 2, MeshTarget::Triangles(500)).await.unwrap();
-    let mb = Client::new(&b.url()).unwrap().mesh("cat", 2, MeshTarget::Triangles(500)).await.unwrap();
+    let ma = Client::new(&a.url()).unwrap().mesh("cat", 2, CutTarget::Triangles(500)).await.unwrap();
+    let mb = Client::new(&b.url()).unwrap().mesh("cat", 2, CutTarget::Triangles(500)).await.unwrap();
     assert_eq!(ma, mb);
     let r = http.get(format!("{}{}", b.url(), ib["file"].as_str().unwrap())).header("range", "bytes=0-3").send().await.unwrap();
     assert_eq!(r.status(), 206);

@@ -1,16 +1,23 @@
 //! The JSON bodies of the pmcodec HTTP API (proto/http.md, proto/openapi.yaml): written by
 //! `pmcodec-server`, read by `pmcodec-client`, so that the two cannot drift apart.
+#![warn(missing_docs)]
 
 use serde::{Deserialize, Serialize};
 
 /// What `GET /v1/assets` lists per asset.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AssetSummary {
+    /// The asset's id (its name in the store).
     pub id: String,
+    /// The container's content hash: what its immutable URLs and strong ETags carry.
     pub version: String,
+    /// Frames in the sequence.
     pub frames: u32,
+    /// Playback rate, frames per second.
     pub frame_rate: f32,
+    /// Vertices of the input mesh (level 0).
     pub vertices: u32,
+    /// Triangles of the input mesh.
     pub triangles: u32,
     /// Nodes per level, `|M_0|` (the input) to `|M_top|`.
     pub levels: Vec<u32>,
@@ -24,9 +31,13 @@ pub struct AssetSummary {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AssetInfo {
     #[serde(flatten)]
+    /// What the asset list says of it.
     pub summary: AssetSummary,
+    /// Bounding box over all frames: its low corner.
     pub bbox_min: [f32; 3],
+    /// Bounding box over all frames: its high corner.
     pub bbox_max: [f32; 3],
+    /// Frames from one keyframe to the next.
     pub keyframe_interval: u32,
     /// Triangles shown when every node of a level is drawn (frame 0).
     pub triangles_per_level: Vec<usize>,
@@ -37,11 +48,13 @@ pub struct AssetInfo {
     pub bytes_to_level: Vec<u64>,
     /// Bytes per frame of deltas and positions a client stopping at each level reads.
     pub bytes_per_frame_to_level: Vec<f64>,
+    /// Stored bits of quantized positions per vertex and frame.
     pub positions_bits_per_vertex_frame: f64,
     /// The chunk table (JSON) at an immutable URL.
     pub index: String,
     /// Header and frames in playback order, one request.
     pub stream: String,
+    /// The encoder that wrote the container.
     pub generator: String,
 }
 

@@ -2,22 +2,35 @@
 //! play an asset as a [`Session`] that streams the container with range requests, reading only
 //! the bands its triangle budget needs and prefetching frames ahead of the playhead, and hands
 //! out ready-to-draw vertex and index buffers per frame.
+#![warn(missing_docs)]
 
-use pmcodec_container::{ByteSource, ChunkEntry, ChunkKind, ContainerError, Decoder, MeshTarget, Reader};
+use pmcodec_container::{ByteSource, ChunkEntry, ChunkKind, ContainerError, CutTarget, Decoder, Distance, Reader};
 use pmcodec_mesh::TriMesh;
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+/// What can go wrong talking to a server.
 #[derive(Debug, thiserror::Error)]
 pub enum ClientError {
+    /// The request failed (connection, TLS, body).
     #[error("HTTP: {0}")]
     Http(#[from] reqwest::Error),
+    /// The server answered with an error status.
     #[error("{url}: HTTP {status}: {detail}")]
-    Status { url: String, status: u16, detail: String },
+    Status {
+        /// The URL asked for.
+        url: String,
+        /// The HTTP status.
+        status: u16,
+        /// The body of the answer (the API's JSON error, see proto/http.md).
+        detail: String,
+    },
+    /// The bytes served are not a container this decoder reads.
     #[error("container: {0}")]
     Container(#[from] ContainerError),
+    /// The server's answer, or the request asked of this client, breaks the protocol.
     #[error("{0}")]
     Protocol(String),
 }
@@ -64,6 +77,7 @@ impl Client {
         Ok(resp)
     }
 
+    /// The server's assets (`GET /v1/assets`).
     pub async fn assets(&self) -> Result<Vec<AssetSummary>, ClientError> {
         #[derive(Deserialize)]
         struct List {
@@ -72,17 +86,21 @@ impl Client {
         Ok(self.get("/v1/assets", None).await?.json::<List>().await?.assets)
     }
 
+    /// One asset's description (`GET /v1/assets/{id}`).
     pub async fn asset(&self, id: &str) -> Result<AssetInfo, ClientError> {
         Ok(self.get(&format!("/v1/assets/{id}"), None).await?.json().await?)
     }
 
     /// LOD on demand: frame `frame` cut by the server (compact binary format).
-    pub async fn mesh(&self, id: &str, frame: u32, target: MeshTarget) -> Result<TriMesh, ClientError> {
+    pub async fn mesh(&self, id: &str, frame: u32, target: CutTarget) -> Result<TriMesh, ClientError> {
         let q = match target {
-            MeshTarget::Triangles(n) => format!("triangles={n}"),
-            MeshTarget::Level(l) => format!("level={l}"),
-            MeshTarget::MaxError(e) => format!("max_error={e}"),
-            MeshTarget::Vertices(_) => return Err(ClientError::Protocol("the server cuts by triangles, level or error".into())),
+            CutTarget::Triangles(n) => format!("triangles={n}"),
+            CutTarget::Level(l) => format!("level={l}"),
+            CutTarget::MaxError(Distance::DiagonalFraction(e)) => format!("max_error={e}"),
+            CutTarget::MaxError(Distance::Absolute(_)) => {
+                return Err(ClientError::Protocol("the server takes max_error as a fraction of the diagonal".into()));
+            }
+            CutTarget::Vertices(_) => return Err(ClientError::Protocol("the server cuts by triangles, level or error".into())),
         };
         let bytes = self.get(&format!("/v1/assets/{id}/mesh?frame={frame}&{q}&format=bin"), None).await?.bytes().await?;
         parse_bin_mesh(&bytes)
@@ -150,7 +168,9 @@ impl ByteSource for SharedBytes {
 /// One frame, ready to draw.
 #[derive(Clone, Debug)]
 pub struct Frame {
+    /// Its index in the sequence.
     pub frame: u32,
+    /// The frame cut to the session's budget.
     pub mesh: TriMesh,
     /// Bytes downloaded by the session so far.
     pub bytes_downloaded: u64,
@@ -161,6 +181,7 @@ pub struct Frame {
 /// Streaming playback of one asset at a triangle budget.
 pub struct Session {
     client: Client,
+    /// The asset played.
     pub info: AssetInfo,
     source: SharedBytes,
     decoder: Decoder<SharedBytes>,
@@ -203,6 +224,7 @@ impl Session {
         Ok(Session { client, info, source, decoder, budget, ahead: 4, bytes_downloaded: downloaded })
     }
 
+    /// The triangle budget each frame is cut to.
     pub fn budget(&self) -> u32 {
         self.budget
     }
@@ -212,6 +234,7 @@ impl Session {
         self.decoder.min_level()
     }
 
+    /// Bytes downloaded by the session so far.
     pub fn bytes_downloaded(&self) -> u64 {
         self.bytes_downloaded
     }
@@ -274,7 +297,7 @@ impl Session {
         self.fetch(frame).await?;
         let t = Instant::now();
         self.decoder.seek(frame)?;
-        let mesh = self.decoder.mesh(MeshTarget::Triangles(self.budget))?;
+        let mesh = self.decoder.mesh(CutTarget::Triangles(self.budget))?;
         Ok(Frame { frame, mesh, bytes_downloaded: self.bytes_downloaded, decode_time: t.elapsed() })
     }
 }

@@ -3,7 +3,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use pmcodec_client::{Client, parse_bin_mesh};
-use pmcodec_container::{Decoder, MeshTarget, Reader};
+use pmcodec_container::{CutTarget, Decoder, Reader};
 
 async fn server() -> (pmcodec_server::RunningServer, Vec<u8>, std::path::PathBuf) {
     let dir = std::env::temp_dir().join(format!("pmcodec-client-{}", std::process::id()));
@@ -27,9 +27,9 @@ async fn playback_matches_local_decoding() {
     let assets = client.assets().await.unwrap();
     assert_eq!(assets.len(), 1);
     assert_eq!(assets[0].id, "tube");
-    let lod = client.mesh("tube", 3, MeshTarget::Triangles(200)).await.unwrap();
+    let lod = client.mesh("tube", 3, CutTarget::Triangles(200)).await.unwrap();
     assert!(!lod.triangles.is_empty() && lod.triangles.len() <= 200);
-    assert!(client.mesh("nope", 0, MeshTarget::Level(0)).await.is_err());
+    assert!(client.mesh("nope", 0, CutTarget::Level(0)).await.is_err());
 
     // A session at a small budget reads only coarse bands.
     let mut session = client.session("tube", 150).await.unwrap();
@@ -39,7 +39,7 @@ async fn playback_matches_local_decoding() {
     for f in 0..20 {
         let frame = session.frame(f).await.unwrap();
         local.seek(f).unwrap();
-        assert_eq!(frame.mesh, local.mesh(MeshTarget::Triangles(150)).unwrap(), "frame {f}");
+        assert_eq!(frame.mesh, local.mesh(CutTarget::Triangles(150)).unwrap(), "frame {f}");
         assert!(frame.mesh.triangles.len() <= 150);
     }
     assert!(session.bytes_downloaded() * 2 < bytes.len() as u64, "{} of {}", session.bytes_downloaded(), bytes.len());

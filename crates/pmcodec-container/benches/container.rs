@@ -1,7 +1,7 @@
 //! Encode and decode speed of the container on the horse gallop.
 //! `cargo bench -p pmcodec-container --bench container`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
-use pmcodec_container::{Decoder, EncodeOptions, MeshTarget, Motion, Reader, VertexOrder, encode};
+use pmcodec_container::{CutTarget, Decoder, EncodeOptions, Motion, Reader, VertexOrder, encode};
 use std::sync::OnceLock;
 
 fn main() {
@@ -61,7 +61,7 @@ fn decode_and_cut_2000_horse_48_frames(min_level: usize) -> usize {
     let mut shown = 0;
     for f in 0..reader.header().frame_count {
         d.seek(f).expect("frame");
-        shown += d.mesh(MeshTarget::Triangles(2000)).expect("mesh").triangles.len();
+        shown += d.mesh(CutTarget::Triangles(2000)).expect("mesh").triangles.len();
     }
     shown
 }
@@ -73,8 +73,8 @@ fn lod_cut_warm_frame(bencher: divan::Bencher, budget: u32) {
     let reader = Reader::open(file().as_slice()).expect("open");
     let mut d = Decoder::new(reader.borrowed(), 0).expect("decoder");
     d.seek(24).expect("frame");
-    d.mesh(MeshTarget::Triangles(u32::MAX)).expect("warm-up");
-    bencher.bench_local(|| d.mesh(MeshTarget::Triangles(budget)).expect("mesh").triangles.len());
+    d.mesh(CutTarget::Triangles(u32::MAX)).expect("warm-up");
+    bencher.bench_local(|| d.mesh(CutTarget::Triangles(budget)).expect("mesh").triangles.len());
 }
 
 /// LOD on demand as the server sees it: every frame's state warm, requests at random frames
@@ -89,7 +89,7 @@ fn lod_on_demand_random_frames(bencher: divan::Bencher) {
         .map(|f| {
             let mut d = Decoder::new(reader.borrowed(), 0).expect("decoder");
             d.seek(f).expect("frame");
-            d.mesh(MeshTarget::Triangles(u32::MAX)).expect("warm-up");
+            d.mesh(CutTarget::Triangles(u32::MAX)).expect("warm-up");
             d
         })
         .collect();
@@ -106,7 +106,7 @@ fn lod_on_demand_random_frames(bencher: divan::Bencher) {
         for _ in 0..64 {
             let f = (next() % frames as u64) as usize;
             let budget = 200 + (next() % 15_801) as u32;
-            let mesh = states[f].mesh(MeshTarget::Triangles(budget)).expect("mesh");
+            let mesh = states[f].mesh(CutTarget::Triangles(budget)).expect("mesh");
             bytes += pmcodec_mesh::binmesh::encode_bin(&mesh).len();
         }
         bytes

@@ -3,7 +3,7 @@
 //! distance to the input frame (% of its bounding-box diagonal).
 //! `cargo run --release -p pmcodec-container --example cut_quality -- DIR [triangles] [bits]`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
-use pmcodec_container::{Decoder, EncodeOptions, MeshTarget, QuantizationChoice, Reader, encode};
+use pmcodec_container::{CutTarget, Decoder, EncodeOptions, QuantizationChoice, Reader, encode};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -19,7 +19,7 @@ fn main() {
         let mut sum = 0.0;
         for (f, frame) in seq.frames.iter().enumerate() {
             d.seek(f as u32).expect("seek");
-            let cut = d.mesh(MeshTarget::Triangles(budget)).expect("mesh");
+            let cut = d.mesh(CutTarget::Triangles(budget)).expect("mesh");
             let input = pmcodec_mesh::TriMesh { positions: frame.clone(), triangles: seq.triangles.clone() };
             sum += pmcodec_eval::symmetric_relative(&input, &cut, &sample).expect("distance").rms;
         }

@@ -2,7 +2,7 @@
 //! the server's LOD endpoint spends per request on a warm state).
 //! `cargo run --release -p pmcodec-container --example lod_cost -- FILE.pmc [budget]`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
-use pmcodec_container::{Decoder, MeshTarget, Reader};
+use pmcodec_container::{CutTarget, Decoder, Reader};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -19,7 +19,7 @@ fn main() {
         let t = std::time::Instant::now();
         let mut tris = 0;
         for _ in 0..n {
-            tris = d.mesh(MeshTarget::Triangles(budget)).expect("mesh").triangles.len();
+            tris = d.mesh(CutTarget::Triangles(budget)).expect("mesh").triangles.len();
         }
         println!("budget {budget}: {tris} triangles, {:.3} ms per mesh", t.elapsed().as_secs_f64() * 1e3 / n as f64);
     }

@@ -109,7 +109,7 @@ fn main() {
     for l in (0..s.header.levels()).rev() {
         let mut d = pmcodec_container::Decoder::new(reader.borrowed(), l).expect("decoder");
         d.seek(mid).expect("seek");
-        let shown = d.mesh(pmcodec_container::MeshTarget::Triangles(budget)).expect("mesh").triangles.len();
+        let shown = d.mesh(pmcodec_container::CutTarget::Triangles(budget)).expect("mesh").triangles.len();
         if shown as f64 >= 0.98 * budget as f64 {
             let part: u64 = reader.index().chunks.iter().filter(|e| e.kind.read_at(e.band as usize, l)).map(|e| e.stored_len as u64).sum();
             let full: u64 = reader.index().chunks.iter().filter(|e| e.kind.read_at(e.band as usize, 0)).map(|e| e.stored_len as u64).sum();

@@ -6,25 +6,12 @@ use crate::payload;
 use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, predict};
 use crate::{ByteSource, ContainerError, Reader};
 use glam::Vec3;
+use pmcodec_hierarchy::CutTarget;
 use pmcodec_hierarchy::NONE;
 use pmcodec_hierarchy::progressive::{CornerUpdate, FrameDelta, KeyBand, Keyframe, Replay};
 use pmcodec_hierarchy::recluster::Swap;
-use pmcodec_hierarchy::split_order::{PrefixTarget, SplitOrder};
+use pmcodec_hierarchy::split_order::SplitOrder;
 use pmcodec_mesh::TriMesh;
-
-/// Which cut a decoded mesh shows.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum MeshTarget {
-    /// The longest prefix of the frame's split order (greedy by split priority) showing at
-    /// most this many triangles.
-    Triangles(u32),
-    /// The longest prefix of the split order with at most this many vertices.
-    Vertices(u32),
-    /// Every node of this level (0 = the input mesh, vertices in input order).
-    Level(usize),
-    /// Split every node whose priority exceeds this fraction of the bounding-box diagonal.
-    MaxError(f64),
-}
 
 /// Plays a container frame by frame down to a finest level. It owns its [`Reader`]; use
 /// [`Reader::borrowed`] to decode from a reader you keep. A clone is an independent decoder
@@ -408,10 +395,12 @@ impl<S: ByteSource> Decoder<S> {
         }
     }
 
-    /// Chooses the cut for `target` on the current frame and returns its mesh. `Level(0)`
-    /// (with a full-resolution decoder) gives every input vertex in input order and the input
-    /// triangles in input order.
-    pub fn mesh(&mut self, target: MeshTarget) -> Result<TriMesh, ContainerError> {
+    /// Chooses the cut for `target` on the current frame and returns its mesh. Budgets and
+    /// error bounds are prefixes of the frame's split order (greedy by split priority; a
+    /// `MaxError` diagonal fraction is of the header's bounding box); a level is every node of
+    /// it. `Level(0)` (with a full-resolution decoder) gives every input vertex in input order
+    /// and the input triangles in input order.
+    pub fn mesh(&mut self, target: CutTarget) -> Result<TriMesh, ContainerError> {
         let mut mesh = TriMesh::default();
         self.mesh_into(target, &mut mesh)?;
         Ok(mesh)
@@ -420,7 +409,7 @@ impl<S: ByteSource> Decoder<S> {
     /// [`Decoder::mesh`] into `mesh`'s buffers (whatever they held is replaced): a server or
     /// player that cuts again and again allocates nothing for budget and error cuts once the
     /// buffers have grown.
-    pub fn mesh_into(&mut self, target: MeshTarget, mesh: &mut TriMesh) -> Result<(), ContainerError> {
+    pub fn mesh_into(&mut self, target: CutTarget, mesh: &mut TriMesh) -> Result<(), ContainerError> {
         let mut derived = self.take_derived()?;
         let result = self.cut(target, &mut derived, mesh);
         self.derived = Some(derived);
@@ -447,30 +436,25 @@ impl<S: ByteSource> Decoder<S> {
         })
     }
 
-    /// The split-order prefix a budget or error target selects, or the level a level target
-    /// names.
-    fn prefix_target(&self, target: MeshTarget) -> Result<PrefixTarget, usize> {
+    /// The header's bounding-box diagonal: what a `MaxError` diagonal fraction is of.
+    fn diagonal(&self) -> f64 {
         let h = self.reader.header();
-        let diag = (Vec3::from_array(h.bbox_max) - Vec3::from_array(h.bbox_min)).length() as f64;
-        match target {
-            MeshTarget::Triangles(n) => Ok(PrefixTarget::Triangles(n)),
-            MeshTarget::Vertices(n) => Ok(PrefixTarget::Vertices(n)),
-            MeshTarget::MaxError(e) => Ok(PrefixTarget::MaxError(e * diag)),
-            MeshTarget::Level(l) => Err(l),
-        }
+        (Vec3::from_array(h.bbox_max) - Vec3::from_array(h.bbox_min)).length() as f64
     }
 
     /// The triangles a budget or error cut shows, each as the global ids of its corners' cut
     /// nodes (input triangle order is not kept): what identifies a shown triangle from frame to
     /// frame, for a tool that measures how much cuts change. `Level` targets are refused.
-    pub fn cut_triangles(&mut self, target: MeshTarget) -> Result<Vec<[u32; 3]>, ContainerError> {
-        let prefix = self
-            .prefix_target(target)
-            .map_err(|l| ContainerError::Options(format!("cut triangles of level {l}: give a budget or an error")))?;
+    pub fn cut_triangles(&mut self, target: CutTarget) -> Result<Vec<[u32; 3]>, ContainerError> {
+        if let CutTarget::Level(l) = target {
+            return Err(ContainerError::Options(format!("cut triangles of level {l}: give a budget or an error")));
+        }
+        let diagonal = self.diagonal();
         let mut d = self.take_derived()?;
         let result = match self.replay.as_ref() {
             Some(replay) => {
-                let k = d.order.prefix(replay, &d.errors, prefix);
+                // Never `Err`: levels are refused above.
+                let k = d.order.prefix(replay, &d.errors, target, diagonal).unwrap_or_default();
                 let corners = replay.corners();
                 Ok(d.order
                     .shown(k)
@@ -485,12 +469,13 @@ impl<S: ByteSource> Decoder<S> {
         result
     }
 
-    fn cut(&mut self, target: MeshTarget, d: &mut Derived, mesh: &mut TriMesh) -> Result<(), ContainerError> {
-        let prefix = self.prefix_target(target);
+    fn cut(&mut self, target: CutTarget, d: &mut Derived, mesh: &mut TriMesh) -> Result<(), ContainerError> {
+        let diagonal = self.diagonal();
         let min_level = self.min_level;
         let replay = self.replay.as_mut().ok_or_else(|| ContainerError::Options("seek to a frame first".into()))?;
-        let prefix = match prefix {
-            Ok(p) => p,
+        // Budgets and error bounds are prefixes of the split order: no change to the replay.
+        let k = match d.order.prefix(replay, &d.errors, target, diagonal) {
+            Ok(k) => k,
             Err(0) if min_level == 0 => {
                 let n0 = replay.h.level_sizes[0] as usize;
                 mesh.positions.clear();
@@ -505,8 +490,6 @@ impl<S: ByteSource> Decoder<S> {
                 return Ok(());
             }
         };
-        // Budgets and error bounds are prefixes of the split order: no change to the replay.
-        let k = d.order.prefix(replay, &d.errors, prefix);
         d.order.mesh_into(replay, &d.positions, k, mesh);
         Ok(())
     }

@@ -19,9 +19,10 @@ mod read;
 #[cfg(feature = "test-support")]
 pub mod testing;
 
-pub use decode::{Decoder, MeshTarget};
+pub use decode::Decoder;
 pub use encode::{EncodeOptions, QuantizationChoice, encode, encode_until, write_file};
 pub use format::{ChunkEntry, ChunkKind, Header, Index, Motion, VertexOrder};
+pub use pmcodec_hierarchy::{CutTarget, Distance};
 pub use predict::coarse_shift;
 pub use read::{ByteSource, FileSource, Reader};
 

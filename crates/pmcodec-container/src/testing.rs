@@ -6,7 +6,7 @@
 //! property test `tests/resealed.rs` and the regression corpus all use it.
 
 use crate::format::{ChunkEntry, ChunkKind, Header, Index, MAGIC, PREAMBLE_LEN, Preamble};
-use crate::{ContainerError, Decoder, MeshTarget, Reader, verify};
+use crate::{ContainerError, CutTarget, Decoder, Distance, Reader, verify};
 
 /// A container taken apart: the header's postcard bytes, and the chunks decompressed, in file
 /// order. [`Unsealed::seal`] lays them out again.
@@ -547,7 +547,12 @@ pub fn exercise(bytes: &[u8]) -> Result<(), ContainerError> {
         for f in 0..h.frame_count {
             d.seek(f)?;
         }
-        for target in [MeshTarget::Triangles(50), MeshTarget::Vertices(20), MeshTarget::MaxError(0.01), MeshTarget::Level(level)] {
+        for target in [
+            CutTarget::Triangles(50),
+            CutTarget::Vertices(20),
+            CutTarget::MaxError(Distance::DiagonalFraction(0.01)),
+            CutTarget::Level(level),
+        ] {
             d.mesh(target)?;
         }
         // Seeks back and forth through kept keyframes (as a server does), and the cut's
@@ -558,8 +563,8 @@ pub fn exercise(bytes: &[u8]) -> Result<(), ContainerError> {
             let _ = d.chunks_for(f);
             d.seek(f)?;
         }
-        d.mesh(MeshTarget::Triangles(30))?;
-        d.cut_triangles(MeshTarget::Vertices(15))?;
+        d.mesh(CutTarget::Triangles(30))?;
+        d.cut_triangles(CutTarget::Vertices(15))?;
     }
     Ok(())
 }

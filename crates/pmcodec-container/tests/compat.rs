@@ -6,7 +6,7 @@
 //! (band 0 in input order and mean motion or affine; version 5's defaults), frame by frame.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use pmcodec_container::{Decoder, EncodeOptions, MeshTarget, Motion, QuantizationChoice, Reader, VertexOrder, encode, verify};
+use pmcodec_container::{CutTarget, Decoder, EncodeOptions, Motion, QuantizationChoice, Reader, VertexOrder, encode, verify};
 
 /// Decodes `old` (of format `version`) and today's encoding of the cloth (`frames` frames) with
 /// `opts`, and compares them frame by frame.
@@ -30,7 +30,7 @@ fn decodes_as_today(file: &str, version: u16, frames: u32, opts: &EncodeOptions)
         db.seek(f).expect("new frame");
         assert_eq!(da.replay().expect("replay").h, db.replay().expect("replay").h, "{file} frame {f}: hierarchy");
         assert_eq!(da.quantized(), db.quantized(), "{file} frame {f}: positions");
-        assert_eq!(da.mesh(MeshTarget::Triangles(60)).expect("cut"), db.mesh(MeshTarget::Triangles(60)).expect("cut"), "frame {f}");
+        assert_eq!(da.mesh(CutTarget::Triangles(60)).expect("cut"), db.mesh(CutTarget::Triangles(60)).expect("cut"), "frame {f}");
     }
     new
 }

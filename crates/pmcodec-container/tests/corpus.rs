@@ -2,21 +2,21 @@
 //! and every single-byte corruption of the valid files is survived without a panic.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use pmcodec_container::{Decoder, MeshTarget, Reader, verify};
+use pmcodec_container::{CutTarget, Decoder, Reader, verify};
 
 fn exercise(bytes: &[u8]) -> Result<(), String> {
     let reader = Reader::open(bytes).map_err(|e| e.to_string())?;
     verify(&reader).map_err(|e| e.to_string())?;
     let mut d = Decoder::new(reader.borrowed(), 0).map_err(|e| e.to_string())?;
     d.seek(reader.header().frame_count - 1).map_err(|e| e.to_string())?;
-    d.mesh(MeshTarget::Triangles(50)).map_err(|e| e.to_string())?;
+    d.mesh(CutTarget::Triangles(50)).map_err(|e| e.to_string())?;
     // A level-1 client reads the faces and corners chunks a full one skips.
     if reader.header().levels() > 1 {
         let mut d = Decoder::new(reader.borrowed(), 1).map_err(|e| e.to_string())?;
         for f in 0..reader.header().frame_count {
             d.seek(f).map_err(|e| e.to_string())?;
         }
-        d.mesh(MeshTarget::Triangles(30)).map_err(|e| e.to_string())?;
+        d.mesh(CutTarget::Triangles(30)).map_err(|e| e.to_string())?;
     }
     Ok(())
 }

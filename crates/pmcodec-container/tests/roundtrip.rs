@@ -59,7 +59,7 @@ fn round_trip(seq: &Sequence, opts: &EncodeOptions) -> Vec<u8> {
         }
     }
     // Level 0 is the input, in input order.
-    let m = d.mesh(MeshTarget::Level(0)).unwrap();
+    let m = d.mesh(CutTarget::Level(0)).unwrap();
     assert_eq!(m.triangles, seq.triangles);
     assert_eq!(m.positions.len(), seq.vertex_count());
     bytes
@@ -83,12 +83,12 @@ fn horse_gallop_round_trips() {
     assert_eq!(played.replay().unwrap().h, sought.replay().unwrap().h);
     assert_eq!(played.quantized(), sought.quantized());
     for budget in [500, 2000, 8000] {
-        let a = played.mesh(MeshTarget::Triangles(budget)).unwrap();
-        let b = sought.mesh(MeshTarget::Triangles(budget)).unwrap();
+        let a = played.mesh(CutTarget::Triangles(budget)).unwrap();
+        let b = sought.mesh(CutTarget::Triangles(budget)).unwrap();
         assert_eq!(a, b, "budget {budget}");
         assert!(a.triangles.len() as u32 <= budget && a.triangles.len() as u32 > budget / 2, "{}", a.triangles.len());
         // The same cut as node triples: as many, each three distinct nodes.
-        let nodes = played.cut_triangles(MeshTarget::Triangles(budget)).unwrap();
+        let nodes = played.cut_triangles(CutTarget::Triangles(budget)).unwrap();
         assert_eq!(nodes.len(), a.triangles.len(), "budget {budget}");
         assert!(nodes.iter().all(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]));
     }
@@ -153,8 +153,8 @@ fn seeking_back_and_forth_equals_fresh_decoding() {
             assert_eq!(a.degeneration(), b.degeneration(), "level {level} frame {f}");
             assert_eq!(d.quantized(), fresh.quantized(), "level {level} frame {f}");
             assert_eq!(
-                d.mesh(MeshTarget::Triangles(1500)).unwrap(),
-                fresh.mesh(MeshTarget::Triangles(1500)).unwrap(),
+                d.mesh(CutTarget::Triangles(1500)).unwrap(),
+                fresh.mesh(CutTarget::Triangles(1500)).unwrap(),
                 "level {level} frame {f}"
             );
         }
@@ -300,7 +300,7 @@ fn level_limited_decoding_reads_only_its_bands() {
     );
     assert!(src.fetched.get() <= allowed, "{} > {allowed}", src.fetched.get());
     assert!(src.fetched.get() * 4 < bytes.len() as u64, "a level-{level} client read {} of {} bytes", src.fetched.get(), bytes.len());
-    let m = part.mesh(MeshTarget::Triangles(1000)).unwrap();
+    let m = part.mesh(CutTarget::Triangles(1000)).unwrap();
     assert!(!m.triangles.is_empty() && m.triangles.len() <= 1000);
 }
 

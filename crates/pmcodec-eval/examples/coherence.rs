@@ -1,7 +1,8 @@
 //! Development probe: share of shown triangles changing per frame at a triangle budget.
 //! `cargo run --release -p pmcodec-eval --example coherence -- ../shared/data/horse-gallop 1600`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
-use pmcodec_eval::{self as approx, ApproxOptions, ApproxTarget, Method};
+use pmcodec_eval::{self as approx, ApproxOptions, Method};
+use pmcodec_hierarchy::CutTarget;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -21,7 +22,7 @@ fn main() {
         opts.base.poses = pmcodec_hierarchy::base::PoseSet::Sampled(8);
     }
     for m in [Method::FirstFrameStatic, Method::Direct, Method::Reclustered] {
-        let a = approx::approximate(&seq, ApproxTarget::Triangles(budget), m, &opts, |_| {}).expect("approx");
+        let a = approx::approximate(&seq, CutTarget::Triangles(budget), m, &opts, |_| {}).expect("approx");
         let c = approx::changed_share(&a);
         let mean = c[1..].iter().sum::<f64>() / (c.len() - 1) as f64;
         let tris: Vec<usize> = a.iter().map(|x| x.mesh.triangles.len()).collect();

@@ -1,32 +1,36 @@
-//! Per-frame approximations of a sequence at a fixed vertex count, by three methods, for
+//! Per-frame approximations of a sequence at a fixed vertex count or budget, by three methods, for
 //! measurement (Kircher & Garland figure 11):
 //! - *first-frame static*: frame 0's clusters kept for every frame, node positions re-solved
 //!   from each frame's quadrics (stronger than reusing a vertex subset);
 //! - *direct*: every frame simplified on its own (QSlim per frame; flickers);
 //! - *reclustered*: this project's method, the base hierarchy adapted frame by frame.
 //!
-//! All three take the hierarchy level that has exactly the requested vertex count, so they
-//! differ only in how the clusters were chosen.
+//! At a vertex count all three take the hierarchy level that has exactly that many vertices,
+//! so they differ only in how the clusters were chosen.
 
 use crate::coherence::{Approximation, Identity, approximation};
 use crate::rebalance::{rebalance, repair};
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
 use pmcodec_hierarchy::build::{BuildError, BuildOptions, anchored_build, build};
-use pmcodec_hierarchy::cut::{self, CutTarget};
+use pmcodec_hierarchy::cut;
 use pmcodec_hierarchy::quadric::vertex_quadrics;
 use pmcodec_hierarchy::recluster::{ReclusterOptions, Reclusterer};
-use pmcodec_hierarchy::{DegenerateSets, FineTopology, Hierarchy, NodeState, Quadric};
+use pmcodec_hierarchy::{CutTarget, DegenerateSets, FineTopology, Hierarchy, NodeState, Quadric};
 use pmcodec_mesh::Sequence;
 
 /// The approximation methods.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Method {
+    /// Frame 0's clusters kept for every frame, node positions re-solved per frame.
     FirstFrameStatic,
+    /// Every frame simplified on its own.
     Direct,
+    /// This project's method: the base hierarchy reclustered frame by frame.
     Reclustered,
 }
 
 impl Method {
+    /// The method's name in reports and on the command line.
     pub fn name(self) -> &'static str {
         match self {
             Method::FirstFrameStatic => "static",
@@ -39,20 +43,12 @@ impl Method {
 /// Shared settings.
 #[derive(Clone, Debug, Default)]
 pub struct ApproxOptions {
+    /// Branching factor of the hierarchy (0: the default).
     pub branching: u32,
+    /// The quadrics the base hierarchy is built from.
     pub base: BaseOptions,
+    /// Per-frame reclustering (the reclustered method).
     pub recluster: ReclusterOptions,
-}
-
-/// What each frame's approximation is held to.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ApproxTarget {
-    /// Exactly this many vertices: the hierarchy gets a level of that size (see
-    /// [`pmcodec_hierarchy::build::anchored_sizes`]) and every method shows that level.
-    Vertices(u32),
-    /// At most this many triangles: a greedy budget cut (by this frame's node errors) on the
-    /// default hierarchy. First-frame static keeps frame 0's cut.
-    Triangles(u32),
 }
 
 fn select(h: &Hierarchy, triangles: &[[u32; 3]], nodes: &NodeState, target: CutTarget) -> cut::Cut {
@@ -60,24 +56,30 @@ fn select(h: &Hierarchy, triangles: &[[u32; 3]], nodes: &NodeState, target: CutT
     cut::select(h, &d, &cut::ChildIndex::new(h), nodes, target)
 }
 
-fn hierarchy_for(topo: &FineTopology, q: &[Quadric], target: ApproxTarget, branching: u32) -> Result<(Hierarchy, CutTarget), BuildError> {
+/// The hierarchy an approximation cuts, and the cut it takes: for `Vertices(n)`, a hierarchy
+/// with a level of exactly `n` nodes (see [`pmcodec_hierarchy::build::anchored_sizes`]) and that
+/// level; for any other target, the default hierarchy and the target itself.
+fn hierarchy_for(topo: &FineTopology, q: &[Quadric], target: CutTarget, branching: u32) -> Result<(Hierarchy, CutTarget), BuildError> {
     match target {
-        ApproxTarget::Vertices(n) => {
+        CutTarget::Vertices(n) => {
             let (h, level) = anchored_build(topo, q, n, branching)?;
             Ok((h, CutTarget::Level(level)))
         }
-        ApproxTarget::Triangles(n) => {
+        other => {
             let b = if branching == 0 { 4 } else { branching };
             let h = build(topo, q, &BuildOptions { branching: b, ..Default::default() })?;
-            Ok((h, CutTarget::Triangles(n)))
+            Ok((h, other))
         }
     }
 }
 
-/// Approximations of every frame of `seq` by `method`; calls `progress(f)` after each frame.
+/// Approximations of every frame of `seq` by `method`, each held to `target`; calls
+/// `progress(f)` after each frame. `Vertices(n)` is met exactly: the hierarchy gets a level of
+/// `n` nodes and every method shows that level. Any other target is a cut of the default
+/// hierarchy by this frame's node errors (first-frame static keeps frame 0's cut).
 pub fn approximate(
     seq: &Sequence,
-    target: ApproxTarget,
+    target: CutTarget,
     method: Method,
     opts: &ApproxOptions,
     mut progress: impl FnMut(usize),
@@ -118,10 +120,11 @@ pub fn approximate(
                         let children = cut::ChildIndex::new(rc.hierarchy());
                         repair(rc.hierarchy(), &d, &children, &mut c);
                         // Hysteresis: leave a cut that is within 2% under its budget alone.
+                        // A target that is no budget is chosen afresh (`rebalance` selects it).
                         let (used, budget) = match cut_target {
                             CutTarget::Triangles(n) => (c.triangles, n),
                             CutTarget::Vertices(n) => (c.vertices, n),
-                            _ => (0, 0),
+                            _ => (u32::MAX, 0),
                         };
                         if used > budget || (used as f64) < 0.98 * budget as f64 {
                             rebalance(rc.hierarchy(), &d, &children, rc.nodes(), &mut c, cut_target);

@@ -10,7 +10,9 @@ use pmcodec_mesh::TriMesh;
 /// three corner clusters' fingerprints (an order-free hash of their input vertices), sorted.
 #[derive(Clone, Debug, Default)]
 pub struct Approximation {
+    /// The approximating mesh.
     pub mesh: TriMesh,
+    /// Per triangle of `mesh`, its identity (see above).
     pub keys: Vec<[u64; 3]>,
 }
 

@@ -13,7 +13,7 @@
 //! static, each frame simplified on its own), [`changed_share`] measures their temporal
 //! coherence, and [`rebalance`] carries a cut from frame to frame as a player does. All
 //! sampling draws from [`SplitMix64`].
-
+#![warn(missing_docs)]
 // `!(x > 0.0)` is written on purpose: it is also true for NaN, which these checks must reject.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
@@ -25,7 +25,7 @@ mod rng;
 mod sample;
 pub mod triangle;
 
-pub use approx::{ApproxOptions, ApproxTarget, Method, approximate};
+pub use approx::{ApproxOptions, Method, approximate};
 pub use bvh::SurfaceIndex;
 pub use coherence::{Approximation, changed_share};
 use glam::Vec3;
@@ -33,6 +33,7 @@ use pmcodec_mesh::TriMesh;
 use rayon::prelude::*;
 pub use rebalance::{rebalance, repair};
 pub use rng::SplitMix64;
+pub use sample::{area_samples, triangle_area};
 use serde::Serialize;
 
 /// How many points to sample on each mesh, and from which seed. The same meshes, options and
@@ -41,6 +42,7 @@ use serde::Serialize;
 pub struct SampleOptions {
     /// Area-uniform points sampled on each mesh, in addition to its vertices.
     pub samples: usize,
+    /// Seed of the sampling (see [`SplitMix64`]).
     pub seed: u64,
 }
 
@@ -54,24 +56,34 @@ impl Default for SampleOptions {
 /// Hausdorff distance) and mean.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct Distance {
+    /// Root mean square of the sampled distances.
     pub rms: f64,
+    /// The largest sampled distance.
     pub max: f64,
+    /// The mean sampled distance.
     pub mean: f64,
 }
 
 /// Why two meshes cannot be measured. `which` names the mesh ("first", "reference", ...).
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
+#[allow(missing_docs)] // `which` names the mesh in every variant; the messages say the rest.
 pub enum EvalError {
+    /// The mesh has no surface.
     #[error("the {which} mesh has no triangles, so it has no surface to measure")]
     NoTriangles { which: &'static str },
+    /// More triangles than the surface index numbers.
     #[error("the {which} mesh has {count} triangles, more than a u32 can index")]
     TooManyTriangles { which: &'static str, count: usize },
+    /// A coordinate is NaN or infinite.
     #[error("the {which} mesh has a NaN or infinite coordinate at vertex {vertex}")]
     NonFinite { which: &'static str, vertex: usize },
+    /// A coordinate is beyond ±1e18 (squared distances must stay within `f32`).
     #[error("the {which} mesh has a coordinate beyond ±1e18 at vertex {vertex}")]
     OutOfRange { which: &'static str, vertex: usize },
+    /// A triangle names a vertex that does not exist.
     #[error("triangle {triangle} of the {which} mesh uses vertex {index}, but there are only {vertex_count} vertices")]
     BadIndex { which: &'static str, triangle: usize, index: u32, vertex_count: usize },
+    /// A relative distance was asked of a mesh with no extent.
     #[error("the {which} mesh's bounding box has a zero diagonal, so a relative distance means nothing")]
     ZeroExtent { which: &'static str },
 }

@@ -3,7 +3,8 @@
 //! at a fixed budget does, so that the coherence measured in [`crate::changed_share`] is what
 //! a viewer would see.
 
-use pmcodec_hierarchy::cut::{self, ByError, ChildIndex, Cut, CutTarget};
+use pmcodec_hierarchy::CutTarget;
+use pmcodec_hierarchy::cut::{self, ByError, ChildIndex, Cut};
 use pmcodec_hierarchy::{DegenerateSets, Hierarchy, NONE, NodeState};
 use std::collections::BinaryHeap;
 

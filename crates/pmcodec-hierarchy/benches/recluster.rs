@@ -5,8 +5,9 @@
 //! `cargo bench -p pmcodec-hierarchy --bench recluster`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+use pmcodec_hierarchy::CutTarget;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
-use pmcodec_hierarchy::cut::{self, ChildIndex, CutTarget};
+use pmcodec_hierarchy::cut::{self, ChildIndex};
 use pmcodec_hierarchy::progressive::{Encoder, FrameDelta, Replay};
 use pmcodec_hierarchy::recluster::ReclusterOptions;
 use pmcodec_hierarchy::*;

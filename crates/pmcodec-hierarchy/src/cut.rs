@@ -10,23 +10,12 @@ use crate::Hierarchy;
 use crate::degenerate::DegenerateSets;
 use crate::hierarchy::NONE;
 use crate::nodes::NodeState;
+use crate::rows::compressed_rows;
+use crate::target::CutTarget;
 use glam::Vec3;
 use pmcodec_mesh::TriMesh;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
-
-/// What a cut should satisfy.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum CutTarget {
-    /// The largest cut with at most this many triangles, refined greedily by node error.
-    Triangles(u32),
-    /// The largest cut with at most this many vertices (cut nodes), refined greedily.
-    Vertices(u32),
-    /// Every node of this level (0 = the input mesh).
-    Level(usize),
-    /// Refine every node whose error distance (see [`NodeState::error_distance`]) exceeds this.
-    MaxError(f64),
-}
 
 /// A cut: the expanded flags of all nodes (global ids) and the counts they give.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -45,25 +34,12 @@ pub struct ChildIndex {
 
 impl ChildIndex {
     pub fn new(h: &Hierarchy) -> Self {
-        let total = h.node_count();
-        let mut offsets = vec![0u32; total + 1];
-        for k in 0..h.levels() - 1 {
-            for &p in &h.parent[k] {
-                offsets[(h.offsets[k + 1] + p) as usize + 1] += 1;
-            }
-        }
-        for i in 0..total {
-            offsets[i + 1] += offsets[i];
-        }
-        let mut fill = offsets.clone();
-        let mut children = vec![0u32; offsets[total] as usize];
-        for k in 0..h.levels() - 1 {
-            for (v, &p) in h.parent[k].iter().enumerate() {
-                let g = (h.offsets[k + 1] + p) as usize;
-                children[fill[g] as usize] = h.offsets[k] + v as u32;
-                fill[g] += 1;
-            }
-        }
+        // Every node below the top, as (global parent, global child).
+        let edges = || {
+            (0..h.levels().saturating_sub(1))
+                .flat_map(move |k| h.parent[k].iter().enumerate().map(move |(v, &p)| (h.offsets[k + 1] + p, h.offsets[k] + v as u32)))
+        };
+        let (offsets, children) = compressed_rows(h.node_count(), edges);
         ChildIndex { offsets, children }
     }
 
@@ -93,7 +69,9 @@ pub fn coarsest(h: &Hierarchy, d: &DegenerateSets) -> Cut {
     Cut { expanded: vec![false; h.node_count()], triangles: d.never.len() as u32, vertices: h.level_sizes[h.top()] }
 }
 
-/// Chooses a cut for `target` using this frame's node errors.
+/// Chooses a cut for `target` using this frame's node errors. A [`CutTarget::MaxError`] is
+/// compared with each node's error distance ([`NodeState::error_distance`]); a diagonal fraction
+/// is of this frame's input vertices' bounding box.
 pub fn select(h: &Hierarchy, d: &DegenerateSets, children: &ChildIndex, nodes: &NodeState, target: CutTarget) -> Cut {
     let mut cut = coarsest(h, d);
     let top = h.top();
@@ -107,7 +85,9 @@ pub fn select(h: &Hierarchy, d: &DegenerateSets, children: &ChildIndex, nodes: &
             }
             cut.vertices = h.level_sizes[level];
         }
-        CutTarget::MaxError(tol) => {
+        CutTarget::MaxError(distance) => {
+            let fine = nodes.positions.get(..n0 as usize).and_then(pmcodec_mesh::bounds_of);
+            let tol = distance.in_model_units(fine.map_or(0.0, |(lo, hi)| (hi - lo).length() as f64));
             let mut stack: Vec<u32> = (h.offsets[top]..h.offsets[top + 1]).collect();
             while let Some(g) = stack.pop() {
                 if g >= n0 && nodes.error_distance(g) > tol {

@@ -9,6 +9,7 @@
 
 use crate::Hierarchy;
 use crate::hierarchy::NONE;
+use crate::rows::compressed_rows;
 
 /// Degeneration node of every fine triangle, and the sets D_a grouped by node.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -56,26 +57,9 @@ impl DegenerateSets {
 
     /// Groups per-triangle degeneration nodes into sets.
     pub fn from_nodes(node_count: usize, node_of: Vec<u32>) -> Self {
-        let mut offsets = vec![0u32; node_count + 1];
-        let mut never = Vec::new();
-        for (t, &g) in node_of.iter().enumerate() {
-            if g == NONE {
-                never.push(t as u32);
-            } else {
-                offsets[g as usize + 1] += 1;
-            }
-        }
-        for i in 0..node_count {
-            offsets[i + 1] += offsets[i];
-        }
-        let mut fill = offsets.clone();
-        let mut triangles = vec![0u32; node_of.len() - never.len()];
-        for (t, &g) in node_of.iter().enumerate() {
-            if g != NONE {
-                triangles[fill[g as usize] as usize] = t as u32;
-                fill[g as usize] += 1;
-            }
-        }
+        let never: Vec<u32> = (0..node_of.len() as u32).filter(|&t| node_of[t as usize] == NONE).collect();
+        let (offsets, triangles) =
+            compressed_rows(node_count, || node_of.iter().enumerate().filter(|(_, g)| **g != NONE).map(|(t, &g)| (g, t as u32)));
         DegenerateSets { node_of, offsets, triangles, never }
     }
 

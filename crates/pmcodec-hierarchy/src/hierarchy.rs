@@ -6,6 +6,7 @@
 //! cut flags) are indexed by. Node counts per level never change after the build: swaps move
 //! children between clusters but never empty one (section 7: clusters do not evaporate).
 
+use crate::rows::compressed_rows;
 use crate::topology::FineTopology;
 
 /// The multilevel hierarchy: the parent maps between consecutive levels.
@@ -91,21 +92,7 @@ impl Hierarchy {
 
     /// Children of every level-(k+1) node in compressed rows: `(offsets, children)`.
     pub fn children(&self, k: usize) -> (Vec<u32>, Vec<u32>) {
-        let n = self.level_sizes[k + 1] as usize;
-        let mut offsets = vec![0u32; n + 1];
-        for &p in &self.parent[k] {
-            offsets[p as usize + 1] += 1;
-        }
-        for i in 0..n {
-            offsets[i + 1] += offsets[i];
-        }
-        let mut fill = offsets.clone();
-        let mut out = vec![0u32; self.parent[k].len()];
-        for (v, &p) in self.parent[k].iter().enumerate() {
-            out[fill[p as usize] as usize] = v as u32;
-            fill[p as usize] += 1;
-        }
-        (offsets, out)
+        compressed_rows(self.level_sizes[k + 1] as usize, || self.parent[k].iter().enumerate().map(|(v, &p)| (p, v as u32)))
     }
 
     /// Checks the structural invariants: parent maps of the right lengths pointing into the next

@@ -3,6 +3,7 @@
 //! k-1 through the parent map, as the paper constructs each level's connectivity.
 
 use crate::Hierarchy;
+use crate::rows::compressed_rows;
 use crate::topology::FineTopology;
 
 /// Vertex adjacency of one level in compressed rows (rows sorted ascending).
@@ -25,22 +26,7 @@ impl LevelAdjacency {
 
     /// Rows from unique undirected pairs `(a, b)`, a < b.
     pub fn from_pairs(n: usize, pairs: &[[u32; 2]]) -> Self {
-        let mut offsets = vec![0u32; n + 1];
-        for p in pairs {
-            offsets[p[0] as usize + 1] += 1;
-            offsets[p[1] as usize + 1] += 1;
-        }
-        for i in 0..n {
-            offsets[i + 1] += offsets[i];
-        }
-        let mut fill = offsets.clone();
-        let mut adjacency = vec![0u32; pairs.len() * 2];
-        for p in pairs {
-            for (x, y) in [(p[0], p[1]), (p[1], p[0])] {
-                adjacency[fill[x as usize] as usize] = y;
-                fill[x as usize] += 1;
-            }
-        }
+        let (offsets, mut adjacency) = compressed_rows(n, || pairs.iter().flat_map(|p| [(p[0], p[1]), (p[1], p[0])]));
         for v in 0..n {
             adjacency[offsets[v] as usize..offsets[v + 1] as usize].sort_unstable();
         }

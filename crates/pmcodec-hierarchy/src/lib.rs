@@ -18,13 +18,16 @@ pub mod nodes;
 pub mod progressive;
 pub mod quadric;
 pub mod recluster;
+pub mod rows;
 pub mod split_order;
+pub mod target;
 pub mod topology;
 
 pub use build::{BuildError, BuildOptions, build};
-pub use cut::{ChildIndex, Cut, CutTarget};
+pub use cut::{ChildIndex, Cut};
 pub use degenerate::DegenerateSets;
 pub use hierarchy::{Hierarchy, NONE};
 pub use nodes::NodeState;
 pub use quadric::{Quadric, QuadricOptions};
+pub use target::{CutTarget, Distance};
 pub use topology::FineTopology;

@@ -18,20 +18,10 @@
 use crate::NONE;
 use crate::cut::ByError;
 use crate::progressive::Replay;
+use crate::target::CutTarget;
 use glam::Vec3;
 use pmcodec_mesh::TriMesh;
 use std::collections::BinaryHeap;
-
-/// What a prefix is chosen by.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum PrefixTarget {
-    /// The longest prefix showing at most this many triangles.
-    Triangles(u32),
-    /// The longest prefix with at most this many cut nodes.
-    Vertices(u32),
-    /// Every split whose priority exceeds this bound (in model units).
-    MaxError(f64),
-}
 
 /// The split order of one frame (see the module docs). Built from a [`Replay`] and that
 /// frame's priorities; it must be rebuilt when the replay moves to another frame.
@@ -166,30 +156,45 @@ impl SplitOrder {
         true
     }
 
-    /// The length of the prefix `target` selects, ordering more splits as needed.
-    pub fn prefix(&mut self, replay: &Replay, errors: &[f64], target: PrefixTarget) -> usize {
+    /// The length of the prefix `target` selects, ordering more splits as needed: the longest
+    /// prefix within a triangle or vertex budget, or every split whose priority exceeds a
+    /// [`CutTarget::MaxError`] (a diagonal fraction is of `diagonal`). `Err(level)` for a
+    /// [`CutTarget::Level`], which is a cut of the replay ([`Replay::select_level`]), not a
+    /// prefix.
+    pub fn prefix(&mut self, replay: &Replay, errors: &[f64], target: CutTarget, diagonal: f64) -> Result<usize, usize> {
+        enum Bound {
+            Triangles(u32),
+            Vertices(u32),
+            Priority(f64),
+        }
+        let bound = match target {
+            CutTarget::Triangles(n) => Bound::Triangles(n),
+            CutTarget::Vertices(n) => Bound::Vertices(n),
+            CutTarget::MaxError(d) => Bound::Priority(d.in_model_units(diagonal)),
+            CutTarget::Level(l) => return Err(l),
+        };
         // The prefix is known once the order reaches past it (or ends): grow until the next
         // split would break the target.
-        let fits = |o: &SplitOrder, i: usize| match target {
-            PrefixTarget::Triangles(n) => o.shown_after[i + 1] <= n,
-            PrefixTarget::Vertices(n) => o.nodes_after[i + 1] <= n,
-            PrefixTarget::MaxError(e) => o.priority[i] > e,
+        let fits = |o: &SplitOrder, i: usize| match bound {
+            Bound::Triangles(n) => o.shown_after[i + 1] <= n,
+            Bound::Vertices(n) => o.nodes_after[i + 1] <= n,
+            Bound::Priority(e) => o.priority[i] > e,
         };
         // Budgets: the counts after each split never decrease, so the first split that breaks
         // the budget within the order grown so far is found by bisection (a warm frame answers
         // every budget without rescanning its order). Error bounds scan: their monotonicity
         // rests on the caller's priorities.
-        let mut k = match target {
-            PrefixTarget::Triangles(n) => self.shown_after[1..].partition_point(|&x| x <= n),
-            PrefixTarget::Vertices(n) => self.nodes_after[1..].partition_point(|&x| x <= n),
-            PrefixTarget::MaxError(_) => 0,
+        let mut k = match bound {
+            Bound::Triangles(n) => self.shown_after[1..].partition_point(|&x| x <= n),
+            Bound::Vertices(n) => self.nodes_after[1..].partition_point(|&x| x <= n),
+            Bound::Priority(_) => 0,
         };
         loop {
             if k == self.priority.len() && !self.grow(replay, errors) {
-                return k;
+                return Ok(k);
             }
             if !fits(self, k) {
-                return k;
+                return Ok(k);
             }
             k += 1;
         }

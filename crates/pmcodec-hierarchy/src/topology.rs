@@ -1,6 +1,8 @@
 //! Connectivity of the fine mesh M0 that every frame shares: its unique edges, its vertex
 //! adjacency (compressed rows) and its boundary edges. Built once per sequence.
 
+use crate::levels::LevelAdjacency;
+
 /// Edges and adjacency of M0.
 #[derive(Clone, Debug, Default)]
 pub struct FineTopology {
@@ -43,27 +45,7 @@ impl FineTopology {
             }
             i = j;
         }
-        let n = vertex_count as usize;
-        let mut degree = vec![0u32; n + 1];
-        for e in &edges {
-            degree[e[0] as usize] += 1;
-            degree[e[1] as usize] += 1;
-        }
-        let mut adj_offsets = vec![0u32; n + 1];
-        for v in 0..n {
-            adj_offsets[v + 1] = adj_offsets[v] + degree[v];
-        }
-        let mut fill = adj_offsets.clone();
-        let mut adjacency = vec![0u32; edges.len() * 2];
-        for e in &edges {
-            for (x, y) in [(e[0], e[1]), (e[1], e[0])] {
-                adjacency[fill[x as usize] as usize] = y;
-                fill[x as usize] += 1;
-            }
-        }
-        for v in 0..n {
-            adjacency[adj_offsets[v] as usize..adj_offsets[v + 1] as usize].sort_unstable();
-        }
+        let LevelAdjacency { offsets: adj_offsets, adjacency } = LevelAdjacency::from_pairs(vertex_count as usize, &edges);
         FineTopology { vertex_count, edges, adj_offsets, adjacency, boundary }
     }
 

@@ -21,16 +21,15 @@ pub fn load(name: &str, frames: usize) -> Sequence {
     pmcodec_mesh::obj::load_obj_files(&paths, 30.0).unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
 }
 
-/// A deterministic generator for tests (splitmix64).
-pub struct Rng(pub u64);
+/// A deterministic generator for tests: the workspace's one ([`pmcodec_eval::SplitMix64`]).
+pub struct Rng(pub pmcodec_eval::SplitMix64);
 impl Rng {
+    pub fn new(seed: u64) -> Self {
+        Rng(pmcodec_eval::SplitMix64::new(seed))
+    }
     #[allow(clippy::should_implement_trait)] // an endless generator, not an iterator
     pub fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
     pub fn below(&mut self, n: u64) -> u64 {
         self.next() % n.max(1)

@@ -5,8 +5,9 @@
 mod common;
 use common::*;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
-use pmcodec_hierarchy::cut::{self, ChildIndex, CutTarget};
+use pmcodec_hierarchy::cut::{self, ChildIndex};
 use pmcodec_hierarchy::*;
+use pmcodec_hierarchy::{CutTarget, Distance};
 
 struct Built {
     seq: pmcodec_mesh::Sequence,
@@ -26,7 +27,7 @@ fn build_seq(seq: pmcodec_mesh::Sequence, opts: &BuildOptions) -> Built {
 /// The degenerate-set rule against brute force: t is shown iff its corners map to three
 /// distinct cut nodes.
 fn check_degenerate_sets(b: &Built, seed: u64, cuts: usize) {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     for i in 0..cuts {
         let p = [0.0, 0.3, 0.7, 0.95, 1.0][i % 5];
         let c = random_cut(&b.h, &mut rng, p);
@@ -103,8 +104,11 @@ fn budget_cuts_are_exact_and_full() {
     let diag = b.seq.frame_mesh(0).unwrap().diagonal() as f64;
     let mut last = u32::MAX;
     for tol in [0.0001, 0.001, 0.01, 0.1] {
-        let c = cut::select(&b.h, &b.d, &children, &nodes, CutTarget::MaxError(tol * diag));
+        let c = cut::select(&b.h, &b.d, &children, &nodes, CutTarget::MaxError(Distance::Absolute(tol * diag)));
         assert!(c.triangles <= last);
+        // The same bound as a fraction of the diagonal (nodes are of frame 0) is the same cut.
+        let fraction = cut::select(&b.h, &b.d, &children, &nodes, CutTarget::MaxError(Distance::DiagonalFraction(tol)));
+        assert_eq!(fraction.expanded, c.expanded, "tolerance {tol} of the diagonal");
         last = c.triangles;
     }
 }

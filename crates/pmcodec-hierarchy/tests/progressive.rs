@@ -5,8 +5,9 @@
 
 mod common;
 use common::*;
+use pmcodec_hierarchy::CutTarget;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
-use pmcodec_hierarchy::cut::{self, ChildIndex, Cut, CutTarget};
+use pmcodec_hierarchy::cut::{self, ChildIndex, Cut};
 use pmcodec_hierarchy::progressive::{BELOW, CornerUpdate, DeltaError, Encoder, FrameDelta, Replay, node_level};
 use pmcodec_hierarchy::recluster::{ReclusterOptions, Swap};
 use pmcodec_hierarchy::*;

@@ -14,7 +14,7 @@ use proptest::prelude::*;
 /// A random mesh: a perturbed grid with some triangles removed (so boundaries, holes, several
 /// components and non-manifold vertices appear), over a few frames of random smooth motion.
 fn random_sequence(seed: u64, w: u32, h: u32, drop_percent: u64, frames: usize) -> Sequence {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let mut tris = Vec::new();
     for y in 0..h - 1 {
         for x in 0..w - 1 {
@@ -69,7 +69,7 @@ proptest! {
         let hier = build(&topo, &q, &BuildOptions { branching, min_coarsest: 1, level_sizes: None, anchors: Vec::new() }).unwrap();
         prop_assert!(hier.check(&topo).is_ok(), "{:?}", hier.check(&topo));
         let d = DegenerateSets::new(&hier, &seq.triangles);
-        let mut rng = Rng(seed ^ 0x55);
+        let mut rng = Rng::new(seed ^ 0x55);
         for p in [0.0, 0.5, 0.9, 1.0] {
             let c = random_cut(&hier, &mut rng, p);
             prop_assert_eq!(cut::shown_triangles(&d, &c), brute_shown(&hier, &seq.triangles, &c));

@@ -7,8 +7,9 @@ use common::*;
 use glam::Vec3;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
 use pmcodec_hierarchy::progressive::{Encoder, Replay};
-use pmcodec_hierarchy::split_order::{PrefixTarget, SplitOrder};
+use pmcodec_hierarchy::split_order::SplitOrder;
 use pmcodec_hierarchy::*;
+use pmcodec_hierarchy::{CutTarget, Distance};
 use pmcodec_mesh::TriMesh;
 
 /// A mesh as a sorted list of triangles, each its three corner positions (bit patterns)
@@ -47,7 +48,7 @@ fn check_sequence(seq: &pmcodec_mesh::Sequence, every: usize, budgets: &[u32]) {
         let errors = replay.node_errors(&positions);
         let mut order = SplitOrder::new(&replay, &errors);
         for &n in budgets {
-            let k = order.prefix(&replay, &errors, PrefixTarget::Triangles(n));
+            let k = order.prefix(&replay, &errors, CutTarget::Triangles(n), 1.0).expect("a prefix");
             let shown = order.shown(k).len();
             // At most the budget, and the next split would break it (or there is none).
             assert!(shown as u32 <= n || k == 0, "frame {f} budget {n}: {shown} triangles after {k} splits");
@@ -73,9 +74,12 @@ fn check_sequence(seq: &pmcodec_mesh::Sequence, every: usize, budgets: &[u32]) {
         let diag = (seq.bounds().map(|(lo, hi)| (hi - lo).length()).unwrap_or(1.0)) as f64;
         for e in [0.05, 0.01, 0.002, 0.0] {
             let bound = e * diag;
-            let k = order.prefix(&replay, &errors, PrefixTarget::MaxError(bound));
+            let k = order.prefix(&replay, &errors, CutTarget::MaxError(Distance::DiagonalFraction(e)), diag).expect("a prefix");
+            let absolute = order.prefix(&replay, &errors, CutTarget::MaxError(Distance::Absolute(bound)), 1.0);
+            assert_eq!(absolute, Ok(k), "frame {f} bound {bound}: the same bound in model units");
+            assert_eq!(order.prefix(&replay, &errors, CutTarget::Level(1), diag), Err(1), "a level is no prefix");
             let mut all = SplitOrder::new(&replay, &errors);
-            let full = all.prefix(&replay, &errors, PrefixTarget::Triangles(u32::MAX));
+            let full = all.prefix(&replay, &errors, CutTarget::Triangles(u32::MAX), 1.0).expect("a prefix");
             assert!(k <= full);
             for g in 0..replay.h.node_count() as u32 {
                 if let Some(r) = all.rank(g) {
@@ -86,7 +90,7 @@ fn check_sequence(seq: &pmcodec_mesh::Sequence, every: usize, budgets: &[u32]) {
         }
         // Vertex budgets count cut nodes.
         for n in [100, 1000, 4000] {
-            let k = order.prefix(&replay, &errors, PrefixTarget::Vertices(n));
+            let k = order.prefix(&replay, &errors, CutTarget::Vertices(n), 1.0).expect("a prefix");
             let mesh = order.mesh(&replay, &positions, k);
             assert!(mesh.positions.len() as u32 <= n, "frame {f}: {} vertices for a budget of {n}", mesh.positions.len());
         }
@@ -96,8 +100,8 @@ fn check_sequence(seq: &pmcodec_mesh::Sequence, every: usize, budgets: &[u32]) {
         let mut fresh = SplitOrder::new(&replay, &errors);
         let mut buffer = TriMesh::default();
         for &n in budgets.iter().rev() {
-            let a = fresh.prefix(&replay, &errors, PrefixTarget::Triangles(n));
-            let b = order.prefix(&replay, &errors, PrefixTarget::Triangles(n));
+            let a = fresh.prefix(&replay, &errors, CutTarget::Triangles(n), 1.0).expect("a prefix");
+            let b = order.prefix(&replay, &errors, CutTarget::Triangles(n), 1.0).expect("a prefix");
             assert_eq!(a, b);
             fresh.mesh_into(&replay, &positions, a, &mut buffer);
             assert_eq!(buffer, order.mesh(&replay, &positions, b), "frame {f} budget {n}");
@@ -105,13 +109,13 @@ fn check_sequence(seq: &pmcodec_mesh::Sequence, every: usize, budgets: &[u32]) {
         // (Small budgets first: a reset that left stale ranks would show in a short order.)
         reused.reset(&replay, &errors);
         for &n in budgets {
-            let b = order.prefix(&replay, &errors, PrefixTarget::Triangles(n));
-            let c = reused.prefix(&replay, &errors, PrefixTarget::Triangles(n));
+            let b = order.prefix(&replay, &errors, CutTarget::Triangles(n), 1.0).expect("a prefix");
+            let c = reused.prefix(&replay, &errors, CutTarget::Triangles(n), 1.0).expect("a prefix");
             assert_eq!(c, b, "frame {f} budget {n}: reset order");
             assert_eq!(reused.mesh(&replay, &positions, c), order.mesh(&replay, &positions, b), "frame {f} budget {n}: reset order");
         }
         // Grow the reused order fully so the next reset has every rank to clear.
-        reused.prefix(&replay, &errors, PrefixTarget::Triangles(u32::MAX));
+        reused.prefix(&replay, &errors, CutTarget::Triangles(u32::MAX), 1.0).expect("a prefix");
     }
 }
 

@@ -6,7 +6,7 @@ use crate::lru::Lru;
 use crate::store::{AssetStore, StoredObject};
 use crate::{ApiError, AssetId};
 use bytes::Bytes;
-use pmcodec_container::{ChunkEntry, ChunkKind, Decoder, Header, MeshTarget, Reader, summary};
+use pmcodec_container::{ChunkEntry, ChunkKind, CutTarget, Decoder, Header, Reader, summary};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -43,7 +43,7 @@ impl LoadedAsset {
         let mut d = Decoder::new(reader.borrowed(), 0).map_err(|e| e.to_string())?;
         d.seek(0).map_err(|e| e.to_string())?;
         for l in 0..levels {
-            triangles_per_level.push(d.mesh(MeshTarget::Level(l)).map_err(|e| e.to_string())?.triangles.len());
+            triangles_per_level.push(d.mesh(CutTarget::Level(l)).map_err(|e| e.to_string())?.triangles.len());
         }
         // Every stored byte of a band; a client stopping at level l reads the key, delta and
         // positions chunks of bands l.. and the faces and corners of band l only.

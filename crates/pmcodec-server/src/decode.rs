@@ -32,7 +32,7 @@ use crate::assets::LoadedAsset;
 use crate::lru::Lru;
 use crate::meshfmt::{MeshFormat, encode_mesh};
 use bytes::Bytes;
-use pmcodec_container::{ByteSource, ContainerError, Decoder, MeshTarget, Reader};
+use pmcodec_container::{ByteSource, ContainerError, CutTarget, Decoder, Reader};
 use pmcodec_mesh::TriMesh;
 use std::collections::{HashMap, HashSet, VecDeque};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -60,7 +60,7 @@ type StateCell = Arc<Mutex<Decoder<AssetSource>>>;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MeshRequest {
     pub frame: u32,
-    pub target: MeshTarget,
+    pub target: CutTarget,
     pub format: MeshFormat,
 }
 
@@ -260,7 +260,7 @@ impl DecodePool {
         // A whole-level request reads only the bands it needs; budgets and error bounds may
         // refine anywhere, so they decode every band.
         let min_level = match req.target {
-            MeshTarget::Level(l) => l,
+            CutTarget::Level(l) => l,
             _ => 0,
         };
         let key = (asset.version.clone(), min_level, req.frame);

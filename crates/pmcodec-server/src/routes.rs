@@ -18,7 +18,7 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::{MethodRouter, delete, get, post};
 use axum::{Json, Router};
 use bytes::Bytes;
-use pmcodec_container::MeshTarget;
+use pmcodec_container::{CutTarget, Distance};
 use pmcodec_mesh::gltf_input::AnimationSelector;
 use serde::Deserialize;
 use serde::de::DeserializeOwned;
@@ -396,15 +396,15 @@ impl MeshQuery {
             return Err(ApiError::BadRequest(format!("frame {frame}: asset {} has frames 0..={}", a.id, h.frame_count - 1)));
         }
         let target = match (self.triangles, self.vertices, self.level, self.max_error) {
-            (Some(n), None, None, None) => MeshTarget::Triangles(n),
-            (None, Some(n), None, None) => MeshTarget::Vertices(n),
-            (None, None, Some(l), None) if l < h.levels() => MeshTarget::Level(l),
+            (Some(n), None, None, None) => CutTarget::Triangles(n),
+            (None, Some(n), None, None) => CutTarget::Vertices(n),
+            (None, None, Some(l), None) if l < h.levels() => CutTarget::Level(l),
             (None, None, Some(l), None) => {
                 return Err(ApiError::BadRequest(format!("level {l}: asset {} has levels 0..={}", a.id, h.levels() - 1)));
             }
-            (None, None, None, Some(e)) if e.is_finite() && e >= 0.0 => MeshTarget::MaxError(e),
+            (None, None, None, Some(e)) if e.is_finite() && e >= 0.0 => CutTarget::MaxError(Distance::DiagonalFraction(e)),
             (None, None, None, Some(e)) => return Err(ApiError::BadRequest(format!("max_error {e}: use a finite number >= 0"))),
-            (None, None, None, None) => MeshTarget::Level(0),
+            (None, None, None, None) => CutTarget::Level(0),
             _ => return Err(ApiError::BadRequest("give at most one of triangles, vertices, level, max_error".into())),
         };
         let format = match self.format.as_deref() {
@@ -425,10 +425,11 @@ const MESH_GENERATION: u32 = 3;
 /// the normalised request and [`MESH_GENERATION`].
 fn mesh_etag(version: &str, r: &MeshRequest) -> String {
     let t = match r.target {
-        MeshTarget::Triangles(n) => format!("t{n}"),
-        MeshTarget::Vertices(n) => format!("v{n}"),
-        MeshTarget::Level(l) => format!("l{l}"),
-        MeshTarget::MaxError(e) => format!("e{e}"),
+        CutTarget::Triangles(n) => format!("t{n}"),
+        CutTarget::Vertices(n) => format!("v{n}"),
+        CutTarget::Level(l) => format!("l{l}"),
+        CutTarget::MaxError(Distance::DiagonalFraction(e)) => format!("e{e}"),
+        CutTarget::MaxError(Distance::Absolute(d)) => format!("d{d}"),
     };
     format!("\"{version}-f{}-{t}-{}-m{MESH_GENERATION}\"", r.frame, r.format.name())
 }

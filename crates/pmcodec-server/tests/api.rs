@@ -6,7 +6,7 @@
 use axum::body::Body;
 use axum::http::{Method, Request, StatusCode, header};
 use http_body_util::BodyExt;
-use pmcodec_container::{Decoder, MeshTarget, Reader};
+use pmcodec_container::{CutTarget, Decoder, Reader};
 use pmcodec_server::config::Secret;
 use pmcodec_server::store::MemoryStore;
 use pmcodec_server::{AppState, AssetId, AssetStore, Config, PutMode, StoreError, mounted_routes, router};
@@ -81,7 +81,7 @@ async fn list_metadata_and_meshes_match_local_decoding() {
         assert_eq!(r.status, StatusCode::OK);
         let served = pmcodec_server::decode_bin(&r.body).expect("a compact binary mesh");
         local.seek(frame).unwrap();
-        let want = local.mesh(MeshTarget::Triangles(budget)).unwrap();
+        let want = local.mesh(CutTarget::Triangles(budget)).unwrap();
         assert!(served.triangles.len() as u32 <= budget && !served.triangles.is_empty());
         assert_eq!(served.triangles, want.triangles, "frame {frame} budget {budget}");
         assert_eq!(served.positions, want.positions, "frame {frame} budget {budget}");

@@ -5,8 +5,8 @@ use crate::{EXIT_BAD_INPUT, EXIT_FAILURE, Exit, progress};
 use anyhow::{Context, anyhow};
 use clap::{Args, ValueEnum};
 use pmcodec_container::{
-    ContainerError, Decoder, EncodeOptions, FileSource, Header, MeshTarget, Motion, QuantizationChoice, Reader, VertexOrder, encode,
-    summary, verify, write_file,
+    ContainerError, CutTarget, Decoder, Distance, EncodeOptions, FileSource, Header, Motion, QuantizationChoice, Reader, VertexOrder,
+    encode, summary, verify, write_file,
 };
 use pmcodec_hierarchy::base::{PoseSet, VertexWeights};
 use pmcodec_hierarchy::recluster::ReclusterOptions;
@@ -338,27 +338,27 @@ struct OverBudget {
 
 /// The decode target, checked against the file: every value out of range is bad input naming
 /// the value and the range, as the server answers 400.
-fn decode_target(args: &DecodeArgs, h: &Header) -> Result<MeshTarget, Exit> {
+fn decode_target(args: &DecodeArgs, h: &Header) -> Result<CutTarget, Exit> {
     let bad = |e| Exit(EXIT_BAD_INPUT, e);
     Ok(match (args.triangles, args.vertices, args.level, args.max_error) {
-        (Some(b), ..) => MeshTarget::Triangles(b.resolve("--triangles", h.triangle_count)?),
-        (_, Some(b), ..) => MeshTarget::Vertices(b.resolve("--vertices", h.vertex_count)?),
-        (_, _, Some(l), _) if l < h.levels() => MeshTarget::Level(l),
+        (Some(b), ..) => CutTarget::Triangles(b.resolve("--triangles", h.triangle_count)?),
+        (_, Some(b), ..) => CutTarget::Vertices(b.resolve("--vertices", h.vertex_count)?),
+        (_, _, Some(l), _) if l < h.levels() => CutTarget::Level(l),
         (_, _, Some(l), _) => return Err(bad(anyhow!("--level {l}: the file has levels 0..={}", h.top()))),
-        (.., Some(e)) if e.is_finite() && e >= 0.0 => MeshTarget::MaxError(e),
+        (.., Some(e)) if e.is_finite() && e >= 0.0 => CutTarget::MaxError(Distance::DiagonalFraction(e)),
         (.., Some(e)) => return Err(bad(anyhow!("--max-error {e}: use a finite number >= 0"))),
-        _ => MeshTarget::Level(0),
+        _ => CutTarget::Level(0),
     })
 }
 
 /// The budget a cut exceeds, if any: the coarsest cut of a frame can hold more than a small
 /// budget allows (a mesh of many parts keeps a triangle or more per part).
-fn over_budget(target: MeshTarget, mesh: &pmcodec_mesh::TriMesh) -> Option<OverBudget> {
+fn over_budget(target: CutTarget, mesh: &pmcodec_mesh::TriMesh) -> Option<OverBudget> {
     match target {
-        MeshTarget::Triangles(n) if mesh.triangles.len() > n as usize => {
+        CutTarget::Triangles(n) if mesh.triangles.len() > n as usize => {
             Some(OverBudget { of: "triangles", asked: n, got: mesh.triangles.len() })
         }
-        MeshTarget::Vertices(n) if mesh.positions.len() > n as usize => {
+        CutTarget::Vertices(n) if mesh.positions.len() > n as usize => {
             Some(OverBudget { of: "vertices", asked: n, got: mesh.positions.len() })
         }
         _ => None,
@@ -366,7 +366,7 @@ fn over_budget(target: MeshTarget, mesh: &pmcodec_mesh::TriMesh) -> Option<OverB
 }
 
 /// Writes one frame's mesh and says what it holds.
-fn write_frame(dec: &mut Decoder<&FileSource>, input: &Path, frame: u32, target: MeshTarget, path: &Path) -> Result<DecodedFrame, Exit> {
+fn write_frame(dec: &mut Decoder<&FileSource>, input: &Path, frame: u32, target: CutTarget, path: &Path) -> Result<DecodedFrame, Exit> {
     let where_ = || format!("{} frame {frame}", input.display());
     dec.seek(frame).map_err(|e| container_error(e, where_()))?;
     let mesh = dec.mesh(target).map_err(|e| container_error(e, where_()))?;
@@ -405,7 +405,7 @@ pub fn decode_cmd(args: DecodeArgs, quiet: bool) -> Result<(), Exit> {
     }
     // A level-limited decode reads only the bands it needs.
     let min_level = match target {
-        MeshTarget::Level(l) => l,
+        CutTarget::Level(l) => l,
         _ => 0,
     };
     let mut dec =
@@ -445,7 +445,7 @@ pub fn decode_cmd(args: DecodeArgs, quiet: bool) -> Result<(), Exit> {
 
 /// Every frame into the output folder; on any error the files written so far (and the folder,
 /// when this created it) are removed, so a failed decode leaves nothing behind.
-fn decode_all(dec: &mut Decoder<&FileSource>, args: &DecodeArgs, target: MeshTarget, quiet: bool) -> Result<Vec<DecodedFrame>, Exit> {
+fn decode_all(dec: &mut Decoder<&FileSource>, args: &DecodeArgs, target: CutTarget, quiet: bool) -> Result<Vec<DecodedFrame>, Exit> {
     let created = !args.output.exists();
     std::fs::create_dir_all(&args.output).with_context(|| format!("creating {}", args.output.display()))?;
     let frames = dec.reader().header().frame_count;

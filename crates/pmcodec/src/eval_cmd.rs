@@ -7,7 +7,8 @@ use crate::input::{self, InputArgs};
 use crate::{EXIT_BAD_INPUT, Exit, progress};
 use anyhow::Context;
 use clap::{Args, ValueEnum};
-use pmcodec_eval::{self as approx, ApproxOptions, ApproxTarget, Approximation, Method};
+use pmcodec_eval::{self as approx, ApproxOptions, Approximation, Method};
+use pmcodec_hierarchy::CutTarget;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::path::PathBuf;
@@ -109,7 +110,7 @@ pub fn run(args: EvalArgs, quiet: bool) -> Result<(), Exit> {
     for m in &args.methods {
         let method = m.method();
         let bar = progress(frames as u64, method.name(), quiet);
-        let approximations = approx::approximate(&seq, ApproxTarget::Vertices(args.vertices), method, &opts, |_| bar.inc(1))
+        let approximations = approx::approximate(&seq, CutTarget::Vertices(args.vertices), method, &opts, |_| bar.inc(1))
             .with_context(|| format!("building the {} approximations", method.name()))?;
         bar.finish_and_clear();
         let distances: Vec<pmcodec_eval::Distance> = originals
@@ -123,9 +124,8 @@ pub fn run(args: EvalArgs, quiet: bool) -> Result<(), Exit> {
         let changed = match args.coherence_triangles {
             Some(budget) => {
                 let bar = progress(frames as u64, "coherence", quiet);
-                let cut_frames: Vec<Approximation> =
-                    approx::approximate(&seq, ApproxTarget::Triangles(budget), method, &opts, |_| bar.inc(1))
-                        .context("building budget cuts")?;
+                let cut_frames: Vec<Approximation> = approx::approximate(&seq, CutTarget::Triangles(budget), method, &opts, |_| bar.inc(1))
+                    .context("building budget cuts")?;
                 bar.finish_and_clear();
                 Some(approx::changed_share(&cut_frames))
             }
@@ -197,7 +197,7 @@ fn container_report(
     quiet: bool,
 ) -> Result<MethodReport, Exit> {
     use crate::codec_cmd::container_error;
-    use pmcodec_container::{Decoder, MeshTarget};
+    use pmcodec_container::Decoder;
     let reader = crate::codec_cmd::open(path)?;
     let h = reader.header();
     let frames = originals.len();
@@ -220,9 +220,9 @@ fn container_report(
     for f in 0..frames {
         let at = || format!("{} frame {f}", path.display());
         d.seek(f as u32).map_err(|e| container_error(e, at()))?;
-        meshes.push(d.mesh(MeshTarget::Vertices(args.vertices)).map_err(|e| container_error(e, at()))?);
+        meshes.push(d.mesh(CutTarget::Vertices(args.vertices)).map_err(|e| container_error(e, at()))?);
         if let Some(budget) = args.coherence_triangles {
-            let mut k = d.cut_triangles(MeshTarget::Triangles(budget)).map_err(|e| container_error(e, at()))?;
+            let mut k = d.cut_triangles(CutTarget::Triangles(budget)).map_err(|e| container_error(e, at()))?;
             k.iter_mut().for_each(|t| t.sort_unstable());
             keys.push(k);
         }

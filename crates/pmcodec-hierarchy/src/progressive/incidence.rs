@@ -1,6 +1,7 @@
 //! A replay's triangles by level-L corner.
 
 use super::*;
+use crate::rows::compressed_rows;
 
 /// Triangles by level-L corner: a flat list per node built at a keyframe (CSR), plus the
 /// additions corner updates make until the next keyframe. Removals are not recorded: a reader
@@ -17,23 +18,8 @@ impl Incidence {
     /// Over `size` nodes, from every triangle whose corners are distinct.
     pub(super) fn new(size: usize, corners: &[[u32; 3]]) -> Self {
         let alive = |c: &[u32; 3]| c[0] != NONE && distinct(*c);
-        let mut offsets = vec![0u32; size + 1];
-        for c in corners.iter().filter(|c| alive(c)) {
-            for &x in c {
-                offsets[x as usize + 1] += 1;
-            }
-        }
-        for i in 0..size {
-            offsets[i + 1] += offsets[i];
-        }
-        let mut fill = offsets.clone();
-        let mut list = vec![0u32; offsets[size] as usize];
-        for (t, c) in corners.iter().enumerate().filter(|(_, c)| alive(c)) {
-            for &x in c {
-                list[fill[x as usize] as usize] = t as u32;
-                fill[x as usize] += 1;
-            }
-        }
+        let (offsets, list) =
+            compressed_rows(size, || corners.iter().enumerate().filter(|(_, c)| alive(c)).flat_map(|(t, c)| c.map(|x| (x, t as u32))));
         Incidence { offsets, list, extra: Default::default() }
     }
 

@@ -12,27 +12,12 @@ pub(super) fn metric(n: DVec3, share: f64) -> DMat3 {
     nn * (1.0 - share) + DMat3::IDENTITY * share
 }
 
-/// Barycentric sample points `(triangle, b)`: about `count` spread by `areas`, plus every
-/// corner once (the error measure samples the vertices too).
+/// Barycentric sample points `(triangle, b)`: `count` spread by `areas`
+/// ([`pmcodec_eval::area_samples`], the sampler the error measure uses), plus every corner once
+/// (the error measure samples the vertices too).
 pub(super) fn sample_bary(triangles: &[[u32; 3]], areas: &[f64], count: usize, seed: u64) -> Vec<(u32, [f64; 3])> {
-    let total: f64 = areas.iter().sum();
     let mut out = Vec::with_capacity(count + triangles.len() * 3);
-    let mut rng = pmcodec_eval::SplitMix64::new(seed);
-    let mut carry = 0.0;
-    for (t, &a) in areas.iter().enumerate() {
-        if !(total > 0.0) {
-            break;
-        }
-        carry += count as f64 * a / total;
-        while carry >= 1.0 {
-            carry -= 1.0;
-            let (mut u, mut v) = (rng.unit(), rng.unit());
-            if u + v > 1.0 {
-                (u, v) = (1.0 - u, 1.0 - v);
-            }
-            out.push((t as u32, [1.0 - u - v, u, v]));
-        }
-    }
+    out.extend(pmcodec_eval::area_samples(areas, count, seed).into_iter().map(|(t, u, v)| (t, [1.0 - u - v, u, v])));
     let mut seen: HashMap<u32, ()> = HashMap::new();
     for (t, tri) in triangles.iter().enumerate() {
         for (k, &c) in tri.iter().enumerate() {
@@ -54,8 +39,7 @@ pub(super) fn flipped(before: [DVec3; 3], after: [DVec3; 3]) -> bool {
 }
 
 pub(super) fn area(p: [Vec3; 3]) -> f64 {
-    let [a, b, c] = p.map(|x| x.as_dvec3());
-    0.5 * (b - a).cross(c - a).length()
+    pmcodec_eval::triangle_area(p.map(|x| x.as_dvec3()))
 }
 
 /// Barycentric coordinates of `q` (a point of the triangle) in `t`, clamped to the triangle.
