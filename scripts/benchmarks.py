@@ -88,7 +88,7 @@ ROWS = [
           example("pmcodec-container", "sizes", f"{DATA}/{data} 12", env="PMCODEC_MOTION=mean PMCODEC_ORDER=input "),
           r"^(positions \(|band 0 alone|decode,)") for name, data in (("horse", "horse-gallop"), ("samba", "samba-60"))],
     *[Row(f"position-bounds-{name}", f"what band 0's coding could still gain, frames 1.. in closed loop, {name} (bits/vertex/frame)",
-          example("pmcodec-container", "position_bounds", f"{DATA}/{data}"), r"^  ") for name, data in (("horse", "horse-gallop"), ("samba", "samba-60"))],
+          example("pmcodec-container", "position_bounds", f"{DATA}/{data}"), r"^(input order|breadth first),") for name, data in (("horse", "horse-gallop"), ("samba", "samba-60"))],
     *[Row(f"coarse-bounds-{name}", f"what the coarse bands could gain from their model error alone, frames 1.., {name} (bits per input vertex per frame)",
           example("pmcodec-container", "coarse_bounds", f"{DATA}/{data}"), r"total") for name, data in (("horse", "horse-gallop"), ("samba", "samba-60"))],
     Row("cut-quality", "what --coarse-grid costs in cut quality, horse (mean symmetric RMS, % of bbox diagonal)",
