@@ -97,7 +97,7 @@ ROWS = [
         divan("container", "encode_horse"), r".", divan=True),
     Row("decode", "container decode, horse, 48 frames, one core, by band-0 motion; decoded and cut at 2,000 triangles every frame by a level-0 / level-1 decoder (median)",
         divan("container", "decode_"), r".", divan=True),
-    Row("lod-cut", "LOD cut of a decoded frame at 500 / 2,000 / 8,000 / 16,000 triangles; as the server sees it, random frame and budget, cut and format=bin body (median)",
+    Row("lod-cut", "LOD cut of a decoded frame at 500 / 2,000 / 8,000 / 16,000 triangles; as the server sees it, 64 requests at random frame and budget, each cut and its format=bin body (median; lod_on_demand_random_frames is per 64 requests)",
         divan("container", "lod_"), r".", divan=True),
     Row("seek", "playback and random seek with an open decoder, horse, CPU time",
         f"{RELEASE} && {HORSE_PMC} && " + example("pmcodec-container", "speed", "target/benchmarks/horse-gallop.pmc {secs}"),
