@@ -69,13 +69,25 @@ pub fn check_chain(chain: &LodChain) {
 }
 
 /// Largest distance between a level read back from its GLB (`a`: one vertex per written
-/// wedge) and the level's rig (`b`) posed at `(anim, t)`, each wedge against its vertex.
+/// wedge, primitive by primitive) and the level's rig (`b`) posed at `(anim, t)`, each wedge
+/// against its vertex. A read-back vertex is wedge `start + index` of its mesh, `index` being
+/// its place in the mesh's shared vertex accessors.
 pub fn max_pose_gap(a: &RiggedMesh, b: &RiggedMesh, anim: Option<usize>, t: f32) -> f32 {
     let pa = a.pose(anim.and_then(|i| a.animations.get(i)), t);
     let pb = b.pose(anim.and_then(|i| b.animations.get(i)), t);
     let wedges = pmcodec_lod::gltf_out::level_appearance(b).wedge_vertex;
     assert_eq!(pa.len(), wedges.len(), "one vertex per wedge");
-    pa.iter().zip(&wedges).map(|(x, &v)| (*x - pb[v as usize]).length()).fold(0.0, f32::max)
+    assert_eq!(a.instances.len(), b.instances.len(), "one mesh per instance");
+    let mut gap = 0.0f32;
+    let mut start = 0usize;
+    for (ia, ib) in a.instances.iter().zip(&b.instances) {
+        for v in ia.vertices.clone() {
+            let w = start + a.source[v].index as usize;
+            gap = gap.max((pa[v] - pb[wedges[w] as usize]).length());
+        }
+        start += wedges[start..].iter().take_while(|&&v| ib.vertices.contains(&(v as usize))).count();
+    }
+    gap
 }
 
 /// Reads every level (scene k = level k) of a written chain back with the `gltf` crate and
