@@ -135,6 +135,17 @@ impl State<'_> {
         }
     }
 
+    /// No collapse keeps every seam: let seam corners go too, rather than stop above the
+    /// target; every live edge is priced again.
+    fn relax(&mut self, heap: &mut BinaryHeap<Entry>) {
+        self.relaxed = true;
+        for v in 0..self.verts.len() as u32 {
+            if self.alive[v as usize] {
+                self.push_edges(v, heap);
+            }
+        }
+    }
+
     /// Distinct corner wedges around `v`.
     fn wedges_around(&self, v: u32) -> Vec<u32> {
         let mut out: Vec<u32> = Vec::new();
@@ -547,14 +558,7 @@ pub fn simplify(
                 if s.relaxed {
                     break;
                 }
-                // No collapse keeps every seam: let seam corners go too, rather than stop above
-                // the target.
-                s.relaxed = true;
-                for v in 0..n as u32 {
-                    if s.alive[v as usize] {
-                        s.push_edges(v, &mut heap);
-                    }
-                }
+                s.relax(&mut heap);
                 continue;
             };
             if !s.alive[u as usize] || !s.alive[v as usize] || s.stamp[u as usize] != su || s.stamp[v as usize] != sv {
