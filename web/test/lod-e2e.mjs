@@ -1,7 +1,8 @@
 // The LOD chains `pmcodec lod` writes, played by three.js's stock GLTFLoader in headless
 // Chromium (web/lod.html): every level (scene) of every file given loads, has skinned and/or
-// morphed meshes, plays its first animation (sampled vertices move), draws, and has fewer
-// triangles than the level before. Saves a screenshot per level to web/test-artifacts/.
+// morphed meshes, plays its first animation (sampled vertices move) with no track missing its
+// node, draws textured when the file has images, and has fewer triangles than the level
+// before. Saves a screenshot per level to web/test-artifacts/.
 // Usage: node test/lod-e2e.mjs A-lod.glb [B-lod.glb ...]
 // Needs: a pmcodec binary (PMCODEC_BIN, default target/release/pmcodec) to serve web/dist,
 // web/dist (npm run build), Debian's chromium at /usr/bin/chromium.
@@ -38,11 +39,14 @@ try {
   for (const file of files) {
     const bytes = readFileSync(file);
     const name = basename(file, ".glb");
+    const images = (JSON.parse(bytes.subarray(20, 20 + bytes.readUInt32LE(12)).toString()).images ?? []).length;
     let previous = Infinity;
     for (let level = 0; ; level++) {
       const page = await browser.newPage({ viewport: { width: 640, height: 480 } });
       const errors = [];
+      const warnings = [];
       page.on("pageerror", (e) => errors.push(String(e)));
+      page.on("console", (m) => { if (m.type() === "warning" || m.type() === "error") warnings.push(m.text()); });
       // The file under test, served to the page at a URL of its own.
       await page.route("**/under-test.glb", (r) => r.fulfill({ body: bytes, contentType: "model/gltf-binary" }));
       await page.goto(`${base}/lod.html?src=/under-test.glb&scene=${level}`);
@@ -55,6 +59,11 @@ try {
       assert.ok(Number(d.meshes) > 0, `${at}: no meshes`);
       assert.ok(Number(d.skinned) + Number(d.morphed) > 0, `${at}: nothing skinned or morphed`);
       assert.ok(Number(d.animations) > 0, `${at}: no animations`);
+      // One skeleton and one set of animations: every track finds its node.
+      const missing = warnings.filter((w) => w.includes("No target node found"));
+      assert.deepEqual(missing, [], `${at}: animation tracks without a node`);
+      // A file with textures draws every level textured.
+      if (images > 0) assert.ok(Number(d.textured) > 0, `${at}: no textured mesh though the file has ${images} images`);
       assert.ok(Number(d.moved) > 1e-3, `${at}: the animation does not move the mesh (${d.moved})`);
       assert.ok(Number(d.triangles) < previous, `${at}: ${d.triangles} triangles, not fewer than the level before (${previous})`);
       previous = Number(d.triangles);
@@ -70,7 +79,7 @@ try {
       });
       assert.ok(lit > 500, `${at}: only ${lit} lit pixels`);
       await page.screenshot({ path: `${root}/web/test-artifacts/lod-${name}-${level}.png` });
-      console.log(`lod-e2e: ${at}: ${d.triangles} triangles, ${d.skinned} skinned and ${d.morphed} morphed meshes, ${d.animations} animations, moved ${Number(d.moved).toFixed(3)} radii, ${lit} lit pixels`);
+      console.log(`lod-e2e: ${at}: ${d.triangles} triangles, ${d.skinned} skinned, ${d.morphed} morphed and ${d.textured} textured meshes, ${d.animations} animations, moved ${Number(d.moved).toFixed(3)} radii, ${lit} lit pixels`);
       checked++;
       await page.close();
     }

@@ -18,10 +18,11 @@ use crate::attrs::{Vertex, VertexAttrs};
 use crate::poses::{displacement, importance, sample_poses};
 use crate::refit::{RefitOptions, refit};
 use crate::simplify::{simplify, thin_poses};
+use crate::wedges::Wedges;
 use crate::{LodError, LodOptions, Placement};
 use glam::Vec3;
-use pmcodec_mesh::SourceVertex;
 use pmcodec_mesh::gltf_input::{MeshInstance, PrimitiveRef, RiggedMesh};
+use pmcodec_mesh::{Appearance, SourceVertex};
 use std::collections::HashMap;
 
 /// One level of the chain.
@@ -51,16 +52,42 @@ fn is_shared_skin(attrs: &VertexAttrs, class: u32) -> bool {
     attrs.classes.get(class as usize).is_some_and(|c| c.skin.is_some() && c.morph_count == 0)
 }
 
-/// Builds the rig of one level from vertex records and triangles over input ids.
-pub fn level_rig(input: &RiggedMesh, attrs: &VertexAttrs, verts: &[Vertex], triangles: &[[u32; 3]]) -> (RiggedMesh, Vec<(u32, u32)>) {
+/// The appearance of a level's triangles: per triangle its corner wedges and material, and
+/// the attribute values of every wedge (see [`crate::wedges`]).
+#[derive(Clone, Copy)]
+pub struct LevelLooks<'a> {
+    pub wedges: &'a Wedges,
+    pub corner: &'a [[u32; 3]],
+    pub material: &'a [u32],
+    pub values: &'a [f32],
+}
+
+/// Builds the rig of one level from vertex records and triangles over input ids; with `looks`
+/// (and an input appearance) the level gets its appearance, one wedge per (level vertex, wedge).
+pub fn level_rig(
+    input: &RiggedMesh,
+    attrs: &VertexAttrs,
+    verts: &[Vertex],
+    triangles: &[[u32; 3]],
+    looks: Option<LevelLooks>,
+) -> (RiggedMesh, Vec<(u32, u32)>) {
     let class_of = |id: u32| verts[id as usize].class;
-    let mut by_class: Vec<Vec<[u32; 3]>> = vec![Vec::new(); attrs.classes.len()];
-    for tri in triangles {
+    let mut by_class: Vec<Vec<usize>> = vec![Vec::new(); attrs.classes.len()];
+    for (t, tri) in triangles.iter().enumerate() {
         let home = tri.iter().map(|&c| class_of(c)).find(|&c| !is_shared_skin(attrs, c)).unwrap_or(class_of(tri[0]));
         if let Some(list) = by_class.get_mut(home as usize) {
-            list.push(*tri);
+            list.push(t);
         }
     }
+    let looks = looks.zip(input.appearance.as_ref());
+    let mut app = looks.map(|(_, a)| Appearance {
+        materials: a.materials.clone(),
+        textures: a.textures.clone(),
+        samplers: a.samplers.clone(),
+        images: a.images.clone(),
+        ..Default::default()
+    });
+    let mut level_wedge: HashMap<(u32, u32), u32> = HashMap::new();
     let mut rig = RiggedMesh {
         nodes: input.nodes.clone(),
         parents: input.parents.clone(),
@@ -77,7 +104,8 @@ pub fn level_rig(input: &RiggedMesh, attrs: &VertexAttrs, verts: &[Vertex], tria
         let start = rig.positions.len();
         let mut local: HashMap<u32, u32> = HashMap::new();
         let mut morph: Vec<Vec<Vec3>> = vec![Vec::new(); info.morph_count];
-        for tri in tris {
+        for &ti in tris {
+            let tri = &triangles[ti];
             let t = tri.map(|id| {
                 *local.entry(id).or_insert_with(|| {
                     let v = &verts[id as usize];
@@ -95,6 +123,17 @@ pub fn level_rig(input: &RiggedMesh, attrs: &VertexAttrs, verts: &[Vertex], tria
                 })
             });
             rig.triangles.push(t);
+            if let (Some(app), Some((l, _))) = (app.as_mut(), looks) {
+                let cw = l.corner.get(ti).copied().unwrap_or_default();
+                let corners: [u32; 3] = std::array::from_fn(|i| {
+                    *level_wedge.entry((t[i], cw[i])).or_insert_with(|| {
+                        push_wedge(app, l, cw[i], t[i]);
+                        app.wedge_vertex.len() as u32 - 1
+                    })
+                });
+                app.corner_wedges.push(corners);
+                app.triangle_material.push(l.material.get(ti).copied().unwrap_or(0));
+            }
         }
         rig.primitives.push(PrimitiveRef { node: info.node, mesh: c, primitive: 0 });
         rig.instances.push(MeshInstance {
@@ -106,7 +145,56 @@ pub fn level_rig(input: &RiggedMesh, attrs: &VertexAttrs, verts: &[Vertex], tria
             default_weights: input.instances.get(info.instance).map(|i| i.default_weights.clone()).unwrap_or_default(),
         });
     }
+    rig.appearance = app;
     (rig, ids)
+}
+
+/// Appends wedge `w` of the simplifier as a level wedge on level vertex `vertex`.
+fn push_wedge(app: &mut Appearance, l: LevelLooks, w: u32, vertex: u32) {
+    let c = l.wedges.channels;
+    let v = l.values.get(w as usize * c..(w as usize + 1) * c).unwrap_or_default();
+    let mut at = 0;
+    let mut take = |n: usize| {
+        let s = v.get(at..at + n).unwrap_or_default();
+        at += n;
+        s
+    };
+    let layout = l.wedges.layout;
+    if layout.uv0 {
+        let s = take(2);
+        app.uv0.push([s.first().copied().unwrap_or(0.0), s.get(1).copied().unwrap_or(0.0)]);
+    }
+    if layout.uv1 {
+        let s = take(2);
+        app.uv1.push([s.first().copied().unwrap_or(0.0), s.get(1).copied().unwrap_or(0.0)]);
+    }
+    if layout.colors {
+        let s = take(4);
+        app.colors.push(std::array::from_fn(|k| s.get(k).copied().unwrap_or(1.0).clamp(0.0, 1.0)));
+    }
+    if let Some(n) = l.wedges.normals.get(w as usize) {
+        app.normals.push(*n);
+    }
+    app.wedge_vertex.push(vertex);
+}
+
+/// The simplifier's wedges of `input`: from its appearance, or one wedge per vertex and no
+/// attributes when it has none.
+pub fn input_wedges(input: &RiggedMesh) -> Wedges {
+    match &input.appearance {
+        Some(app) if app.corner_wedges.len() == input.triangles.len() => Wedges::from_appearance(app),
+        _ => Wedges {
+            corner: input.triangles.clone(),
+            material: vec![0; input.triangles.len()],
+            vertex: (0..input.vertex_count() as u32).collect(),
+            ..Default::default()
+        },
+    }
+}
+
+/// The looks of the input's own triangles (level 0).
+fn input_looks(w: &Wedges) -> LevelLooks<'_> {
+    LevelLooks { wedges: w, corner: &w.corner, material: &w.material, values: &w.values }
 }
 
 impl LodChain {
@@ -114,7 +202,8 @@ impl LodChain {
     pub fn single(input: RiggedMesh) -> Result<Self, LodError> {
         validate_rig(&input)?;
         let attrs = VertexAttrs::from_rig(&input)?;
-        let (rig, ids) = level_rig(&input, &attrs, &attrs.verts, &input.triangles);
+        let wedges = input_wedges(&input);
+        let (rig, ids) = level_rig(&input, &attrs, &attrs.verts, &input.triangles, Some(input_looks(&wedges)));
         let levels = vec![LodLevel { rig, target: None, ids, to_coarser: Vec::new() }];
         Ok(LodChain { input, attrs, levels, pose_count: 0 })
     }
@@ -176,7 +265,8 @@ pub fn build_chain_with(input: RiggedMesh, targets: &[usize], opts: &LodOptions,
     let attrs = VertexAttrs::from_rig(&input)?;
     let poses = thin_poses(&sample_poses(&input, &opts.poses)?, attrs.len());
     let weights = importance(&displacement(&attrs, &poses), opts.poses.vertex_weighting);
-    let mut snaps = simplify(&attrs, &input.triangles, &poses, &weights, opts.placement, targets)?;
+    let wedges = input_wedges(&input);
+    let mut snaps = simplify(&attrs, &wedges, &input.triangles, &poses, &weights, opts.placement, targets)?;
     // Endpoint placement promises input vertices unchanged (Mohr & Gleicher 4.3): no refit.
     if opts.placement != Placement::Endpoint {
         for snap in &mut snaps {
@@ -184,11 +274,12 @@ pub fn build_chain_with(input: RiggedMesh, targets: &[usize], opts: &LodOptions,
         }
     }
 
-    let (rig0, ids0) = level_rig(&input, &attrs, &attrs.verts, &input.triangles);
+    let (rig0, ids0) = level_rig(&input, &attrs, &attrs.verts, &input.triangles, Some(input_looks(&wedges)));
     let mut levels = vec![LodLevel { rig: rig0, target: None, ids: ids0, to_coarser: Vec::new() }];
     let mut reps: Vec<Vec<u32>> = Vec::new();
     for snap in &snaps {
-        let (rig, ids) = level_rig(&input, &attrs, &snap.verts, &snap.triangles);
+        let looks = LevelLooks { wedges: &wedges, corner: &snap.corner, material: &snap.material, values: &snap.values };
+        let (rig, ids) = level_rig(&input, &attrs, &snap.verts, &snap.triangles, Some(looks));
         levels.push(LodLevel { rig, target: Some(snap.target), ids, to_coarser: Vec::new() });
         reps.push(snap.rep.clone());
     }

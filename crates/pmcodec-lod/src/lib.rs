@@ -34,6 +34,7 @@ pub mod placement;
 pub mod poses;
 pub mod refit;
 pub mod simplify;
+pub mod wedges;
 
 pub use chain::{LodChain, LodLevel, build_chain, build_chain_with};
 pub use error::LodError;

@@ -102,5 +102,70 @@ pub fn meshopt_baseline(rig: &RiggedMesh, target: usize) -> RiggedMesh {
     let out = meshopt::simplify_decoder(&indices, &positions, target * 3, f32::MAX, meshopt::SimplifyOptions::Regularize, None);
     let mut lod = rig.clone();
     lod.triangles = out.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    // The baseline is geometric: its triangles no longer match the input's corner wedges.
+    lod.appearance = None;
     lod
+}
+
+/// Texture-coordinate error of `lod` against `reference` in the rest pose: RMS over points
+/// sampled uniformly by area on the reference surface of the distance between the reference's
+/// `TEXCOORD_0` there and the LOD's `TEXCOORD_0` at the closest point of the LOD surface
+/// (interpolated over its triangle's corner wedges), in percent of the texture's width. `None`
+/// when either has no texture coordinates.
+pub fn uv_error(reference: &RiggedMesh, lod: &RiggedMesh, samples: usize, seed: u64) -> Result<Option<f64>, LodError> {
+    let (Some(ra), Some(la)) = (reference.appearance.as_ref(), lod.appearance.as_ref()) else { return Ok(None) };
+    if ra.uv0.is_empty() || la.uv0.is_empty() || ra.corner_wedges.len() != reference.triangles.len() {
+        return Ok(None);
+    }
+    let rp = reference.pose(None, 0.0);
+    let lp = lod.pose(None, 0.0);
+    let index = pmcodec_eval::SurfaceIndex::new(&TriMesh { positions: lp.clone(), triangles: lod.triangles.clone() })?;
+    // Cumulative areas to sample triangles by area.
+    let mut cumulative = Vec::with_capacity(reference.triangles.len());
+    let mut total = 0.0f64;
+    for t in &reference.triangles {
+        let [a, b, c] = t.map(|i| rp[i as usize]);
+        total += f64::from((b - a).cross(c - a).length());
+        cumulative.push(total);
+    }
+    if !(total > 0.0) {
+        return Ok(None);
+    }
+    let uv_at = |uv: &[[f32; 2]], cw: [u32; 3], w: [f32; 3]| -> glam::Vec2 {
+        (0..3).map(|i| glam::Vec2::from_array(uv[cw[i] as usize]) * w[i]).sum()
+    };
+    let mut rng = pmcodec_eval::SplitMix64::new(seed);
+    let mut sum = 0.0f64;
+    for _ in 0..samples {
+        let pick = rng.unit() * total;
+        let t = cumulative.partition_point(|&c| c < pick).min(reference.triangles.len() - 1);
+        let (mut s, mut r) = (rng.unit() as f32, rng.unit() as f32);
+        if s + r > 1.0 {
+            (s, r) = (1.0 - s, 1.0 - r);
+        }
+        let w = [1.0 - s - r, s, r];
+        let [a, b, c] = reference.triangles[t].map(|i| rp[i as usize]);
+        let x = a * w[0] + b * w[1] + c * w[2];
+        let want = uv_at(&ra.uv0, ra.corner_wedges[t], w);
+        let (_, lt) = index.closest(x);
+        let (Some(tri), Some(cw)) = (lod.triangles.get(lt as usize), la.corner_wedges.get(lt as usize)) else { continue };
+        let corners = tri.map(|i| lp[i as usize]);
+        let got = uv_at(&la.uv0, *cw, barycentric(x, corners));
+        sum += f64::from((want - got).length_squared());
+    }
+    Ok(Some(100.0 * (sum / samples.max(1) as f64).sqrt()))
+}
+
+/// Barycentric coordinates of the point of triangle `t` closest to `p`.
+fn barycentric(p: Vec3, t: [Vec3; 3]) -> [f32; 3] {
+    let q = pmcodec_eval::triangle::closest_point(p.as_dvec3(), t.map(|v| v.as_dvec3()));
+    let (v0, v1, v2) = (t[1].as_dvec3() - t[0].as_dvec3(), t[2].as_dvec3() - t[0].as_dvec3(), q - t[0].as_dvec3());
+    let (d00, d01, d11, d20, d21) = (v0.dot(v0), v0.dot(v1), v1.dot(v1), v2.dot(v0), v2.dot(v1));
+    let den = d00 * d11 - d01 * d01;
+    if !(den.abs() > 1e-30) {
+        return [1.0, 0.0, 0.0];
+    }
+    let b = (d11 * d20 - d01 * d21) / den;
+    let c = (d00 * d21 - d01 * d20) / den;
+    [(1.0 - b - c) as f32, b as f32, c as f32]
 }

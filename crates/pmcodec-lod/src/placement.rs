@@ -156,7 +156,7 @@ impl Context<'_> {
     }
 
     /// Cost of keeping endpoint `e` as it is.
-    fn endpoint_cost(&self, u: u32, v: u32, e: u32) -> f64 {
+    pub(crate) fn endpoint_cost(&self, u: u32, v: u32, e: u32) -> f64 {
         let f = self.f();
         self.merged(u, v).enumerate().map(|(k, q)| q.eval(self.posed[e as usize * f + k].as_dvec3()).max(0.0)).sum()
     }

@@ -21,6 +21,7 @@ use crate::LodError;
 use crate::attrs::{Vertex, VertexAttrs};
 use crate::placement::{Context, Placement, Q};
 use crate::poses::Pose;
+use crate::wedges::{AttrQuadric, Wedges, wedge_map};
 use glam::Vec3;
 use pmcodec_hierarchy::FineTopology;
 use pmcodec_hierarchy::quadric::{QuadricOptions, vertex_quadrics};
@@ -43,6 +44,11 @@ pub struct Snapshot {
     pub triangles: Vec<[u32; 3]>,
     /// For every input id, the alive id it has been merged into (itself when alive).
     pub rep: Vec<u32>,
+    /// Per triangle (parallel to `triangles`), the wedge of each corner and the material.
+    pub corner: Vec<[u32; 3]>,
+    pub material: Vec<u32>,
+    /// Attribute values of every wedge ([`Wedges::channels`] each), solved at every collapse.
+    pub values: Vec<f32>,
 }
 
 /// Thins `poses` so that `vertices * poses` quadrics fit [`MAX_QUADRICS`], keeping the first.
@@ -68,6 +74,25 @@ struct State<'a> {
     stamp: Vec<u32>,
     live_tris: usize,
     placement: Placement,
+    /// Corner wedges of `tris`, and per wedge and channel the attribute quadric and value.
+    corner: Vec<[u32; 3]>,
+    material: &'a [u32],
+    wedge_q: Vec<AttrQuadric>,
+    values: Vec<f32>,
+    channels: usize,
+    /// Scale of attribute error against the geometric error (see `simplify`).
+    attr_weight: f64,
+    /// Set once no collapse keeps every seam: seam corners may then collapse, their wedges
+    /// taking the survivor's most similar wedge (see `relaxed_map`).
+    relaxed: bool,
+}
+
+/// A collapse as priced: the placement, its total cost, and where the wedges of the removed
+/// vertex go.
+struct Priced {
+    cand: crate::placement::Candidate,
+    cost: f64,
+    map: Vec<(u32, u32)>,
 }
 
 type Entry = Reverse<(u64, u32, u32, u32, u32)>;
@@ -104,9 +129,104 @@ impl State<'_> {
                 continue;
             }
             let (a, b) = (v.min(w), v.max(w));
-            let c = self.ctx().place(self.placement, a, b);
-            heap.push(Reverse((cost_key(c.cost), a, b, self.stamp[a as usize], self.stamp[b as usize])));
+            if let Some(p) = self.price(a, b) {
+                heap.push(Reverse((cost_key(p.cost), a, b, self.stamp[a as usize], self.stamp[b as usize])));
+            }
         }
+    }
+
+    /// No collapse keeps every seam: let seam corners go too, rather than stop above the
+    /// target; every live edge is priced again.
+    fn relax(&mut self, heap: &mut BinaryHeap<Entry>) {
+        self.relaxed = true;
+        for v in 0..self.verts.len() as u32 {
+            if self.alive[v as usize] {
+                self.push_edges(v, heap);
+            }
+        }
+    }
+
+    /// Distinct corner wedges around `v`.
+    fn wedges_around(&self, v: u32) -> Vec<u32> {
+        let mut out: Vec<u32> = Vec::new();
+        for &t in &self.vert_tris[v as usize] {
+            if let Some(i) = self.tris[t as usize].iter().position(|&c| c == v) {
+                let w = self.corner[t as usize][i];
+                if !out.contains(&w) {
+                    out.push(w);
+                }
+            }
+        }
+        out
+    }
+
+    /// The wedge map of a collapse that crosses a seam: pairs met across the edge's triangles
+    /// first, then every other wedge of `gone` to the wedge of `keep` of the same material with
+    /// the closest attributes (meshoptimizer's permissive mode does likewise).
+    fn relaxed_map(&self, gone: u32, keep: u32) -> Option<Vec<(u32, u32)>> {
+        let c = self.channels;
+        let at = |t: u32, v: u32| self.tris[t as usize].iter().position(|&x| x == v).map(|i| self.corner[t as usize][i]);
+        let mut map: Vec<(u32, u32)> = Vec::new();
+        let mut keep_wedges: Vec<(u32, u32)> = Vec::new();
+        for &t in &self.vert_tris[keep as usize] {
+            let w = at(t, keep)?;
+            let m = self.material.get(t as usize).copied().unwrap_or(0);
+            if !keep_wedges.contains(&(w, m)) {
+                keep_wedges.push((w, m));
+            }
+        }
+        for &t in &self.vert_tris[gone as usize] {
+            let wg = at(t, gone)?;
+            if map.iter().any(|(g, _)| *g == wg) {
+                continue;
+            }
+            if let Some(wk) = at(t, keep) {
+                map.push((wg, wk));
+                continue;
+            }
+            let m = self.material.get(t as usize).copied().unwrap_or(0);
+            let value = |w: u32| &self.values[w as usize * c..(w as usize + 1) * c];
+            let dist = |&(w, wm): &(u32, u32)| -> f64 {
+                let d: f64 = value(wg).iter().zip(value(w)).map(|(a, b)| f64::from(a - b).powi(2)).sum();
+                d + if wm == m { 0.0 } else { 1e6 }
+            };
+            let best = keep_wedges.iter().min_by(|a, b| dist(a).total_cmp(&dist(b)))?;
+            map.push((wg, best.0));
+        }
+        Some(map)
+    }
+
+    /// Places the collapse of `(u, v)` and prices it with the attribute error of the wedges it
+    /// moves; `None` when it would tear a seam. A survivor on a seam that takes in a vertex off
+    /// the seam stays where it is, so seams only move along themselves.
+    fn price(&self, u: u32, v: u32) -> Option<Priced> {
+        let mut cand = self.ctx().place(self.placement, u, v);
+        let (keep, gone) = if cand.keep == u { (u, v) } else { (v, u) };
+        let map = match wedge_map(&self.tris, &self.corner, &self.vert_tris[gone as usize], gone, keep) {
+            Some(map) => map,
+            None if self.relaxed => self.relaxed_map(gone, keep)?,
+            None => return None,
+        };
+        let keep_wedges = self.wedges_around(keep);
+        let mut cost = cand.cost;
+        if keep_wedges.len() > 1 && map.len() == 1 {
+            cand.vertex = self.verts[keep as usize].clone();
+            cost = self.ctx().endpoint_cost(u, v, keep);
+        }
+        if self.channels > 0 {
+            let p = cand.vertex.rest.as_dvec3();
+            let c = self.channels;
+            for &wk in &keep_wedges {
+                for ch in 0..c {
+                    let mut q = self.wedge_q[wk as usize * c + ch];
+                    for &(wg, _) in map.iter().filter(|(_, k)| *k == wk) {
+                        q.add(&self.wedge_q[wg as usize * c + ch]);
+                    }
+                    cost += self.attr_weight * q.solve(p, f64::from(self.values[wk as usize * c + ch])).1;
+                }
+            }
+        }
+        Some(Priced { cand, cost, map })
     }
 
     /// Topological and fold checks for collapsing `u`, `v` into a vertex at `posed_new`.
@@ -164,8 +284,43 @@ impl State<'_> {
         true
     }
 
-    fn collapse(&mut self, keep: u32, gone: u32, vertex: Vertex, posed_new: &[Vec3]) {
+    fn collapse(&mut self, keep: u32, gone: u32, vertex: Vertex, posed_new: &[Vec3], map: &[(u32, u32)]) {
         let f = self.f();
+        // Wedges first: merge the quadrics of mapped wedges, then solve every wedge of the
+        // survivor at its new position (per wedge, Hoppe 1999).
+        let c = self.channels;
+        for &(wg, wk) in map {
+            for ch in 0..c {
+                let q = self.wedge_q[wg as usize * c + ch];
+                self.wedge_q[wk as usize * c + ch].add(&q);
+            }
+        }
+        for &t in &self.vert_tris[gone as usize] {
+            if let Some(i) = self.tris[t as usize].iter().position(|&x| x == gone) {
+                let w = &mut self.corner[t as usize][i];
+                if let Some(&(_, wk)) = map.iter().find(|(g, _)| g == w) {
+                    *w = wk;
+                }
+            }
+        }
+        if c > 0 {
+            let p = vertex.rest.as_dvec3();
+            let mut around = self.wedges_around(keep);
+            for &(_, wk) in map {
+                if !around.contains(&wk) {
+                    around.push(wk);
+                }
+            }
+            for wk in around {
+                for ch in 0..c {
+                    let slot = wk as usize * c + ch;
+                    let (value, _) = self.wedge_q[slot].solve(p, f64::from(self.values[slot]));
+                    if value.is_finite() {
+                        self.values[slot] = value as f32;
+                    }
+                }
+            }
+        }
         self.verts[keep as usize] = vertex;
         self.posed[keep as usize * f..(keep as usize + 1) * f].copy_from_slice(posed_new);
         for k in 0..f {
@@ -213,12 +368,16 @@ impl State<'_> {
 
     fn snapshot(&mut self, target: usize) -> Snapshot {
         let rep = (0..self.verts.len() as u32).map(|v| self.find(v)).collect();
+        let live: Vec<usize> = (0..self.tris.len()).filter(|&t| self.tri_alive[t]).collect();
         Snapshot {
             target,
             verts: self.verts.clone(),
             alive: self.alive.clone(),
-            triangles: self.tris.iter().zip(&self.tri_alive).filter(|(_, a)| **a).map(|(t, _)| *t).collect(),
+            triangles: live.iter().map(|&t| self.tris[t]).collect(),
             rep,
+            corner: live.iter().map(|&t| self.corner[t]).collect(),
+            material: live.iter().map(|&t| self.material.get(t).copied().unwrap_or(0)).collect(),
+            values: self.values.clone(),
         }
     }
 }
@@ -296,10 +455,19 @@ fn add_crease_planes(
     }
 }
 
+/// Seam constraint planes weigh like boundary planes (see `add_crease_planes`).
+const SEAM_WEIGHT: f64 = 1.0;
+/// Attribute error is squared attribute distance times area; a texture atlas spans about the
+/// model, so one unit of attribute is priced as one bounding-box diagonal of distance.
+const ATTRIBUTE_WEIGHT: f64 = 1.0;
+
 /// Simplifies the welded mesh `triangles` over `attrs` to every target (decreasing triangle
-/// counts), measuring costs in `poses` with per-vertex `importance`.
+/// counts), measuring costs in `poses` with per-vertex `importance`; `wedges` (corner attributes
+/// and materials of `triangles`) keep seams and materials and price attribute error.
+#[allow(clippy::too_many_arguments)]
 pub fn simplify(
     attrs: &VertexAttrs,
+    wedges: &Wedges,
     triangles: &[[u32; 3]],
     poses: &[Pose],
     importance: &[f64],
@@ -324,6 +492,10 @@ pub fn simplify(
     let mut positions = vec![Vec3::ZERO; n];
     let mut scratch = Vec::new();
     let creases = interior_edges(triangles);
+    if wedges.corner.len() != triangles.len() {
+        return Err(LodError::Internal(format!("{} corner wedge triples for {} triangles", wedges.corner.len(), triangles.len())));
+    }
+    let seams = wedges.seam_edges(triangles, &creases);
     for (k, pose) in poses.iter().enumerate() {
         for (v, p) in positions.iter_mut().enumerate() {
             *p = attrs.posed(v, pose);
@@ -331,6 +503,8 @@ pub fn simplify(
         }
         vertex_quadrics(&positions, triangles, &topo.boundary, &QuadricOptions::default(), &mut scratch);
         add_crease_planes(&positions, triangles, &creases, CREASE_COS, CREASE_WEIGHT, &mut scratch);
+        // Every seam edge, folded or flat (a cosine bound above 1 takes them all).
+        add_crease_planes(&positions, triangles, &seams, 2.0, SEAM_WEIGHT, &mut scratch);
         for (v, q) in scratch.iter().enumerate() {
             let w = pose.weight * importance.get(v).copied().unwrap_or(1.0);
             quadrics[v * f + k] = Q::from_quadric(q, w);
@@ -356,24 +530,41 @@ pub fn simplify(
         stamp: vec![0; n],
         live_tris: triangles.len(),
         placement,
+        corner: wedges.corner.clone(),
+        material: &wedges.material,
+        wedge_q: wedges.quadrics(&attrs.rest, triangles),
+        values: wedges.values.clone(),
+        channels: wedges.channels,
+        attr_weight: {
+            let diag = pmcodec_mesh::bounds_of(&attrs.rest).map_or(1.0, |(lo, hi)| f64::from((hi - lo).length_squared()));
+            ATTRIBUTE_WEIGHT * diag * poses.iter().map(|p| p.weight).sum::<f64>()
+        },
+        relaxed: false,
     };
     let mut heap: BinaryHeap<Entry> = BinaryHeap::new();
     for e in &topo.edges {
         let [a, b] = *e;
-        if s.verts[a as usize].class == s.verts[b as usize].class {
-            let c = s.ctx().place(placement, a, b);
-            heap.push(Reverse((cost_key(c.cost), a, b, 0, 0)));
+        if s.verts[a as usize].class == s.verts[b as usize].class
+            && let Some(p) = s.price(a, b)
+        {
+            heap.push(Reverse((cost_key(p.cost), a, b, 0, 0)));
         }
     }
     let mut out = Vec::with_capacity(targets.len());
     let mut posed_new = vec![Vec3::ZERO; f];
     for &target in targets {
         while s.live_tris > target {
-            let Some(Reverse((_, u, v, su, sv))) = heap.pop() else { break };
+            let Some(Reverse((_, u, v, su, sv))) = heap.pop() else {
+                if s.relaxed {
+                    break;
+                }
+                s.relax(&mut heap);
+                continue;
+            };
             if !s.alive[u as usize] || !s.alive[v as usize] || s.stamp[u as usize] != su || s.stamp[v as usize] != sv {
                 continue;
             }
-            let cand = s.ctx().place(placement, u, v);
+            let Some(Priced { cand, map, .. }) = s.price(u, v) else { continue };
             for (slot, pose) in posed_new.iter_mut().zip(poses) {
                 let (l, c) = attrs.affine(&cand.vertex, pose);
                 *slot = l * cand.vertex.rest + c;
@@ -382,7 +573,7 @@ pub fn simplify(
                 continue;
             }
             let (keep, gone) = if cand.keep == u { (u, v) } else { (v, u) };
-            s.collapse(keep, gone, cand.vertex, &posed_new);
+            s.collapse(keep, gone, cand.vertex, &posed_new, &map);
             s.push_edges(keep, &mut heap);
         }
         out.push(s.snapshot(target));

@@ -31,6 +31,7 @@ fn round_trip(name: &str) {
     }
     let bytes = gltf_out::chain_glb(&chain, "houle-poulin").expect("glb");
     check_glb_levels(&chain, &bytes);
+    check_appearance(name, &chain, &bytes);
     let back = RiggedMesh::from_bytes(&bytes).expect("our reader reads it");
     assert_eq!(back.animations.len(), chain.input.animations.len(), "{name}: animations kept");
     let diag = pmcodec_lod::measure::posed_mesh(&chain.input, None, 0.0).diagonal();
@@ -39,6 +40,27 @@ fn round_trip(name: &str) {
         let gap = max_pose_gap(&back, &chain.levels[0].rig, Some(anim), t);
         assert!(gap < 1e-4 * diag, "{name} animation {anim}: {gap} of {diag}");
     }
+}
+
+/// Every level keeps the input's attributes and every material it uses; the file holds the
+/// input's images once, one skeleton and one set of animations.
+fn check_appearance(name: &str, chain: &pmcodec_lod::LodChain, bytes: &[u8]) {
+    let input = chain.input.appearance.as_ref().expect("the input's appearance");
+    let used = |a: &pmcodec_mesh::Appearance| a.triangle_material.iter().copied().collect::<std::collections::BTreeSet<u32>>();
+    for (k, level) in chain.levels.iter().enumerate() {
+        let app = level.rig.appearance.as_ref().unwrap_or_else(|| panic!("{name} level {k}: no appearance"));
+        app.validate(level.rig.vertex_count(), &level.rig.triangles).expect("valid");
+        assert_eq!((app.uv0.is_empty(), app.colors.is_empty()), (input.uv0.is_empty(), input.colors.is_empty()), "{name} level {k}");
+        assert_eq!(used(app), used(input), "{name} level {k}: every material kept");
+        assert!(app.uv0.iter().flatten().all(|x| x.is_finite()), "{name} level {k}: UVs");
+    }
+    let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let doc: serde_json::Value = serde_json::from_slice(&bytes[20..20 + len]).unwrap();
+    let count = |key: &str| doc[key].as_array().map_or(0, Vec::len);
+    assert_eq!(count("images"), input.images.len(), "{name}: images once");
+    assert_eq!(count("materials"), input.materials.len(), "{name}: materials once");
+    assert_eq!(count("animations"), chain.input.animations.len(), "{name}: animations once");
+    assert!(count("skins") <= chain.input.skins.len() + chain.input.instances.len(), "{name}: skins once");
 }
 
 #[test]

@@ -6,7 +6,7 @@
 use crate::{EXIT_BAD_INPUT, Exit};
 use anyhow::Context;
 use clap::{Args, ValueEnum};
-use pmcodec_lod::measure::{MeasureOptions, animation_error, meshopt_baseline};
+use pmcodec_lod::measure::{MeasureOptions, animation_error, meshopt_baseline, uv_error};
 use pmcodec_lod::{LodError, LodOptions, Placement, PoseOptions, PoseWeights, VertexWeighting};
 use pmcodec_mesh::gltf_input::RiggedMesh;
 use std::path::PathBuf;
@@ -123,19 +123,31 @@ pub fn run(args: LodArgs, quiet: bool) -> Result<(), Exit> {
                 level.target.map(|t| format!(" (target {t})")).unwrap_or_default()
             );
         }
-        eprintln!("wrote {} ({} bytes, {} poses, placement {})", args.output.display(), bytes.len(), chain.pose_count, placement.name());
+        let input_bytes = std::fs::metadata(&args.input).map(|m| m.len()).unwrap_or(0);
+        eprintln!(
+            "wrote {} ({} bytes; input {input_bytes} bytes; {} poses, placement {})",
+            args.output.display(),
+            bytes.len(),
+            chain.pose_count,
+            placement.name()
+        );
     }
     if args.report {
         let measure = MeasureOptions::default();
-        println!("level  triangles  ours mean %  ours max %  meshopt mean %  meshopt max %");
+        // Position error over every animation frame (percent of the diagonal) beside texture
+        // coordinate error in the rest pose (percent of the texture; "-" without UVs).
+        println!("level  triangles  ours mean %  ours max %  ours UV %  meshopt mean %  meshopt max %");
         for (k, level) in chain.levels.iter().enumerate().skip(1) {
             let ours = animation_error(&chain.input, &level.rig, &measure)?;
             let base = animation_error(&chain.input, &meshopt_baseline(&chain.input, level.rig.triangles.len()), &measure)?;
+            let uv = uv_error(&chain.input, &level.rig, measure.samples.samples, measure.samples.seed)?
+                .map_or_else(|| "-".to_string(), |e| format!("{e:.4}"));
             println!(
-                "lod{k:<3} {:>9}  {:>11.4}  {:>10.4}  {:>14.4}  {:>13.4}",
+                "lod{k:<3} {:>9}  {:>11.4}  {:>10.4}  {:>9}  {:>14.4}  {:>13.4}",
                 level.rig.triangles.len(),
                 ours.mean,
                 ours.max,
+                uv,
                 base.mean,
                 base.max
             );

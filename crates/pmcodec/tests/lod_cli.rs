@@ -100,3 +100,47 @@ fn lod_multi_part_character() {
         }
     }
 }
+
+/// Bad appearance input (issue 16): a texture whose file is missing, an image that is neither
+/// PNG nor JPEG. Exit code 3, a message naming the image, nothing written.
+#[test]
+fn lod_bad_textures_exit_3() {
+    let fox = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/gltf/Fox.glb"));
+    assert!(fox.is_file(), "{} is absent; this test reads the real models in ../shared/data", fox.display());
+    let bytes = std::fs::read(&fox).unwrap();
+    let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let doc: serde_json::Value = serde_json::from_slice(&bytes[20..20 + len]).unwrap();
+    let chunk = &bytes[20 + len + 8..];
+    let glb = |doc: &serde_json::Value| {
+        let mut j = serde_json::to_vec(doc).unwrap();
+        while !j.len().is_multiple_of(4) {
+            j.push(b' ');
+        }
+        let mut out = b"glTF".to_vec();
+        out.extend(2u32.to_le_bytes());
+        out.extend(((12 + 8 + j.len() + 8 + chunk.len()) as u32).to_le_bytes());
+        out.extend((j.len() as u32).to_le_bytes());
+        out.extend(b"JSON");
+        out.extend(&j);
+        out.extend((chunk.len() as u32).to_le_bytes());
+        out.extend(b"BIN\0");
+        out.extend(chunk);
+        out
+    };
+    let dir = temp("textures");
+    let out = dir.join("never.glb");
+    let mut missing = doc.clone();
+    missing["images"][0] = serde_json::json!({"uri": "fox_skin.png"});
+    let mut gif = doc.clone();
+    // Point the image at the first view of the buffer (vertex data), which is not an image.
+    gif["images"][0] = serde_json::json!({"bufferView": 0, "mimeType": "image/png"});
+    for (name, doc, says) in [("missing.glb", &missing, "fox_skin.png"), ("notpng.glb", &gif, "neither PNG nor JPEG")] {
+        let input = dir.join(name);
+        std::fs::write(&input, glb(doc)).unwrap();
+        let run = bin().args(["-q", "lod", "--triangles", "50%"]).arg(&input).arg("-o").arg(&out).output().unwrap();
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(3), "{name}: {stderr}");
+        assert!(stderr.contains("image 0") && stderr.contains(says) && stderr.contains(name), "{name}: {stderr}");
+        assert!(!out.exists(), "{name}: nothing is written");
+    }
+}
