@@ -8,6 +8,7 @@
 //!   decompresses chunks; [`Decoder`] replays frames and extracts meshes at any cut.
 //! - [`verify`] and [`summary`] back the CLI's `verify` and `info`.
 
+pub mod appearance;
 mod decode;
 mod encode;
 pub mod format;
