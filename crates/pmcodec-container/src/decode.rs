@@ -355,15 +355,8 @@ impl<S: ByteSource> Decoder<S> {
             // Parents exist below the top band only (offsets has one entry more than sizes).
             let up = if j + 1 < sizes.len() { offsets.get(j + 1).map(|&o| o as usize) } else { None };
             self.siblings.reset(sizes.get(j + 1).map_or(0, |&n| n as usize));
-            let motion = match h.motion {
-                _ if j > 0 || intra => Band0Motion::Mean,
-                Motion::Mean => Band0Motion::Mean,
-                Motion::Affine => {
-                    self.fits.prepare(&self.lower, &self.previous, sizes[0] as usize);
-                    Band0Motion::Affine(&self.fits)
-                }
-                Motion::KeyframeAffine => Band0Motion::KeyframeAffine(&self.weights),
-            };
+            let n0 = sizes[0] as usize;
+            let motion = Band0Motion::select(h.motion, j == 0 && !intra, &self.lower, &self.previous, n0, &mut self.fits, &self.weights);
             // Band 0 in its decoding order (a permutation of the input vertices, as many as
             // the band has), coarser bands in node order.
             let sequence = if j == 0 { Some(self.lower.sequence()) } else { None };

@@ -143,7 +143,17 @@ impl Sequence {
     /// OBJ exports from some tools contain them; everything downstream assumes none.
     pub fn drop_degenerate_faces(&mut self) -> usize {
         let before = self.triangles.len();
-        self.triangles.retain(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
+        let kept: Vec<usize> = (0..before)
+            .filter(|&i| {
+                let t = self.triangles[i];
+                t[0] != t[1] && t[1] != t[2] && t[0] != t[2]
+            })
+            .collect();
+        self.triangles = kept.iter().map(|&i| self.triangles[i]).collect();
+        // Corner wedges stay parallel to the triangles.
+        if let Some(app) = &mut self.appearance {
+            app.retain_triangles(&kept);
+        }
         before - self.triangles.len()
     }
 
