@@ -14,6 +14,9 @@
 //! that is not a crease): decoders sum face normals per (cut node, group), so shading splits
 //! at creases but not at UV seams or material boundaries that the input shades smoothly.
 
+// Corners index several parallel arrays in step (triangles, wedges, ancestors).
+#![allow(clippy::needless_range_loop)]
+
 use pmcodec_mesh::Appearance;
 
 const NONE: u32 = u32::MAX;

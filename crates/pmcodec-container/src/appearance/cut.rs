@@ -19,6 +19,8 @@ pub struct DecodedAppearance {
     /// Per level; `None` below the decoder's finest level.
     pub tables: Vec<Option<Table>>,
     pub materials: MaterialsChunk,
+    /// The images, read on first use and shared by clones of the decoder.
+    pub images: Option<std::sync::Arc<Vec<pmcodec_mesh::appearance::Image>>>,
 }
 
 /// Texture coordinate `q` of axis `a` (binary64, rounded once to binary32).
@@ -108,6 +110,7 @@ pub fn textured_mesh(
     app.materials = shared.materials;
     app.textures = shared.textures;
     app.samplers = shared.samplers;
+    app.images = d.images.as_ref().map(|i| i.as_ref().clone()).unwrap_or_default();
     if app.materials.is_empty() {
         app.triangle_material.clear();
     }

@@ -68,8 +68,16 @@ pub struct RawMaterial {
 pub struct RawTextureRef {
     pub texture: u32,
     pub tex_coord: u32,
-    /// `KHR_texture_transform`: offset, rotation, scale, texCoord override.
-    pub transform: Option<([f32; 2], f32, [f32; 2], Option<u32>)>,
+    pub transform: Option<RawTransform>,
+}
+
+/// `KHR_texture_transform`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RawTransform {
+    pub offset: [f32; 2],
+    pub rotation: f32,
+    pub scale: [f32; 2],
+    pub tex_coord: Option<u32>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -98,7 +106,7 @@ fn raw_ref(r: &Option<TextureRef>) -> Option<RawTextureRef> {
     r.map(|r| RawTextureRef {
         texture: r.texture,
         tex_coord: r.tex_coord,
-        transform: r.transform.map(|t| (t.offset, t.rotation, t.scale, t.tex_coord)),
+        transform: r.transform.map(|t| RawTransform { offset: t.offset, rotation: t.rotation, scale: t.scale, tex_coord: t.tex_coord }),
     })
 }
 
@@ -106,7 +114,7 @@ fn cooked_ref(r: &Option<RawTextureRef>) -> Option<TextureRef> {
     r.map(|r| TextureRef {
         texture: r.texture,
         tex_coord: r.tex_coord,
-        transform: r.transform.map(|(offset, rotation, scale, tex_coord)| TextureTransform { offset, rotation, scale, tex_coord }),
+        transform: r.transform.map(|t| TextureTransform { offset: t.offset, rotation: t.rotation, scale: t.scale, tex_coord: t.tex_coord }),
     })
 }
 

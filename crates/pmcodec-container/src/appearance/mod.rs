@@ -58,3 +58,30 @@ pub fn info_for(app: &Appearance, charts: &Charts, uv_bits: u8) -> AppearanceInf
         normals: !app.normals.is_empty(),
     }
 }
+
+/// The encoder's appearance state for `seq` (which has appearance `app`) with a hierarchy of
+/// `levels` levels: charts and header field now, tables as frames are observed.
+pub fn builder<'a>(seq: &'a pmcodec_mesh::Sequence, app: &'a Appearance, levels: usize) -> tables::TableBuilder<'a> {
+    let charts = charts::build(&seq.triangles, seq.vertex_count(), app);
+    let info = info_for(app, &charts, DEFAULT_UV_BITS);
+    tables::TableBuilder::new(&seq.triangles, &seq.frames[0], app, charts, info, levels)
+}
+
+/// The appearance chunks, in file order: Charts, Materials, the Attributes of every band top
+/// first, then each Image. (kind, band, raw payload).
+pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::ChunkKind, u32, Vec<u8>)>, crate::ContainerError> {
+    use crate::ChunkKind;
+    let tables = builder.finish();
+    let channels = builder.info().channels();
+    let app = builder.appearance();
+    let materials = postcard::to_stdvec(&MaterialsChunk::from_appearance(app))
+        .map_err(|e| crate::ContainerError::Io(format!("materials chunk: {e}")))?;
+    let mut out = vec![(ChunkKind::Charts, 0, payload::write_charts(builder.charts())), (ChunkKind::Materials, 0, materials)];
+    for (j, t) in tables.iter().enumerate().rev() {
+        out.push((ChunkKind::Attributes, j as u32, payload::write_table(t, channels)));
+    }
+    for (i, image) in app.images.iter().enumerate() {
+        out.push((ChunkKind::Image, i as u32, image.bytes.clone()));
+    }
+    Ok(out)
+}

@@ -130,10 +130,11 @@ impl Table {
     }
 }
 
-pub fn read_table(bytes: &[u8], what: &str, nodes: u32, info: &AppearanceInfo) -> Result<Table, ContainerError> {
+/// Reads band j's table: `nodes` = `level_sizes[j]`; at most three entries per triangle.
+pub fn read_table(bytes: &[u8], what: &str, nodes: u32, info: &AppearanceInfo, triangles: u32) -> Result<Table, ContainerError> {
     let channels = info.channels();
     let mut c = Cursor::new(bytes, what);
-    let m = c.count_within(nodes as u64 * info.charts as u64, 2 + channels, "entries")?;
+    let m = c.count_within((nodes as u64 * info.charts as u64).min(3 * triangles as u64), 2 + channels, "entries")?;
     let mut table = Table { first: vec![0; nodes as usize + 1], charts: Vec::with_capacity(m), values: Vec::with_capacity(m * channels) };
     let mut prev: Option<(u32, u32)> = None;
     let mut node_of = Vec::with_capacity(m);
@@ -192,11 +193,11 @@ mod tests {
     #[test]
     fn tables_and_charts_round_trip() {
         let t = QuantizedTable { entries: vec![(0, 0), (0, 2), (3, 1), (7, 0)], values: vec![5, 6, 7, 8, -1, 4000, 12, 0] };
-        let table = read_table(&write_table(&t, 2), "t", 8, &info()).unwrap();
+        let table = read_table(&write_table(&t, 2), "t", 8, &info(), 100).unwrap();
         assert_eq!(table.get(0, 2, 2), Some(&[7, 8][..]));
         assert_eq!(table.get(7, 0, 2), Some(&[12, 0][..]));
         assert_eq!(table.get(3, 0, 2), None);
-        assert!(read_table(&write_table(&t, 2), "t", 7, &info()).is_err(), "node 7 of 7");
+        assert!(read_table(&write_table(&t, 2), "t", 7, &info(), 100).is_err(), "node 7 of 7");
         let charts = Charts { triangle_chart: vec![0, 0, 1, 2, 2, 0], chart_material: vec![0, 1, 1], chart_group: vec![0, 0, 0] };
         assert_eq!(read_charts(&write_charts(&charts), &info(), 6).unwrap(), charts);
         assert!(read_charts(&write_charts(&charts), &info(), 7).is_err(), "runs cover 6 of 7");

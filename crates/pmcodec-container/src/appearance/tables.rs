@@ -10,6 +10,9 @@
 //! summed over the frames (Garland & Heckbert 1998 weight attribute quadrics by area the same
 //! way), which keeps a coarse node's value inside its chart's region of the texture.
 
+// Corners index several parallel arrays in step (triangles, wedges, ancestors).
+#![allow(clippy::needless_range_loop)]
+
 use super::charts::Charts;
 use super::format::AppearanceInfo;
 use super::payload::QuantizedTable;
@@ -56,8 +59,8 @@ struct LevelSums {
 pub struct TableBuilder<'a> {
     triangles: &'a [[u32; 3]],
     app: &'a Appearance,
-    charts: &'a Charts,
-    info: &'a AppearanceInfo,
+    charts: Charts,
+    info: AppearanceInfo,
     /// A third of each triangle's area in the first frame (a tiny floor keeps slivers counted).
     weight: Vec<f64>,
     levels: Vec<LevelSums>,
@@ -70,8 +73,8 @@ impl<'a> TableBuilder<'a> {
         triangles: &'a [[u32; 3]],
         first_frame: &[Vec3],
         app: &'a Appearance,
-        charts: &'a Charts,
-        info: &'a AppearanceInfo,
+        charts: Charts,
+        info: AppearanceInfo,
         levels: usize,
     ) -> Self {
         let weight = triangles
@@ -91,6 +94,18 @@ impl<'a> TableBuilder<'a> {
             ancestor: Vec::new(),
             scratch: Vec::new(),
         }
+    }
+
+    pub fn charts(&self) -> &Charts {
+        &self.charts
+    }
+
+    pub fn info(&self) -> &AppearanceInfo {
+        &self.info
+    }
+
+    pub fn appearance(&self) -> &Appearance {
+        self.app
     }
 
     /// Adds one frame's hierarchy (`parent[k][v]`, k below the top).
@@ -116,7 +131,7 @@ impl<'a> TableBuilder<'a> {
                         sums.sums.resize(sums.sums.len() + channels, 0.0);
                         sums.needed.push(false);
                     }
-                    wedge_values(self.app, self.info, self.app.corner_wedges[t][i] as usize, &mut self.scratch);
+                    wedge_values(self.app, &self.info, self.app.corner_wedges[t][i] as usize, &mut self.scratch);
                     let w = self.weight[t];
                     sums.weight[e] += w;
                     for (s, x) in sums.sums[e * channels..].iter_mut().zip(&self.scratch) {
@@ -129,7 +144,7 @@ impl<'a> TableBuilder<'a> {
     }
 
     /// The quantized table of every level, level 0 first.
-    pub fn finish(mut self) -> Vec<QuantizedTable> {
+    pub fn finish(&mut self) -> Vec<QuantizedTable> {
         let channels = self.info.channels();
         let mut out = Vec::with_capacity(self.levels.len());
         // Level 0: the wedge of each (vertex, chart) pair.
@@ -144,10 +159,11 @@ impl<'a> TableBuilder<'a> {
         let mut t0 = QuantizedTable::default();
         for (v, c, w) in pairs {
             t0.entries.push((v, c));
-            wedge_values(self.app, self.info, w as usize, &mut self.scratch);
-            t0.values.extend(self.scratch.iter().enumerate().map(|(k, &x)| quantize(self.info, k, x)));
+            wedge_values(self.app, &self.info, w as usize, &mut self.scratch);
+            t0.values.extend(self.scratch.iter().enumerate().map(|(k, &x)| quantize(&self.info, k, x)));
         }
         out.push(t0);
+        let info = &self.info;
         for sums in self.levels.iter().skip(1) {
             let mut keys: Vec<(u64, u32)> = sums.index.iter().filter(|(_, e)| sums.needed[**e as usize]).map(|(&k, &e)| (k, e)).collect();
             keys.sort_unstable();
@@ -156,7 +172,7 @@ impl<'a> TableBuilder<'a> {
                 let e = e as usize;
                 table.entries.push(((key >> 32) as u32, key as u32));
                 let w = sums.weight[e];
-                table.values.extend((0..channels).map(|k| quantize(self.info, k, sums.sums[e * channels + k] / w)));
+                table.values.extend((0..channels).map(|k| quantize(info, k, sums.sums[e * channels + k] / w)));
             }
             out.push(table);
         }
