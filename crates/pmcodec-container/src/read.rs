@@ -279,7 +279,7 @@ fn raw_len_range(h: &Header, kind: ChunkKind, band: usize) -> (u64, u64) {
         ChunkKind::Positions => (1, POSITIONS_SLACK + 24 * n),
         // Appearance (version 6): a chart per triangle at most; an attribute entry per alive
         // triangle corner at most, each a node, a chart and its channels.
-        ChunkKind::Charts => (3, 15 + 20 * t),
+        ChunkKind::Charts => (3, 15 + 25 * t),
         ChunkKind::Attributes => {
             let channels = h.appearance.as_ref().map_or(0, |a| a.channels() as u64);
             (1, 5 + (10 + 5 * channels) * 3 * t)
@@ -367,8 +367,8 @@ fn check_header(h: &Header) -> Result<(), ContainerError> {
         if a.charts == 0 || a.charts > h.triangle_count {
             return bad(format!("appearance: {} charts for {} triangles", a.charts, h.triangle_count));
         }
-        if a.groups == 0 || a.groups > a.charts {
-            return bad(format!("appearance: {} smoothing groups for {} charts", a.groups, a.charts));
+        if a.groups == 0 || a.groups > h.triangle_count {
+            return bad(format!("appearance: {} smoothing groups for {} triangles", a.groups, h.triangle_count));
         }
         if a.materials > MAX_MATERIALS || a.images > MAX_IMAGES {
             return bad(format!("appearance: {} materials and {} images, more than a file may have", a.materials, a.images));

@@ -10,9 +10,11 @@
 //! names one attribute value at every level: the input's wedge at level 0, a solved value for
 //! a cluster above.
 //!
-//! A *smoothing group* joins charts whose shared edges agree in their input normals (a UV seam
-//! that is not a crease): decoders sum face normals per (cut node, group), so shading splits
-//! at creases but not at UV seams or material boundaries that the input shades smoothly.
+//! A *smoothing group* is the same for normals alone, apart from charts: an edge-connected set
+//! of triangles whose shared edges agree in their input normals at both ends. Decoders sum face
+//! normals per (cut node, group), so shading splits at creases (and every face of a flat-shaded
+//! input is a group of its own) but not at UV seams or material boundaries the input shades
+//! smoothly; and a flat-shaded input's texture charts stay whole.
 
 // Corners index several parallel arrays in step (triangles, wedges, ancestors).
 #![allow(clippy::needless_range_loop)]
@@ -28,8 +30,8 @@ pub struct Charts {
     pub triangle_chart: Vec<u32>,
     /// Material of each chart (an index into the appearance's materials; 0 when it has none).
     pub chart_material: Vec<u32>,
-    /// Smoothing group of each chart, numbered in order of first appearance.
-    pub chart_group: Vec<u32>,
+    /// Smoothing group of each triangle, numbered in order of first appearance.
+    pub triangle_group: Vec<u32>,
 }
 
 impl Charts {
@@ -38,15 +40,11 @@ impl Charts {
     }
 }
 
-/// Whether wedges `a` and `b` carry the same attributes (the same wedge, or equal values: a
-/// reader may not have merged equal wedges).
+/// Whether wedges `a` and `b` carry the same stored attributes (texture coordinates and
+/// colour; normals are the groups' business): the same wedge, or equal values.
 fn same_wedge(app: &Appearance, a: u32, b: u32) -> bool {
     let (a, b) = (a as usize, b as usize);
-    a == b
-        || (app.uv0.get(a) == app.uv0.get(b)
-            && app.uv1.get(a) == app.uv1.get(b)
-            && app.normals.get(a) == app.normals.get(b)
-            && app.colors.get(a) == app.colors.get(b))
+    a == b || (app.uv0.get(a) == app.uv0.get(b) && app.uv1.get(a) == app.uv1.get(b) && app.colors.get(a) == app.colors.get(b))
 }
 
 /// Whether wedges `a` and `b` carry the same input normal (true when the input has none).
@@ -91,7 +89,7 @@ pub fn build(triangles: &[[u32; 3]], vertex_count: usize, app: &Appearance) -> C
         app.corner_wedges[t][k]
     };
     let mut chart = vec![NONE; triangles.len()];
-    let mut charts = Charts { triangle_chart: Vec::new(), chart_material: Vec::new(), chart_group: Vec::new() };
+    let mut charts = Charts::default();
     // The wedge each vertex has in the chart being grown (valid where `stamp` is that chart).
     let mut stamp = vec![NONE; vertex_count];
     let mut held = vec![0u32; vertex_count];
@@ -138,13 +136,14 @@ pub fn build(triangles: &[[u32; 3]], vertex_count: usize, app: &Appearance) -> C
         }
     }
     charts.triangle_chart = chart;
-    charts.chart_group = groups(triangles, app, &edges, &charts.triangle_chart, charts.count());
+    charts.triangle_group = groups(triangles, app, &edges);
     charts
 }
 
-/// Smoothing groups: union-find over charts joined by an edge whose input normals agree at
-/// both ends.
-fn groups(triangles: &[[u32; 3]], app: &Appearance, edges: &[(u64, u32, u8)], chart: &[u32], count: usize) -> Vec<u32> {
+/// Smoothing groups: union-find over triangles joined by an edge whose input normals agree at
+/// both ends (every edge when the input has no normals).
+fn groups(triangles: &[[u32; 3]], app: &Appearance, edges: &[(u64, u32, u8)]) -> Vec<u32> {
+    let count = triangles.len();
     let mut root: Vec<u32> = (0..count as u32).collect();
     fn find(root: &mut [u32], mut x: u32) -> u32 {
         while root[x as usize] != x {
@@ -159,18 +158,18 @@ fn groups(triangles: &[[u32; 3]], app: &Appearance, edges: &[(u64, u32, u8)], ch
     };
     for pair in edges.windows(2) {
         let ((k0, t, i), (k1, u, _)) = (pair[0], pair[1]);
-        if k0 != k1 || chart[t as usize] == chart[u as usize] {
+        if k0 != k1 {
             continue;
         }
         let (a, b) = (triangles[t as usize][i as usize], triangles[t as usize][(i as usize + 1) % 3]);
         if same_normal(app, corner_wedge(t, a), corner_wedge(u, a)) && same_normal(app, corner_wedge(t, b), corner_wedge(u, b)) {
-            let (x, y) = (find(&mut root, chart[t as usize]), find(&mut root, chart[u as usize]));
+            let (x, y) = (find(&mut root, t), find(&mut root, u));
             if x != y {
                 root[x.max(y) as usize] = x.min(y);
             }
         }
     }
-    // Number groups in order of first appearance (the smallest chart of each is its root).
+    // Number groups in order of first appearance (the smallest triangle of each is its root).
     let mut number = vec![NONE; count];
     let mut next = 0;
     (0..count as u32)
@@ -197,7 +196,7 @@ mod tests {
         assert_eq!(c.count(), 2);
         assert_eq!(c.chart_material, vec![0, 1]);
         // No input normals: the seam is smooth, one group.
-        assert_eq!(c.chart_group, vec![0, 0]);
+        assert!(c.triangle_group.iter().all(|&g| g == 0));
         for (t, &m) in app.triangle_material.iter().enumerate() {
             assert_eq!(c.triangle_chart[t], m);
         }

@@ -30,8 +30,8 @@ pub fn dequantize_uv(info: &AppearanceInfo, a: usize, q: i32) -> f32 {
 
 /// The mesh of a cut with its appearance. `shown` lists the shown triangles in mesh order,
 /// each with the global ids of its corners' cut nodes; `offsets` are the levels' first global
-/// ids (one more entry than levels). Output vertices are the distinct (cut node, chart) pairs
-/// in order of first use; the appearance has one wedge per vertex.
+/// ids (one more entry than levels). Output vertices are the distinct (cut node, chart,
+/// smoothing group) triples in order of first use; the appearance has one wedge per vertex.
 pub fn textured_mesh(
     d: &DecodedAppearance,
     offsets: &[u32],
@@ -44,7 +44,7 @@ pub fn textured_mesh(
     let channels = info.channels();
     let mut mesh = TriMesh::default();
     let mut app = Appearance::default();
-    let mut vertex: HashMap<u64, u32> = HashMap::with_capacity(shown.len());
+    let mut vertex: HashMap<(u32, u32, u32), u32> = HashMap::with_capacity(shown.len());
     // Per vertex: its cut node and group, to look its normal up at the end.
     let mut vertex_key: Vec<u64> = Vec::with_capacity(shown.len());
     let mut normal_sum: HashMap<u64, [f64; 3]> = HashMap::with_capacity(shown.len());
@@ -52,16 +52,15 @@ pub fn textured_mesh(
     for &(t, cut) in shown {
         let chart =
             *d.charts.triangle_chart.get(t as usize).ok_or_else(|| ContainerError::Options(format!("triangle {t} beyond the charts")))?;
-        let group = d.charts.chart_group[chart as usize];
+        let group = d.charts.triangle_group[t as usize];
         let p = cut.map(|g| positions.get(g as usize).copied().unwrap_or(Vec3::ZERO).as_dvec3());
         let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
         let n = [e1.y * e2.z - e1.z * e2.y, e1.z * e2.x - e1.x * e2.z, e1.x * e2.y - e1.y * e2.x];
         let mut tri = [0u32; 3];
         for i in 0..3 {
             let g = cut[i];
-            let key = ((g as u64) << 32) | chart as u64;
             let next = mesh.positions.len() as u32;
-            let v = *vertex.entry(key).or_insert(next);
+            let v = *vertex.entry((g, chart, group)).or_insert(next);
             if v == next {
                 let level = level_of(g);
                 let local = g - offsets[level];

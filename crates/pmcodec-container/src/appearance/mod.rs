@@ -10,6 +10,7 @@
 
 pub mod charts;
 pub mod cut;
+pub mod export;
 pub mod format;
 pub mod payload;
 pub mod tables;
@@ -48,7 +49,7 @@ pub fn info_for(app: &Appearance, charts: &Charts, uv_bits: u8) -> AppearanceInf
         if uv_sets == 0 { ([0.0; 2], [1.0; 2]) } else { (lo, [0, 1].map(|a| ((hi[a] - lo[a]) / levels).max(f32::MIN_POSITIVE * 1e6))) };
     AppearanceInfo {
         charts: charts.count() as u32,
-        groups: charts.chart_group.iter().max().map_or(0, |&g| g + 1),
+        groups: charts.triangle_group.iter().max().map_or(0, |&g| g + 1),
         materials: app.materials.len() as u32,
         images: app.images.len() as u32,
         uv_sets,

@@ -6,26 +6,41 @@ use super::format::AppearanceInfo;
 use crate::ContainerError;
 use crate::payload::{Cursor, put, unzigzag, zigzag};
 
-/// CHARTS: `C`, then per chart its material and smoothing group, then runs of equal chart ids
-/// over the triangles in input order: `R`, then per run the chart and its length.
+/// Runs of equal values: (value, length).
+fn runs(values: &[u32]) -> Vec<(u32, u32)> {
+    let mut runs: Vec<(u32, u32)> = Vec::new();
+    for &v in values {
+        match runs.last_mut() {
+            Some((last, n)) if *last == v => *n += 1,
+            _ => runs.push((v, 1)),
+        }
+    }
+    runs
+}
+
+/// CHARTS: `C`, then per chart its material; then runs of equal chart ids over the triangles
+/// in input order: `R`, then per run the chart and its length; then runs of equal smoothing
+/// groups likewise, each group as the zigzag-coded difference from the previous run's (from
+/// 0): a flat-shaded input's groups climb by one per triangle.
 pub fn write_charts(c: &Charts) -> Vec<u8> {
     let mut out = Vec::new();
     put(&mut out, c.count() as u32);
-    for (&m, &g) in c.chart_material.iter().zip(&c.chart_group) {
+    for &m in &c.chart_material {
         put(&mut out, m);
-        put(&mut out, g);
     }
-    let mut runs: Vec<(u32, u32)> = Vec::new();
-    for &ch in &c.triangle_chart {
-        match runs.last_mut() {
-            Some((last, n)) if *last == ch => *n += 1,
-            _ => runs.push((ch, 1)),
-        }
-    }
-    put(&mut out, runs.len() as u32);
-    for (ch, n) in runs {
+    let charts = runs(&c.triangle_chart);
+    put(&mut out, charts.len() as u32);
+    for (ch, n) in charts {
         put(&mut out, ch);
         put(&mut out, n);
+    }
+    let groups = runs(&c.triangle_group);
+    put(&mut out, groups.len() as u32);
+    let mut last = 0u32;
+    for (g, n) in groups {
+        put(&mut out, zigzag(g.wrapping_sub(last) as i32));
+        put(&mut out, n);
+        last = g;
     }
     out
 }
@@ -34,26 +49,43 @@ pub fn read_charts(bytes: &[u8], info: &AppearanceInfo, triangles: u32) -> Resul
     let what = "charts chunk";
     let bad = |detail: String| ContainerError::Corrupt { what: what.into(), detail };
     let mut c = Cursor::new(bytes, what);
-    let count = c.count_within(info.charts as u64, 2, "charts")?;
+    let count = c.count_within(info.charts as u64, 1, "charts")?;
     if count != info.charts as usize {
         return Err(bad(format!("{count} charts where the header says {}", info.charts)));
     }
     let mut charts = Charts { triangle_chart: Vec::with_capacity(triangles as usize), ..Default::default() };
     for _ in 0..count {
         charts.chart_material.push(c.id(info.materials.max(1), "material")?);
-        charts.chart_group.push(c.id(info.groups, "smoothing group")?);
     }
-    let runs = c.count_within(triangles as u64, 2, "runs")?;
-    for _ in 0..runs {
+    let n = c.count_within(triangles as u64, 2, "chart runs")?;
+    for _ in 0..n {
         let chart = c.id(info.charts, "chart")?;
-        let n = c.get()?;
-        if n == 0 || charts.triangle_chart.len() as u64 + n as u64 > triangles as u64 {
-            return Err(bad(format!("a run of {n} triangles after {} of {triangles}", charts.triangle_chart.len())));
+        let len = c.get()?;
+        if len == 0 || charts.triangle_chart.len() as u64 + len as u64 > triangles as u64 {
+            return Err(bad(format!("a run of {len} triangles after {} of {triangles}", charts.triangle_chart.len())));
         }
-        charts.triangle_chart.extend(std::iter::repeat_n(chart, n as usize));
+        charts.triangle_chart.extend(std::iter::repeat_n(chart, len as usize));
     }
     if charts.triangle_chart.len() != triangles as usize {
-        return Err(bad(format!("runs cover {} of {triangles} triangles", charts.triangle_chart.len())));
+        return Err(bad(format!("chart runs cover {} of {triangles} triangles", charts.triangle_chart.len())));
+    }
+    charts.triangle_group.reserve(triangles as usize);
+    let n = c.count_within(triangles as u64, 2, "group runs")?;
+    let mut last = 0u32;
+    for _ in 0..n {
+        let group = last.wrapping_add(unzigzag(c.get()?) as u32);
+        if group >= info.groups {
+            return Err(bad(format!("smoothing group {group} out of range (< {})", info.groups)));
+        }
+        last = group;
+        let len = c.get()?;
+        if len == 0 || charts.triangle_group.len() as u64 + len as u64 > triangles as u64 {
+            return Err(bad(format!("a run of {len} triangles after {} of {triangles}", charts.triangle_group.len())));
+        }
+        charts.triangle_group.extend(std::iter::repeat_n(group, len as usize));
+    }
+    if charts.triangle_group.len() != triangles as usize {
+        return Err(bad(format!("group runs cover {} of {triangles} triangles", charts.triangle_group.len())));
     }
     c.finish()?;
     Ok(charts)
@@ -179,7 +211,7 @@ mod tests {
     fn info() -> AppearanceInfo {
         AppearanceInfo {
             charts: 3,
-            groups: 1,
+            groups: 3,
             materials: 2,
             images: 0,
             uv_sets: 1,
@@ -198,7 +230,8 @@ mod tests {
         assert_eq!(table.get(7, 0, 2), Some(&[12, 0][..]));
         assert_eq!(table.get(3, 0, 2), None);
         assert!(read_table(&write_table(&t, 2), "t", 7, &info(), 100).is_err(), "node 7 of 7");
-        let charts = Charts { triangle_chart: vec![0, 0, 1, 2, 2, 0], chart_material: vec![0, 1, 1], chart_group: vec![0, 0, 0] };
+        let charts =
+            Charts { triangle_chart: vec![0, 0, 1, 2, 2, 0], chart_material: vec![0, 1, 1], triangle_group: vec![0, 0, 0, 0, 1, 2] };
         assert_eq!(read_charts(&write_charts(&charts), &info(), 6).unwrap(), charts);
         assert!(read_charts(&write_charts(&charts), &info(), 7).is_err(), "runs cover 6 of 7");
     }
