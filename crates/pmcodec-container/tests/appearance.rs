@@ -1,6 +1,6 @@
 //! Version 6 appearance: texture coordinates, colours and materials stored once per level,
 //! read back at every level, every cut inside its chart, normals from decoded positions.
-
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 // Corners index several parallel arrays in step (triangles, wedges, ancestors).
 #![allow(clippy::needless_range_loop)]
 

@@ -1,6 +1,7 @@
 //! Resealed damage to version 6's appearance chunks (Charts, Attributes, Materials, Image):
 //! past the checksums, every damaged file gives `Ok` or a typed error naming the chunk, never
 //! a panic; and the named cases are refused by name.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use pmcodec_container::testing::{Rng, Unsealed, exercise, reseal, stopped_at_the_door};
 use pmcodec_container::{ChunkKind, ContainerError, EncodeOptions, QuantizationChoice, Reader, encode};

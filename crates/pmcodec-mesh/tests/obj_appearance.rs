@@ -1,5 +1,6 @@
 //! OBJ sequences with texture coordinates, normals and materials: the first frame's records
 //! become the sequence's appearance; bad records are clear errors.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use pmcodec_mesh::appearance::AlphaMode;
 use pmcodec_mesh::obj::{load_obj_sequence, parse_obj_appearance};

@@ -1,6 +1,7 @@
 //! `pmcodec decode` of a container with an appearance: a textured GLB (UVs, normals, colours,
 //! both materials, the image) and an OBJ with its MTL and image that our own OBJ reader reads
 //! back with the same materials.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::path::PathBuf;
 use std::process::Command;
