@@ -95,7 +95,11 @@ fn version_6_textured_files_decode_as_they_did() {
             da.seek(f).unwrap();
             db.seek(f).unwrap();
             for target in [MeshTarget::Triangles(40), MeshTarget::Level(level)] {
-                assert_eq!(da.textured_mesh(target).expect("old"), db.textured_mesh(target).expect("new"), "level {level} frame {f} {target:?}");
+                assert_eq!(
+                    da.textured_mesh(target).expect("old"),
+                    db.textured_mesh(target).expect("new"),
+                    "level {level} frame {f} {target:?}"
+                );
             }
         }
     }
