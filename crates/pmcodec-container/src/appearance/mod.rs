@@ -86,3 +86,14 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
     }
     Ok(out)
 }
+
+/// The Materials chunk of a file with an appearance, parsed and checked against its header.
+pub fn read_materials<S: crate::ByteSource>(reader: &crate::Reader<S>) -> Result<MaterialsChunk, crate::ContainerError> {
+    let corrupt = |detail: String| crate::ContainerError::Corrupt { what: "materials chunk".into(), detail };
+    let info = reader.header().appearance.as_ref().ok_or_else(|| crate::ContainerError::Options("the file has no appearance".into()))?;
+    let entry = reader.find(crate::ChunkKind::Materials, 0, 0).ok_or_else(|| corrupt("missing from the index".into()))?;
+    let raw = reader.read_chunk(entry)?;
+    let m: MaterialsChunk = postcard::from_bytes(&raw).map_err(|e| corrupt(e.to_string()))?;
+    m.check(info).map_err(corrupt)?;
+    Ok(m)
+}
