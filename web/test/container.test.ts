@@ -161,3 +161,55 @@ test("damaged files are errors, not crashes", async () => {
     }, DecodeError, `flip at ${at}`);
   }
 });
+
+/** A GLB's JSON and binary chunk. */
+function readGlb(path: string): { json: any; bin: Uint8Array } {
+  const b = new Uint8Array(readFileSync(path));
+  const dv = new DataView(b.buffer, b.byteOffset, b.byteLength);
+  const jsonLen = dv.getUint32(12, true);
+  const json = JSON.parse(new TextDecoder().decode(b.subarray(20, 20 + jsonLen)));
+  const binStart = 20 + jsonLen + 8;
+  return { json, bin: b.subarray(binStart, binStart + dv.getUint32(20 + jsonLen, true)) };
+}
+
+function accessor(glb: { json: any; bin: Uint8Array }, i: number): Float32Array | Uint32Array {
+  const a = glb.json.accessors[i], v = glb.json.bufferViews[a.bufferView];
+  const bytes = glb.bin.slice(v.byteOffset, v.byteOffset + v.byteLength);
+  return a.componentType === 5125 ? new Uint32Array(bytes.buffer) : new Float32Array(bytes.buffer);
+}
+
+test("version 6 appearance: the same texture coordinates, colours, normals and materials as the Rust decoder, bit for bit", async () => {
+  const file = join(root, "crates/pmcodec-container/tests/compat/v6-textured-cloth-k4.pmc");
+  const c = await open(file);
+  assert.equal(c.version, 6);
+  const a = c.header.appearance!;
+  assert.deepEqual([a.uvSets, a.colors, a.materials, a.images], [1, true, 2, 1]);
+  const player = new Decoder(c, 0);
+  await player.loadAppearance();
+  const images = await player.images();
+  assert.equal(images[0].mimeType, "image/png");
+  for (const [frame, budget] of [[0, 30], [3, 80], [5, 1000]]) {
+    const out = join(dir, `textured-${frame}-${budget}.glb`);
+    execFileSync(bin, ["decode", "-q", file, "--frame", String(frame), "--triangles", String(budget), "-o", out]);
+    const glb = readGlb(out);
+    await player.seek(frame);
+    const pos = player.positions();
+    player.replay.selectTriangles(budget, player.replay.nodeErrors(pos));
+    const mesh = player.texturedMesh(pos);
+    const prims = glb.json.meshes[0].primitives;
+    const attr = prims[0].attributes;
+    const what = `frame ${frame} budget ${budget}`;
+    assert.deepEqual(Array.from(mesh.positions), Array.from(accessor(glb, attr.POSITION)), `${what}: positions`);
+    assert.deepEqual(Array.from(mesh.normals), Array.from(accessor(glb, attr.NORMAL)), `${what}: normals`);
+    assert.deepEqual(Array.from(mesh.uv0!), Array.from(accessor(glb, attr.TEXCOORD_0)), `${what}: texture coordinates`);
+    assert.deepEqual(Array.from(mesh.colors!), Array.from(accessor(glb, attr.COLOR_0)), `${what}: colours`);
+    // One primitive per material used, each with that material's triangles in mesh order.
+    const used = [...new Set(mesh.triangleMaterial)].sort();
+    assert.deepEqual(prims.map((p: any) => p.material), used, `${what}: materials`);
+    for (const p of prims) {
+      const want: number[] = [];
+      mesh.triangleMaterial.forEach((m, t) => { if (m === p.material) want.push(...mesh.indices.subarray(3 * t, 3 * t + 3)); });
+      assert.deepEqual(Array.from(accessor(glb, p.indices)), want, `${what}: material ${p.material} triangles`);
+    }
+  }
+});

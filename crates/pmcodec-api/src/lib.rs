@@ -56,6 +56,54 @@ pub struct AssetInfo {
     pub stream: String,
     /// The encoder that wrote the container.
     pub generator: String,
+    /// Texture coordinates, colours, materials and textures (container version 6); absent for
+    /// a bare surface.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub appearance: Option<AssetAppearance>,
+}
+
+/// An asset's appearance, as `GET /v1/assets/{id}` describes it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct AssetAppearance {
+    /// Charts: regions of one material and continuous texture coordinates.
+    pub charts: u32,
+    /// Texture coordinate sets (0, 1 or 2) and whether vertices carry colours.
+    pub uv_sets: u8,
+    pub colors: bool,
+    pub materials: Vec<MaterialInfo>,
+    /// One per image, in order; a material's texture indices point here.
+    pub textures: Vec<TextureInfo>,
+    /// Stored bytes of the attribute table of each level (all a client at level L reads is
+    /// levels L..top), and of the charts and materials every client reads once.
+    pub attribute_bytes_per_level: Vec<u64>,
+    pub charts_bytes: u64,
+    pub materials_bytes: u64,
+}
+
+/// A material (glTF metallic-roughness, the fields a viewer needs first).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MaterialInfo {
+    pub name: Option<String>,
+    pub base_color_factor: [f32; 4],
+    /// Index into `textures` of the base colour texture.
+    pub base_color_texture: Option<u32>,
+    pub metallic_factor: f32,
+    pub roughness_factor: f32,
+    /// `OPAQUE`, `MASK` or `BLEND`.
+    pub alpha_mode: String,
+    pub alpha_cutoff: f32,
+    pub double_sided: bool,
+}
+
+/// A texture image at its immutable URL.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TextureInfo {
+    pub name: Option<String>,
+    /// `image/png` or `image/jpeg`.
+    pub mime_type: String,
+    pub bytes: u64,
+    /// `/v1/assets/{id}/v/{version}/images/{n}`.
+    pub url: String,
 }
 
 #[cfg(test)]
@@ -88,6 +136,7 @@ mod tests {
             index: "/v1/assets/horse/v/414ac7f9/index".into(),
             stream: "/v1/assets/horse/stream".into(),
             generator: "pmcodec 0.1.0".into(),
+            appearance: None,
         };
         let json = serde_json::to_value(&info).expect("serialize");
         // The summary's fields sit at the top level beside the details (proto/http.md).

@@ -1,6 +1,9 @@
 //! Decoding: replaying keyframes and deltas down to a finest level L, reconstructing the
 //! quantized node positions, and extracting meshes at any cut.
 
+mod textured;
+
+use crate::appearance::DecodedAppearance;
 use crate::format::{ChunkKind, Motion};
 use crate::payload;
 use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, predict};
@@ -41,6 +44,8 @@ pub struct Decoder<S> {
     /// Keyframe states kept by [`Decoder::keep_keyframes`], most recently used last.
     kept: Vec<KeptKeyframe>,
     keep: usize,
+    /// The appearance chunks (version 6), read with the first keyframe.
+    looks: Option<DecodedAppearance>,
 }
 
 /// A decoder's state just after loading a keyframe: what seeking back to it restores.
@@ -86,6 +91,7 @@ impl<S: ByteSource> Decoder<S> {
             derived: None,
             kept: Vec::new(),
             keep: 0,
+            looks: None,
         })
     }
 
@@ -134,6 +140,9 @@ impl<S: ByteSource> Decoder<S> {
                 ChunkKind::Key | ChunkKind::Faces => load_key && e.frame == key,
                 ChunkKind::Delta | ChunkKind::Corners => e.frame >= first_delta && e.frame <= frame,
                 ChunkKind::Positions => e.frame >= first_positions && e.frame <= frame,
+                // Read once, with the first keyframe; images are fetched on their own.
+                ChunkKind::Charts | ChunkKind::Materials | ChunkKind::Attributes => load_key && self.looks.is_none(),
+                ChunkKind::Image => false,
             };
             if take {
                 out.push(*e);
@@ -207,6 +216,7 @@ impl<S: ByteSource> Decoder<S> {
     }
 
     fn load_keyframe(&mut self, frame: u32) -> Result<(), ContainerError> {
+        self.load_appearance()?;
         let h = self.reader.header();
         let sizes = &h.level_sizes;
         let mut key = Keyframe { bands: vec![KeyBand::default(); h.levels()] };

@@ -189,6 +189,7 @@ fn header(seq: &Sequence, opts: &EncodeOptions, (lo, hi): (Vec3, Vec3), step: f3
         frame_names: seq.frame_names.clone(),
         motion: opts.motion,
         order: opts.order,
+        appearance: None,
     }
 }
 
@@ -318,7 +319,11 @@ pub fn encode_until(
     let base = build(&topo, &q, &opts.build)?;
     let mut enc = Encoder::new(base, topo, seq.triangles.clone(), opts.recluster.clone());
     let levels = enc.hierarchy().levels();
-    let header = header(seq, opts, (lo, hi), step, enc.hierarchy().level_sizes.clone());
+    let mut header = header(seq, opts, (lo, hi), step, enc.hierarchy().level_sizes.clone());
+    // Appearance is the same in every frame: its tables cover the pairs every frame's
+    // hierarchy shows, so they are written once all frames are seen, after the triangles.
+    let mut looks = seq.appearance.as_ref().map(|a| crate::appearance::builder(seq, a, levels));
+    header.appearance = looks.as_ref().map(|l| l.info().clone());
 
     let mut chunks = Chunks::default();
     chunks.push(ChunkKind::Triangles, 0, 0, payload::write_triangles(&seq.triangles))?;
@@ -344,6 +349,9 @@ pub fn encode_until(
             b.extend_from_slice(enc.corners_at(j));
         }
         let (delta, _) = enc.encode_frame(frame);
+        if let Some(l) = looks.as_mut() {
+            l.observe(&enc.hierarchy().parent);
+        }
         let positions = enc.node_positions();
         let truth = |g: usize| {
             let p = positions[g] - lo;
@@ -373,6 +381,13 @@ pub fn encode_until(
         if progress(f).is_break() {
             return Err(ContainerError::Cancelled);
         }
+    }
+    if let Some(l) = looks {
+        let mut after = chunks.0.split_off(1);
+        for (kind, band, raw) in crate::appearance::chunks(l)? {
+            chunks.push(kind, 0, band, raw)?;
+        }
+        chunks.0.append(&mut after);
     }
     assemble(&header, chunks)
 }

@@ -7,10 +7,10 @@ use serde::{Deserialize, Serialize};
 /// transfers and truncating tools fail loudly, as in PNG's signature.
 pub const MAGIC: [u8; 8] = *b"\x89PMC\r\n\x1a\n";
 /// Format version this crate writes and reads.
-pub const VERSION: u16 = 5;
-/// Oldest format version this crate still reads. Versions 3 and 4 differ from 5 only in their
-/// header ([`HeaderV3`], [`HeaderV4`], migrated into [`Header`] on reading), so servers that
-/// upgrade keep serving what they stored.
+pub const VERSION: u16 = 6;
+/// Oldest format version this crate still reads. Versions 3 to 5 differ from 6 only in their
+/// header ([`HeaderV3`], [`HeaderV4`], [`HeaderV5`], migrated into [`Header`] on reading) and
+/// in having no appearance chunks, so servers that upgrade keep serving what they stored.
 pub const OLDEST_READABLE: u16 = 3;
 /// Size of the fixed preamble.
 pub const PREAMBLE_LEN: usize = 32;
@@ -157,6 +157,8 @@ pub struct Header {
     pub motion: Motion,
     /// Band 0's decoding order.
     pub order: VertexOrder,
+    /// Texture coordinates, colours and materials (version 6; `None` for a bare surface).
+    pub appearance: Option<crate::appearance::AppearanceInfo>,
 }
 
 impl Header {
@@ -169,6 +171,7 @@ impl Header {
         match version {
             3 => exactly::<HeaderV3>(bytes).map(|h| HeaderV4::from(h).into()),
             4 => exactly::<HeaderV4>(bytes).map(Header::from),
+            5 => postcard::from_bytes::<HeaderV5>(bytes).map(Header::from).map_err(|e| corrupt(e.to_string())),
             _ => postcard::from_bytes(bytes).map_err(|e| corrupt(e.to_string())),
         }
     }
@@ -267,7 +270,27 @@ impl From<HeaderV4> for Header {
                 MotionV4::Affine => Motion::Affine,
             },
             order: VertexOrder::Input,
+            appearance: None,
         }
+    }
+}
+
+/// The header of format version 5: version 4's with the keyframe affine motion, and band 0's
+/// order; no appearance.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HeaderV5 {
+    pub v3: HeaderV3,
+    pub motion: Motion,
+    pub order: VertexOrder,
+}
+
+impl From<HeaderV5> for Header {
+    fn from(v5: HeaderV5) -> Self {
+        let HeaderV5 { v3, motion, order } = v5;
+        let mut h = Header::from(HeaderV4 { v3, motion: MotionV4::Mean });
+        h.motion = motion;
+        h.order = order;
+        h
     }
 }
 
@@ -288,6 +311,18 @@ pub enum ChunkKind {
     /// A frame's corner updates at the band's level (bands >= 1; read only by a client whose
     /// finest level is that band).
     Corners,
+    /// Each triangle's chart, each chart's material and smoothing group (version 6; frame 0,
+    /// band 0; every client reads it).
+    Charts,
+    /// The band's (node, chart) attribute table: texture coordinates and colours (version 6;
+    /// frame 0; read by clients whose finest level is the band or finer).
+    Attributes,
+    /// Materials, textures, samplers and image descriptions, postcard (version 6; frame 0,
+    /// band 0; every client reads it).
+    Materials,
+    /// One image's encoded bytes, PNG or JPEG; band = the image's index (version 6; frame 0;
+    /// every client that draws textures reads them all).
+    Image,
 }
 
 impl ChunkKind {
@@ -299,6 +334,8 @@ impl ChunkKind {
             ChunkKind::Triangles => min_level == 0,
             ChunkKind::Key | ChunkKind::Delta | ChunkKind::Positions => band >= min_level,
             ChunkKind::Faces | ChunkKind::Corners => band == min_level,
+            ChunkKind::Charts | ChunkKind::Materials | ChunkKind::Image => true,
+            ChunkKind::Attributes => band >= min_level,
         }
     }
 
@@ -310,6 +347,10 @@ impl ChunkKind {
             ChunkKind::Positions => "positions",
             ChunkKind::Faces => "faces",
             ChunkKind::Corners => "corners",
+            ChunkKind::Charts => "charts",
+            ChunkKind::Attributes => "attributes",
+            ChunkKind::Materials => "materials",
+            ChunkKind::Image => "image",
         }
     }
 }
@@ -335,6 +376,10 @@ impl ChunkEntry {
     pub fn describe(&self) -> String {
         match self.kind {
             ChunkKind::Triangles => "triangles chunk".into(),
+            ChunkKind::Charts => "charts chunk".into(),
+            ChunkKind::Materials => "materials chunk".into(),
+            ChunkKind::Image => format!("image {} chunk", self.band),
+            ChunkKind::Attributes => format!("band {} attributes", self.band),
             k => format!("frame {} band {} {}", self.frame, self.band, k.name()),
         }
     }

@@ -9,6 +9,7 @@
 //! - [`verify`] and [`summary`] back the CLI's `verify` and `info`.
 #![forbid(unsafe_code)]
 
+pub mod appearance;
 mod decode;
 mod encode;
 pub mod format;
@@ -84,6 +85,12 @@ pub struct Summary {
     /// Bytes a client stopping at each level reads per frame (swaps and positions of bands >=
     /// level, and the corner updates of its own level).
     pub bytes_per_frame_to_level: Vec<f64>,
+    /// Appearance (version 6), stored bytes: the charts, the attribute table per band, the
+    /// materials, and the images.
+    pub charts_bytes: u64,
+    pub attributes_bytes: Vec<u64>,
+    pub materials_bytes: u64,
+    pub image_bytes: u64,
 }
 
 /// Sizes and derived figures of an opened file.
@@ -104,10 +111,18 @@ pub fn summary<S: ByteSource>(reader: &Reader<S>) -> Summary {
         delta_bytes_per_frame: 0.0,
         delta_raw_bytes_per_frame: 0.0,
         bytes_per_frame_to_level: vec![0.0; levels],
+        charts_bytes: 0,
+        attributes_bytes: vec![0; levels],
+        materials_bytes: 0,
+        image_bytes: 0,
         header: h,
     };
     for e in &reader.index().chunks {
         let b = e.band as usize;
+        if e.kind == ChunkKind::Image {
+            s.image_bytes += e.stored_len as u64;
+            continue;
+        }
         if b >= levels {
             continue;
         }
@@ -121,6 +136,10 @@ pub fn summary<S: ByteSource>(reader: &Reader<S>) -> Summary {
                 s.delta_raw_bytes[b] += e.raw_len as u64;
             }
             ChunkKind::Positions => s.positions_bytes[b] += e.stored_len as u64,
+            ChunkKind::Charts => s.charts_bytes += e.stored_len as u64,
+            ChunkKind::Attributes => s.attributes_bytes[b] += e.stored_len as u64,
+            ChunkKind::Materials => s.materials_bytes += e.stored_len as u64,
+            ChunkKind::Image => {}
         }
     }
     let frames = s.header.frame_count.max(1) as f64;

@@ -217,6 +217,7 @@ impl<S: ByteSource> Reader<S> {
         let mut last = None;
         let mut end = 0u64;
         let mut triangles_seen = false;
+        let mut appearance_seen = std::collections::HashSet::new();
         for e in &self.index.chunks {
             let what = e.describe();
             let bad = |detail: String| ContainerError::Corrupt { what: what.clone(), detail };
@@ -224,9 +225,10 @@ impl<S: ByteSource> Reader<S> {
                 return Err(ContainerError::Truncated { what });
             };
             end = end.max(chunk_end);
-            if e.kind != ChunkKind::Triangles && (e.frame >= h.frame_count || e.band as usize >= h.levels()) {
+            if !matches!(e.kind, ChunkKind::Triangles | ChunkKind::Image) && (e.frame >= h.frame_count || e.band as usize >= h.levels()) {
                 return Err(bad("frame or band beyond the header's counts".into()));
             }
+            check_appearance_entry(h, e, &mut appearance_seen).map_err(bad)?;
             if e.kind == ChunkKind::Triangles {
                 if e.frame != 0 || e.band != 0 {
                     return Err(bad(format!("frame {} band {}, where the triangles chunk is frame 0 band 0", e.frame, e.band)));
@@ -275,7 +277,50 @@ fn raw_len_range(h: &Header, kind: ChunkKind, band: usize) -> (u64, u64) {
         ChunkKind::Faces => (1, 5 + 20 * t),
         ChunkKind::Corners => (1, 5 + 25 * t),
         ChunkKind::Positions => (1, POSITIONS_SLACK + 24 * n),
+        // Appearance (version 6): a chart per triangle at most; an attribute entry per alive
+        // triangle corner at most, each a node, a chart and its channels.
+        ChunkKind::Charts => (3, 15 + 25 * t),
+        ChunkKind::Attributes => {
+            let channels = h.appearance.as_ref().map_or(0, |a| a.channels() as u64);
+            (1, 5 + (10 + 5 * channels) * 3 * t)
+        }
+        ChunkKind::Materials => (4, MAX_MATERIALS_LEN),
+        ChunkKind::Image => (1, MAX_IMAGE_LEN),
     }
+}
+
+/// Largest Materials chunk (postcard of the materials, textures, samplers and image names).
+pub const MAX_MATERIALS_LEN: u64 = 16 << 20;
+/// Largest image (one Image chunk).
+pub const MAX_IMAGE_LEN: u64 = 256 << 20;
+/// Most materials and images a file may declare.
+pub const MAX_MATERIALS: u32 = 1 << 16;
+pub const MAX_IMAGES: u32 = 1 << 12;
+
+/// Appearance chunks: only in a file whose header has an appearance, on frame 0, each band of
+/// each kind once, Charts and Materials in band 0, Images in bands below the image count.
+fn check_appearance_entry(h: &Header, e: &ChunkEntry, seen: &mut std::collections::HashSet<(ChunkKind, u32)>) -> Result<(), String> {
+    if !matches!(e.kind, ChunkKind::Charts | ChunkKind::Attributes | ChunkKind::Materials | ChunkKind::Image) {
+        return Ok(());
+    }
+    let Some(info) = &h.appearance else {
+        return Err("an appearance chunk in a file whose header has no appearance".into());
+    };
+    if e.frame != 0 {
+        return Err(format!("frame {}, where appearance chunks are frame 0", e.frame));
+    }
+    let band_ok = match e.kind {
+        ChunkKind::Charts | ChunkKind::Materials => e.band == 0,
+        ChunkKind::Image => e.band < info.images,
+        _ => true,
+    };
+    if !band_ok {
+        return Err(format!("band {} out of range for its kind", e.band));
+    }
+    if !seen.insert((e.kind, e.band)) {
+        return Err("a second chunk of this kind and band".into());
+    }
+    Ok(())
 }
 
 /// Bytes a positions chunk may hold beyond 24 per node: its first number, three frequency
@@ -317,6 +362,23 @@ fn check_header(h: &Header) -> Result<(), ContainerError> {
     }
     if h.bbox_min.iter().chain(&h.bbox_max).any(|x| !x.is_finite()) {
         return bad("bounding box is not finite".into());
+    }
+    if let Some(a) = &h.appearance {
+        if a.charts == 0 || a.charts > h.triangle_count {
+            return bad(format!("appearance: {} charts for {} triangles", a.charts, h.triangle_count));
+        }
+        if a.groups == 0 || a.groups > h.triangle_count {
+            return bad(format!("appearance: {} smoothing groups for {} triangles", a.groups, h.triangle_count));
+        }
+        if a.materials > MAX_MATERIALS || a.images > MAX_IMAGES {
+            return bad(format!("appearance: {} materials and {} images, more than a file may have", a.materials, a.images));
+        }
+        if a.uv_sets > 2 {
+            return bad(format!("appearance: {} texture coordinate sets", a.uv_sets));
+        }
+        if a.uv_min.iter().any(|x| !x.is_finite()) || a.uv_step.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+            return bad("appearance: texture coordinate grid is not finite and positive".into());
+        }
     }
     Ok(())
 }

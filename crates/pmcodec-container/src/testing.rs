@@ -535,7 +535,7 @@ fn mutate_once(u: &mut Unsealed, rng: &mut Rng) {
 /// Everything a client does with a file: open it, verify it, and decode every frame at full
 /// resolution, at level 1 (which reads the faces and corners chunks a full client skips) and at
 /// the top level, cutting meshes at a triangle budget, a vertex budget, an error bound and a
-/// level, then seeking back and forth with kept keyframes. The first error is returned.
+/// level (with their appearance, when the file has one), then seeking back and forth with kept keyframes. The first error is returned.
 pub fn exercise(bytes: &[u8]) -> Result<(), ContainerError> {
     let reader = Reader::open(bytes)?;
     verify(&reader)?;
@@ -554,6 +554,9 @@ pub fn exercise(bytes: &[u8]) -> Result<(), ContainerError> {
             CutTarget::Level(level),
         ] {
             d.mesh(target)?;
+            if h.appearance.is_some() {
+                d.textured_mesh(target)?;
+            }
         }
         // Seeks back and forth through kept keyframes (as a server does), and the cut's
         // triangles by node (as the eval tool does).

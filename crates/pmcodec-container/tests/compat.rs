@@ -68,5 +68,39 @@ fn version_3_files_decode_as_they_did() {
     let mut future = new.clone();
     future[8] = 9;
     let e = Reader::open(future.as_slice()).err().expect("version 9 refused").to_string();
-    assert!(e.contains("version 9 is not supported") && e.contains("3 to 5"), "{e}");
+    assert!(e.contains("version 9 is not supported") && e.contains("3 to 6"), "{e}");
+}
+
+/// `tests/compat/v6-textured-cloth-k4.pmc`: the version 6 encoder's textured cloth (UVs,
+/// colours, two materials, a PNG), the file the TypeScript decoder's appearance is checked on
+/// (web/test/container.test.ts). It must verify and decode, appearance included, to what
+/// today's encoder makes of the same input. (`PMCODEC_WRITE_V6_FIXTURE=1` writes it anew.)
+#[test]
+fn version_6_textured_files_decode_as_they_did() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/compat/v6-textured-cloth-k4.pmc");
+    let seq = pmcodec_mesh::samples::textured_cloth(10, 7, 6, 8);
+    let opts = EncodeOptions { keyframe_interval: 4, quantization: QuantizationChoice::Bits(12), ..Default::default() };
+    let new = encode(&seq, &opts, |_| {}).expect("encode");
+    if std::env::var_os("PMCODEC_WRITE_V6_FIXTURE").is_some() {
+        std::fs::write(&path, &new).expect("write the fixture");
+    }
+    let old = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert_eq!(u16::from_le_bytes([old[8], old[9]]), 6);
+    let (a, b) = (Reader::open(old.as_slice()).expect("open old"), Reader::open(new.as_slice()).expect("open new"));
+    verify(&a).expect("verify");
+    assert_eq!(a.header().appearance, b.header().appearance);
+    for level in [0, 1] {
+        let (mut da, mut db) = (Decoder::new(a.borrowed(), level).unwrap(), Decoder::new(b.borrowed(), level).unwrap());
+        for f in 0..6 {
+            da.seek(f).unwrap();
+            db.seek(f).unwrap();
+            for target in [MeshTarget::Triangles(40), MeshTarget::Level(level)] {
+                assert_eq!(
+                    da.textured_mesh(target).expect("old"),
+                    db.textured_mesh(target).expect("new"),
+                    "level {level} frame {f} {target:?}"
+                );
+            }
+        }
+    }
 }

@@ -1,19 +1,48 @@
 //! OBJ sequences: one OBJ file per frame, all with the same vertices and faces.
 //!
-//! Only `v` and `f` records carry meaning here; `vn`, `vt`, groups, materials and smoothing
-//! groups are accepted and ignored (the hierarchy is built on positions alone). Polygons are
-//! triangulated as fans, which is exact for the convex quads and n-gons that deforming-mesh
-//! exporters write.
+//! Every frame's `v` and `f` records give the positions and the (shared) faces. The first
+//! frame's `vt`, `vn`, `mtllib` and `usemtl` records, when present, also give the sequence's
+//! [`crate::Appearance`] (see [`appearance`]): texture coordinates, normals and materials are
+//! the same in every frame, so later frames' are not read. Groups and smoothing groups are
+//! ignored. Polygons are triangulated as fans, which is exact for the convex quads and n-gons
+//! that deforming-mesh exporters write.
+
+mod appearance;
+mod mtl;
 
 use crate::{InputLimits, MeshError, Sequence};
 use glam::Vec3;
 use std::path::{Path, PathBuf};
+
+/// "No index": a corner without `vt` or `vn`, a face before any `usemtl`.
+pub const NONE: u32 = u32::MAX;
 
 /// One parsed OBJ file.
 #[derive(Clone, Debug, Default)]
 pub struct ObjFrame {
     pub positions: Vec<Vec3>,
     pub triangles: Vec<[u32; 3]>,
+    /// Appearance records, read only when asked for ([`parse_obj_appearance`],
+    /// [`read_obj_appearance_with`]); empty otherwise.
+    pub attributes: ObjAttributes,
+}
+
+/// The raw appearance records of one OBJ file, as written (resolved into wedges by
+/// [`appearance::build`]).
+#[derive(Clone, Debug, Default)]
+pub struct ObjAttributes {
+    /// `vt` records (u, v; a third coordinate is ignored).
+    pub texcoords: Vec<[f32; 2]>,
+    /// `vn` records.
+    pub normals: Vec<[f32; 3]>,
+    /// Per triangle, per corner: (`vt` index, `vn` index), 0-based, [`NONE`] when absent.
+    pub corners: Vec<[[u32; 2]; 3]>,
+    /// Per triangle: index into `material_names` of the `usemtl` in force, or [`NONE`].
+    pub triangle_material: Vec<u32>,
+    /// Names given to `usemtl`, in order of first use, with the line of that use.
+    pub material_names: Vec<(String, usize)>,
+    /// `mtllib` file names, as written, with their line.
+    pub libraries: Vec<(String, usize)>,
 }
 
 /// Parses the text of one OBJ file, a sequence of one frame under the default
@@ -26,7 +55,17 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjFrame, MeshError> {
 /// the first vertex or triangle past `limits` (the vertex limit shared out over the frames),
 /// before it takes the memory, and the error names the file and line.
 pub fn parse_obj_with(text: &str, path: &Path, limits: &InputLimits, frames: usize) -> Result<ObjFrame, MeshError> {
-    let mut parser = ObjParser::new(path, limits, frames);
+    parse_text(text, path, limits, frames, false)
+}
+
+/// [`parse_obj_with`], also reading the appearance records (`vt`, `vn`, `mtllib`, `usemtl`)
+/// into [`ObjFrame::attributes`] and checking their indices.
+pub fn parse_obj_appearance(text: &str, path: &Path, limits: &InputLimits, frames: usize) -> Result<ObjFrame, MeshError> {
+    parse_text(text, path, limits, frames, true)
+}
+
+fn parse_text(text: &str, path: &Path, limits: &InputLimits, frames: usize, attributes: bool) -> Result<ObjFrame, MeshError> {
+    let mut parser = ObjParser::new(path, limits, frames, attributes);
     for (i, line) in text.lines().enumerate() {
         parser.line(i + 1, line)?;
     }
@@ -43,10 +82,19 @@ const MAX_LINE: u64 = 16 << 20;
 
 /// [`parse_obj_with`] over a file, read a line at a time (the text is never all in memory).
 pub fn read_obj_with(path: &Path, limits: &InputLimits, frames: usize) -> Result<ObjFrame, MeshError> {
+    read_file(path, limits, frames, false)
+}
+
+/// [`read_obj_with`], also reading the appearance records, as [`parse_obj_appearance`].
+pub fn read_obj_appearance_with(path: &Path, limits: &InputLimits, frames: usize) -> Result<ObjFrame, MeshError> {
+    read_file(path, limits, frames, true)
+}
+
+fn read_file(path: &Path, limits: &InputLimits, frames: usize, attributes: bool) -> Result<ObjFrame, MeshError> {
     use std::io::{BufRead, Read};
     let io = |error| MeshError::Io { path: path.to_path_buf(), error };
     let mut reader = std::io::BufReader::new(std::fs::File::open(path).map_err(io)?);
-    let mut parser = ObjParser::new(path, limits, frames);
+    let mut parser = ObjParser::new(path, limits, frames, attributes);
     let mut line = String::new();
     for lineno in 1.. {
         line.clear();
@@ -77,12 +125,32 @@ struct ObjParser<'a> {
     polygon: Vec<u32>,
     /// Largest 0-based position index any face used, and the first line that used it.
     max_index: Option<(u32, usize)>,
+    /// Whether appearance records are read (the first frame of a sequence).
+    attributes: bool,
+    /// Per polygon corner: (`vt`, `vn`) indices, parallel to `polygon`.
+    polygon_attrs: Vec<[u32; 2]>,
+    /// Largest `vt` and `vn` indices used, with their line (checked at the end, as positions).
+    max_attr: [Option<(u32, usize)>; 2],
+    /// The `usemtl` in force.
+    material: u32,
 }
 
 impl<'a> ObjParser<'a> {
-    fn new(path: &'a Path, limits: &'a InputLimits, frames: usize) -> Self {
+    fn new(path: &'a Path, limits: &'a InputLimits, frames: usize, attributes: bool) -> Self {
         let vertex_cap = limits.vertices_per_frame(frames);
-        ObjParser { path, limits, frames, vertex_cap, out: ObjFrame::default(), polygon: Vec::with_capacity(8), max_index: None }
+        ObjParser {
+            path,
+            limits,
+            frames,
+            vertex_cap,
+            out: ObjFrame::default(),
+            polygon: Vec::with_capacity(8),
+            max_index: None,
+            attributes,
+            polygon_attrs: Vec::with_capacity(8),
+            max_attr: [None; 2],
+            material: NONE,
+        }
     }
 
     fn error(&self, line: usize, message: String) -> MeshError {
@@ -110,24 +178,30 @@ impl<'a> ObjParser<'a> {
             }
             Some("f") => {
                 self.polygon.clear();
+                self.polygon_attrs.clear();
                 for word in words {
-                    // `v`, `v/vt`, `v//vn` or `v/vt/vn`: only the position index matters.
-                    let index = word.split('/').next().unwrap_or(word);
-                    let i: i64 = index.parse().map_err(|_| self.error(lineno, format!("face index {word:?} is not an integer")))?;
-                    // OBJ indices are 1-based; negative ones count back from the latest vertex.
-                    let resolved = match i {
-                        0 => return Err(self.error(lineno, "face index 0 (OBJ indices start at 1)".into())),
-                        i if i > 0 => i - 1,
-                        i => self.out.positions.len() as i64 + i,
-                    };
-                    if resolved < 0 || resolved >= u32::MAX as i64 {
-                        return Err(self.error(lineno, format!("face index {i} is out of range")));
-                    }
-                    let resolved = resolved as u32;
+                    // `v`, `v/vt`, `v//vn` or `v/vt/vn`.
+                    let mut parts = word.split('/');
+                    let index = parts.next().unwrap_or(word);
+                    let resolved = self.resolve(lineno, index, word, self.out.positions.len())?;
                     if self.max_index.is_none_or(|(m, _)| resolved > m) {
                         self.max_index = Some((resolved, lineno));
                     }
                     self.polygon.push(resolved);
+                    if self.attributes {
+                        let mut attrs = [NONE; 2];
+                        let counts = [self.out.attributes.texcoords.len(), self.out.attributes.normals.len()];
+                        for (k, part) in parts.take(2).enumerate() {
+                            if !part.is_empty() {
+                                let a = self.resolve(lineno, part, word, counts[k])?;
+                                if self.max_attr[k].is_none_or(|(m, _)| a > m) {
+                                    self.max_attr[k] = Some((a, lineno));
+                                }
+                                attrs[k] = a;
+                            }
+                        }
+                        self.polygon_attrs.push(attrs);
+                    }
                 }
                 let corners = self.polygon.len();
                 if corners < 3 {
@@ -138,8 +212,76 @@ impl<'a> ObjParser<'a> {
                 }
                 let p = &self.polygon;
                 self.out.triangles.extend((1..corners - 1).map(|k| [p[0], p[k], p[k + 1]]));
+                if self.attributes {
+                    let a = &self.polygon_attrs;
+                    self.out.attributes.corners.extend((1..corners - 1).map(|k| [a[0], a[k], a[k + 1]]));
+                    self.out.attributes.triangle_material.extend((1..corners - 1).map(|_| self.material));
+                }
+            }
+            Some(record @ ("vt" | "vn")) if self.attributes => self.attribute_record(lineno, record, words)?,
+            Some("usemtl") if self.attributes => {
+                let name = words.collect::<Vec<_>>().join(" ");
+                let names = &mut self.out.attributes.material_names;
+                self.material = match names.iter().position(|(n, _)| *n == name) {
+                    Some(m) => m as u32,
+                    None => {
+                        names.push((name, lineno));
+                        names.len() as u32 - 1
+                    }
+                };
+            }
+            Some("mtllib") if self.attributes => {
+                // Several libraries may follow on one line; names with spaces are not supported.
+                self.out.attributes.libraries.extend(words.map(|w| (w.to_string(), lineno)));
             }
             _ => {}
+        }
+        Ok(())
+    }
+
+    /// A 1-based (or negative, counting back from the latest record) OBJ index into a list of
+    /// `count` records, 0-based; whether it is below the final count is checked at the end.
+    fn resolve(&self, lineno: usize, index: &str, word: &str, count: usize) -> Result<u32, MeshError> {
+        let i: i64 = index.parse().map_err(|_| self.error(lineno, format!("face index {word:?} is not an integer")))?;
+        let resolved = match i {
+            0 => return Err(self.error(lineno, "face index 0 (OBJ indices start at 1)".into())),
+            i if i > 0 => i - 1,
+            i => count as i64 + i,
+        };
+        if resolved < 0 || resolved >= u32::MAX as i64 {
+            return Err(self.error(lineno, format!("face index {i} is out of range")));
+        }
+        Ok(resolved as u32)
+    }
+
+    /// A `vt` or `vn` record: finite numbers only (a NaN texture coordinate would poison every
+    /// coarser node's).
+    fn attribute_record<'w>(&mut self, lineno: usize, record: &str, mut words: impl Iterator<Item = &'w str>) -> Result<(), MeshError> {
+        let (n, count) = if record == "vt" { (2, self.out.attributes.texcoords.len()) } else { (3, self.out.attributes.normals.len()) };
+        if count >= self.vertex_cap.saturating_mul(4) {
+            return Err(
+                self.error(lineno, format!("more than {} {record} records (four per vertex allowed)", self.vertex_cap.saturating_mul(4)))
+            );
+        }
+        let mut x = [0f32; 3];
+        for (axis, slot) in x.iter_mut().enumerate().take(n) {
+            // `vt u` alone is legal OBJ (v defaults to 0).
+            let Some(word) = words.next() else {
+                if record == "vt" && axis == 1 {
+                    break;
+                }
+                return Err(self.error(lineno, format!("{record} has {axis} coordinates, expected {n}")));
+            };
+            let value: f32 = word.parse().map_err(|_| self.error(lineno, format!("{record} coordinate {word:?} is not a number")))?;
+            if !value.is_finite() {
+                return Err(self.error(lineno, format!("{record} coordinate {word:?} is not a finite number")));
+            }
+            *slot = value;
+        }
+        if record == "vt" {
+            self.out.attributes.texcoords.push([x[0], x[1]]);
+        } else {
+            self.out.attributes.normals.push(x);
         }
         Ok(())
     }
@@ -148,6 +290,12 @@ impl<'a> ObjParser<'a> {
         let n = self.out.positions.len();
         if let Some((i, line)) = self.max_index.filter(|&(i, _)| i as usize >= n) {
             return Err(self.error(line, format!("face uses vertex {} but the file has {n} vertices", i + 1)));
+        }
+        let counts = [self.out.attributes.texcoords.len(), self.out.attributes.normals.len()];
+        for (k, what) in ["texture coordinate (vt)", "normal (vn)"].into_iter().enumerate() {
+            if let Some((i, line)) = self.max_attr[k].filter(|&(i, _)| i as usize >= counts[k]) {
+                return Err(self.error(line, format!("face uses {what} {} but the file has {}", i + 1, counts[k])));
+            }
         }
         Ok(self.out)
     }
@@ -271,7 +419,9 @@ pub fn load_obj_sequence_with(input: &Path, frame_rate: f32, limits: &InputLimit
     load_obj_files_with(&paths, frame_rate, limits)
 }
 
-/// Loads the given files, in the given order, as the frames of one sequence.
+/// Loads the given files, in the given order, as the frames of one sequence; the first
+/// file's texture coordinates, normals and materials (with their libraries and textures) give
+/// its appearance.
 pub fn load_obj_files(paths: &[PathBuf], frame_rate: f32) -> Result<Sequence, MeshError> {
     load_obj_files_with(paths, frame_rate, &InputLimits::default())
 }
@@ -284,9 +434,11 @@ pub fn load_obj_files_with(paths: &[PathBuf], frame_rate: f32, limits: &InputLim
     }
     let mut seq = Sequence { frame_rate, ..Default::default() };
     for path in paths {
-        let frame = read_obj_with(path, limits, paths.len())?;
+        let first = seq.frames.is_empty();
+        let frame = read_file(path, limits, paths.len(), first)?;
         let label = || path.display().to_string();
-        if seq.frames.is_empty() {
+        if first {
+            seq.appearance = appearance::build(&frame, path)?;
             seq.triangles = frame.triangles;
         } else {
             if frame.positions.len() != seq.frames[0].len() {

@@ -2,9 +2,12 @@
 //! deforming meshes without any third-party file: a tube that bends and twists, and a cloth
 //! sheet waving in the wind. Deterministic: the same arguments give the same bytes.
 
+mod textured;
+
 use crate::Sequence;
 use glam::{Quat, Vec3};
 use std::f32::consts::{PI, TAU};
+pub use textured::{checkerboard_png, png_rgba, textured_cloth};
 
 /// Names of the built-in samples, for listings.
 pub const NAMES: [&str; 2] = ["twisting-tube", "waving-cloth"];

@@ -80,6 +80,7 @@ impl LoadedAsset {
             index: format!("{base}/v/{version}/index"),
             stream: format!("{base}/stream"),
             generator: h.generator.clone(),
+            appearance: crate::looks::appearance(&reader, &s, &format!("{base}/v/{version}"))?,
         };
         Ok(LoadedAsset {
             tag: obj.tag.clone(),

@@ -387,8 +387,22 @@ fn run(shared: &Shared, key: &Key, job: &Job, mesh: &mut TriMesh) -> Result<Mesh
         };
         (cached, earlier, inner.purges)
     };
-    let output = |mesh: &TriMesh| MeshOutput {
-        body: encode_mesh(mesh, job.req.format),
+    // A GLB of an asset with an appearance carries it (UVs, normals, colours, materials,
+    // textures); everything else is the bare mesh.
+    let textured = job.req.format == MeshFormat::Glb && asset.header.appearance.is_some();
+    let mut body: Option<Vec<u8>> = None;
+    let mut cut = |state: &mut Decoder<AssetSource>, mesh: &mut TriMesh| -> Result<(), ContainerError> {
+        if textured {
+            let (m, app) = state.textured_mesh(job.req.target)?;
+            body = Some(pmcodec_container::appearance::export::textured_glb(&m, &app));
+            *mesh = m;
+            Ok(())
+        } else {
+            state.mesh_into(job.req.target, mesh)
+        }
+    };
+    let output = |mesh: &TriMesh, body: Option<Vec<u8>>| MeshOutput {
+        body: body.unwrap_or_else(|| encode_mesh(mesh, job.req.format)),
         vertices: mesh.positions.len(),
         triangles: mesh.triangles.len(),
         micros: t0.elapsed().as_micros() as u64,
@@ -399,14 +413,14 @@ fn run(shared: &Shared, key: &Key, job: &Job, mesh: &mut TriMesh) -> Result<Mesh
         if let Ok(mut state) = cell.lock() {
             stats.hits.fetch_add(1, Ordering::Relaxed);
             // Already at the frame; a cut leaves the state at this frame.
-            let cut = state.mesh_into(job.req.target, mesh);
+            let result = cut(&mut state, mesh);
             drop(state);
-            if let Err(e) = cut {
+            if let Err(e) = result {
                 // A failed cut may leave the state anywhere: it goes.
                 drop(shared.lock().remove(key));
                 return Err(fail(e));
             }
-            return Ok(output(mesh));
+            return Ok(output(mesh, body));
         }
         drop(shared.lock().remove(key));
     }
@@ -422,8 +436,8 @@ fn run(shared: &Shared, key: &Key, job: &Job, mesh: &mut TriMesh) -> Result<Mesh
         }
     };
     state.seek(frame).map_err(fail)?;
-    state.mesh_into(job.req.target, mesh).map_err(fail)?;
-    let out = output(mesh);
+    cut(&mut state, mesh).map_err(fail)?;
+    let out = output(mesh, body);
     // Only a state that decoded without error is kept, and evicted states are freed outside the
     // lock.
     let evicted = {

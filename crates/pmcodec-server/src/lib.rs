@@ -20,6 +20,7 @@ pub mod decode;
 mod error;
 mod id;
 pub mod jobs;
+mod looks;
 mod lru;
 pub mod meshfmt;
 pub mod metrics;

@@ -63,6 +63,7 @@ fn table() -> Vec<Route> {
         r(Method::GET, "/v1/assets/{id}/v/{version}/file", Read, get(file)),
         r(Method::GET, "/v1/assets/{id}/v/{version}/index", Read, get(index)),
         r(Method::GET, "/v1/assets/{id}/v/{version}/chunks/{n}", Read, get(chunk)),
+        r(Method::GET, "/v1/assets/{id}/v/{version}/images/{n}", Read, get(image)),
         r(Method::GET, "/v1/jobs/{id}", Read, get(job_status)),
         r(Method::DELETE, "/v1/jobs/{id}", Write, delete(cancel_job)),
         r(Method::GET, "/v1/jobs/{id}/events", LongRead, get(job_events)),
@@ -614,6 +615,18 @@ async fn chunk(State(app): State<AppState>, p: Params, headers: HeaderMap) -> Re
         content_type: "application/zstd",
         cache_control: immutable(&app),
     };
+    ranges::serve(&headers, rep, app.config.limits.max_ranges)
+}
+
+/// `GET /v1/assets/{id}/v/{version}/images/{n}`: texture image `n` (PNG or JPEG, as the input
+/// had it), immutable.
+async fn image(State(app): State<AppState>, p: Params, headers: HeaderMap) -> Result<Response, ApiError> {
+    let a = versioned(&app, &p).await?;
+    let raw = p.get("n")?;
+    let n: u32 =
+        raw.parse().map_err(|_| ApiError::BadRequest(format!("image {raw:?}: use the image's number from the asset's textures")))?;
+    let (bytes, content_type) = crate::looks::image(&a, n)?;
+    let rep = Representation { bytes, etag: format!("\"{}-image-{n}\"", a.version), content_type, cache_control: immutable(&app) };
     ranges::serve(&headers, rep, app.config.limits.max_ranges)
 }
 

@@ -369,8 +369,15 @@ fn over_budget(target: CutTarget, mesh: &pmcodec_mesh::TriMesh) -> Option<OverBu
 fn write_frame(dec: &mut Decoder<&FileSource>, input: &Path, frame: u32, target: CutTarget, path: &Path) -> Result<DecodedFrame, Exit> {
     let where_ = || format!("{} frame {frame}", input.display());
     dec.seek(frame).map_err(|e| container_error(e, where_()))?;
-    let mesh = dec.mesh(target).map_err(|e| container_error(e, where_()))?;
-    pmcodec_mesh::write::write_mesh_file(path, &mesh).with_context(|| format!("writing {}", path.display()))?;
+    let mesh = if dec.appearance_info().is_some() {
+        let (mesh, app) = dec.textured_mesh(target).map_err(|e| container_error(e, where_()))?;
+        write_textured(path, &mesh, &app).with_context(|| format!("writing {}", path.display()))?;
+        mesh
+    } else {
+        let mesh = dec.mesh(target).map_err(|e| container_error(e, where_()))?;
+        pmcodec_mesh::write::write_mesh_file(path, &mesh).with_context(|| format!("writing {}", path.display()))?;
+        mesh
+    };
     Ok(DecodedFrame {
         frame,
         path: path.display().to_string(),
@@ -378,6 +385,37 @@ fn write_frame(dec: &mut Decoder<&FileSource>, input: &Path, frame: u32, target:
         triangles: mesh.triangles.len(),
         over_budget: over_budget(target, &mesh),
     })
+}
+
+/// A cut with its appearance: a textured GLB, or an OBJ with its MTL (`NAME.mtl`) and the
+/// images beside it (`texture-*`, shared by the frames of a folder). Every file is written
+/// whole or not at all; on an error the ones already written are removed.
+fn write_textured(path: &Path, mesh: &pmcodec_mesh::TriMesh, app: &pmcodec_mesh::Appearance) -> anyhow::Result<()> {
+    use pmcodec_container::appearance::export;
+    use pmcodec_mesh::write::write_atomic;
+    let is_obj = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"));
+    if !is_obj {
+        return Ok(write_atomic(path, &export::textured_glb(mesh, app))?);
+    }
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "mesh".into());
+    let mtl_name = format!("{stem}.mtl");
+    let (obj, mtl) = export::textured_obj(mesh, app, &mtl_name, "texture");
+    let mut files: Vec<(std::path::PathBuf, Vec<u8>)> =
+        (0..app.images.len()).map(|i| (dir.join(export::image_file_name(app, i, "texture")), app.images[i].bytes.clone())).collect();
+    files.push((dir.join(&mtl_name), mtl.into_bytes()));
+    files.push((path.to_path_buf(), obj.into_bytes()));
+    let mut written = Vec::new();
+    for (p, bytes) in &files {
+        if let Err(e) = write_atomic(p, bytes) {
+            for w in &written {
+                let _ = std::fs::remove_file(w);
+            }
+            return Err(e.into());
+        }
+        written.push(p.clone());
+    }
+    Ok(())
 }
 
 pub fn decode_cmd(args: DecodeArgs, quiet: bool) -> Result<(), Exit> {
@@ -519,6 +557,25 @@ pub fn info_cmd(args: InfoArgs) -> Result<(), Exit> {
         println!(
             "{l:>6} {:>8} {:>12} {:>12} {:>12} {:>14.0}",
             h.level_sizes[l], s.key_bytes[l], s.delta_bytes[l], s.positions_bytes[l], s.bytes_per_frame_to_level[l]
+        );
+    }
+    if let Some(a) = &h.appearance {
+        let attrs: Vec<String> = s.attributes_bytes.iter().rev().map(|b| b.to_string()).collect();
+        println!(
+            "appearance        {} charts, {} smoothing groups, {} materials, {} images; {} uv sets{}",
+            a.charts,
+            a.groups,
+            a.materials,
+            a.images,
+            a.uv_sets,
+            if a.colors { ", colours" } else { "" }
+        );
+        println!(
+            "appearance bytes  charts {}, materials {}, attributes {} (levels top..0), images {}",
+            s.charts_bytes,
+            s.materials_bytes,
+            attrs.join(" + "),
+            s.image_bytes
         );
     }
     // The options the file was encoded with, one per row, as a person reads them.

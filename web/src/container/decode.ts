@@ -2,6 +2,7 @@
 // a finest level (Replay), node positions predicted and corrected band by band, and the cut a
 // triangle budget selects, ordered as the Rust decoder orders it.
 
+import { Charts, Materials, Table, TexturedMesh, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
 import { DecodeError } from "./error.js";
 import { ChunkKind, Motion } from "./format.js";
 import { readCornerUpdates, readDelta, readFaces, readKey, readPositions, readTriangles } from "./payload.js";
@@ -20,6 +21,8 @@ export class Decoder {
   private lower: LowerNeighbours | null = null;
   /** Band 0's stencil weights from the last keyframe (keyframe affine motion). */
   private weights: Float64Array | null = null;
+  /** The appearance chunks (version 6), read by `loadAppearance`. */
+  looks: { charts: Charts; tables: (Table | null)[]; materials: Materials } | null = null;
 
   constructor(readonly reader: Reader, readonly minLevel: number) {
     const h = reader.header;
@@ -135,6 +138,46 @@ export class Decoder {
         before = g;
       }
     }
+  }
+
+  /** Reads the Charts, Materials and this decoder's Attributes chunks once (version 6). */
+  async loadAppearance(): Promise<void> {
+    const c = this.reader, h = c.header, a = h.appearance;
+    if (this.looks || !a) return;
+    const charts = readCharts(await c.chunk(c.find(ChunkKind.Charts, 0, 0)), a, h.triangleCount);
+    const materials = readMaterials(await c.chunk(c.find(ChunkKind.Materials, 0, 0)), a);
+    const tables: (Table | null)[] = h.levelSizes.map(() => null);
+    for (let j = h.levelSizes.length - 1; j >= this.minLevel; j--) {
+      tables[j] = readTable(await c.chunk(c.find(ChunkKind.Attributes, 0, j)), `band ${j} attributes`, h.levelSizes[j], a, h.triangleCount);
+    }
+    this.looks = { charts, tables, materials };
+  }
+
+  /** The images' encoded bytes with their MIME types, in order (version 6). */
+  async images(): Promise<{ name: string | null; mimeType: string; bytes: Uint8Array }[]> {
+    await this.loadAppearance();
+    const out = [];
+    for (const [i, d] of (this.looks?.materials.images ?? []).entries()) {
+      const bytes = await this.reader.chunk(this.reader.find(ChunkKind.Image, 0, i));
+      if (bytes.length !== d.byteLength) throw new DecodeError(`image ${i} chunk: ${bytes.length} bytes where the materials chunk says ${d.byteLength}`);
+      out.push({ name: d.name, mimeType: d.mimeType, bytes });
+    }
+    return out;
+  }
+
+  /**
+   * The cut the last selection chose with its appearance (after `loadAppearance`), triangles
+   * in `orderedMesh`'s order: one vertex per (cut node, chart, group), texture coordinates and
+   * colours from the tables, normals from `positions` (proto/container.md, "Drawing a cut's
+   * appearance").
+   */
+  texturedMesh(positions: Float32Array): TexturedMesh {
+    const a = this.reader.header.appearance, looks = this.looks;
+    if (!a || !looks) throw new DecodeError("the file has no appearance, or it is not loaded");
+    const r = this.replay, rep = r.cutNodes(), base = r.offsets[r.minLevel];
+    const shown = Uint32Array.from(r.appearing), cut = new Uint32Array(3 * shown.length);
+    shown.forEach((t, i) => { for (let c = 0; c < 3; c++) cut[3 * i + c] = rep[base + r.corners[3 * t + c]]; });
+    return texturedMesh(a, looks.charts, looks.tables, r.offsets, positions, shown, cut);
   }
 
   /** Dequantized positions of every node (3 floats per global id). */

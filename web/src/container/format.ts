@@ -8,16 +8,19 @@ import { Postcard } from "./payload.js";
 export const MAGIC = [0x89, 0x50, 0x4d, 0x43, 0x0d, 0x0a, 0x1a, 0x0a];
 export const PREAMBLE_LEN = 32;
 /**
- * The format version this decoder reads, and the oldest it still reads (version 4: no `order`
- * in the header, faces and corners as plain ids; version 3: no `motion` either).
+ * The format version this decoder reads, and the oldest it still reads (version 5: no
+ * `appearance` in the header; version 4: no `order` either, faces and corners as plain ids;
+ * version 3: no `motion` either).
  */
-export const VERSION = 5, OLDEST_READABLE = 3;
+export const VERSION = 6, OLDEST_READABLE = 3;
 /** The largest header or index the preamble may declare. */
 export const MAX_TABLE_LEN = 64 << 20;
 /** Caps on a header's declared sizes (proto/container.md, "Limits"). */
 export const MAX_VERTICES = 1 << 24, MAX_TRIANGLES = 1 << 25, MAX_NODES = 1 << 25, MAX_FRAMES = 1 << 20;
 
-export enum ChunkKind { Triangles = 0, Key = 1, Delta = 2, Positions = 3, Faces = 4, Corners = 5 }
+export enum ChunkKind { Triangles = 0, Key = 1, Delta = 2, Positions = 3, Faces = 4, Corners = 5, Charts = 6, Attributes = 7, Materials = 8, Image = 9 }
+/** Most materials and images a file may declare; the largest Materials and Image chunks. */
+export const MAX_MATERIALS = 1 << 16, MAX_IMAGES = 1 << 12, MAX_MATERIALS_LEN = 16 << 20, MAX_IMAGE_LEN = 256 << 20;
 /** How band 0 is predicted on frames that are not keyframes (proto/container.md, "Positions, band j"). */
 export enum Motion { Mean = 0, Affine = 1, KeyframeAffine = 2 }
 /** The order band 0 is decoded in (proto/container.md, "Band 0 order"). */
@@ -31,6 +34,7 @@ export enum VertexOrder { Input = 0, BreadthFirst = 1 }
 export function readAt(kind: ChunkKind, band: number, minLevel: number): boolean {
   if (kind === ChunkKind.Triangles) return minLevel === 0;
   if (kind === ChunkKind.Faces || kind === ChunkKind.Corners) return band === minLevel;
+  if (kind === ChunkKind.Charts || kind === ChunkKind.Materials || kind === ChunkKind.Image) return true;
   return band >= minLevel;
 }
 
@@ -42,7 +46,18 @@ export interface Header {
   motion: Motion;
   /** Band 0's decoding order. */
   order: VertexOrder;
+  /** Texture coordinates, colours and materials (version 6), or null. */
+  appearance: AppearanceInfo | null;
 }
+
+/** The header's `appearance` (proto/container.md, "Header"). */
+export interface AppearanceInfo {
+  charts: number; groups: number; materials: number; images: number; uvSets: number;
+  uvMin: number[]; uvStep: number[]; colors: boolean; normals: boolean;
+}
+
+/** Scalar channels per attribute entry: two per texture coordinate set, four for colour. */
+export function channels(a: AppearanceInfo): number { return 2 * a.uvSets + (a.colors ? 4 : 0); }
 
 export interface ChunkEntry { kind: ChunkKind; frame: number; band: number; offset: number; storedLen: number; rawLen: number; crc32: number }
 
@@ -82,6 +97,7 @@ export function parseHeader(hb: Uint8Array, version: number): Header {
     levelSizes: p.seq(() => p.varint(), 64), branching: p.varint(),
     bboxMin: [p.f32(), p.f32(), p.f32()], bboxMax: [p.f32(), p.f32(), p.f32()],
     step: p.f32(), keyframeInterval: p.varint(), generator: "", frameNames: [], motion: Motion.Mean, order: VertexOrder.Input,
+    appearance: null,
   };
   // encoded_with: informative, read and dropped.
   p.str(); p.str(); p.f64(); p.f64(); p.varint(); p.bool(); p.bool(); p.option(() => p.f64()); p.option(() => p.u8());
@@ -91,6 +107,12 @@ export function parseHeader(hb: Uint8Array, version: number): Header {
   if (header.motion > (version >= 5 ? Motion.KeyframeAffine : Motion.Affine)) throw new DecodeError(`header: unknown band-0 motion ${header.motion}`);
   header.order = version >= 5 ? p.varint() : VertexOrder.Input;
   if (header.order > VertexOrder.BreadthFirst) throw new DecodeError(`header: unknown band-0 order ${header.order}`);
+  if (version >= 6) {
+    header.appearance = p.option((): AppearanceInfo => ({
+      charts: p.varint(), groups: p.varint(), materials: p.varint(), images: p.varint(), uvSets: p.u8(),
+      uvMin: [p.f32(), p.f32()], uvStep: [p.f32(), p.f32()], colors: p.bool(), normals: p.bool(),
+    }));
+  }
   return header;
 }
 
@@ -98,7 +120,7 @@ export function parseIndex(ib: Uint8Array): ChunkEntry[] {
   const q = new Postcard(ib, "index");
   return q.seq((): ChunkEntry => {
     const kind = q.varint();
-    if (kind > 5) throw new DecodeError(`index: chunk kind ${kind}`);
+    if (kind > 9) throw new DecodeError(`index: chunk kind ${kind}`);
     return { kind, frame: q.varint(), band: q.varint(), offset: q.varint(), storedLen: q.varint(), rawLen: q.varint(), crc32: q.varint() };
   }, 1 << 24);
 }
@@ -116,11 +138,23 @@ export function checkTables(h: Header, index: ChunkEntry[], dataLen: number): vo
   if (h.vertexCount > MAX_VERTICES || h.triangleCount > MAX_TRIANGLES || nodes > MAX_NODES || h.frameCount > MAX_FRAMES) {
     throw new DecodeError(`header: ${h.vertexCount} vertices, ${h.triangleCount} triangles, ${nodes} nodes, ${h.frameCount} frames: beyond the limits`);
   }
+  const a = h.appearance;
+  if (a && (a.charts === 0 || a.charts > h.triangleCount || a.groups === 0 || a.groups > h.triangleCount || a.materials > MAX_MATERIALS
+    || a.images > MAX_IMAGES || a.uvSets > 2 || !a.uvMin.every(Number.isFinite) || !a.uvStep.every((x) => Number.isFinite(x) && x > 0))) {
+    throw new DecodeError("header: appearance out of range");
+  }
   let end = 0;
+  const seen = new Set<string>();
   for (const e of index) {
     if (e.offset + e.storedLen > dataLen) throw new DecodeError(`${describe(e)}: the file ends before it does`);
     end = Math.max(end, e.offset + e.storedLen);
-    if (e.kind !== ChunkKind.Triangles && (e.frame >= h.frameCount || e.band >= h.levelSizes.length)) throw new DecodeError(`${describe(e)}: frame or band beyond the header's counts`);
+    if (e.kind !== ChunkKind.Triangles && e.kind !== ChunkKind.Image && (e.frame >= h.frameCount || e.band >= h.levelSizes.length)) throw new DecodeError(`${describe(e)}: frame or band beyond the header's counts`);
+    if (e.kind >= ChunkKind.Charts) {
+      // Appearance chunks: frame 0, once per kind and band, in a file with an appearance.
+      const bandOk = e.kind === ChunkKind.Image ? a !== null && e.band < a.images : e.kind === ChunkKind.Attributes || e.band === 0;
+      if (!a || e.frame !== 0 || !bandOk || seen.has(`${e.kind}/${e.band}`)) throw new DecodeError(`${describe(e)}: misplaced appearance chunk`);
+      seen.add(`${e.kind}/${e.band}`);
+    }
     const [least, most] = rawLenRange(h, e.kind, e.band);
     if (e.rawLen < least || e.rawLen > most) throw new DecodeError(`${describe(e)}: declared size ${e.rawLen} outside ${least}..${most}`);
   }
@@ -136,6 +170,10 @@ function rawLenRange(h: Header, kind: ChunkKind, band: number): [number, number]
     case ChunkKind.Delta: return [1, 5 + 10 * n];
     case ChunkKind.Faces: return [1, 5 + 20 * t];
     case ChunkKind.Corners: return [1, 5 + 25 * t];
+    case ChunkKind.Charts: return [3, 15 + 25 * t];
+    case ChunkKind.Attributes: return [1, 5 + (10 + 5 * (h.appearance ? channels(h.appearance) : 0)) * 3 * t];
+    case ChunkKind.Materials: return [4, MAX_MATERIALS_LEN];
+    case ChunkKind.Image: return [1, MAX_IMAGE_LEN];
     default: return [1, 1024 + 24 * n];
   }
 }
@@ -144,5 +182,12 @@ export function isKeyframe(h: Header, f: number): boolean { return f === 0 || (h
 export function keyframeBefore(h: Header, f: number): number { const k = h.keyframeInterval; return k === 0 ? 0 : f - (f % k); }
 
 export function describe(e: ChunkEntry): string {
-  return e.kind === ChunkKind.Triangles ? "triangles chunk" : `frame ${e.frame} band ${e.band} ${ChunkKind[e.kind].toLowerCase()}`;
+  switch (e.kind) {
+    case ChunkKind.Triangles: return "triangles chunk";
+    case ChunkKind.Charts: return "charts chunk";
+    case ChunkKind.Materials: return "materials chunk";
+    case ChunkKind.Image: return `image ${e.band} chunk`;
+    case ChunkKind.Attributes: return `band ${e.band} attributes`;
+  }
+  return `frame ${e.frame} band ${e.band} ${ChunkKind[e.kind].toLowerCase()}`;
 }

@@ -8,6 +8,8 @@
 // - read.ts: `Reader`, which opens a file and fetches checked chunks (`Reader`);
 // - decode.ts: `Decoder`, which replays frames and selects cuts (`Decoder`);
 // - replay.ts: the progressive hierarchy's replay (`pmcodec_hierarchy::progressive::Replay`);
+// - appearance.ts: version 6's charts, attribute tables, materials and a cut's appearance
+//   (`appearance`);
 // - error.ts: `DecodeError` (`ContainerError`).
 
 export { DecodeError } from "./error.js";
@@ -15,7 +17,9 @@ export {
   ChunkKind, MAGIC, MAX_FRAMES, MAX_NODES, MAX_TABLE_LEN, MAX_TRIANGLES, MAX_VERTICES, Motion, OLDEST_READABLE, PREAMBLE_LEN, VERSION,
   VertexOrder, crc32, describe, readAt,
 } from "./format.js";
-export type { ChunkEntry, Header } from "./format.js";
+export type { AppearanceInfo, ChunkEntry, Header } from "./format.js";
+export { readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
+export type { Charts, Material, Materials, Table, TexturedMesh } from "./appearance.js";
 export { readPositions } from "./payload.js";
 export { affineMotion, keyedMotion, lowerNeighbours, stencilWeights } from "./predict.js";
 export type { LowerNeighbours } from "./predict.js";

@@ -1,0 +1,99 @@
+//! Appearance in the container (format version 6): texture coordinates, colours and
+//! materials stored once for the sequence, per level, coarse first; normals computed by
+//! decoders from decoded positions. See proto/container.md, "Appearance".
+//!
+//! - [`charts`]: the charts and smoothing groups of the input triangles.
+//! - [`tables`]: the encoder's per-level (node, chart) attribute tables.
+//! - [`payload`]: the Charts and Attributes chunk payloads.
+//! - [`cut`]: a decoded cut's per-corner attributes and normals.
+//! - [`format`]: the raw serialized types (header field, Materials chunk).
+
+pub mod charts;
+pub mod cut;
+pub mod export;
+pub mod format;
+pub mod payload;
+pub mod tables;
+
+pub use charts::Charts;
+pub use cut::DecodedAppearance;
+pub use format::{AppearanceInfo, MaterialsChunk};
+
+use pmcodec_mesh::Appearance;
+
+/// Texture coordinates are quantized to this many bits over their bounding box by default
+/// (Draco's default for texture coordinates is 10 to 12 bits; 12 keeps a 4096-pixel texture's
+/// texel).
+pub const DEFAULT_UV_BITS: u8 = 12;
+
+/// The header field for an appearance with `charts`: texture coordinate grid from the
+/// coordinates' bounding box at `uv_bits` bits.
+pub fn info_for(app: &Appearance, charts: &Charts, uv_bits: u8) -> AppearanceInfo {
+    let uv_sets = if app.uv0.is_empty() {
+        0
+    } else if app.uv1.is_empty() {
+        1
+    } else {
+        2
+    };
+    let mut lo = [f32::INFINITY; 2];
+    let mut hi = [f32::NEG_INFINITY; 2];
+    for uv in app.uv0.iter().chain(&app.uv1) {
+        for a in 0..2 {
+            lo[a] = lo[a].min(uv[a]);
+            hi[a] = hi[a].max(uv[a]);
+        }
+    }
+    let levels = ((1u32 << uv_bits.clamp(4, 24)) - 1) as f32;
+    let (uv_min, uv_step) =
+        if uv_sets == 0 { ([0.0; 2], [1.0; 2]) } else { (lo, [0, 1].map(|a| ((hi[a] - lo[a]) / levels).max(f32::MIN_POSITIVE * 1e6))) };
+    AppearanceInfo {
+        charts: charts.count() as u32,
+        groups: charts.triangle_group.iter().max().map_or(0, |&g| g + 1),
+        materials: app.materials.len() as u32,
+        images: app.images.len() as u32,
+        uv_sets,
+        uv_min,
+        uv_step,
+        colors: !app.colors.is_empty(),
+        normals: !app.normals.is_empty(),
+    }
+}
+
+/// The encoder's appearance state for `seq` (which has appearance `app`) with a hierarchy of
+/// `levels` levels: charts and header field now, tables as frames are observed.
+pub fn builder<'a>(seq: &'a pmcodec_mesh::Sequence, app: &'a Appearance, levels: usize) -> tables::TableBuilder<'a> {
+    let charts = charts::build(&seq.triangles, seq.vertex_count(), app);
+    let info = info_for(app, &charts, DEFAULT_UV_BITS);
+    tables::TableBuilder::new(&seq.triangles, &seq.frames[0], app, charts, info, levels)
+}
+
+/// The appearance chunks, in file order: Charts, Materials, the Attributes of every band top
+/// first, then each Image. (kind, band, raw payload).
+pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::ChunkKind, u32, Vec<u8>)>, crate::ContainerError> {
+    use crate::ChunkKind;
+    let tables = builder.finish();
+    let channels = builder.info().channels();
+    let app = builder.appearance();
+    let materials = postcard::to_stdvec(&MaterialsChunk::from_appearance(app))
+        .map_err(|e| crate::ContainerError::Io(format!("materials chunk: {e}")))?;
+    let mut out = vec![(ChunkKind::Charts, 0, payload::write_charts(builder.charts())), (ChunkKind::Materials, 0, materials)];
+    for (j, t) in tables.iter().enumerate().rev() {
+        out.push((ChunkKind::Attributes, j as u32, payload::write_table(t, channels)));
+    }
+    for (i, image) in app.images.iter().enumerate() {
+        out.push((ChunkKind::Image, i as u32, image.bytes.clone()));
+    }
+    Ok(out)
+}
+
+/// The Materials chunk of a file with an appearance, parsed and checked against its header.
+pub fn read_materials<S: crate::ByteSource>(reader: &crate::Reader<S>) -> Result<MaterialsChunk, crate::ContainerError> {
+    let corrupt = |detail: String| crate::ContainerError::Corrupt { what: "materials chunk".into(), detail };
+    let info = reader.header().appearance.as_ref().ok_or_else(|| crate::ContainerError::Options("the file has no appearance".into()))?;
+    let entry = reader.find(crate::ChunkKind::Materials, 0, 0).ok_or_else(|| corrupt("missing from the index".into()))?;
+    let raw = reader.read_chunk(entry)?;
+    let m: MaterialsChunk = postcard::from_bytes(&raw).map_err(|e| corrupt(e.to_string()))?;
+    m.check(info).map_err(corrupt)?;
+    Ok(m)
+}

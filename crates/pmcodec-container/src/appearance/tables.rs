@@ -1,0 +1,181 @@
+//! The encoder's attribute tables: for every level L and every (level-L node, chart) pair
+//! that some triangle alive at L shows in ANY frame (the hierarchy changes by swaps, so the
+//! pairs do), the attribute value a decoder draws there.
+//!
+//! A shown triangle's corners are cut nodes at levels below its degeneration node, where it is
+//! alive, and each is that corner's ancestor at its level: so the level-L table covers every
+//! cut a decoder can make. At level 0 the value is the input's wedge (one per (vertex, chart),
+//! see [`super::charts`]). Above, it is solved from the cluster's fine wedges of that chart:
+//! their mean weighted by a third of the area of each fine triangle of the chart at them,
+//! summed over the frames (Garland & Heckbert 1998 weight attribute quadrics by area the same
+//! way), which keeps a coarse node's value inside its chart's region of the texture.
+
+// Corners index several parallel arrays in step (triangles, wedges, ancestors).
+#![allow(clippy::needless_range_loop)]
+
+use super::charts::Charts;
+use super::format::AppearanceInfo;
+use super::payload::QuantizedTable;
+use glam::Vec3;
+use pmcodec_mesh::Appearance;
+use std::collections::HashMap;
+
+/// Attribute values of a wedge, in channel order (uv0, uv1, colour).
+pub fn wedge_values(app: &Appearance, info: &AppearanceInfo, w: usize, out: &mut Vec<f64>) {
+    out.clear();
+    if info.uv_sets >= 1 {
+        out.extend(app.uv0[w].map(f64::from));
+    }
+    if info.uv_sets >= 2 {
+        out.extend(app.uv1[w].map(f64::from));
+    }
+    if info.colors {
+        out.extend(app.colors[w].map(f64::from));
+    }
+}
+
+/// Quantizes a value of channel `k` (texture coordinates on the header's grid, colours to 8
+/// bits).
+pub fn quantize(info: &AppearanceInfo, k: usize, x: f64) -> i32 {
+    if k < 2 * info.uv_sets as usize {
+        let a = k % 2;
+        ((x - info.uv_min[a] as f64) / info.uv_step[a] as f64).round() as i32
+    } else {
+        (x.clamp(0.0, 1.0) * 255.0).round() as i32
+    }
+}
+
+/// Sums per (node, chart) of one level above 0.
+#[derive(Default)]
+struct LevelSums {
+    index: HashMap<u64, u32>,
+    weight: Vec<f64>,
+    sums: Vec<f64>,
+    needed: Vec<bool>,
+}
+
+/// Accumulates the tables frame by frame ([`TableBuilder::observe`] with each frame's parent
+/// maps), then quantizes them ([`TableBuilder::finish`]).
+pub struct TableBuilder<'a> {
+    triangles: &'a [[u32; 3]],
+    app: &'a Appearance,
+    charts: Charts,
+    info: AppearanceInfo,
+    /// A third of each triangle's area in the first frame (a tiny floor keeps slivers counted).
+    weight: Vec<f64>,
+    levels: Vec<LevelSums>,
+    ancestor: Vec<u32>,
+    scratch: Vec<f64>,
+}
+
+impl<'a> TableBuilder<'a> {
+    pub fn new(
+        triangles: &'a [[u32; 3]],
+        first_frame: &[Vec3],
+        app: &'a Appearance,
+        charts: Charts,
+        info: AppearanceInfo,
+        levels: usize,
+    ) -> Self {
+        let weight = triangles
+            .iter()
+            .map(|t| {
+                let p = t.map(|v| first_frame[v as usize].as_dvec3());
+                ((p[1] - p[0]).cross(p[2] - p[0]).length() / 6.0).max(1e-30)
+            })
+            .collect();
+        TableBuilder {
+            triangles,
+            app,
+            charts,
+            info,
+            weight,
+            levels: (0..levels).map(|_| LevelSums::default()).collect(),
+            ancestor: Vec::new(),
+            scratch: Vec::new(),
+        }
+    }
+
+    pub fn charts(&self) -> &Charts {
+        &self.charts
+    }
+
+    pub fn info(&self) -> &AppearanceInfo {
+        &self.info
+    }
+
+    pub fn appearance(&self) -> &Appearance {
+        self.app
+    }
+
+    /// Adds one frame's hierarchy (`parent[k][v]`, k below the top).
+    pub fn observe(&mut self, parent: &[Vec<u32>]) {
+        let channels = self.info.channels();
+        self.ancestor.clear();
+        self.ancestor.extend(0..parent.first().map_or(0, |p| p.len() as u32));
+        for l in 1..self.levels.len() {
+            for a in self.ancestor.iter_mut() {
+                *a = parent[l - 1][*a as usize];
+            }
+            let sums = &mut self.levels[l];
+            for (t, tri) in self.triangles.iter().enumerate() {
+                let g = tri.map(|v| self.ancestor[v as usize]);
+                let alive = g[0] != g[1] && g[1] != g[2] && g[0] != g[2];
+                let chart = self.charts.triangle_chart[t];
+                for i in 0..3 {
+                    let key = ((g[i] as u64) << 32) | chart as u64;
+                    let next = sums.weight.len() as u32;
+                    let e = *sums.index.entry(key).or_insert(next) as usize;
+                    if e == next as usize {
+                        sums.weight.push(0.0);
+                        sums.sums.resize(sums.sums.len() + channels, 0.0);
+                        sums.needed.push(false);
+                    }
+                    wedge_values(self.app, &self.info, self.app.corner_wedges[t][i] as usize, &mut self.scratch);
+                    let w = self.weight[t];
+                    sums.weight[e] += w;
+                    for (s, x) in sums.sums[e * channels..].iter_mut().zip(&self.scratch) {
+                        *s += w * x;
+                    }
+                    sums.needed[e] |= alive;
+                }
+            }
+        }
+    }
+
+    /// The quantized table of every level, level 0 first.
+    pub fn finish(&mut self) -> Vec<QuantizedTable> {
+        let channels = self.info.channels();
+        let mut out = Vec::with_capacity(self.levels.len());
+        // Level 0: the wedge of each (vertex, chart) pair.
+        let mut pairs: Vec<(u32, u32, u32)> = Vec::with_capacity(self.triangles.len() * 3);
+        for (t, tri) in self.triangles.iter().enumerate() {
+            for i in 0..3 {
+                pairs.push((tri[i], self.charts.triangle_chart[t], self.app.corner_wedges[t][i]));
+            }
+        }
+        pairs.sort_unstable();
+        pairs.dedup_by_key(|p| (p.0, p.1));
+        let mut t0 = QuantizedTable::default();
+        for (v, c, w) in pairs {
+            t0.entries.push((v, c));
+            wedge_values(self.app, &self.info, w as usize, &mut self.scratch);
+            t0.values.extend(self.scratch.iter().enumerate().map(|(k, &x)| quantize(&self.info, k, x)));
+        }
+        out.push(t0);
+        let info = &self.info;
+        for sums in self.levels.iter().skip(1) {
+            let mut keys: Vec<(u64, u32)> = sums.index.iter().filter(|(_, e)| sums.needed[**e as usize]).map(|(&k, &e)| (k, e)).collect();
+            keys.sort_unstable();
+            let mut table = QuantizedTable::default();
+            for (key, e) in keys {
+                let e = e as usize;
+                table.entries.push(((key >> 32) as u32, key as u32));
+                let w = sums.weight[e];
+                table.values.extend((0..channels).map(|k| quantize(info, k, sums.sums[e * channels + k] / w)));
+            }
+            out.push(table);
+        }
+        out
+    }
+}

@@ -1,0 +1,116 @@
+//! The decoder's appearance (version 6): the Charts, Materials and Attributes chunks loaded
+//! with the first keyframe, images on demand, and a cut's mesh with its appearance.
+
+use super::{Decoder, MeshTarget};
+use crate::appearance::cut::{DecodedAppearance, textured_mesh};
+use crate::appearance::format::{AppearanceInfo, MaterialsChunk};
+use crate::appearance::payload::{read_charts, read_table};
+use crate::format::ChunkKind;
+use crate::{ByteSource, ContainerError};
+use pmcodec_mesh::appearance::Image;
+use pmcodec_mesh::{Appearance, TriMesh};
+
+impl<S: ByteSource> Decoder<S> {
+    /// Reads the appearance chunks this decoder's levels need, once (a file without
+    /// appearance has none).
+    pub(super) fn load_appearance(&mut self) -> Result<(), ContainerError> {
+        if self.looks.is_some() {
+            return Ok(());
+        }
+        let h = self.reader.header();
+        let Some(info) = h.appearance.clone() else {
+            self.looks = Some(DecodedAppearance::default());
+            return Ok(());
+        };
+        let charts = read_charts(&self.chunk(ChunkKind::Charts, 0, 0)?, &info, h.triangle_count)?;
+        let raw = self.chunk(ChunkKind::Materials, 0, 0)?;
+        let materials: MaterialsChunk =
+            postcard::from_bytes(&raw).map_err(|e| ContainerError::Corrupt { what: "materials chunk".into(), detail: e.to_string() })?;
+        materials.check(&info).map_err(|detail| ContainerError::Corrupt { what: "materials chunk".into(), detail })?;
+        if let Some(c) = charts.chart_material.iter().position(|&m| m >= info.materials.max(1)) {
+            return Err(ContainerError::Corrupt { what: "charts chunk".into(), detail: format!("chart {c} uses a material out of range") });
+        }
+        let mut tables = vec![None; h.levels()];
+        for (j, slot) in tables.iter_mut().enumerate().skip(self.min_level).rev() {
+            let raw = self.chunk(ChunkKind::Attributes, 0, j)?;
+            *slot = Some(read_table(&raw, &format!("band {j} attributes"), h.level_sizes[j], &info, h.triangle_count)?);
+        }
+        self.looks = Some(DecodedAppearance { info: Some(info), charts, tables, materials, images: None });
+        Ok(())
+    }
+
+    /// The file's appearance header field (`None` for a bare surface or a file before version 6).
+    pub fn appearance_info(&self) -> Option<&AppearanceInfo> {
+        self.reader.header().appearance.as_ref()
+    }
+
+    /// The images, in order, read from their chunks (each call reads them again: a caller that
+    /// draws many frames keeps them).
+    pub fn images(&self) -> Result<Vec<Image>, ContainerError> {
+        let Some(info) = self.appearance_info() else { return Ok(Vec::new()) };
+        let raw = self.chunk(ChunkKind::Materials, 0, 0)?;
+        let materials: MaterialsChunk =
+            postcard::from_bytes(&raw).map_err(|e| ContainerError::Corrupt { what: "materials chunk".into(), detail: e.to_string() })?;
+        materials.check(info).map_err(|detail| ContainerError::Corrupt { what: "materials chunk".into(), detail })?;
+        let mut out = Vec::with_capacity(materials.images.len());
+        for (i, desc) in materials.images.iter().enumerate() {
+            let bytes = self.chunk(ChunkKind::Image, 0, i)?;
+            if bytes.len() != desc.byte_length as usize {
+                return Err(ContainerError::Corrupt {
+                    what: format!("image {i} chunk"),
+                    detail: format!("{} bytes where the materials chunk says {}", bytes.len(), desc.byte_length),
+                });
+            }
+            out.push(Image { name: desc.name.clone(), mime_type: desc.mime_type.clone(), bytes });
+        }
+        Ok(out)
+    }
+
+    /// The cut `target` selects on the current frame, with its appearance: one vertex per
+    /// (cut node, chart), texture coordinates and colours from the attribute tables, normals
+    /// from the decoded positions, a material per triangle, and the materials, textures and
+    /// samplers and images (read once, kept). Triangles come in the order
+    /// [`Decoder::mesh`] lists them for budgets and errors, by input id for levels.
+    pub fn textured_mesh(&mut self, target: MeshTarget) -> Result<(TriMesh, Appearance), ContainerError> {
+        self.load_appearance()?;
+        if self.looks.as_ref().is_some_and(|l| l.info.is_some() && l.images.is_none()) {
+            let images = std::sync::Arc::new(self.images()?);
+            if let Some(l) = self.looks.as_mut() {
+                l.images = Some(images);
+            }
+        }
+        let prefix = self.prefix_target(target);
+        let mut d = self.take_derived()?;
+        let replay = self.replay.as_mut().ok_or_else(|| ContainerError::Options("seek to a frame first".into()))?;
+        let size = replay.h.level_sizes[replay.min_level];
+        let corners_of = |c: [u32; 3]| {
+            if c.iter().all(|&v| v < size) { Ok(c) } else { Err(ContainerError::Options("a shown triangle without corners".into())) }
+        };
+        let mut shown: Vec<(u32, [u32; 3])> = Vec::new();
+        match prefix {
+            Ok(p) => {
+                let k = d.order.prefix(replay, &d.errors, p);
+                for &t in d.order.shown(k) {
+                    let c = corners_of(replay.corners()[t as usize])?;
+                    shown.push((t, c.map(|v| d.order.cut_node_of(replay, v, k))));
+                }
+            }
+            Err(l) => {
+                replay.select_level(l);
+                let mut ts = replay.shown().to_vec();
+                ts.sort_unstable();
+                for t in ts {
+                    let c = corners_of(replay.corners()[t as usize])?;
+                    shown.push((t, c.map(|v| replay.cut_node_of(v))));
+                }
+            }
+        }
+        let offsets = replay.h.offsets.clone();
+        let result = match &self.looks {
+            Some(looks) => textured_mesh(looks, &offsets, &d.positions, &shown),
+            None => Err(ContainerError::Options("appearance not loaded".into())),
+        };
+        self.derived = Some(d);
+        result
+    }
+}

@@ -1,0 +1,129 @@
+//! Version 6 appearance: texture coordinates, colours and materials stored once per level,
+//! read back at every level, every cut inside its chart, normals from decoded positions.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+// Corners index several parallel arrays in step (triangles, wedges, ancestors).
+#![allow(clippy::needless_range_loop)]
+
+use pmcodec_container::{Decoder, EncodeOptions, MeshTarget, QuantizationChoice, Reader, encode, format::ChunkKind, summary, verify};
+use pmcodec_mesh::samples::textured_cloth;
+
+const W: u32 = 24;
+const H: u32 = 16;
+
+fn encoded(frames: u32) -> (pmcodec_mesh::Sequence, Vec<u8>) {
+    let seq = textured_cloth(W, H, frames, 16);
+    let opts = EncodeOptions { keyframe_interval: 4, quantization: QuantizationChoice::Bits(12), ..Default::default() };
+    let bytes = encode(&seq, &opts, |_| {}).expect("encode");
+    (seq, bytes)
+}
+
+/// The texture-coordinate region of each material in the cloth: u within these bounds.
+fn u_range(material: u32) -> (f32, f32) {
+    let split = ((W - 1) / 2) as f32 / (W - 1) as f32;
+    if material == 0 { (0.0, split) } else { (split + 0.25, 1.25) }
+}
+
+#[test]
+fn every_level_reads_back_inside_its_charts() {
+    let (seq, bytes) = encoded(6);
+    let input = seq.appearance.as_ref().unwrap();
+    let reader = Reader::open(bytes.as_slice()).expect("open");
+    assert_eq!(reader.version(), 6);
+    verify(&reader).expect("verify");
+    let info = reader.header().appearance.clone().expect("appearance in the header");
+    assert_eq!((info.uv_sets, info.colors, info.materials, info.images), (1, true, 2, 1));
+    let levels = reader.header().levels();
+    assert!(levels >= 3, "{levels} levels");
+    for level in 0..levels {
+        let mut d = Decoder::new(reader.borrowed(), level).expect("decoder");
+        for f in 0..6 {
+            d.seek(f).expect("seek");
+            let plain = d.mesh(MeshTarget::Level(level)).expect("mesh");
+            let (mesh, app) = d.textured_mesh(MeshTarget::Level(level)).expect("textured");
+            assert_eq!(mesh.triangles.len(), plain.triangles.len(), "level {level} frame {f}");
+            app.validate(mesh.positions.len(), &mesh.triangles).expect("a valid appearance");
+            assert_eq!(app.materials.len(), 2);
+            for (t, tri) in mesh.triangles.iter().enumerate() {
+                let m = app.triangle_material[t];
+                let (lo, hi) = u_range(m);
+                for &v in tri {
+                    let u = app.uv0[v as usize][0];
+                    // A coarse value is a weighted mean of its chart's wedges: inside the chart's
+                    // texture region (a triangle never straddles two materials), within a quantum.
+                    assert!(
+                        u >= lo - 1e-3 && u <= hi + 1e-3,
+                        "level {level} frame {f} triangle {t}: u {u} outside material {m}'s {lo}..{hi}"
+                    );
+                    let n = app.normals[v as usize];
+                    let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+                    assert!((len - 1.0).abs() < 1e-5, "normal {n:?}");
+                }
+            }
+            if level == 0 {
+                // Level 0 is the input: every corner's UV within half a quantum, materials exact.
+                assert_eq!(app.triangle_material, input.triangle_material);
+                let step = info.uv_step;
+                for (t, tri) in mesh.triangles.iter().enumerate() {
+                    for i in 0..3 {
+                        let (got, want) = (app.uv0[tri[i] as usize], input.uv0[input.corner_wedges[t][i] as usize]);
+                        for a in 0..2 {
+                            assert!((got[a] - want[a]).abs() <= step[a] * 0.5 + 1e-6, "triangle {t} corner {i}: {got:?} vs {want:?}");
+                        }
+                        let (gc, wc) = (app.colors[tri[i] as usize], input.colors[input.corner_wedges[t][i] as usize]);
+                        assert!(gc.iter().zip(wc).all(|(a, b)| (a - b).abs() <= 0.5 / 255.0 + 1e-6), "colour {gc:?} vs {wc:?}");
+                    }
+                }
+            }
+        }
+    }
+    let images = Decoder::new(reader.borrowed(), 0).unwrap().images().expect("images");
+    assert_eq!(images.len(), 1);
+    assert_eq!(images[0].bytes, input.images[0].bytes);
+}
+
+#[test]
+fn budget_cuts_carry_appearance_and_seams_split_vertices() {
+    let (_, bytes) = encoded(5);
+    let reader = Reader::open(bytes.as_slice()).expect("open");
+    let mut d = Decoder::new(reader.borrowed(), 0).expect("decoder");
+    for f in 0..5 {
+        d.seek(f).expect("seek");
+        for budget in [40, 150, 400, 10_000] {
+            let plain = d.mesh(MeshTarget::Triangles(budget)).expect("mesh");
+            let (mesh, app) = d.textured_mesh(MeshTarget::Triangles(budget)).expect("textured");
+            assert_eq!(mesh.triangles.len(), plain.triangles.len(), "budget {budget}");
+            // The material seam doubles the vertices along it: more vertices than cut nodes.
+            assert!(mesh.positions.len() > plain.positions.len(), "budget {budget}: {} vs {}", mesh.positions.len(), plain.positions.len());
+            for (t, tri) in mesh.triangles.iter().enumerate() {
+                let (lo, hi) = u_range(app.triangle_material[t]);
+                assert!(tri.iter().all(|&v| (lo - 1e-3..=hi + 1e-3).contains(&app.uv0[v as usize][0])), "budget {budget} triangle {t}");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_coarse_client_reads_a_small_share_of_the_appearance() {
+    let (_, bytes) = encoded(4);
+    let reader = Reader::open(bytes.as_slice()).expect("open");
+    let s = summary(&reader);
+    let all: u64 = s.attributes_bytes.iter().sum();
+    let coarse: u64 = s.attributes_bytes[2..].iter().sum();
+    assert!(all > 0 && s.charts_bytes > 0 && s.materials_bytes > 0 && s.image_bytes > 0);
+    // Level 2 holds about a tenth of the vertices: its client reads a small part of the tables.
+    assert!(coarse * 2 < all, "bands 2.. hold {coarse} of {all} attribute bytes");
+    let entries = reader.index().chunks.iter().filter(|e| e.kind == ChunkKind::Attributes).count();
+    assert_eq!(entries, reader.header().levels());
+}
+
+#[test]
+fn a_bare_surface_has_no_appearance() {
+    let seq = pmcodec_mesh::samples::waving_cloth(8, 6, 3);
+    let bytes = encode(&seq, &EncodeOptions::default(), |_| {}).expect("encode");
+    let reader = Reader::open(bytes.as_slice()).expect("open");
+    assert!(reader.header().appearance.is_none());
+    let mut d = Decoder::new(reader.borrowed(), 0).expect("decoder");
+    d.seek(0).expect("seek");
+    assert!(d.textured_mesh(MeshTarget::Level(0)).is_err());
+    assert!(d.images().expect("none").is_empty());
+}

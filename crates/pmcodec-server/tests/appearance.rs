@@ -1,0 +1,80 @@
+//! Appearance through the HTTP API: the metadata names materials and textures with their byte
+//! sizes and URLs, textures are served at immutable URLs with ETags, and `format=glb` answers
+//! carry UVs, normals, colours, materials and the texture.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use axum::body::Body;
+use axum::http::{Request, StatusCode};
+use http_body_util::BodyExt;
+use pmcodec_server::store::MemoryStore;
+use pmcodec_server::{AppState, AssetId, AssetStore, Config, PutMode, router};
+use std::sync::Arc;
+use tower::ServiceExt;
+
+async fn get(app: &axum::Router, uri: &str, headers: &[(&str, &str)]) -> (StatusCode, axum::http::HeaderMap, Vec<u8>) {
+    let mut req = Request::builder().uri(uri);
+    for (k, v) in headers {
+        req = req.header(*k, *v);
+    }
+    let resp = app.clone().oneshot(req.body(Body::empty()).unwrap()).await.unwrap();
+    let (parts, body) = resp.into_parts();
+    (parts.status, parts.headers, body.collect().await.unwrap().to_bytes().to_vec())
+}
+
+#[tokio::test]
+async fn textured_assets_describe_and_serve_their_appearance() {
+    let seq = pmcodec_mesh::samples::textured_cloth(16, 10, 4, 16);
+    let png = seq.appearance.as_ref().unwrap().images[0].bytes.clone();
+    let bytes = pmcodec_container::encode(&seq, &Default::default(), |_| {}).unwrap();
+    let store: Arc<dyn AssetStore> = Arc::new(MemoryStore::default());
+    store.put(&AssetId::parse("textured").unwrap(), bytes.into(), PutMode::Overwrite).await.unwrap();
+    let state = AppState::new(Config::default(), store).unwrap();
+    state.set_ready(true);
+    let app = router(state);
+
+    let (status, _, body) = get(&app, "/v1/assets/textured", &[]).await;
+    assert_eq!(status, StatusCode::OK);
+    let info: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    let a = &info["appearance"];
+    assert_eq!(a["materials"].as_array().unwrap().len(), 2);
+    assert_eq!(a["materials"][0]["name"], "checker");
+    assert_eq!(a["materials"][0]["base_color_texture"], 0);
+    assert_eq!(a["materials"][1]["alpha_mode"], "BLEND");
+    assert_eq!(a["textures"][0]["mime_type"], "image/png");
+    assert_eq!(a["textures"][0]["bytes"], png.len());
+    assert_eq!(a["attribute_bytes_per_level"].as_array().unwrap().len(), info["levels"].as_array().unwrap().len());
+
+    // The texture at its immutable URL: the PNG's bytes, an ETag that revalidates, immutable.
+    let url = a["textures"][0]["url"].as_str().unwrap().to_string();
+    let (status, headers, body) = get(&app, &url, &[]).await;
+    assert_eq!(status, StatusCode::OK);
+    assert_eq!(body, png);
+    assert_eq!(headers["content-type"], "image/png");
+    assert!(headers["cache-control"].to_str().unwrap().contains("immutable"));
+    let etag = headers["etag"].to_str().unwrap().to_string();
+    assert!(etag.ends_with("-image-0\""), "{etag}");
+    let (status, _, _) = get(&app, &url, &[("if-none-match", &etag)]).await;
+    assert_eq!(status, StatusCode::NOT_MODIFIED);
+    let (status, _, body) = get(&app, &url, &[("range", "bytes=0-7")]).await;
+    assert_eq!((status, body.as_slice()), (StatusCode::PARTIAL_CONTENT, &b"\x89PNG\r\n\x1a\n"[..]));
+    let (status, _, _) = get(&app, &url.replace("/images/0", "/images/1"), &[]).await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    let (status, _, _) = get(&app, &url.replace("/images/0", "/images/x"), &[]).await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+
+    // A GLB answer carries the appearance, the texture embedded.
+    let (status, _, body) = get(&app, "/v1/assets/textured/mesh?frame=1&triangles=120", &[]).await;
+    assert_eq!(status, StatusCode::OK);
+    let (doc, buffers, images) = gltf::import_slice(&body).expect("a GLB the gltf crate imports");
+    assert_eq!(doc.materials().count(), 2);
+    assert_eq!(images.len(), 1);
+    let mut triangles = 0;
+    for p in doc.meshes().next().unwrap().primitives() {
+        let r = p.reader(|b| Some(&buffers[b.index()]));
+        let n = r.read_positions().unwrap().count();
+        assert_eq!(r.read_tex_coords(0).unwrap().into_f32().count(), n);
+        assert_eq!(r.read_normals().unwrap().count(), n);
+        triangles += r.read_indices().unwrap().into_u32().count() / 3;
+    }
+    assert!(triangles > 0 && triangles <= 120, "{triangles}");
+}

@@ -1,0 +1,180 @@
+// Version 6's appearance, as `pmcodec_container::appearance` (proto/container.md,
+// "Appearance"): the Charts, Attributes and Materials chunks read, and a cut's per-corner
+// texture coordinates, colours and normals computed bit for bit as the Rust decoder does.
+
+import { DecodeError } from "./error.js";
+import { AppearanceInfo, channels } from "./format.js";
+import { Cursor, Postcard } from "./payload.js";
+
+/** Each triangle's chart and smoothing group, each chart's material. */
+export interface Charts { triangleChart: Uint32Array; triangleGroup: Uint32Array; chartMaterial: Uint32Array }
+
+/** One band's attribute table: entries of node n are first[n]..first[n+1]. */
+export interface Table { first: Uint32Array; charts: Uint32Array; values: Int32Array }
+
+export interface TextureRef { texture: number; texCoord: number; transform: { offset: number[]; rotation: number; scale: number[]; texCoord: number | null } | null }
+export interface Material {
+  name: string | null; baseColorFactor: number[]; baseColorTexture: TextureRef | null; metallicFactor: number; roughnessFactor: number;
+  metallicRoughnessTexture: TextureRef | null; normalTexture: TextureRef | null; normalScale: number; occlusionTexture: TextureRef | null;
+  occlusionStrength: number; emissiveTexture: TextureRef | null; emissiveFactor: number[]; alphaMode: number; alphaCutoff: number; doubleSided: boolean;
+}
+export interface Materials {
+  materials: Material[];
+  textures: { image: number; sampler: number | null }[];
+  samplers: { magFilter: number | null; minFilter: number | null; wrapS: number; wrapT: number }[];
+  images: { name: string | null; mimeType: string; byteLength: number }[];
+}
+
+function runs(c: Cursor, triangles: number, out: Uint32Array, value: () => number, what: string): void {
+  const n = c.count(triangles, "runs");
+  let at = 0;
+  for (let i = 0; i < n; i++) {
+    const v = value(), len = c.get();
+    if (len === 0 || at + len > triangles) throw new DecodeError(`${what}: a run of ${len} triangles after ${at} of ${triangles}`);
+    out.fill(v, at, at + len);
+    at += len;
+  }
+  if (at !== triangles) throw new DecodeError(`${what}: runs cover ${at} of ${triangles} triangles`);
+}
+
+/** The Charts chunk. */
+export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number): Charts {
+  const what = "charts chunk", c = new Cursor(raw, what);
+  const n = c.count(a.charts, "charts");
+  if (n !== a.charts || n > raw.length) throw new DecodeError(`${what}: ${n} charts where the header says ${a.charts}`);
+  const chartMaterial = new Uint32Array(n);
+  for (let i = 0; i < n; i++) chartMaterial[i] = c.id(Math.max(a.materials, 1), "material");
+  const triangleChart = new Uint32Array(triangles), triangleGroup = new Uint32Array(triangles);
+  runs(c, triangles, triangleChart, () => c.id(a.charts, "chart"), what);
+  let last = 0;
+  runs(c, triangles, triangleGroup, () => {
+    const g = (last + c.zigzag()) >>> 0;
+    if (g >= a.groups) throw new DecodeError(`${what}: smoothing group ${g} out of range`);
+    return (last = g);
+  }, what);
+  c.finish();
+  return { triangleChart, triangleGroup, chartMaterial };
+}
+
+/** The Attributes chunk of a band of `nodes` nodes. */
+export function readTable(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: number): Table {
+  const ch = channels(a), c = new Cursor(raw, what);
+  const m = c.count(Math.min(nodes * a.charts, 3 * triangles), "entries");
+  if (m * (2 + ch) > raw.length) throw new DecodeError(`${what}: ${m} entries in ${raw.length} bytes`);
+  const first = new Uint32Array(nodes + 1), charts = new Uint32Array(m), nodeOf = new Uint32Array(m);
+  let pn = -1, pc = -1;
+  for (let e = 0; e < m; e++) {
+    const d = c.get(), rc = c.get();
+    let node: number, chart: number;
+    if (pn >= 0 && d === 0) { node = pn; chart = pc + rc + 1; } else if (pn >= 0) { node = pn + d; chart = rc; } else { node = d; chart = rc; }
+    if (node >= nodes || chart >= a.charts) throw new DecodeError(`${what}: entry (node ${node}, chart ${chart}) out of range`);
+    pn = node; pc = chart;
+    nodeOf[e] = node; charts[e] = chart; first[node + 1]++;
+  }
+  for (let n = 0; n < nodes; n++) first[n + 1] += first[n];
+  const values = new Int32Array(m * ch);
+  for (let k = 0; k < ch; k++) {
+    let last = 0;
+    for (let e = 0; e < m; e++) { last = (last + c.zigzag()) | 0; values[e * ch + k] = last; }
+  }
+  c.finish();
+  return { first, charts, values };
+}
+
+/** The Materials chunk (postcard). */
+export function readMaterials(raw: Uint8Array, a: AppearanceInfo): Materials {
+  const p = new Postcard(raw, "materials chunk");
+  const ref = (): TextureRef => ({
+    texture: p.varint(), texCoord: p.varint(),
+    transform: p.option(() => ({ offset: [p.f32(), p.f32()], rotation: p.f32(), scale: [p.f32(), p.f32()], texCoord: p.option(() => p.varint()) })),
+  });
+  const materials = p.seq((): Material => ({
+    name: p.option(() => p.str()), baseColorFactor: [p.f32(), p.f32(), p.f32(), p.f32()], baseColorTexture: p.option(ref),
+    metallicFactor: p.f32(), roughnessFactor: p.f32(), metallicRoughnessTexture: p.option(ref), normalTexture: p.option(ref), normalScale: p.f32(),
+    occlusionTexture: p.option(ref), occlusionStrength: p.f32(), emissiveTexture: p.option(ref), emissiveFactor: [p.f32(), p.f32(), p.f32()],
+    alphaMode: p.u8(), alphaCutoff: p.f32(), doubleSided: p.bool(),
+  }), 1 << 16);
+  const textures = p.seq(() => ({ image: p.varint(), sampler: p.option(() => p.varint()) }), 1 << 16);
+  const samplers = p.seq(() => ({ magFilter: p.option(() => p.varint()), minFilter: p.option(() => p.varint()), wrapS: p.varint(), wrapT: p.varint() }), 1 << 16);
+  const images = p.seq(() => ({ name: p.option(() => p.str()), mimeType: p.str(), byteLength: p.varint() }), 1 << 12);
+  if (p.pos !== raw.length) throw new DecodeError(`materials chunk: ${raw.length - p.pos} bytes left over`);
+  if (materials.length !== a.materials || images.length !== a.images) throw new DecodeError("materials chunk: counts disagree with the header");
+  for (const m of materials) {
+    if (m.alphaMode > 2) throw new DecodeError(`materials chunk: alpha mode ${m.alphaMode}`);
+    for (const r of [m.baseColorTexture, m.metallicRoughnessTexture, m.normalTexture, m.occlusionTexture, m.emissiveTexture]) {
+      if (r && r.texture >= textures.length) throw new DecodeError(`materials chunk: texture ${r.texture} out of range`);
+    }
+  }
+  for (const t of textures) {
+    if (t.image >= images.length || (t.sampler !== null && t.sampler >= samplers.length)) throw new DecodeError("materials chunk: image or sampler out of range");
+  }
+  return { materials, textures, samplers, images };
+}
+
+/** A cut's mesh with its appearance: one vertex per (cut node, chart, group). */
+export interface TexturedMesh {
+  positions: Float32Array; normals: Float32Array; uv0: Float32Array | null; uv1: Float32Array | null; colors: Float32Array | null;
+  indices: Uint32Array; triangleMaterial: Uint32Array;
+}
+
+/**
+ * The appearance of a cut: `shown` lists the shown triangles in mesh order, `cut` their corners'
+ * cut nodes (global ids, 3 per triangle); `offsets` the levels' first global ids; `positions`
+ * 3 floats per global id (proto/container.md, "Drawing a cut's appearance").
+ */
+export function texturedMesh(a: AppearanceInfo, charts: Charts, tables: (Table | null)[], offsets: number[], positions: Float32Array, shown: ArrayLike<number>, cut: ArrayLike<number>): TexturedMesh {
+  const ch = channels(a), nt = shown.length;
+  const vertexOf = new Map<string, number>();
+  const key: number[] = [], nodeOfVertex: number[] = [], values: number[] = [];
+  const sums = new Map<string, number[]>();
+  const indices = new Uint32Array(3 * nt), triangleMaterial = new Uint32Array(nt);
+  const levelOf = (g: number): number => { let l = 0; while (l + 1 < offsets.length && offsets[l + 1] <= g) l++; return l; };
+  for (let i = 0; i < nt; i++) {
+    const t = shown[i], chart = charts.triangleChart[t], group = charts.triangleGroup[t];
+    const g0 = cut[3 * i], g1 = cut[3 * i + 1], g2 = cut[3 * i + 2];
+    const e1x = positions[3 * g1] - positions[3 * g0], e1y = positions[3 * g1 + 1] - positions[3 * g0 + 1], e1z = positions[3 * g1 + 2] - positions[3 * g0 + 2];
+    const e2x = positions[3 * g2] - positions[3 * g0], e2y = positions[3 * g2 + 1] - positions[3 * g0 + 1], e2z = positions[3 * g2 + 2] - positions[3 * g0 + 2];
+    const n = [e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x];
+    for (let c = 0; c < 3; c++) {
+      const g = cut[3 * i + c], k = `${g}/${chart}/${group}`;
+      let v = vertexOf.get(k);
+      if (v === undefined) {
+        v = nodeOfVertex.length;
+        vertexOf.set(k, v);
+        const level = levelOf(g), local = g - offsets[level], tb = tables[level];
+        let e = -1;
+        if (tb) for (let x = tb.first[local]; x < tb.first[local + 1]; x++) if (tb.charts[x] === chart) { e = x; break; }
+        if (!tb || e < 0) throw new DecodeError(`band ${level} attributes: no entry for node ${local}, chart ${chart}`);
+        for (let q = 0; q < ch; q++) values.push(tb.values[e * ch + q]);
+        nodeOfVertex.push(g);
+        key.push(group);
+      }
+      indices[3 * i + c] = v;
+      const sk = `${g}/${group}`;
+      const s = sums.get(sk);
+      if (s) { s[0] += n[0]; s[1] += n[1]; s[2] += n[2]; } else sums.set(sk, [n[0], n[1], n[2]]);
+    }
+    triangleMaterial[i] = charts.chartMaterial[chart];
+  }
+  const nv = nodeOfVertex.length;
+  const out: TexturedMesh = {
+    positions: new Float32Array(3 * nv), normals: new Float32Array(3 * nv),
+    uv0: a.uvSets >= 1 ? new Float32Array(2 * nv) : null, uv1: a.uvSets >= 2 ? new Float32Array(2 * nv) : null,
+    colors: a.colors ? new Float32Array(4 * nv) : null, indices, triangleMaterial,
+  };
+  // binary64 from the binary32 fields, rounded once (Float32Array stores round to binary32).
+  const uv = (axis: number, q: number): number => a.uvMin[axis] + q * a.uvStep[axis];
+  for (let v = 0; v < nv; v++) {
+    const g = nodeOfVertex[v];
+    out.positions.set(positions.subarray(3 * g, 3 * g + 3), 3 * v);
+    const s = sums.get(`${g}/${key[v]}`)!;
+    const len = Math.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+    if (len > 0 && Number.isFinite(len)) { out.normals[3 * v] = s[0] / len; out.normals[3 * v + 1] = s[1] / len; out.normals[3 * v + 2] = s[2] / len; }
+    else out.normals[3 * v + 2] = 1;
+    let k = 0;
+    if (out.uv0) { out.uv0[2 * v] = uv(0, values[v * ch]); out.uv0[2 * v + 1] = uv(1, values[v * ch + 1]); k = 2; }
+    if (out.uv1) { out.uv1[2 * v] = uv(0, values[v * ch + 2]); out.uv1[2 * v + 1] = uv(1, values[v * ch + 3]); k = 4; }
+    if (out.colors) for (let c = 0; c < 4; c++) out.colors[4 * v + c] = values[v * ch + k + c] / 255;
+  }
+  return out;
+}
