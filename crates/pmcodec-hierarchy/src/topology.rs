@@ -13,6 +13,8 @@ pub struct FineTopology {
     /// Edges used by exactly one triangle, as `(v0, v1, triangle)` with v0 -> v1 in that
     /// triangle's winding.
     pub boundary: Vec<(u32, u32, u32)>,
+    /// The triangles themselves (level triangle counts are read from them while building).
+    pub triangles: Vec<[u32; 3]>,
 }
 
 impl FineTopology {
@@ -64,7 +66,7 @@ impl FineTopology {
         for v in 0..n {
             adjacency[adj_offsets[v] as usize..adj_offsets[v + 1] as usize].sort_unstable();
         }
-        FineTopology { vertex_count, edges, adj_offsets, adjacency, boundary }
+        FineTopology { vertex_count, edges, adj_offsets, adjacency, boundary, triangles: triangles.to_vec() }
     }
 
     #[inline]
