@@ -10,6 +10,7 @@
 use crate::Hierarchy;
 use crate::quadric::Quadric;
 use crate::topology::FineTopology;
+use glam::DVec3;
 
 /// Options for [`build`].
 #[derive(Clone, Debug, PartialEq)]
@@ -174,6 +175,14 @@ struct Run<'a> {
     /// Both ends of every contraction of the pass, to clear their flags afterwards.
     changed: Vec<u32>,
     keys: Vec<(u64, u32)>,
+    /// Per live vertex: its position (the optimum of its quadric), whether its cluster holds a
+    /// boundary vertex, and the fine triangles around it that may still be live (see
+    /// [`Run::valid`]).
+    pos: Vec<DVec3>,
+    border: Vec<bool>,
+    around: Vec<Vec<u32>>,
+    /// Each fine triangle's normal (unnormalised): a level's triangle must face the same way.
+    fine_normal: Vec<DVec3>,
 }
 
 impl<'a> Run<'a> {
@@ -182,7 +191,31 @@ impl<'a> Run<'a> {
         let q: Vec<Quadric> = quadrics.to_vec();
         let edges: Vec<[u32; 2]> = topo.edges.clone();
         let cost = edges.iter().map(|e| contraction_cost(&q[e[0] as usize], &q[e[1] as usize])).collect();
+        let mut around = vec![Vec::new(); n as usize];
+        for (t, tri) in topo.triangles.iter().enumerate() {
+            for &v in tri {
+                around[v as usize].push(t as u32);
+            }
+        }
+        let mut border = vec![false; n as usize];
+        for &(a, b, _) in &topo.boundary {
+            border[a as usize] = true;
+            border[b as usize] = true;
+        }
+        let pos: Vec<DVec3> = q.iter().map(Quadric::centroid).collect();
+        let fine_normal = topo
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|v| pos[v as usize]);
+                (b - a).cross(c - a)
+            })
+            .collect();
         Run {
+            fine_normal,
+            pos,
+            border,
+            around,
             topo,
             q,
             alive: vec![true; n as usize],
@@ -227,7 +260,7 @@ impl<'a> Run<'a> {
                 if self.live <= target {
                     return 0;
                 }
-                self.pass((self.live - target).min(fraction), None)
+                self.checked_pass((self.live - target).min(fraction), None)
             }
             Stop::Triangles(target) => {
                 let tris = self.live_triangles();
@@ -235,14 +268,56 @@ impl<'a> Run<'a> {
                 if gap == 0 {
                     0
                 } else if gap < EXACT_GAP {
-                    self.pass(1, Some(gap))
+                    self.checked_pass(1, Some(gap))
                 } else {
                     // A contraction removes the (usually two) triangles on its edge; an
                     // eighth of the gap per pass keeps far from overshooting.
-                    self.pass((gap / 8).clamp(1, fraction), None)
+                    self.checked_pass((gap / 8).clamp(1, fraction), None)
                 }
             }
         }
+    }
+
+    /// A pass of valid contractions only; where none is left, one without the check, so that
+    /// every level reaches its size.
+    fn checked_pass(&mut self, limit: u32, max_removed: Option<u32>) -> u32 {
+        match self.pass(limit, max_removed, true) {
+            0 => self.pass(limit, max_removed, false),
+            done => done,
+        }
+    }
+
+    /// Whether contracting live vertices `u` and `v` to `p` is valid (Garland & Heckbert 1997,
+    /// section 3.2's consistency check, and their boundary rule as meshoptimizer applies it):
+    /// no surrounding triangle turns over, and two boundary clusters join only across a
+    /// boundary edge (one triangle between them), so a boundary is never pinched to a point
+    /// across the surface. Triangles that turned over at a coarse level were drawn folded;
+    /// boundaries pinched across holes opened new holes.
+    fn valid(&mut self, u: u32, v: u32, p: DVec3) -> bool {
+        let mut shared = 0;
+        for x in [u, v] {
+            for i in 0..self.around[x as usize].len() {
+                let t = self.around[x as usize][i];
+                let r = self.topo.triangles[t as usize].map(|c| crate::hierarchy::find(&mut self.merged_into, c));
+                if r[0] == r[1] || r[1] == r[2] || r[0] == r[2] {
+                    continue;
+                }
+                if r.contains(&u) && r.contains(&v) {
+                    shared += u32::from(x == u);
+                    continue;
+                }
+                let [a, b, c] = r.map(|y| self.pos[y as usize]);
+                let before = (b - a).cross(c - a);
+                let [a2, b2, c2] = r.map(|y| if y == x { p } else { self.pos[y as usize] });
+                let after = (b2 - a2).cross(c2 - a2);
+                // Against the triangle as it is now and as it was in the input: small turns
+                // add up over many contractions.
+                if !(after.dot(before) > 0.0 && after.dot(self.fine_normal[t as usize]) > 0.0) {
+                    return false;
+                }
+            }
+        }
+        !(self.border[u as usize] && self.border[v as usize] && shared != 1)
     }
 
     /// Contracts up to `limit` of the cheapest edges, an independent set; with `max_removed`,
@@ -253,7 +328,7 @@ impl<'a> Run<'a> {
     /// limit; then only the edges around contracted vertices are re-keyed, de-duplicated and
     /// re-costed. This touches memory in order and avoids a priority queue of stale entries,
     /// which on a 270k-triangle mesh was eight times slower.
-    fn pass(&mut self, limit: u32, max_removed: Option<u32>) -> u32 {
+    fn pass(&mut self, limit: u32, max_removed: Option<u32>, check: bool) -> u32 {
         // The cheapest `3 * limit` edges are enough candidates for `limit` contractions in
         // all but degenerate cases; a short pass just means another pass.
         let k = (3 * limit as usize).min(self.edges.len());
@@ -277,9 +352,26 @@ impl<'a> Run<'a> {
             if max_removed.is_some_and(|m| self.removed_by(u, v) > m) {
                 continue;
             }
-            let qv = self.q[v as usize];
-            self.q[u as usize] += &qv;
+            let mut merged = self.q[u as usize];
+            merged += &self.q[v as usize];
+            let p = merged.optimal();
+            if check && !self.valid(u, v, p) {
+                // Out of the way until its neighbourhood changes (re-keying re-costs it).
+                self.cost[self.order[j] as usize] = f32::MAX;
+                continue;
+            }
+            self.q[u as usize] = merged;
+            self.pos[u as usize] = p;
+            self.border[u as usize] |= self.border[v as usize];
             self.merged_into[v as usize] = u;
+            let moved = std::mem::take(&mut self.around[v as usize]);
+            self.around[u as usize].extend(moved);
+            let mut list = std::mem::take(&mut self.around[u as usize]);
+            list.retain(|&t| {
+                let r = self.topo.triangles[t as usize].map(|c| crate::hierarchy::find(&mut self.merged_into, c));
+                r[0] != r[1] && r[1] != r[2] && r[0] != r[2]
+            });
+            self.around[u as usize] = list;
             self.alive[v as usize] = false;
             self.touched[u as usize] = true;
             self.touched[v as usize] = true;
