@@ -20,6 +20,7 @@
 mod approx;
 mod bvh;
 mod coherence;
+pub mod made;
 mod rebalance;
 mod rng;
 mod sample;

@@ -10,6 +10,7 @@
 use crate::Hierarchy;
 use crate::quadric::Quadric;
 use crate::topology::FineTopology;
+use glam::DVec3;
 
 /// Options for [`build`].
 #[derive(Clone, Debug, PartialEq)]
@@ -21,10 +22,10 @@ pub struct BuildOptions {
     /// Explicit level sizes below |M0| (strictly decreasing), overriding `branching`: used to
     /// put a level at exactly the vertex count an evaluation asks for.
     pub level_sizes: Option<Vec<u32>>,
-    /// Levels 1.. at these fractions of |M0| first (decreasing, in (0, 1)), then every
-    /// `branching` times smaller: so that levels fall on the budgets clients ask for (a client
-    /// at a budget reads the bands down to the coarsest level that holds it). Empty: levels
-    /// 1/b, 1/b^2, ... of |M0|.
+    /// Levels 1.. holding at least these fractions of M0's triangles first (decreasing, in
+    /// (0, 1)), then every `branching` times smaller in vertices: so that levels fall on the
+    /// triangle budgets clients ask for (a client at a budget reads the bands down to the
+    /// coarsest level that holds it). Empty: levels 1/b, 1/b^2, ... of |M0|.
     pub anchors: Vec<f64>,
 }
 
@@ -49,7 +50,9 @@ pub enum BuildError {
 }
 
 impl BuildOptions {
-    /// The sizes of levels 1.. for a mesh of `fine` vertices.
+    /// The vertex sizes of levels 1.. for a mesh of `fine` vertices, when no anchor is set
+    /// (explicit `level_sizes`, or every `branching` times smaller). Anchored levels are sized
+    /// by triangles instead: see [`BuildOptions::anchor_triangles`].
     pub fn targets(&self, fine: u32) -> Result<Vec<u32>, BuildError> {
         if let Some(sizes) = &self.level_sizes {
             let mut prev = fine;
@@ -64,30 +67,44 @@ impl BuildOptions {
         if !(2..=16).contains(&self.branching) {
             return Err(BuildError::Branching(self.branching));
         }
+        Ok(self.branch_sizes(fine))
+    }
+
+    /// Vertex sizes `from / b, from / b^2, ...` down to `min_coarsest`.
+    pub fn branch_sizes(&self, from: u32) -> Vec<u32> {
         let mut out: Vec<u32> = Vec::new();
-        for &f in &self.anchors {
-            if !(f > 0.0 && f < 1.0) {
-                return Err(BuildError::Anchor(f));
-            }
-            let size = (fine as f64 * f).round() as u32;
-            if size >= out.last().copied().unwrap_or(fine) {
-                return Err(BuildError::Anchor(f));
-            }
-            if size < self.min_coarsest.max(1) {
-                return Ok(out);
-            }
-            out.push(size);
-        }
-        let from = out.last().copied().unwrap_or(fine);
+        let b = self.branching.clamp(2, 16) as f64;
         let mut k = 1;
         loop {
-            let size = (from as f64 / (self.branching as f64).powi(k)).round() as u32;
-            let prev = out.last().copied().unwrap_or(fine);
+            let size = (from as f64 / b.powi(k)).round() as u32;
+            let prev = out.last().copied().unwrap_or(from);
             if size < self.min_coarsest.max(1) || size >= prev {
                 break;
             }
             out.push(size);
             k += 1;
+        }
+        out
+    }
+
+    /// The triangle counts the anchored levels keep at least, for a mesh of `fine`
+    /// triangles: `ceil(anchor * fine)` each, while that stays at or above `min_coarsest`.
+    pub fn anchor_triangles(&self, fine: u32) -> Result<Vec<u32>, BuildError> {
+        if !(2..=16).contains(&self.branching) {
+            return Err(BuildError::Branching(self.branching));
+        }
+        let mut out: Vec<u32> = Vec::new();
+        let mut prev = 1.0;
+        for &f in &self.anchors {
+            if !(f > 0.0 && f < prev) {
+                return Err(BuildError::Anchor(f));
+            }
+            prev = f;
+            let size = (fine as f64 * f).ceil() as u32;
+            if size < self.min_coarsest.max(1) {
+                break;
+            }
+            out.push(size);
         }
         Ok(out)
     }
@@ -128,14 +145,285 @@ fn contraction_cost(a: &Quadric, b: &Quadric) -> f32 {
 /// needed (the same batching meshoptimizer's simplifier uses).
 const PASS_FRACTION: u32 = 6;
 
+/// What the build stops at for one level.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Stop {
+    /// This many live vertices.
+    Vertices(u32),
+    /// As few vertices as keep at least this many triangles (a level anchor).
+    Triangles(u32),
+}
+
+/// Below this many triangles above a triangle target, contractions are made one at a time,
+/// each checked to remove no more triangles than the target allows.
+const EXACT_GAP: u32 = 24;
+
+/// The state of the contraction run (see [`build`]).
+struct Run<'a> {
+    topo: &'a FineTopology,
+    q: Vec<Quadric>,
+    alive: Vec<bool>,
+    /// `merged_into[u]` = the vertex u was contracted into; roots are live vertices.
+    merged_into: Vec<u32>,
+    /// Current edges between live vertices, (a, b) with a < b, and their contraction costs.
+    edges: Vec<[u32; 2]>,
+    cost: Vec<f32>,
+    live: u32,
+    touched: Vec<bool>,
+    order: Vec<u32>,
+    scratch: Vec<f32>,
+    /// Both ends of every contraction of the pass, to clear their flags afterwards.
+    changed: Vec<u32>,
+    keys: Vec<(u64, u32)>,
+    /// Per live vertex: its position (the optimum of its quadric), whether its cluster holds a
+    /// boundary vertex, and the fine triangles around it that may still be live (see
+    /// [`Run::valid`]).
+    pos: Vec<DVec3>,
+    border: Vec<bool>,
+    around: Vec<Vec<u32>>,
+    /// Each fine triangle's normal (unnormalised): a level's triangle must face the same way.
+    fine_normal: Vec<DVec3>,
+}
+
+impl<'a> Run<'a> {
+    fn new(topo: &'a FineTopology, quadrics: &[Quadric]) -> Self {
+        let n = topo.vertex_count;
+        let q: Vec<Quadric> = quadrics.to_vec();
+        let edges: Vec<[u32; 2]> = topo.edges.clone();
+        let cost = edges.iter().map(|e| contraction_cost(&q[e[0] as usize], &q[e[1] as usize])).collect();
+        let mut around = vec![Vec::new(); n as usize];
+        for (t, tri) in topo.triangles.iter().enumerate() {
+            for &v in tri {
+                around[v as usize].push(t as u32);
+            }
+        }
+        let mut border = vec![false; n as usize];
+        for &(a, b, _) in &topo.boundary {
+            border[a as usize] = true;
+            border[b as usize] = true;
+        }
+        let pos: Vec<DVec3> = q.iter().map(Quadric::centroid).collect();
+        let fine_normal = topo
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|v| pos[v as usize]);
+                (b - a).cross(c - a)
+            })
+            .collect();
+        Run {
+            fine_normal,
+            pos,
+            border,
+            around,
+            topo,
+            q,
+            alive: vec![true; n as usize],
+            merged_into: (0..n).collect(),
+            edges,
+            cost,
+            live: n,
+            touched: vec![false; n as usize],
+            order: Vec::new(),
+            scratch: Vec::new(),
+            changed: Vec::new(),
+            keys: Vec::new(),
+        }
+    }
+
+    /// Fine triangles whose corners lie in three different live clusters: the level's mesh.
+    fn live_triangles(&mut self) -> u32 {
+        let mut n = 0;
+        for t in &self.topo.triangles {
+            let [a, b, c] = t.map(|v| crate::hierarchy::find(&mut self.merged_into, v));
+            n += u32::from(a != b && b != c && a != c);
+        }
+        n
+    }
+
+    /// Live triangles that contracting live vertices `u` and `v` would remove.
+    fn removed_by(&mut self, u: u32, v: u32) -> u32 {
+        let mut n = 0;
+        for t in &self.topo.triangles {
+            let r = t.map(|x| crate::hierarchy::find(&mut self.merged_into, x));
+            let live = r[0] != r[1] && r[1] != r[2] && r[0] != r[2];
+            n += u32::from(live && r.contains(&u) && r.contains(&v));
+        }
+        n
+    }
+
+    /// One pass toward `stop`; returns the contractions made (0: nothing more can be done).
+    fn step(&mut self, stop: Stop) -> u32 {
+        let fraction = (self.live / PASS_FRACTION).max(1);
+        match stop {
+            Stop::Vertices(target) => {
+                if self.live <= target {
+                    return 0;
+                }
+                self.checked_pass((self.live - target).min(fraction), None)
+            }
+            Stop::Triangles(target) => {
+                let tris = self.live_triangles();
+                let gap = tris.saturating_sub(target);
+                if gap == 0 {
+                    0
+                } else if gap < EXACT_GAP {
+                    self.checked_pass(1, Some(gap))
+                } else {
+                    // A contraction removes the (usually two) triangles on its edge; an
+                    // eighth of the gap per pass keeps far from overshooting.
+                    self.checked_pass((gap / 8).clamp(1, fraction), None)
+                }
+            }
+        }
+    }
+
+    /// A pass of valid contractions only; where none is left, one without the check, so that
+    /// every level reaches its size.
+    fn checked_pass(&mut self, limit: u32, max_removed: Option<u32>) -> u32 {
+        match self.pass(limit, max_removed, true) {
+            0 => self.pass(limit, max_removed, false),
+            done => done,
+        }
+    }
+
+    /// Whether contracting live vertices `u` and `v` to `p` is valid (Garland & Heckbert 1997,
+    /// section 3.2's consistency check, and their boundary rule as meshoptimizer applies it):
+    /// no surrounding triangle turns over, and two boundary clusters join only across a
+    /// boundary edge (one triangle between them), so a boundary is never pinched to a point
+    /// across the surface. Triangles that turned over at a coarse level were drawn folded;
+    /// boundaries pinched across holes opened new holes.
+    fn valid(&mut self, u: u32, v: u32, p: DVec3) -> bool {
+        let mut shared = 0;
+        for x in [u, v] {
+            for i in 0..self.around[x as usize].len() {
+                let t = self.around[x as usize][i];
+                let r = self.topo.triangles[t as usize].map(|c| crate::hierarchy::find(&mut self.merged_into, c));
+                if r[0] == r[1] || r[1] == r[2] || r[0] == r[2] {
+                    continue;
+                }
+                if r.contains(&u) && r.contains(&v) {
+                    shared += u32::from(x == u);
+                    continue;
+                }
+                let [a, b, c] = r.map(|y| self.pos[y as usize]);
+                let before = (b - a).cross(c - a);
+                let [a2, b2, c2] = r.map(|y| if y == x { p } else { self.pos[y as usize] });
+                let after = (b2 - a2).cross(c2 - a2);
+                // Against the triangle as it is now and as it was in the input: small turns
+                // add up over many contractions.
+                if !(after.dot(before) > 0.0 && after.dot(self.fine_normal[t as usize]) > 0.0) {
+                    return false;
+                }
+            }
+        }
+        !(self.border[u as usize] && self.border[v as usize] && shared != 1)
+    }
+
+    /// Contracts up to `limit` of the cheapest edges, an independent set; with `max_removed`,
+    /// only a contraction removing at most that many live triangles.
+    ///
+    /// Contractions are made in passes: each pass takes the cheapest current edges in cost
+    /// order and contracts every one whose ends are both untouched in this pass, up to the
+    /// limit; then only the edges around contracted vertices are re-keyed, de-duplicated and
+    /// re-costed. This touches memory in order and avoids a priority queue of stale entries,
+    /// which on a 270k-triangle mesh was eight times slower.
+    fn pass(&mut self, limit: u32, max_removed: Option<u32>, check: bool) -> u32 {
+        // The cheapest `3 * limit` edges are enough candidates for `limit` contractions in
+        // all but degenerate cases; a short pass just means another pass.
+        let k = (3 * limit as usize).min(self.edges.len());
+        self.scratch.clear();
+        self.scratch.extend_from_slice(&self.cost);
+        let threshold = if k < self.scratch.len() { *self.scratch.select_nth_unstable_by(k, f32::total_cmp).1 } else { f32::INFINITY };
+        self.order.clear();
+        self.order.extend((0..self.edges.len() as u32).filter(|&i| self.cost[i as usize] <= threshold));
+        let cost = &self.cost;
+        self.order.sort_unstable_by(|&x, &y| cost[x as usize].total_cmp(&cost[y as usize]).then(x.cmp(&y)));
+        let mut done = 0;
+        self.changed.clear();
+        for j in 0..self.order.len() {
+            if done == limit {
+                break;
+            }
+            let [u, v] = self.edges[self.order[j] as usize];
+            if self.touched[u as usize] || self.touched[v as usize] {
+                continue;
+            }
+            if max_removed.is_some_and(|m| self.removed_by(u, v) > m) {
+                continue;
+            }
+            let mut merged = self.q[u as usize];
+            merged += &self.q[v as usize];
+            let p = merged.optimal();
+            if check && !self.valid(u, v, p) {
+                // Out of the way until its neighbourhood changes (re-keying re-costs it).
+                self.cost[self.order[j] as usize] = f32::MAX;
+                continue;
+            }
+            self.q[u as usize] = merged;
+            self.pos[u as usize] = p;
+            self.border[u as usize] |= self.border[v as usize];
+            self.merged_into[v as usize] = u;
+            let moved = std::mem::take(&mut self.around[v as usize]);
+            self.around[u as usize].extend(moved);
+            let mut list = std::mem::take(&mut self.around[u as usize]);
+            list.retain(|&t| {
+                let r = self.topo.triangles[t as usize].map(|c| crate::hierarchy::find(&mut self.merged_into, c));
+                r[0] != r[1] && r[1] != r[2] && r[0] != r[2]
+            });
+            self.around[u as usize] = list;
+            self.alive[v as usize] = false;
+            self.touched[u as usize] = true;
+            self.touched[v as usize] = true;
+            self.changed.push(u);
+            self.changed.push(v);
+            done += 1;
+        }
+        self.live -= done;
+        self.rekey();
+        for &u in &self.changed {
+            self.touched[u as usize] = false;
+        }
+        done
+    }
+
+    /// Re-keys the edges that touch a contracted pair; keeps the others in place.
+    fn rekey(&mut self) {
+        self.keys.clear();
+        let mut w = 0;
+        for i in 0..self.edges.len() {
+            let [a, b] = self.edges[i];
+            if self.touched[a as usize] || self.touched[b as usize] {
+                let (a, b) = (self.merged_into[a as usize], self.merged_into[b as usize]);
+                if a != b {
+                    self.keys.push((((a.min(b) as u64) << 32) | a.max(b) as u64, i as u32));
+                }
+            } else {
+                self.edges[w] = self.edges[i];
+                self.cost[w] = self.cost[i];
+                w += 1;
+            }
+        }
+        self.edges.truncate(w);
+        self.cost.truncate(w);
+        self.keys.sort_unstable();
+        self.keys.dedup_by_key(|k| k.0);
+        for &(key, _) in &self.keys {
+            let (a, b) = ((key >> 32) as u32, key as u32);
+            self.edges.push([a, b]);
+            self.cost.push(contraction_cost(&self.q[a as usize], &self.q[b as usize]));
+        }
+    }
+}
+
 /// Builds the multilevel mesh from the fine-vertex quadrics that define "error" for the base
 /// hierarchy (frame 0's, or summed over frames: see [`crate::base`]).
 ///
-/// Contractions are made in passes: each pass takes the cheapest current edges in cost order
-/// and contracts every one whose ends are both untouched in this pass (an independent set),
-/// up to a pass limit; then only the edges around contracted vertices are re-keyed,
-/// de-duplicated and re-costed. This touches memory in order and avoids a priority queue of
-/// stale entries, which on a 270k-triangle mesh was eight times slower.
+/// Level anchors bind triangles: an anchored level is the coarsest state of the run that
+/// still shows at least its share of the input's triangles (on a model of many small parts
+/// the vertex share falls far slower than the triangle share, and a level sized by vertices
+/// left a "25%" client short of its budget, reading the finest band). Levels after the last
+/// anchor are `branching` times smaller in vertices each.
 pub fn build(topo: &FineTopology, quadrics: &[Quadric], opts: &BuildOptions) -> Result<Hierarchy, BuildError> {
     let n = topo.vertex_count;
     if n == 0 {
@@ -144,108 +432,47 @@ pub fn build(topo: &FineTopology, quadrics: &[Quadric], opts: &BuildOptions) -> 
     if quadrics.len() != n as usize {
         return Err(BuildError::QuadricCount(quadrics.len(), n));
     }
-    let targets = opts.targets(n)?;
-    let mut q: Vec<Quadric> = quadrics.to_vec();
-    let mut alive = vec![true; n as usize];
-    // `merged_into[u]` = the vertex u was contracted into; roots are live vertices.
-    let mut merged_into: Vec<u32> = (0..n).collect();
-    // Current edges between live vertices, (a, b) with a < b, and their contraction costs.
-    let mut edges: Vec<[u32; 2]> = topo.edges.clone();
-    let mut cost: Vec<f32> = edges.iter().map(|e| contraction_cost(&q[e[0] as usize], &q[e[1] as usize])).collect();
-
-    let mut parents: Vec<Vec<u32>> = Vec::with_capacity(targets.len());
+    let mut stops: Vec<Stop> = if opts.level_sizes.is_some() || opts.anchors.is_empty() {
+        opts.targets(n)?.into_iter().map(Stop::Vertices).collect()
+    } else {
+        opts.anchor_triangles(topo.triangles.len() as u32)?.into_iter().map(Stop::Triangles).collect()
+    };
+    let branch_after_anchors = opts.level_sizes.is_none() && !opts.anchors.is_empty();
+    let mut run = Run::new(topo, quadrics);
+    let mut parents: Vec<Vec<u32>> = Vec::with_capacity(stops.len() + 8);
     let mut prev_reps: Vec<u32> = (0..n).collect();
     let mut level_index = vec![u32::MAX; n as usize];
-    let mut live = n;
-    let mut touched = vec![false; n as usize];
-    let mut order: Vec<u32> = Vec::new();
-    let mut scratch: Vec<f32> = Vec::new();
-    // Both ends of every contraction of the pass, to clear their flags afterwards.
-    let mut changed: Vec<u32> = Vec::new();
-    let mut keys: Vec<(u64, u32)> = Vec::new();
-
-    for &target in &targets {
-        while live > target && !edges.is_empty() {
-            let need = live - target;
-            let limit = need.min((live / PASS_FRACTION).max(1));
-            // The cheapest `3 * limit` edges are enough candidates for `limit` contractions in
-            // all but degenerate cases; a short pass just means another pass.
-            let k = (3 * limit as usize).min(edges.len());
-            scratch.clear();
-            scratch.extend_from_slice(&cost);
-            let threshold = if k < scratch.len() { *scratch.select_nth_unstable_by(k, f32::total_cmp).1 } else { f32::INFINITY };
-            order.clear();
-            order.extend((0..edges.len() as u32).filter(|&i| cost[i as usize] <= threshold));
-            order.sort_unstable_by(|&x, &y| cost[x as usize].total_cmp(&cost[y as usize]).then(x.cmp(&y)));
-            let mut done = 0;
-            changed.clear();
-            for &i in &order {
-                if done == limit {
-                    break;
-                }
-                let [u, v] = edges[i as usize];
-                if touched[u as usize] || touched[v as usize] {
-                    continue;
-                }
-                let qv = q[v as usize];
-                q[u as usize] += &qv;
-                merged_into[v as usize] = u;
-                alive[v as usize] = false;
-                touched[u as usize] = true;
-                touched[v as usize] = true;
-                changed.push(u);
-                changed.push(v);
-                done += 1;
-            }
-            live -= done;
-            // Re-key the edges that touch a contracted pair; keep the others in place.
-            keys.clear();
-            let mut w = 0;
-            for i in 0..edges.len() {
-                let [a, b] = edges[i];
-                if touched[a as usize] || touched[b as usize] {
-                    let (a, b) = (merged_into[a as usize], merged_into[b as usize]);
-                    if a != b {
-                        keys.push((((a.min(b) as u64) << 32) | a.max(b) as u64, i as u32));
-                    }
-                } else {
-                    edges[w] = edges[i];
-                    cost[w] = cost[i];
-                    w += 1;
-                }
-            }
-            edges.truncate(w);
-            cost.truncate(w);
-            keys.sort_unstable();
-            keys.dedup_by_key(|k| k.0);
-            for &(key, _) in &keys {
-                let (a, b) = ((key >> 32) as u32, key as u32);
-                edges.push([a, b]);
-                cost.push(contraction_cost(&q[a as usize], &q[b as usize]));
-            }
-            for &u in &changed {
-                touched[u as usize] = false;
-            }
-            if done == 0 {
-                break;
-            }
+    let mut i = 0;
+    while i < stops.len() {
+        let stop = stops[i];
+        i += 1;
+        while run.step(stop) > 0 {}
+        if branch_after_anchors && i == stops.len() && matches!(stop, Stop::Triangles(_)) {
+            stops.extend(opts.branch_sizes(run.live).into_iter().map(Stop::Vertices));
         }
-        if (live as usize) >= prev_reps.len() {
+        if (run.live as usize) >= prev_reps.len() {
+            if matches!(stop, Stop::Triangles(_)) && !run.edges.is_empty() {
+                // An anchor no contraction fits under (it is at or above this level's own
+                // count): the next target decides.
+                continue;
+            }
             // Nothing left to contract (one vertex per connected component): the last level is
             // as coarse as the mesh allows.
             break;
         }
-        let mut reps = Vec::with_capacity(live as usize);
-        for (v, &a) in alive.iter().enumerate() {
+        let mut reps = Vec::with_capacity(run.live as usize);
+        for (v, &a) in run.alive.iter().enumerate() {
             if a {
                 level_index[v] = reps.len() as u32;
                 reps.push(v as u32);
             }
         }
-        let parent: Vec<u32> = prev_reps.iter().map(|&r| level_index[crate::hierarchy::find(&mut merged_into, r) as usize]).collect();
+        let parent: Vec<u32> = prev_reps.iter().map(|&r| level_index[crate::hierarchy::find(&mut run.merged_into, r) as usize]).collect();
         parents.push(parent);
         prev_reps = reps;
-        if live > target {
+        if let Stop::Vertices(t) = stop
+            && run.live > t
+        {
             break;
         }
     }
@@ -276,13 +503,13 @@ mod tests {
         assert_eq!(o.targets(8431).unwrap(), vec![2108, 527, 132, 33, 8]);
         assert!(BuildOptions { branching: 1, ..o.clone() }.targets(100).is_err());
         assert!(BuildOptions { level_sizes: Some(vec![50, 50]), ..o.clone() }.targets(100).is_err());
-        // Anchored: 25% and 10%, then every 4x, stopping above min_coarsest.
+        // Anchored: at least 25% and 10% of the triangles, stopping below min_coarsest.
         let a = BuildOptions { anchors: vec![0.25, 0.1], ..o.clone() };
-        assert_eq!(a.targets(8431).unwrap(), vec![2108, 843, 211, 53, 13]);
-        assert_eq!(a.targets(100).unwrap(), vec![25, 10]);
-        assert_eq!(a.targets(40).unwrap(), vec![10]);
-        assert!(BuildOptions { anchors: vec![0.1, 0.25], ..o.clone() }.targets(1000).is_err());
-        assert!(BuildOptions { anchors: vec![1.5], ..o.clone() }.targets(1000).is_err());
+        assert_eq!(a.anchor_triangles(16843).unwrap(), vec![4211, 1685]);
+        assert_eq!(a.anchor_triangles(40).unwrap(), vec![10]);
+        assert_eq!(a.branch_sizes(843), vec![211, 53, 13]);
+        assert!(BuildOptions { anchors: vec![0.1, 0.25], ..o.clone() }.anchor_triangles(1000).is_err());
+        assert!(BuildOptions { anchors: vec![1.5], ..o.clone() }.anchor_triangles(1000).is_err());
     }
 
     #[test]

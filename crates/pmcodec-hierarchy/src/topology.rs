@@ -15,6 +15,8 @@ pub struct FineTopology {
     /// Edges used by exactly one triangle, as `(v0, v1, triangle)` with v0 -> v1 in that
     /// triangle's winding.
     pub boundary: Vec<(u32, u32, u32)>,
+    /// The triangles themselves (level triangle counts are read from them while building).
+    pub triangles: Vec<[u32; 3]>,
 }
 
 impl FineTopology {
@@ -46,7 +48,7 @@ impl FineTopology {
             i = j;
         }
         let LevelAdjacency { offsets: adj_offsets, adjacency } = LevelAdjacency::from_pairs(vertex_count as usize, &edges);
-        FineTopology { vertex_count, edges, adj_offsets, adjacency, boundary }
+        FineTopology { vertex_count, edges, adj_offsets, adjacency, boundary, triangles: triangles.to_vec() }
     }
 
     #[inline]

@@ -46,8 +46,9 @@ pub struct EncodeArgs {
     /// from the last level anchor down.
     #[arg(long, default_value_t = 4)]
     pub branching: u32,
-    /// Levels at these shares of the input vertices first (decreasing percentages), so that
-    /// clients at those budgets read only the coarser bands; `none` for 1/b, 1/b^2, ...
+    /// Levels holding at least these shares of the input triangles first (decreasing
+    /// percentages), so that clients at those budgets read only the coarser bands; `none` for
+    /// 1/b, 1/b^2, ... of the vertices
     #[arg(long, default_value = "25%,10%", value_name = "P%,...")]
     pub level_anchors: String,
     /// A keyframe every K frames (0: only frame 0).
