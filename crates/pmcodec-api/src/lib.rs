@@ -67,40 +67,52 @@ pub struct AssetInfo {
 pub struct AssetAppearance {
     /// Charts: regions of one material and continuous texture coordinates.
     pub charts: u32,
-    /// Texture coordinate sets (0, 1 or 2) and whether vertices carry colours.
+    /// Texture coordinate sets (0, 1 or 2).
     pub uv_sets: u8,
+    /// Whether vertices carry colours.
     pub colors: bool,
+    /// The materials, in the order triangles name them.
     pub materials: Vec<MaterialInfo>,
     /// One per image, in order; a material's texture indices point here.
     pub textures: Vec<TextureInfo>,
     /// Stored bytes of the attribute table of each level (all a client at level L reads is
     /// levels L..top), and of the charts and materials every client reads once.
     pub attribute_bytes_per_level: Vec<u64>,
+    /// Stored bytes of the charts.
     pub charts_bytes: u64,
+    /// Stored bytes of the materials.
     pub materials_bytes: u64,
 }
 
 /// A material (glTF metallic-roughness, the fields a viewer needs first).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MaterialInfo {
+    /// The material's name in the input, if it had one.
     pub name: Option<String>,
+    /// Base colour factor, linear RGBA.
     pub base_color_factor: [f32; 4],
     /// Index into `textures` of the base colour texture.
     pub base_color_texture: Option<u32>,
+    /// Metalness factor, 0 to 1.
     pub metallic_factor: f32,
+    /// Roughness factor, 0 to 1.
     pub roughness_factor: f32,
     /// `OPAQUE`, `MASK` or `BLEND`.
     pub alpha_mode: String,
+    /// Alpha below which a `MASK` material is transparent.
     pub alpha_cutoff: f32,
+    /// Whether back faces are drawn.
     pub double_sided: bool,
 }
 
 /// A texture image at its immutable URL.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TextureInfo {
+    /// The image's name in the input, if it had one.
     pub name: Option<String>,
     /// `image/png` or `image/jpeg`.
     pub mime_type: String,
+    /// Size of the image.
     pub bytes: u64,
     /// `/v1/assets/{id}/v/{version}/images/{n}`.
     pub url: String,

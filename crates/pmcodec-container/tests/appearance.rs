@@ -4,7 +4,7 @@
 // Corners index several parallel arrays in step (triangles, wedges, ancestors).
 #![allow(clippy::needless_range_loop)]
 
-use pmcodec_container::{Decoder, EncodeOptions, MeshTarget, QuantizationChoice, Reader, encode, format::ChunkKind, summary, verify};
+use pmcodec_container::{CutTarget, Decoder, EncodeOptions, QuantizationChoice, Reader, encode, format::ChunkKind, summary, verify};
 use pmcodec_mesh::samples::textured_cloth;
 
 const W: u32 = 24;
@@ -38,8 +38,8 @@ fn every_level_reads_back_inside_its_charts() {
         let mut d = Decoder::new(reader.borrowed(), level).expect("decoder");
         for f in 0..6 {
             d.seek(f).expect("seek");
-            let plain = d.mesh(MeshTarget::Level(level)).expect("mesh");
-            let (mesh, app) = d.textured_mesh(MeshTarget::Level(level)).expect("textured");
+            let plain = d.mesh(CutTarget::Level(level)).expect("mesh");
+            let (mesh, app) = d.textured_mesh(CutTarget::Level(level)).expect("textured");
             assert_eq!(mesh.triangles.len(), plain.triangles.len(), "level {level} frame {f}");
             app.validate(mesh.positions.len(), &mesh.triangles).expect("a valid appearance");
             assert_eq!(app.materials.len(), 2);
@@ -89,8 +89,8 @@ fn budget_cuts_carry_appearance_and_seams_split_vertices() {
     for f in 0..5 {
         d.seek(f).expect("seek");
         for budget in [40, 150, 400, 10_000] {
-            let plain = d.mesh(MeshTarget::Triangles(budget)).expect("mesh");
-            let (mesh, app) = d.textured_mesh(MeshTarget::Triangles(budget)).expect("textured");
+            let plain = d.mesh(CutTarget::Triangles(budget)).expect("mesh");
+            let (mesh, app) = d.textured_mesh(CutTarget::Triangles(budget)).expect("textured");
             assert_eq!(mesh.triangles.len(), plain.triangles.len(), "budget {budget}");
             // The material seam doubles the vertices along it: more vertices than cut nodes.
             assert!(mesh.positions.len() > plain.positions.len(), "budget {budget}: {} vs {}", mesh.positions.len(), plain.positions.len());
@@ -124,6 +124,6 @@ fn a_bare_surface_has_no_appearance() {
     assert!(reader.header().appearance.is_none());
     let mut d = Decoder::new(reader.borrowed(), 0).expect("decoder");
     d.seek(0).expect("seek");
-    assert!(d.textured_mesh(MeshTarget::Level(0)).is_err());
+    assert!(d.textured_mesh(CutTarget::Level(0)).is_err());
     assert!(d.images().expect("none").is_empty());
 }

@@ -94,7 +94,7 @@ fn version_6_textured_files_decode_as_they_did() {
         for f in 0..6 {
             da.seek(f).unwrap();
             db.seek(f).unwrap();
-            for target in [MeshTarget::Triangles(40), MeshTarget::Level(level)] {
+            for target in [CutTarget::Triangles(40), CutTarget::Level(level)] {
                 assert_eq!(
                     da.textured_mesh(target).expect("old"),
                     db.textured_mesh(target).expect("new"),

@@ -6,9 +6,10 @@
 
 use pmcodec_eval::made::boundary_loops;
 use pmcodec_eval::{SampleOptions, symmetric_relative};
+use pmcodec_hierarchy::CutTarget;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
 use pmcodec_hierarchy::build::anchored_build;
-use pmcodec_hierarchy::cut::{self, ChildIndex, CutTarget};
+use pmcodec_hierarchy::cut::{self, ChildIndex};
 use pmcodec_hierarchy::{DegenerateSets, FineTopology, NodeState};
 use pmcodec_mesh::TriMesh;
 use std::path::Path;

@@ -1,12 +1,13 @@
 //! The decoder's appearance (version 6): the Charts, Materials and Attributes chunks loaded
 //! with the first keyframe, images on demand, and a cut's mesh with its appearance.
 
-use super::{Decoder, MeshTarget};
+use super::Decoder;
 use crate::appearance::cut::{DecodedAppearance, textured_mesh};
 use crate::appearance::format::{AppearanceInfo, MaterialsChunk};
 use crate::appearance::payload::{read_charts, read_table};
 use crate::format::ChunkKind;
 use crate::{ByteSource, ContainerError};
+use pmcodec_hierarchy::CutTarget;
 use pmcodec_mesh::appearance::Image;
 use pmcodec_mesh::{Appearance, TriMesh};
 
@@ -71,7 +72,7 @@ impl<S: ByteSource> Decoder<S> {
     /// from the decoded positions, a material per triangle, and the materials, textures and
     /// samplers and images (read once, kept). Triangles come in the order
     /// [`Decoder::mesh`] lists them for budgets and errors, by input id for levels.
-    pub fn textured_mesh(&mut self, target: MeshTarget) -> Result<(TriMesh, Appearance), ContainerError> {
+    pub fn textured_mesh(&mut self, target: CutTarget) -> Result<(TriMesh, Appearance), ContainerError> {
         self.load_appearance()?;
         if self.looks.as_ref().is_some_and(|l| l.info.is_some() && l.images.is_none()) {
             let images = std::sync::Arc::new(self.images()?);
@@ -79,7 +80,7 @@ impl<S: ByteSource> Decoder<S> {
                 l.images = Some(images);
             }
         }
-        let prefix = self.prefix_target(target);
+        let diagonal = self.diagonal();
         let mut d = self.take_derived()?;
         let replay = self.replay.as_mut().ok_or_else(|| ContainerError::Options("seek to a frame first".into()))?;
         let size = replay.h.level_sizes[replay.min_level];
@@ -87,9 +88,8 @@ impl<S: ByteSource> Decoder<S> {
             if c.iter().all(|&v| v < size) { Ok(c) } else { Err(ContainerError::Options("a shown triangle without corners".into())) }
         };
         let mut shown: Vec<(u32, [u32; 3])> = Vec::new();
-        match prefix {
-            Ok(p) => {
-                let k = d.order.prefix(replay, &d.errors, p);
+        match d.order.prefix(replay, &d.errors, target, diagonal) {
+            Ok(k) => {
                 for &t in d.order.shown(k) {
                     let c = corners_of(replay.corners()[t as usize])?;
                     shown.push((t, c.map(|v| d.order.cut_node_of(replay, v, k))));
