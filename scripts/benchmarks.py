@@ -186,13 +186,16 @@ def saved(row: Row) -> dict | None:
     if not path.exists():
         return None
     text = path.read_text()
-    meta = dict(re.findall(r"^# (commit|date|quick|status|command): (.*)$", text, re.M))
+    meta = dict(re.findall(r"^# (commit|date|quick|status|command|note): (.*)$", text, re.M))
     body = text.split("\n# stderr:\n")[0]
     v = value(row, body)
     if meta.get("status") != "0":
         v = f"(the command failed, exit {meta.get('status')}) " + v
     if meta.get("quick") == "1":
         v = "(quick run) " + v
+    # A line "# note: ..." added to a log by hand says why a run failed or stopped.
+    if "note" in meta:
+        v = f"({meta['note']}) " + v
     return {**meta, "value": v}
 
 
