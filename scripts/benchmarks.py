@@ -145,7 +145,7 @@ def machine() -> str:
             break
     load = Path("/proc/loadavg").read_text().split()[:3]
     nproc = subprocess.run(["nproc"], capture_output=True, text=True).stdout.strip()
-    return f"nproc {nproc}, {model}; load average {' '.join(load)} when the run started"
+    return f"nproc {nproc}, {model}; load average {' '.join(load)} at the start of the script's last run (rows may come from earlier runs)"
 
 
 def divan_medians(text: str) -> list[str]:
