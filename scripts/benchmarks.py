@@ -145,7 +145,7 @@ def machine() -> str:
             break
     load = Path("/proc/loadavg").read_text().split()[:3]
     nproc = subprocess.run(["nproc"], capture_output=True, text=True).stdout.strip()
-    return f"nproc {nproc}, {model}; load average {' '.join(load)} when the run started"
+    return f"nproc {nproc}, {model}; load average {' '.join(load)} at the start of the script's last run (rows may come from earlier runs)"
 
 
 def divan_medians(text: str) -> list[str]:
@@ -186,13 +186,16 @@ def saved(row: Row) -> dict | None:
     if not path.exists():
         return None
     text = path.read_text()
-    meta = dict(re.findall(r"^# (commit|date|quick|status|command): (.*)$", text, re.M))
+    meta = dict(re.findall(r"^# (commit|date|quick|status|command|note): (.*)$", text, re.M))
     body = text.split("\n# stderr:\n")[0]
     v = value(row, body)
     if meta.get("status") != "0":
         v = f"(the command failed, exit {meta.get('status')}) " + v
     if meta.get("quick") == "1":
         v = "(quick run) " + v
+    # A line "# note: ..." added to a log by hand says why a run failed or stopped.
+    if "note" in meta:
+        v = f"({meta['note']}) " + v
     return {**meta, "value": v}
 
 
