@@ -162,7 +162,9 @@ impl Appearance {
         if self.corner_wedges.len() != triangles.len() {
             return bad(format!("{} triangles but {} corner wedge triples", triangles.len(), self.corner_wedges.len()));
         }
-        for (name, len) in [("uv0", self.uv0.len()), ("uv1", self.uv1.len()), ("normals", self.normals.len()), ("colors", self.colors.len())] {
+        for (name, len) in
+            [("uv0", self.uv0.len()), ("uv1", self.uv1.len()), ("normals", self.normals.len()), ("colors", self.colors.len())]
+        {
             if len != 0 && len != wedges {
                 return bad(format!("{name} has {len} entries for {wedges} wedges"));
             }
@@ -196,7 +198,13 @@ impl Appearance {
             return bad(format!("triangle {t} uses material {} of {materials}", self.triangle_material[t]));
         }
         for (m, mat) in self.materials.iter().enumerate() {
-            let refs = [&mat.base_color_texture, &mat.metallic_roughness_texture, &mat.normal_texture, &mat.occlusion_texture, &mat.emissive_texture];
+            let refs = [
+                &mat.base_color_texture,
+                &mat.metallic_roughness_texture,
+                &mat.normal_texture,
+                &mat.occlusion_texture,
+                &mat.emissive_texture,
+            ];
             for r in refs.into_iter().flatten() {
                 if r.texture as usize >= self.textures.len() {
                     return bad(format!("material {m} uses texture {} of {}", r.texture, self.textures.len()));
