@@ -49,7 +49,8 @@ fn unskinned_input_has_no_skin_and_bad_skins_are_refused_by_name() {
     };
     seq.skin = Some(good.clone());
     seq.validate().expect("a good skin");
-    let cases: [(&str, fn(&mut SequenceSkin)); 4] = [
+    type Damage = fn(&mut SequenceSkin);
+    let cases: [(&str, Damage); 4] = [
         ("joint 3 beyond the palette of 1", |s| s.joints[2] = [3, 0, 0, 0]),
         ("vertex 1: weights sum to 0.5", |s| s.weights[1] = [0.5, 0.0, 0.0, 0.0]),
         ("vertex 0 influence 1: weight -1", |s| s.weights[0] = [2.0, -1.0, 0.0, 0.0]),
