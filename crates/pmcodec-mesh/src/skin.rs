@@ -29,7 +29,8 @@ pub struct SequenceSkin {
     /// the origin as glTF's formula gives).
     pub weights: Vec<[f32; 4]>,
     /// `matrices[f][k]`: palette entry k's transform in frame f, the first three rows of its
-    /// 4x4 matrix, row-major.
+    /// 4x4 matrix, row-major (at least one set per frame; sets beyond the last frame are not
+    /// read).
     pub matrices: Vec<Vec<[f32; 12]>>,
     /// What was changed or is doubtful in the input (influences dropped, a singular bind).
     pub warnings: Vec<String>,
@@ -51,7 +52,9 @@ impl SequenceSkin {
                 self.weights.len()
             ));
         }
-        if self.matrices.len() != frames {
+        // Tools that keep the first frames of a sequence truncate `frames` only, as they leave
+        // `frame_names`: matrices beyond the last frame are not read.
+        if self.matrices.len() < frames {
             return bad(format!("matrices for {} frames in a sequence of {frames}", self.matrices.len()));
         }
         let palette = self.palette_len as usize;
@@ -74,7 +77,7 @@ impl SequenceSkin {
                 return bad(format!("vertex {v}: weights sum to {sum}, not 1"));
             }
         }
-        for (f, frame) in self.matrices.iter().enumerate() {
+        for (f, frame) in self.matrices.iter().enumerate().take(frames) {
             if frame.len() != palette {
                 return bad(format!("frame {f}: {} matrices for a palette of {palette}", frame.len()));
             }
@@ -172,4 +175,42 @@ pub fn sequence_skin(rig: &RiggedMesh, animation: Option<&Animation>, times: &[f
         skin.matrices.push(frame);
     }
     Some(skin)
+}
+
+/// A tube along +Y on two joints, the lower half on the first, the upper half on the second
+/// and a blend between, whose second joint bends about the middle and swings over `frames`
+/// frames: every frame is exactly its linear blend skinning (tests of skinned streams).
+pub fn bending_tube(segments: u32, rings: u32, frames: u32) -> crate::Sequence {
+    let mut seq = crate::samples::twisting_tube(segments, rings, 1);
+    let rest = seq.frames[0].clone();
+    let (lo, hi) = crate::bounds_of(&rest).unwrap_or_default();
+    let middle = (lo.y + hi.y) / 2.0;
+    let span = (hi.y - lo.y).max(f32::MIN_POSITIVE);
+    let n = rest.len();
+    let mut skin = SequenceSkin {
+        palette_len: 2,
+        palette_names: vec!["lower".into(), "upper".into()],
+        rest: rest.clone(),
+        joints: vec![[0, 1, 0, 0]; n],
+        weights: Vec::with_capacity(n),
+        ..Default::default()
+    };
+    for p in &rest {
+        // Linear from all-lower a fifth of the length below the middle to all-upper above it.
+        let t = ((p.y - middle) / (0.4 * span) + 0.5).clamp(0.0, 1.0);
+        skin.weights.push([1.0 - t, t, 0.0, 0.0]);
+    }
+    let pivot = Mat4::from_translation(Vec3::new(0.0, middle, 0.0));
+    seq.frames.clear();
+    seq.frame_names.clear();
+    for f in 0..frames.max(1) {
+        let phase = f as f32 / frames.max(1) as f32 * std::f32::consts::TAU;
+        let bend = Mat4::from_rotation_z(0.9 * phase.sin()) * Mat4::from_rotation_y(0.5 * phase);
+        let upper = pivot * bend * pivot.inverse();
+        skin.matrices.push(vec![rows(&Mat4::IDENTITY), rows(&upper)]);
+        seq.frame_names.push(format!("bend{f}"));
+    }
+    seq.frames = (0..skin.matrices.len()).map(|f| (0..n).map(|v| skin.pose_vertex(f, v)).collect()).collect();
+    seq.skin = Some(skin);
+    seq
 }
