@@ -23,6 +23,9 @@ if ! command -v s3s-fs >/dev/null 2>&1 && [ ! -x "$HOME/.cargo/bin/s3s-fs" ]; th
   cargo install s3s-fs@0.14.1 --features binary --locked 2>&1 | tail -n 3
 fi
 
+echo "== unused dependencies (a text check, about a second)"
+tests/unused-deps.sh
+
 echo "== cargo test"
 cargo test --workspace --locked --no-fail-fast 2>&1
 disk

@@ -3,6 +3,7 @@
 //! frame; the share of a full client's bytes that clients at 10% and 25% of the triangles read;
 //! and the encode time. With `all`, every animation of the file is played back to back.
 //! `cargo run --release -p pmcodec-container --example skinned -- ../shared/data/gltf/Fox.glb [all] [centroid]`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::{Decoder, EncodeOptions, QuantizationChoice, Reader, SkinPlacement, encode, summary};
 use pmcodec_mesh::gltf_input::{GltfOptions, RiggedMesh, load_gltf};
 use std::path::Path;

@@ -166,10 +166,6 @@ impl<S: ByteSource> Decoder<S> {
         self.replay.as_ref()
     }
 
-    pub fn replay_mut(&mut self) -> Option<&mut Replay> {
-        self.replay.as_mut()
-    }
-
     fn chunk(&self, kind: ChunkKind, frame: u32, band: usize) -> Result<Vec<u8>, ContainerError> {
         let e = self.reader.find(kind, frame, band as u32).ok_or_else(|| ContainerError::Corrupt {
             what: format!("frame {frame} band {band} {}", kind.name()),
@@ -232,12 +228,6 @@ impl<S: ByteSource> Decoder<S> {
             });
         }
         Ok(())
-    }
-
-    /// Advances one frame.
-    pub fn next_frame(&mut self) -> Result<(), ContainerError> {
-        let f = self.frame.map_or(0, |f| f + 1);
-        self.seek(f)
     }
 
     fn load_keyframe(&mut self, frame: u32) -> Result<(), ContainerError> {

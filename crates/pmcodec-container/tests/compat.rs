@@ -4,6 +4,7 @@
 //! its defaults (keyframe affine motion, breadth-first order). Each must verify and decode to
 //! exactly what today's encoder makes of the same input with the options those versions had
 //! (band 0 in input order and mean motion or affine; version 5's defaults), frame by frame.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use pmcodec_container::{Decoder, EncodeOptions, MeshTarget, Motion, QuantizationChoice, Reader, VertexOrder, encode, verify};
 

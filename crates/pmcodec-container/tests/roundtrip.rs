@@ -1,6 +1,7 @@
 //! Round trips on real sequences and generated fixtures: the decoded hierarchy equals the
 //! encoder's, positions are within the stated bound, keyframe seeks agree with playback, and a
 //! level-limited reader fetches only its bands.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use glam::Vec3;
 use pmcodec_container::*;

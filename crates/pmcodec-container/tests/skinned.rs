@@ -2,6 +2,7 @@
 //! trip within the quantization bound at every level, cost a fraction of the unskinned
 //! stream's position bytes when the deformation is skinning, and damaged skin chunks are
 //! refused by name.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use pmcodec_container::testing::reseal;
 use pmcodec_container::{

@@ -22,71 +22,9 @@ use crate::chain::LodChain;
 use crate::poses::pose_at;
 use glam::{Mat4, Vec3};
 use pmcodec_mesh::TriMesh;
+use pmcodec_mesh::glb::{ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, GlbBuilder};
 use pmcodec_mesh::gltf_input::{AnimatedProperty, Interpolation};
 use serde_json::{Value, json};
-
-const FLOAT: u32 = 5126;
-const UNSIGNED_SHORT: u32 = 5123;
-const UNSIGNED_INT: u32 = 5125;
-const ARRAY_BUFFER: u32 = 34962;
-const ELEMENT_ARRAY_BUFFER: u32 = 34963;
-
-#[derive(Default)]
-struct Builder {
-    bin: Vec<u8>,
-    views: Vec<Value>,
-    accessors: Vec<Value>,
-}
-
-impl Builder {
-    fn view(&mut self, bytes: &[u8], target: Option<u32>) -> usize {
-        while !self.bin.len().is_multiple_of(4) {
-            self.bin.push(0);
-        }
-        let mut v = json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len()});
-        if let Some(t) = target {
-            v["target"] = json!(t);
-        }
-        self.bin.extend_from_slice(bytes);
-        self.views.push(v);
-        self.views.len() - 1
-    }
-
-    fn accessor(&mut self, bytes: &[u8], target: Option<u32>, component: u32, count: usize, ty: &str) -> usize {
-        let view = self.view(bytes, target);
-        self.accessors.push(json!({"bufferView": view, "componentType": component, "count": count, "type": ty}));
-        self.accessors.len() - 1
-    }
-
-    fn floats(&mut self, values: &[f32], target: Option<u32>, ty: &str, width: usize, min_max: bool) -> usize {
-        let bytes: Vec<u8> = values.iter().flat_map(|x| x.to_le_bytes()).collect();
-        let count = values.len() / width.max(1);
-        let a = self.accessor(&bytes, target, FLOAT, count, ty);
-        if min_max && count > 0 {
-            let mut lo = vec![f32::INFINITY; width];
-            let mut hi = vec![f32::NEG_INFINITY; width];
-            for chunk in values.chunks_exact(width) {
-                for (k, &x) in chunk.iter().enumerate() {
-                    lo[k] = lo[k].min(x);
-                    hi[k] = hi[k].max(x);
-                }
-            }
-            self.accessors[a]["min"] = json!(lo);
-            self.accessors[a]["max"] = json!(hi);
-        }
-        a
-    }
-
-    fn vec3s(&mut self, values: &[Vec3], target: Option<u32>, min_max: bool) -> usize {
-        let flat: Vec<f32> = values.iter().flat_map(|v| v.to_array()).collect();
-        self.floats(&flat, target, "VEC3", 3, min_max)
-    }
-
-    fn u32s(&mut self, values: &[u32], target: Option<u32>) -> usize {
-        let bytes: Vec<u8> = values.iter().flat_map(|x| x.to_le_bytes()).collect();
-        self.accessor(&bytes, target, UNSIGNED_INT, values.len(), "SCALAR")
-    }
-}
 
 fn unit_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
     let mesh = TriMesh { positions: positions.to_vec(), triangles: triangles.to_vec() };
@@ -135,7 +73,7 @@ fn affine(mut m: Mat4) -> Mat4 {
 /// The GLB bytes of a chain (see the module documentation).
 pub fn chain_glb(chain: &LodChain, placement: &str) -> Result<Vec<u8>, LodError> {
     let input = &chain.input;
-    let mut b = Builder::default();
+    let mut b = GlbBuilder::default();
     let node_count = input.nodes.len();
     let mut animated = vec![false; node_count];
     for a in &input.animations {
@@ -259,8 +197,7 @@ pub fn chain_glb(chain: &LodChain, placement: &str) -> Result<Vec<u8>, LodError>
             }
             let pos_acc = b.vec3s(&positions, Some(ARRAY_BUFFER), true);
             let nrm_acc = b.vec3s(&normals, Some(ARRAY_BUFFER), false);
-            let joint_bytes: Vec<u8> = joints.iter().flatten().flat_map(|j| j.to_le_bytes()).collect();
-            let jnt_acc = b.accessor(&joint_bytes, Some(ARRAY_BUFFER), UNSIGNED_SHORT, joints.len(), "VEC4");
+            let jnt_acc = b.joints(&joints);
             let wgt_acc = b.floats(&weights, Some(ARRAY_BUFFER), "VEC4", 4, false);
             let flat: Vec<u32> = tris.iter().flatten().copied().collect();
             let idx_acc = b.u32s(&flat, Some(ELEMENT_ARRAY_BUFFER));
@@ -371,9 +308,6 @@ pub fn chain_glb(chain: &LodChain, placement: &str) -> Result<Vec<u8>, LodError>
         // from drawing glTF's default (fully metallic: black without an environment map).
         "materials": [{"name": "pmcodec plain", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.8}}],
         "skins": skins,
-        "accessors": b.accessors,
-        "bufferViews": b.views,
-        "buffers": [{"byteLength": b.bin.len()}],
         "extras": {"pmcodec_lod": {
             "version": 2,
             "placement": placement,
@@ -389,28 +323,5 @@ pub fn chain_glb(chain: &LodChain, placement: &str) -> Result<Vec<u8>, LodError>
     {
         o.remove("skins");
     }
-    assemble(&root, b.bin)
-}
-
-fn assemble(json: &Value, mut bin: Vec<u8>) -> Result<Vec<u8>, LodError> {
-    let mut text = serde_json::to_vec(json).map_err(|e| LodError::Write(e.to_string()))?;
-    while !text.len().is_multiple_of(4) {
-        text.push(b' ');
-    }
-    while !bin.len().is_multiple_of(4) {
-        bin.push(0);
-    }
-    let total = 12 + 8 + text.len() + 8 + bin.len();
-    if total > u32::MAX as usize {
-        return Err(LodError::Write(format!("{total} bytes exceed the 4 GiB a GLB can hold")));
-    }
-    let mut out = Vec::with_capacity(total);
-    for word in [0x4654_6C67u32, 2, total as u32, text.len() as u32, 0x4E4F_534A] {
-        out.extend_from_slice(&word.to_le_bytes());
-    }
-    out.extend_from_slice(&text);
-    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    out.extend_from_slice(&0x004E_4942u32.to_le_bytes());
-    out.extend_from_slice(&bin);
-    Ok(out)
+    b.finish(root).map_err(|e| LodError::Write(e.to_string()))
 }

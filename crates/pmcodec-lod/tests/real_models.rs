@@ -3,6 +3,7 @@
 //! back with the `gltf` crate and compared with the chain, the GLB posed through our reader,
 //! and the error against meshoptimizer on the Fox. (The Parrot is Draco-compressed:
 //! `tests/run-all.sh` decodes it with Node and runs `pmcodec lod` on it.)
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 

@@ -222,3 +222,72 @@ impl Appearance {
         Ok(())
     }
 }
+
+// ------------------------------------------------------------------------------------------------
+// Keeping wedges right when a mesh's vertices or triangles change
+// ------------------------------------------------------------------------------------------------
+
+impl Appearance {
+    /// Keeps the corner wedges and materials of the triangles `kept` (old triangle indices,
+    /// increasing), so that they stay parallel to a filtered triangle list.
+    pub fn retain_triangles(&mut self, kept: &[usize]) {
+        self.corner_wedges = kept.iter().filter_map(|&t| self.corner_wedges.get(t).copied()).collect();
+        if !self.triangle_material.is_empty() {
+            self.triangle_material = kept.iter().filter_map(|&t| self.triangle_material.get(t).copied()).collect();
+        }
+    }
+
+    /// Moves every wedge to the new index of its vertex (`remap[old]`, `u32::MAX` for a vertex
+    /// that went), merges wedges that now sit on one vertex with bitwise-equal attributes, and
+    /// drops wedges no corner uses. Wedges keep their order (the first of equal ones survives).
+    pub fn remap_vertices(&mut self, remap: &[u32]) {
+        for v in &mut self.wedge_vertex {
+            *v = remap.get(*v as usize).copied().unwrap_or(u32::MAX);
+        }
+        let mut used = vec![false; self.wedge_count()];
+        for &w in self.corner_wedges.iter().flatten() {
+            if let Some(u) = used.get_mut(w as usize) {
+                *u = true;
+            }
+        }
+        let mut first_of: std::collections::HashMap<Vec<u32>, u32> = std::collections::HashMap::new();
+        let mut keep: Vec<usize> = Vec::new();
+        let mut wedge_remap = vec![u32::MAX; self.wedge_count()];
+        for w in 0..self.wedge_count() {
+            if !used[w] || self.wedge_vertex[w] == u32::MAX {
+                continue;
+            }
+            let next = keep.len() as u32;
+            wedge_remap[w] = *first_of.entry(self.wedge_key(w)).or_insert_with(|| {
+                keep.push(w);
+                next
+            });
+        }
+        fn gather<T: Copy>(old: &[T], keep: &[usize]) -> Vec<T> {
+            if old.is_empty() { Vec::new() } else { keep.iter().filter_map(|&w| old.get(w).copied()).collect() }
+        }
+        self.wedge_vertex = gather(&self.wedge_vertex, &keep);
+        self.uv0 = gather(&self.uv0, &keep);
+        self.uv1 = gather(&self.uv1, &keep);
+        self.normals = gather(&self.normals, &keep);
+        self.colors = gather(&self.colors, &keep);
+        for c in self.corner_wedges.iter_mut().flatten() {
+            *c = wedge_remap.get(*c as usize).copied().unwrap_or(u32::MAX);
+        }
+    }
+
+    /// A wedge's vertex and the bits of all its attributes.
+    fn wedge_key(&self, w: usize) -> Vec<u32> {
+        let mut key = vec![self.wedge_vertex[w]];
+        key.extend(self.uv0.get(w).into_iter().flatten().map(|x| x.to_bits()));
+        key.extend(self.uv1.get(w).into_iter().flatten().map(|x| x.to_bits()));
+        key.extend(self.normals.get(w).into_iter().flatten().map(|x| x.to_bits()));
+        key.extend(self.colors.get(w).into_iter().flatten().map(|x| x.to_bits()));
+        key
+    }
+
+    /// Material of triangle `t` (0 when triangles carry none).
+    pub fn material_of(&self, t: usize) -> u32 {
+        self.triangle_material.get(t).copied().unwrap_or(0)
+    }
+}

@@ -11,6 +11,7 @@
 pub mod appearance;
 pub mod binmesh;
 pub mod error;
+pub mod glb;
 pub mod gltf_input;
 pub mod limits;
 pub mod obj;
@@ -145,14 +146,6 @@ impl Sequence {
             appearance.validate(n, &self.triangles)?;
         }
         Ok(())
-    }
-
-    /// Removes triangles that repeat a corner (they carry no surface) and returns how many went.
-    /// OBJ exports from some tools contain them; everything downstream assumes none.
-    pub fn drop_degenerate_faces(&mut self) -> usize {
-        let before = self.triangles.len();
-        self.triangles.retain(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
-        before - self.triangles.len()
     }
 
     /// Bounding box over all frames.

@@ -1,10 +1,12 @@
-//! Writers for one frame: Wavefront OBJ and binary glTF 2.0 (GLB), and a file writer that
-//! never leaves a half-written file behind.
+//! Writers for one frame: Wavefront OBJ and binary glTF 2.0 (GLB, with or without an
+//! [`Appearance`], assembled by [`crate::glb`]), and a file writer that never leaves a
+//! half-written file behind.
 //!
 //! Both writers expect a mesh that passed [`crate::Sequence::validate`] (finite coordinates,
 //! indices in range); they do not check it again.
 
-use crate::{MeshError, TriMesh};
+use crate::glb::{ARRAY_BUFFER, GlbBuilder, TRIANGLES, triangles_by_material, wedge_attributes, wedge_normals, write_looks};
+use crate::{Appearance, MeshError, TriMesh};
 use glam::Vec3;
 use serde_json::json;
 use std::io::Write;
@@ -46,20 +48,6 @@ fn corners(mesh: &TriMesh, t: &[u32; 3]) -> Option<[Vec3; 3]> {
     Some([*mesh.positions.get(t[0] as usize)?, *mesh.positions.get(t[1] as usize)?, *mesh.positions.get(t[2] as usize)?])
 }
 
-const GLB_MAGIC: u32 = 0x4654_6C67; // "glTF"
-const GLB_VERSION: u32 = 2;
-const CHUNK_JSON: u32 = 0x4E4F_534A; // "JSON"
-const CHUNK_BIN: u32 = 0x004E_4942; // "BIN\0"
-const ARRAY_BUFFER: u32 = 34962;
-const ELEMENT_ARRAY_BUFFER: u32 = 34963;
-const FLOAT: u32 = 5126;
-const UNSIGNED_SHORT: u32 = 5123;
-const UNSIGNED_INT: u32 = 5125;
-/// Meshes with fewer vertices get 16-bit indices. glTF forbids an index equal to the
-/// component type's largest value (primitive restart), so 65,535 vertices at most.
-const MAX_U16_VERTICES: usize = 65_535;
-const TRIANGLES: u32 = 4;
-
 /// Bytes of binary data a GLB of `mesh` carries: positions, normals, indices.
 fn bin_len(mesh: &TriMesh) -> u64 {
     mesh.positions.len() as u64 * 24 + mesh.triangles.len() as u64 * 12
@@ -81,98 +69,58 @@ fn fits_glb(mesh: &TriMesh) -> bool {
 /// one empty node (no mesh, no buffer), so a reader always gets a file it can open.
 ///
 /// The mesh must fit the format's 4 GiB (see [`write_glb`], which checks); a larger one gives
-/// a file with a wrong length field.
+/// an empty vector.
 pub fn glb_bytes(mesh: &TriMesh) -> Vec<u8> {
     debug_assert!(fits_glb(mesh), "mesh too large for GLB");
-    let nv = mesh.positions.len();
-    let nt = mesh.triangles.len();
-    let empty = nt == 0 || nv == 0;
+    glb_bytes_with(mesh, None).unwrap_or_default()
+}
 
-    let (json, bin) = if empty {
+/// [`glb_bytes`] with an appearance (`corner_wedges` parallel to `mesh.triangles`, wedges on
+/// `mesh.positions`): each wedge becomes a glTF vertex with its position, `TEXCOORD_0`/`_1`
+/// and `COLOR_0`, and a normal computed from `mesh.positions` (area-weighted, split where the
+/// input's normals differ: see [`crate::glb::wedge_normals`]); one primitive per material;
+/// materials, textures, samplers and images (as buffer views) as in the appearance. Errors
+/// name what does not match (the appearance is validated against the mesh) or the size.
+pub fn glb_bytes_with(mesh: &TriMesh, appearance: Option<&Appearance>) -> Result<Vec<u8>, MeshError> {
+    let asset = json!({"version": "2.0", "generator": "pmcodec"});
+    if mesh.triangles.is_empty() || mesh.positions.is_empty() {
         // One scene holding one node without a mesh: `scene.nodes` may not be an empty array
         // (glTF 2.0 schema, minItems 1), the `gltf` crate rejects a scene without `nodes`, and
         // viewers expect a default scene to exist.
-        (json!({"asset": {"version": "2.0", "generator": "pmcodec"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{}]}), Vec::new())
-    } else {
-        let mut bin: Vec<u8> = Vec::with_capacity(bin_len(mesh) as usize);
-        // Positions and normals are 4-byte floats and the indices come last, so each view
-        // starts 4-byte aligned without padding between them.
-        let put = |bin: &mut Vec<u8>, v: Vec3| {
-            for c in v.to_array() {
-                bin.extend_from_slice(&c.to_le_bytes());
-            }
-        };
-        for &p in &mesh.positions {
-            put(&mut bin, p);
+        return GlbBuilder::default().finish(json!({"asset": asset, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{}]}));
+    }
+    let mut b = GlbBuilder::default();
+    let mut root = json!({"asset": asset, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}]});
+    let primitives = match appearance {
+        None => {
+            let pos = b.vec3s(&mesh.positions, Some(ARRAY_BUFFER), true);
+            let nrm = b.vec3s(&vertex_normals(mesh), Some(ARRAY_BUFFER), false);
+            let flat: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+            let idx = b.indices(&flat, mesh.positions.len());
+            vec![json!({"attributes": {"POSITION": pos, "NORMAL": nrm}, "indices": idx, "mode": TRIANGLES})]
         }
-        let normals_at = bin.len();
-        for n in vertex_normals(mesh) {
-            put(&mut bin, n);
+        Some(app) => {
+            app.validate(mesh.positions.len(), &mesh.triangles)?;
+            let positions: Vec<Vec3> = app.wedge_vertex.iter().map(|&v| mesh.positions[v as usize]).collect();
+            let mut attributes = wedge_attributes(&mut b, app);
+            attributes.insert("POSITION".into(), json!(b.vec3s(&positions, Some(ARRAY_BUFFER), true)));
+            let normals = wedge_normals(&mesh.positions, &mesh.triangles, app);
+            attributes.insert("NORMAL".into(), json!(b.vec3s(&normals, Some(ARRAY_BUFFER), false)));
+            write_looks(&mut b, app, &mut root);
+            triangles_by_material(app)
+                .into_iter()
+                .map(|(material, wedges)| {
+                    let mut prim = json!({"attributes": attributes, "indices": b.indices(&wedges, positions.len()), "mode": TRIANGLES});
+                    if !app.materials.is_empty() {
+                        prim["material"] = json!(material);
+                    }
+                    prim
+                })
+                .collect()
         }
-        let indices_at = bin.len();
-        let short = nv <= MAX_U16_VERTICES;
-        for &i in mesh.triangles.iter().flatten() {
-            if short {
-                bin.extend_from_slice(&(i as u16).to_le_bytes());
-            } else {
-                bin.extend_from_slice(&i.to_le_bytes());
-            }
-        }
-        let (lo, hi) = mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
-        let json = json!({
-            "asset": {"version": "2.0", "generator": "pmcodec"},
-            "scene": 0,
-            "scenes": [{"nodes": [0]}],
-            "nodes": [{"mesh": 0}],
-            "meshes": [{"primitives": [{
-                "attributes": {"POSITION": 0, "NORMAL": 1},
-                "indices": 2,
-                "mode": TRIANGLES,
-            }]}],
-            "accessors": [
-                {"bufferView": 0, "componentType": FLOAT, "count": nv, "type": "VEC3",
-                 "min": lo.to_array(), "max": hi.to_array()},
-                {"bufferView": 1, "componentType": FLOAT, "count": nv, "type": "VEC3"},
-                {"bufferView": 2, "componentType": if short { UNSIGNED_SHORT } else { UNSIGNED_INT },
-                 "count": nt * 3, "type": "SCALAR"},
-            ],
-            "bufferViews": [
-                {"buffer": 0, "byteOffset": 0, "byteLength": normals_at, "target": ARRAY_BUFFER},
-                {"buffer": 0, "byteOffset": normals_at, "byteLength": indices_at - normals_at, "target": ARRAY_BUFFER},
-                {"buffer": 0, "byteOffset": indices_at, "byteLength": bin.len() - indices_at, "target": ELEMENT_ARRAY_BUFFER},
-            ],
-            "buffers": [{"byteLength": bin.len()}],
-        });
-        (json, bin)
     };
-    assemble_glb(&json, bin)
-}
-
-/// Header and chunks (glTF 2.0, "Binary glTF Layout"): each chunk's data is padded to a
-/// multiple of 4 bytes, JSON with spaces (still valid JSON), BIN with zeros. No BIN chunk when
-/// there is no binary data.
-fn assemble_glb(json: &serde_json::Value, mut bin: Vec<u8>) -> Vec<u8> {
-    // Serialising a `Value` whose keys are all strings cannot fail.
-    let mut json_bytes = serde_json::to_vec(json).unwrap_or_default();
-    while !json_bytes.len().is_multiple_of(4) {
-        json_bytes.push(b' ');
-    }
-    while !bin.len().is_multiple_of(4) {
-        bin.push(0);
-    }
-    let bin_chunk = if bin.is_empty() { 0 } else { 8 + bin.len() };
-    let total = 12 + 8 + json_bytes.len() + bin_chunk;
-    let mut out = Vec::with_capacity(total);
-    for word in [GLB_MAGIC, GLB_VERSION, total as u32, json_bytes.len() as u32, CHUNK_JSON] {
-        out.extend_from_slice(&word.to_le_bytes());
-    }
-    out.extend_from_slice(&json_bytes);
-    if !bin.is_empty() {
-        out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-        out.extend_from_slice(&CHUNK_BIN.to_le_bytes());
-        out.extend_from_slice(&bin);
-    }
-    out
+    root["meshes"] = json!([{"primitives": primitives}]);
+    b.finish(root)
 }
 
 /// Writes [`glb_bytes`] to `w`. Errors (`InvalidInput`) for a mesh beyond the format's 4 GiB.

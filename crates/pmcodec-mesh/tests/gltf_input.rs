@@ -1,5 +1,6 @@
 //! glTF input on the real skinned and morph-target files, and on small files generated here that
 //! pin down interpolation, skinning, morphing, welding, topology conversion and error reporting.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use glam::Vec3;
 use pmcodec_mesh::gltf_input::{

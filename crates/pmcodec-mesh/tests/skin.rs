@@ -1,5 +1,6 @@
 //! The skin `to_sequence` keeps beside the frames poses every vertex as the frames say, and bad
 //! skins are refused by name.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use pmcodec_mesh::gltf_input::{GltfOptions, load_gltf};
 use pmcodec_mesh::{SequenceSkin, samples};

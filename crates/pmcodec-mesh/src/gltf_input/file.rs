@@ -7,6 +7,10 @@ use super::*;
 pub(super) struct GltfFile {
     pub(super) root: json::Root,
     pub(super) buffers: Vec<Option<Vec<u8>>>,
+    /// Materials, textures, samplers and images as serialized (see `looks`).
+    pub(super) looks: looks_raw::RawLooks,
+    /// The folder external images are read from (`None` for bytes in memory).
+    pub(super) base: Option<PathBuf>,
 }
 
 pub(super) const ANY_NUMBER: &[ComponentType] =
@@ -58,6 +62,7 @@ impl GltfFile {
         if !unsupported.is_empty() {
             return Err(MeshError::Unsupported(format!("required extension {}", unsupported.join(", "))));
         }
+        let looks: looks_raw::RawLooks = serde_json::from_slice(json_bytes).map_err(|e| gltf_error(format!("materials or images: {e}")))?;
         let mut needed = vec![false; root.buffers.len()];
         let mut need_view = |view: usize| {
             if let Some(b) = root.buffer_views.get(view).and_then(|v| needed.get_mut(v.buffer.value())) {
@@ -72,6 +77,9 @@ impl GltfFile {
                 need_view(sparse.indices.buffer_view.value());
                 need_view(sparse.values.buffer_view.value());
             }
+        }
+        for view in looks.images.iter().filter_map(|i| i.buffer_view) {
+            need_view(view as usize);
         }
         let mut buffers = Vec::with_capacity(root.buffers.len());
         for (i, buffer) in root.buffers.iter().enumerate() {
@@ -93,11 +101,11 @@ impl GltfFile {
             data.truncate(declared);
             buffers.push(Some(data));
         }
-        Ok(GltfFile { root, buffers })
+        Ok(GltfFile { root, buffers, looks, base: base.map(Path::to_path_buf) })
     }
 
     /// The bytes of a buffer view and its stride (if it declares one).
-    fn view(&self, index: usize, what: &str) -> Result<(&[u8], Option<usize>), MeshError> {
+    pub(super) fn view(&self, index: usize, what: &str) -> Result<(&[u8], Option<usize>), MeshError> {
         let view = self.root.buffer_views.get(index).ok_or_else(|| gltf_error(format!("{what}: bufferView {index} does not exist")))?;
         let buffer = view.buffer.value();
         let data = self

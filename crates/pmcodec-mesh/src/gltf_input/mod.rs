@@ -13,7 +13,15 @@
 //!   joint matrix is the joint's world transform times its inverse bind matrix, and the skinned
 //!   node's own transform is ignored, as the specification requires. Other mesh nodes get their
 //!   world transform. Morph targets (§3.7.2.2) are applied first, in the mesh's space, and then
-//!   the skin. Only `POSITION` is read; normals, UVs and materials are not.
+//!   the skin.
+//! * **Appearance.** Each primitive's `TEXCOORD_0`/`_1`, `NORMAL` and `COLOR_0` (every component
+//!   type the specification allows, normalised integers mapped to [0, 1] or [-1, 1]) become one
+//!   wedge per authored vertex of [`RiggedMesh::appearance`], with the primitive's material per
+//!   triangle (glTF's default material for a primitive without one). Materials keep the
+//!   metallic-roughness core, texture references with `KHR_texture_transform`, alpha mode and
+//!   double-sidedness; images are kept as their PNG or JPEG bytes (from a bufferView, a `data:`
+//!   URI, or a file beside the glTF when it is read from a path). A primitive missing an
+//!   attribute others have gets the defaults: UV (0, 0), white, its surface's own normals.
 //! * **Animation.** Frames are taken at `t = i / frame_rate` for `i` in `0..=floor(duration *
 //!   frame_rate)` (computed in `f32`), where the duration is the largest keyframe time of the
 //!   animation's channels; a file without animations gives one frame, the rest pose. Sampling
@@ -26,7 +34,9 @@
 //!   same morph deltas and the same transform (the same mesh node, or the same skin for
 //!   skinned vertices without morph deltas). Triangles that then repeat a corner are dropped.
 //!   Vertices no triangle uses are always dropped: several primitives often index different
-//!   parts of one shared vertex buffer.
+//!   parts of one shared vertex buffer. Welding ignores UVs, normals and colours: positions
+//!   weld across seams, the wedges keep their attributes and move to the merged vertex, and
+//!   wedges of one vertex with equal attributes merge.
 //!
 //! # Hostile input
 //!
@@ -48,6 +58,8 @@ use std::path::{Component, Path, PathBuf};
 
 mod animation;
 mod file;
+mod looks;
+mod looks_raw;
 mod rigged;
 mod scene;
 #[cfg(test)]
@@ -55,6 +67,8 @@ mod tests;
 
 use self::animation::*;
 use self::file::*;
+pub use self::looks::image_mime_type;
+use self::looks::*;
 pub use self::rigged::*;
 use self::scene::*;
 

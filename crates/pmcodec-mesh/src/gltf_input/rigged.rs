@@ -201,12 +201,14 @@ impl RiggedMesh {
         for (s, skin) in root.skins.iter().enumerate() {
             rig.skins.push(read_skin(file, s, skin)?);
         }
+        rig.appearance = Some(read_document_looks(file)?);
         let mut budget = Budget { records: MAX_ELEMENTS, limits };
         for node in scene_mesh_nodes(root, &rig.parents) {
             rig.add_instance(file, node, &mut budget)?;
         }
         let targets = morph_target_counts(root);
         rig.animations = read_animations(file, &targets)?;
+        rig.finish_looks();
         rig.drop_unused_vertices();
         rig.check_vertices()?;
         if rig.triangles.is_empty() {
@@ -272,6 +274,7 @@ impl RiggedMesh {
         }
         seq.morph_displacement = self.morph_displacement();
         seq.skin = crate::skin::sequence_skin(self, anim, &(0..count).map(|i| i as f32 / frame_rate).collect::<Vec<_>>());
+        seq.appearance.clone_from(&self.appearance);
         seq.validate()?;
         Ok(seq)
     }
@@ -463,12 +466,21 @@ impl RiggedMesh {
             inst.vertices = start..end;
         }
         let map = |i: u32| remap.get(i as usize).copied().filter(|&n| n != u32::MAX);
-        self.triangles = self
-            .triangles
-            .iter()
-            .filter_map(|t| Some([map(t[0])?, map(t[1])?, map(t[2])?]))
-            .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
-            .collect();
+        let mut kept = Vec::with_capacity(self.triangles.len());
+        let mut triangles = Vec::with_capacity(self.triangles.len());
+        for (i, t) in self.triangles.iter().enumerate() {
+            let Some(t) = (|| Some([map(t[0])?, map(t[1])?, map(t[2])?]))() else { continue };
+            if t[0] != t[1] && t[1] != t[2] && t[0] != t[2] {
+                kept.push(i);
+                triangles.push(t);
+            }
+        }
+        self.triangles = triangles;
+        // Corner wedges follow their triangles; wedges follow their vertices.
+        if let Some(app) = &mut self.appearance {
+            app.retain_triangles(&kept);
+            app.remap_vertices(remap);
+        }
     }
 
     /// Rejects what would poison every frame, naming the source vertex: non-finite rest
@@ -622,12 +634,15 @@ impl RiggedMesh {
             slot.extend(deltas);
         }
 
+        let looks = read_primitive_looks(file, prim, n, what)?;
         let base = self.positions.len() as u32;
+        let first_triangle = self.triangles.len();
         self.positions.extend(positions);
         self.joints.extend(joints);
         self.weights.extend(weights);
         self.source.extend((0..n as u32).map(|index| SourceVertex { primitive: number, index }));
         self.triangles.extend(triangles.into_iter().filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]).map(|t| t.map(|i| i + base)));
+        self.add_primitive_looks(looks, base as usize, first_triangle);
         Ok(())
     }
 }
