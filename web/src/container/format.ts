@@ -4,20 +4,22 @@
 
 import { DecodeError } from "./error.js";
 import { Postcard } from "./payload.js";
+import { ENTRY, MAX_PALETTE, SkinHeader } from "./skin.js";
 
 export const MAGIC = [0x89, 0x50, 0x4d, 0x43, 0x0d, 0x0a, 0x1a, 0x0a];
 export const PREAMBLE_LEN = 32;
 /**
- * The format version this decoder reads, and the oldest it still reads (version 4: no `order`
- * in the header, faces and corners as plain ids; version 3: no `motion` either).
+ * The format version this decoder reads, and the oldest it still reads (version 5: no `skin`
+ * in the header; version 4: no `order` either, faces and corners as plain ids; version 3: no
+ * `motion` either).
  */
-export const VERSION = 5, OLDEST_READABLE = 3;
+export const VERSION = 6, OLDEST_READABLE = 3;
 /** The largest header or index the preamble may declare. */
 export const MAX_TABLE_LEN = 64 << 20;
 /** Caps on a header's declared sizes (proto/container.md, "Limits"). */
 export const MAX_VERTICES = 1 << 24, MAX_TRIANGLES = 1 << 25, MAX_NODES = 1 << 25, MAX_FRAMES = 1 << 20;
 
-export enum ChunkKind { Triangles = 0, Key = 1, Delta = 2, Positions = 3, Faces = 4, Corners = 5 }
+export enum ChunkKind { Triangles = 0, Key = 1, Delta = 2, Positions = 3, Faces = 4, Corners = 5, Bind = 10, Pose = 11 }
 /** How band 0 is predicted on frames that are not keyframes (proto/container.md, "Positions, band j"). */
 export enum Motion { Mean = 0, Affine = 1, KeyframeAffine = 2 }
 /** The order band 0 is decoded in (proto/container.md, "Band 0 order"). */
@@ -31,6 +33,7 @@ export enum VertexOrder { Input = 0, BreadthFirst = 1 }
 export function readAt(kind: ChunkKind, band: number, minLevel: number): boolean {
   if (kind === ChunkKind.Triangles) return minLevel === 0;
   if (kind === ChunkKind.Faces || kind === ChunkKind.Corners) return band === minLevel;
+  if (kind === ChunkKind.Pose) return true;
   return band >= minLevel;
 }
 
@@ -42,6 +45,8 @@ export interface Header {
   motion: Motion;
   /** Band 0's decoding order. */
   order: VertexOrder;
+  /** The skin, when node positions may be predicted by skinning (version 6). */
+  skin: SkinHeader | null;
 }
 
 export interface ChunkEntry { kind: ChunkKind; frame: number; band: number; offset: number; storedLen: number; rawLen: number; crc32: number }
@@ -81,7 +86,7 @@ export function parseHeader(hb: Uint8Array, version: number): Header {
     vertexCount: p.varint(), triangleCount: p.varint(), frameCount: p.varint(), frameRate: p.f32(),
     levelSizes: p.seq(() => p.varint(), 64), branching: p.varint(),
     bboxMin: [p.f32(), p.f32(), p.f32()], bboxMax: [p.f32(), p.f32(), p.f32()],
-    step: p.f32(), keyframeInterval: p.varint(), generator: "", frameNames: [], motion: Motion.Mean, order: VertexOrder.Input,
+    step: p.f32(), keyframeInterval: p.varint(), generator: "", frameNames: [], motion: Motion.Mean, order: VertexOrder.Input, skin: null,
   };
   // encoded_with: informative, read and dropped.
   p.str(); p.str(); p.f64(); p.f64(); p.varint(); p.bool(); p.bool(); p.option(() => p.f64()); p.option(() => p.u8());
@@ -91,6 +96,9 @@ export function parseHeader(hb: Uint8Array, version: number): Header {
   if (header.motion > (version >= 5 ? Motion.KeyframeAffine : Motion.Affine)) throw new DecodeError(`header: unknown band-0 motion ${header.motion}`);
   header.order = version >= 5 ? p.varint() : VertexOrder.Input;
   if (header.order > VertexOrder.BreadthFirst) throw new DecodeError(`header: unknown band-0 order ${header.order}`);
+  header.skin = version >= 6 ? p.option(() => ({ paletteLen: p.varint(), bindStep: p.f32() })) : null;
+  // Every version's header ends with its last field, except version 5's, whose readers ignored bytes after it.
+  if (version !== 5 && p.pos !== hb.length) throw new DecodeError(`header: ${hb.length - p.pos} bytes after its last field`);
   return header;
 }
 
@@ -98,7 +106,7 @@ export function parseIndex(ib: Uint8Array): ChunkEntry[] {
   const q = new Postcard(ib, "index");
   return q.seq((): ChunkEntry => {
     const kind = q.varint();
-    if (kind > 5) throw new DecodeError(`index: chunk kind ${kind}`);
+    if (kind > 5 && kind !== ChunkKind.Bind && kind !== ChunkKind.Pose) throw new DecodeError(`index: chunk kind ${kind}`);
     return { kind, frame: q.varint(), band: q.varint(), offset: q.varint(), storedLen: q.varint(), rawLen: q.varint(), crc32: q.varint() };
   }, 1 << 24);
 }
@@ -116,8 +124,14 @@ export function checkTables(h: Header, index: ChunkEntry[], dataLen: number): vo
   if (h.vertexCount > MAX_VERTICES || h.triangleCount > MAX_TRIANGLES || nodes > MAX_NODES || h.frameCount > MAX_FRAMES) {
     throw new DecodeError(`header: ${h.vertexCount} vertices, ${h.triangleCount} triangles, ${nodes} nodes, ${h.frameCount} frames: beyond the limits`);
   }
+  if (h.skin && !(h.skin.paletteLen >= 1 && h.skin.paletteLen <= MAX_PALETTE && h.skin.bindStep > 0 && Number.isFinite(h.skin.bindStep))) {
+    throw new DecodeError(`header: skin palette of ${h.skin.paletteLen} entries, bind quantum ${h.skin.bindStep}`);
+  }
   let end = 0;
   for (const e of index) {
+    if ((e.kind === ChunkKind.Bind || e.kind === ChunkKind.Pose) && !h.skin) throw new DecodeError(`${describe(e)}: a skin chunk in a file without a skin`);
+    if (e.kind === ChunkKind.Bind && e.frame !== 0) throw new DecodeError(`${describe(e)}: frame ${e.frame}, where bind chunks are frame 0`);
+    if (e.kind === ChunkKind.Pose && e.band !== 0) throw new DecodeError(`${describe(e)}: band ${e.band}, where pose chunks are band 0`);
     if (e.offset + e.storedLen > dataLen) throw new DecodeError(`${describe(e)}: the file ends before it does`);
     end = Math.max(end, e.offset + e.storedLen);
     if (e.kind !== ChunkKind.Triangles && (e.frame >= h.frameCount || e.band >= h.levelSizes.length)) throw new DecodeError(`${describe(e)}: frame or band beyond the header's counts`);
@@ -136,6 +150,8 @@ function rawLenRange(h: Header, kind: ChunkKind, band: number): [number, number]
     case ChunkKind.Delta: return [1, 5 + 10 * n];
     case ChunkKind.Faces: return [1, 5 + 20 * t];
     case ChunkKind.Corners: return [1, 5 + 25 * t];
+    case ChunkKind.Bind: return [4 * n, 101 * n];
+    case ChunkKind.Pose: { const p = (h.skin?.paletteLen ?? 0) * ENTRY; return [1 + p, 10 + 10 * p]; }
     default: return [1, 1024 + 24 * n];
   }
 }

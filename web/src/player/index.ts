@@ -10,7 +10,7 @@ export type { ColourMode, OpenedInfo as PmcInfo, Source as PmcSource } from "./p
 export { DEFAULT_CACHE_BYTES } from "./ranges.js";
 
 /** The container format version this package reads (and the oldest it still reads: 3). */
-export const FORMAT_VERSION = 5;
+export const FORMAT_VERSION = 6;
 
 export interface PmcPlayerOptions {
   /** Triangles to draw (default: all); the player fetches only the bands this needs. */
