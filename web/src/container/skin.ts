@@ -7,7 +7,7 @@ import { DecodeError } from "./error.js";
 
 export const MAX_PALETTE = 1 << 16;
 const MAX_BIND = 1n << 30n, MAX_MATRIX = 1n << 40n, WEIGHT_ONE = 1n << 16n;
-const LINEAR_BITS = 18n, TRANSLATION_BITS = 4n;
+const LINEAR_BITS = 15n, TRANSLATION_BITS = 2n;
 export const ENTRY = 12;
 
 /** The header's skin fields. */

@@ -6,7 +6,7 @@
 //!
 //! Everything a decoder computes here is integer arithmetic (proto/container.md, "Skinning"):
 //! a node's bind position in bind quanta, its at most four weights in 1/65536, the palette's
-//! linear parts in 2^-24 position quanta per bind quantum and translations in 2^-8 quanta, all
+//! linear parts in 2^-15 position quanta per bind quantum and translations in 2^-2 quanta, all
 //! combined in wrapping 64-bit integers, so a decoder in any language gets the same bits.
 
 // Per-axis and per-node loops index several parallel arrays at once, as the spec states them.
@@ -39,8 +39,8 @@ pub const MAX_MATRIX: i64 = 1 << 40;
 /// Weights are in units of 2^-16 and sum to this.
 pub const WEIGHT_ONE: i64 = 1 << 16;
 /// Fixed-point bits of the palette's linear parts and of its translations.
-pub const LINEAR_BITS: u32 = 18;
-pub const TRANSLATION_BITS: u32 = 4;
+pub const LINEAR_BITS: u32 = 15;
+pub const TRANSLATION_BITS: u32 = 2;
 /// Values per palette entry: three rows of (three linear values, one translation).
 pub const ENTRY: usize = 12;
 
@@ -53,8 +53,8 @@ pub struct NodeSkin {
 }
 
 /// Node `skin` posed by `palette` (ENTRY values per entry), in position quanta. Per influence
-/// `k` and axis `a`: `y = ((L[a][0] b0 + L[a][1] b1 + L[a][2] b2) >> 14) + T[a]` (2^-4 quanta),
-/// summed as `acc += w_k y`; the result is `(acc + 2^19) >> 20` wrapped to 32 bits. Every
+/// `k` and axis `a`: `y = ((L[a][0] b0 + L[a][1] b1 + L[a][2] b2) >> 13) + T[a]` (2^-2 quanta),
+/// summed as `acc += w_k y`; the result is `(acc + 2^17) >> 18` wrapped to 32 bits. Every
 /// operation wraps in 64 bits and `>>` is arithmetic.
 #[inline]
 pub fn lbs(skin: &NodeSkin, palette: &[i64]) -> [i32; 3] {
