@@ -65,3 +65,42 @@ fn unskinned_input_has_no_skin_and_bad_skins_are_refused_by_name() {
         assert!(e.contains(expected), "{e}");
     }
 }
+
+/// A skinned mesh beside a rigid one: one palette entry per skin joint, then one per rigid
+/// node; a joint whose inverse bind matrix cannot be inverted is named in a warning.
+#[test]
+fn the_palette_holds_skin_joints_then_rigid_nodes_and_a_singular_bind_is_named() {
+    use glam::{Mat4, Vec3};
+    use pmcodec_mesh::gltf_input::{MeshInstance, NodeTransform, RiggedMesh, Skin};
+    let instance = |node: usize, skin: Option<usize>, vertices: std::ops::Range<usize>| MeshInstance {
+        node,
+        mesh: 0,
+        skin,
+        vertices,
+        morph_targets: Vec::new(),
+        default_weights: Vec::new(),
+    };
+    let rig = RiggedMesh {
+        positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z, Vec3::ONE, Vec3::NEG_X],
+        triangles: vec![[0, 1, 2], [3, 4, 5]],
+        joints: vec![[0, 1, 0, 0], [1, 0, 0, 0], [0, 0, 0, 0], [0; 4], [0; 4], [0; 4]],
+        weights: vec![[0.5, 0.5, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0; 4], [0.0; 4], [0.0; 4]],
+        instances: vec![instance(0, Some(0), 0..3), instance(1, None, 3..6)],
+        nodes: vec![NodeTransform { translation: Vec3::Y, ..Default::default() }; 3],
+        parents: vec![None; 3],
+        skins: vec![Skin { joints: vec![2, 1], inverse_bind_matrices: vec![Mat4::IDENTITY, Mat4::ZERO] }],
+        ..Default::default()
+    };
+    let skin = pmcodec_mesh::skin::sequence_skin(&rig, None, &[0.0]).expect("a skinned scene has a skin");
+    assert_eq!(skin.palette_len, 3);
+    assert_eq!(skin.joints[0], [0, 1, 0, 0]);
+    assert_eq!((skin.joints[4], skin.weights[4]), ([2, 0, 0, 0], [1.0, 0.0, 0.0, 0.0]), "rigid vertices on their node's entry");
+    assert!(skin.palette_names[2].contains("node 1"), "{:?}", skin.palette_names);
+    assert_eq!(skin.warnings.len(), 1, "{:?}", skin.warnings);
+    assert!(skin.warnings[0].contains("skin 0 joint 1 (node 1)") && skin.warnings[0].contains("not invertible"), "{}", skin.warnings[0]);
+    // Everything the skin poses is what the rig poses.
+    let posed = rig.pose(None, 0.0);
+    for v in 0..6 {
+        assert!((skin.pose_vertex(0, v) - posed[v]).length() < 1e-6, "vertex {v}");
+    }
+}

@@ -195,6 +195,9 @@ pub(crate) fn check_fps(args: &InputArgs) -> Result<(), Exit> {
 pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
     check_fps(&args.input_args)?;
     let seq = input::load(&args.input, &args.input_args)?;
+    for w in seq.skin.iter().flat_map(|s| &s.warnings).filter(|_| !quiet) {
+        eprintln!("warning: {}: {w}", args.input.display());
+    }
     let coarse_grid = match args.coarse_grid.trim() {
         "none" => None,
         k => Some(k.parse::<u32>().map_err(|_| Exit(2, anyhow!("--coarse-grid {k:?}: use a number of levels or none")))?),
