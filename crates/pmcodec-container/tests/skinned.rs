@@ -136,3 +136,22 @@ fn damaged_skin_chunks_are_refused_by_name() {
     let e = refused(&bad).to_string();
     assert!(e.contains("header") && e.contains("skin palette of 0 entries"), "{e}");
 }
+
+/// What a network client prefetches for a frame holds the skin it needs: the bind chunks of
+/// its bands, once, and the pose of every frame from the keyframe on.
+#[test]
+fn chunks_for_a_frame_include_the_skin() {
+    let seq = bending_tube(8, 12, 10);
+    let bytes = encode(&seq, &options(), |_| {}).expect("encode");
+    let r = Reader::open(bytes.as_slice()).expect("open");
+    for level in 0..r.header().levels() {
+        let mut d = Decoder::new(r.borrowed(), level).expect("decoder");
+        let want = d.chunks_for(6);
+        let binds: Vec<u32> = want.iter().filter(|e| e.kind == ChunkKind::Bind).map(|e| e.band).collect();
+        let poses: Vec<u32> = want.iter().filter(|e| e.kind == ChunkKind::Pose).map(|e| e.frame).collect();
+        assert_eq!(binds, (level as u32..r.header().levels() as u32).rev().collect::<Vec<_>>(), "level {level}");
+        assert_eq!(poses, vec![4, 5, 6], "level {level}: keyframe 4 and the frames after it");
+        d.seek(6).expect("seek");
+        assert!(d.chunks_for(7).iter().all(|e| e.kind != ChunkKind::Bind), "bind chunks are read once");
+    }
+}
