@@ -7,6 +7,7 @@ use crate::appearance::DecodedAppearance;
 use crate::format::{ChunkKind, Motion};
 use crate::payload;
 use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, predict};
+use crate::skin::{NodeSkin, SkinState, predict_skinned, read_binds, read_pose};
 use crate::{ByteSource, ContainerError, Reader};
 use glam::Vec3;
 use pmcodec_hierarchy::CutTarget;
@@ -46,6 +47,8 @@ pub struct Decoder<S> {
     keep: usize,
     /// The appearance chunks (version 6), read with the first keyframe.
     looks: Option<DecodedAppearance>,
+    /// The skin of a skinned file, once its bind chunks are read.
+    skin: Option<SkinState>,
 }
 
 /// A decoder's state just after loading a keyframe: what seeking back to it restores.
@@ -56,6 +59,8 @@ struct KeptKeyframe {
     current: Vec<[i32; 3]>,
     /// Band 0's stencil weights from it (keyframe affine motion; empty otherwise).
     weights: StencilWeights,
+    /// Its joint palette and skinned bands (skinned files).
+    pose: (Vec<i64>, u64),
 }
 
 /// What meshes of one decoded frame are cut from.
@@ -92,6 +97,7 @@ impl<S: ByteSource> Decoder<S> {
             kept: Vec::new(),
             keep: 0,
             looks: None,
+            skin: None,
         })
     }
 
@@ -139,10 +145,11 @@ impl<S: ByteSource> Decoder<S> {
                 ChunkKind::Triangles => load_key && self.triangles.is_none(),
                 ChunkKind::Key | ChunkKind::Faces => load_key && e.frame == key,
                 ChunkKind::Delta | ChunkKind::Corners => e.frame >= first_delta && e.frame <= frame,
-                ChunkKind::Positions => e.frame >= first_positions && e.frame <= frame,
+                ChunkKind::Positions | ChunkKind::Pose => e.frame >= first_positions && e.frame <= frame,
                 // Read once, with the first keyframe; images are fetched on their own.
                 ChunkKind::Charts | ChunkKind::Materials | ChunkKind::Attributes => load_key && self.looks.is_none(),
                 ChunkKind::Image => false,
+                ChunkKind::Bind => load_key && self.skin.is_none(),
             };
             if take {
                 out.push(*e);
@@ -196,6 +203,9 @@ impl<S: ByteSource> Decoder<S> {
             }
             self.current.copy_from_slice(&k.current);
             self.weights.clone_from(&k.weights);
+            if let Some(s) = self.skin.as_mut() {
+                s.advance(k.pose.0.clone(), true, k.pose.1);
+            }
             self.frame = Some(key);
             self.kept.push(k);
             return Ok(());
@@ -210,6 +220,7 @@ impl<S: ByteSource> Decoder<S> {
                 replay: replay.clone(),
                 current: self.current.clone(),
                 weights: self.weights.clone(),
+                pose: self.skin.as_ref().map(|s| (s.palette.clone(), s.mask)).unwrap_or_default(),
             });
         }
         Ok(())
@@ -257,6 +268,11 @@ impl<S: ByteSource> Decoder<S> {
             self.lower = LowerNeighbours::new(h.vertex_count as usize, &triangles, h.order);
             self.triangles = Some(triangles);
         }
+        if self.reader.header().skin.is_some() && self.skin.is_none() {
+            self.skin = Some(self.load_skin()?);
+        }
+        let pose = self.read_pose(frame, true)?;
+        let h = self.reader.header();
         let fail = |source| ContainerError::Delta { what: format!("frame {frame} keyframe"), source };
         // A replay of this file is reused (no allocation); a failed load leaves none.
         match self.replay.take() {
@@ -270,6 +286,7 @@ impl<S: ByteSource> Decoder<S> {
                 self.replay = Some(r);
             }
         }
+        self.commit_pose(pose);
         self.decode_positions(frame, true)?;
         self.keyframe_weights();
         self.frame = Some(frame);
@@ -286,6 +303,7 @@ impl<S: ByteSource> Decoder<S> {
             let raw = self.chunk(ChunkKind::Delta, frame, j)?;
             moves.push((j, payload::read_delta(&raw, &format!("frame {frame} band {j} delta"), &sizes, j)?));
         }
+        let pose = self.read_pose(frame, false)?;
         let mut delta = FrameDelta::default();
         if self.min_level > 0 {
             let j = self.min_level;
@@ -308,11 +326,46 @@ impl<S: ByteSource> Decoder<S> {
             }
         }
         replay.apply(&delta).map_err(|source| ContainerError::Delta { what: format!("frame {frame} delta"), source })?;
+        self.commit_pose(pose);
         std::mem::swap(&mut self.previous, &mut self.current);
         self.decode_positions(frame, false)?;
         self.frame = Some(frame);
         self.invalidate_derived();
         Ok(())
+    }
+
+    /// Reads the skin of every node of bands `min_level..` from the bind chunks.
+    fn load_skin(&self) -> Result<SkinState, ContainerError> {
+        let h = self.reader.header();
+        let palette = h.skin.as_ref().map_or(0, |s| s.palette_len);
+        let mut offset = 0usize;
+        let mut state = SkinState { nodes: vec![NodeSkin::default(); h.node_count() as usize], ..Default::default() };
+        for (j, &size) in h.level_sizes.iter().enumerate() {
+            if j >= self.min_level {
+                let raw = self.chunk(ChunkKind::Bind, 0, j)?;
+                let nodes = read_binds(&raw, &format!("band {j} bind"), size, palette)?;
+                state.nodes[offset..offset + size as usize].copy_from_slice(&nodes);
+            }
+            offset += size as usize;
+        }
+        Ok(state)
+    }
+
+    /// Reads frame `frame`'s pose chunk (skinned files): the palette it gives and its band
+    /// mask, applied by [`Decoder::commit_pose`] once the rest of the frame is read.
+    fn read_pose(&self, frame: u32, intra: bool) -> Result<Option<(Vec<i64>, u64, bool)>, ContainerError> {
+        let (Some(sh), Some(state)) = (self.reader.header().skin.as_ref(), self.skin.as_ref()) else { return Ok(None) };
+        let raw = self.chunk(ChunkKind::Pose, frame, 0)?;
+        let mut palette = Vec::new();
+        let counts = (sh.palette_len, self.reader.header().levels());
+        let mask = read_pose(&raw, &format!("frame {frame} pose"), counts, state.prediction(intra), &mut palette)?;
+        Ok(Some((palette, mask, intra)))
+    }
+
+    fn commit_pose(&mut self, pose: Option<(Vec<i64>, u64, bool)>) {
+        if let (Some(s), Some((palette, mask, intra))) = (self.skin.as_mut(), pose) {
+            s.advance(palette, intra, mask);
+        }
     }
 
     /// With keyframe affine motion, the stencil weights of the keyframe just decoded (in
@@ -347,6 +400,7 @@ impl<S: ByteSource> Decoder<S> {
             // Band 0 in its decoding order (a permutation of the input vertices, as many as
             // the band has), coarser bands in node order.
             let sequence = if j == 0 { Some(self.lower.sequence()) } else { None };
+            let skinned = self.skin.as_ref().filter(|s| s.uses(j));
             let mut before = None;
             for (k, r) in residuals.iter().enumerate() {
                 let v = match sequence {
@@ -361,7 +415,10 @@ impl<S: ByteSource> Decoder<S> {
                     (Some(o), Some(&p)) => Some((o + p as usize, p as usize)),
                     _ => None,
                 };
-                let p = predict(j, v, g, before, parent, &self.lower, motion, &self.siblings, intra, &self.current, &self.previous);
+                let p = match skinned {
+                    Some(s) => predict_skinned(&s.nodes[g], &s.palette, &s.previous, intra, self.previous[g]),
+                    None => predict(j, v, g, before, parent, &self.lower, motion, &self.siblings, intra, &self.current, &self.previous),
+                };
                 let q = [
                     p[0].wrapping_add(r[0].wrapping_shl(shift)),
                     p[1].wrapping_add(r[1].wrapping_shl(shift)),

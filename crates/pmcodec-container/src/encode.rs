@@ -5,6 +5,7 @@ use crate::ContainerError;
 use crate::format::*;
 use crate::payload;
 use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, coarse_shift, predict};
+use crate::skin::{NodeSkin, SkinFit, SkinState, fit_skin, predict_skinned, write_binds, write_pose};
 use glam::Vec3;
 use pmcodec_hierarchy::base::{BaseOptions, PoseSet, VertexWeights, base_quadrics};
 use pmcodec_hierarchy::progressive::{Encoder, FrameDelta};
@@ -46,6 +47,21 @@ pub struct EncodeOptions {
     /// Band 0's decoding order. `BreadthFirst` (the default) gives each input vertex a stencil
     /// on one side of it; `Input` is what versions 3 and 4 used.
     pub order: VertexOrder,
+    /// For a skinned sequence, where coarse nodes sit in bind space; `None` encodes it as any
+    /// other sequence. Skinning then predicts every band whose frame it pays for.
+    pub skin: Option<SkinPlacement>,
+}
+
+/// Where a coarse node of a skinned sequence sits in bind space (input vertices keep their
+/// own rest positions).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SkinPlacement {
+    /// The rest centroid of the node's cluster.
+    Centroid,
+    /// The node's frame-0 position carried back through its blended frame-0 transform (Houle
+    /// and Poulin's bone-space placement).
+    #[default]
+    BackPropagated,
 }
 
 impl Default for EncodeOptions {
@@ -61,6 +77,7 @@ impl Default for EncodeOptions {
             coarse_grid: Some(0),
             motion: Motion::KeyframeAffine,
             order: VertexOrder::BreadthFirst,
+            skin: Some(SkinPlacement::default()),
         }
     }
 }
@@ -190,6 +207,7 @@ fn header(seq: &Sequence, opts: &EncodeOptions, (lo, hi): (Vec3, Vec3), step: f3
         motion: opts.motion,
         order: opts.order,
         appearance: None,
+        skin: None,
     }
 }
 
@@ -198,6 +216,20 @@ fn header(seq: &Sequence, opts: &EncodeOptions, (lo, hi): (Vec3, Vec3), step: f3
 struct Chunks(Vec<(ChunkEntry, Vec<u8>)>);
 
 impl Chunks {
+    /// Where the next chunk goes.
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    /// Puts a chunk before the one at `at` (a frame's pose, known once its bands are coded).
+    fn insert(&mut self, at: usize, kind: ChunkKind, frame: u32, raw: Vec<u8>) -> Result<(), ContainerError> {
+        self.push(kind, frame, 0, raw)?;
+        if let Some(c) = self.0.pop() {
+            self.0.insert(at, c);
+        }
+        Ok(())
+    }
+
     fn push(&mut self, kind: ChunkKind, frame: u32, band: u32, raw: Vec<u8>) -> Result<(), ContainerError> {
         let stored = zstd::bulk::compress(&raw, ZSTD_LEVEL).map_err(|e| ContainerError::Io(format!("zstd: {e}")))?;
         let entry = ChunkEntry {
@@ -252,6 +284,7 @@ const SLACK2: f64 = 0.72;
 
 /// The state of position coding across frames: the stored positions of the previous and
 /// current frames and the predictors' scratch, as the decoder keeps them.
+#[derive(Default)]
 struct PositionCoder {
     motion: Motion,
     lower: LowerNeighbours,
@@ -262,12 +295,53 @@ struct PositionCoder {
     siblings: Siblings,
     fits: AffineFits,
     weights: StencilWeights,
+    /// A band's positions and residuals from the other predictor, while the two are compared.
+    saved: Vec<[i32; 3]>,
+    saved_residuals: Vec<[i32; 3]>,
+}
+
+/// What skinning predicts a frame's nodes from: every node's skin, and the frame's and the
+/// previous frame's palettes.
+#[derive(Clone, Copy)]
+struct Skinning<'a> {
+    nodes: &'a [NodeSkin],
+    palette: &'a [i64],
+    previous: &'a [i64],
+}
+
+/// About the bits a residual costs (an Elias gamma code of its zigzag value): enough to tell
+/// which of two predictors leaves the smaller residuals.
+fn cost(residuals: &[[i32; 3]]) -> u64 {
+    residuals.iter().flatten().map(|&r| 2 * (32 - payload::zigzag(r).leading_zeros()) as u64 + 1).sum()
 }
 
 impl PositionCoder {
     /// Stores band `j` of a frame (`intra`: a keyframe) whose hierarchy is `h` and whose true
-    /// node positions, in quanta, `truth` gives; returns the band's positions payload.
-    fn band(&mut self, j: usize, intra: bool, h: &Hierarchy, truth: impl Fn(usize) -> [f64; 3]) -> Vec<u8> {
+    /// node positions, in quanta, `truth` gives; returns the band's positions payload and
+    /// whether skinning predicted it (when `skin` is given and leaves smaller residuals).
+    fn band(&mut self, j: usize, intra: bool, h: &Hierarchy, truth: impl Fn(usize) -> [f64; 3], skin: Option<Skinning>) -> (Vec<u8>, bool) {
+        let plain = self.code(j, intra, h, &truth, None);
+        let mut skinned = false;
+        if let Some(s) = skin {
+            let band = h.offsets[j] as usize..h.offsets[j + 1] as usize;
+            self.saved.clear();
+            self.saved.extend_from_slice(&self.current[band.clone()]);
+            std::mem::swap(&mut self.residuals, &mut self.saved_residuals);
+            skinned = self.code(j, intra, h, &truth, Some(s)) < plain;
+            if !skinned {
+                self.current[band].copy_from_slice(&self.saved);
+                std::mem::swap(&mut self.residuals, &mut self.saved_residuals);
+            }
+        }
+        if j == 0 && intra && self.motion == Motion::KeyframeAffine {
+            self.weights.compute(&self.lower, &self.current, h.level_sizes[0] as usize);
+        }
+        (payload::write_positions(self.shifts[j], &self.residuals), skinned)
+    }
+
+    /// Codes band `j` with skinning's prediction or the default one into `current` and
+    /// `residuals`; returns the residuals' cost.
+    fn code(&mut self, j: usize, intra: bool, h: &Hierarchy, truth: &impl Fn(usize) -> [f64; 3], skin: Option<Skinning>) -> u64 {
         let (sizes, offsets, levels) = (&h.level_sizes, &h.offsets, h.levels());
         self.residuals.clear();
         let shift = self.shifts[j];
@@ -281,7 +355,10 @@ impl PositionCoder {
             let v = sequence.map_or(k, |s| s[k] as usize);
             let g = offsets[j] as usize + v;
             let parent = (j + 1 < levels).then(|| ((offsets[j + 1] + h.parent[j][v]) as usize, h.parent[j][v] as usize));
-            let p = predict(j, v, g, before, parent, &self.lower, motion, &self.siblings, intra, &self.current, &self.previous);
+            let p = match skin {
+                Some(s) => predict_skinned(&s.nodes[g], s.palette, s.previous, intra, self.previous[g]),
+                None => predict(j, v, g, before, parent, &self.lower, motion, &self.siblings, intra, &self.current, &self.previous),
+            };
             before = Some(g);
             let t = truth(g);
             let (q, r) = if j == 0 { choose(t, p, SLACK2) } else { on_grid(t, p, shift, SLACK2) };
@@ -291,10 +368,7 @@ impl PositionCoder {
             }
             self.residuals.push(r);
         }
-        if j == 0 && intra && self.motion == Motion::KeyframeAffine {
-            self.weights.compute(&self.lower, &self.current, n0);
-        }
-        payload::write_positions(shift, &self.residuals)
+        cost(&self.residuals)
     }
 
     /// Ends a frame: its positions become the previous frame's.
@@ -334,11 +408,12 @@ pub fn encode_until(
         shifts: (0..levels).map(|j| coarse_shift(&header, j, opts.coarse_grid)).collect(),
         previous: vec![[0i32; 3]; total],
         current: vec![[0i32; 3]; total],
-        residuals: Vec::new(),
-        siblings: Siblings::default(),
-        fits: AffineFits::default(),
-        weights: StencilWeights::default(),
+        ..Default::default()
     };
+    let skin_input = seq.skin.as_ref().zip(opts.skin);
+    let mut skin: Option<SkinFit> = None;
+    // The palettes the decoder holds (the previous frame's and the one before), and this frame's.
+    let (mut held, mut palette) = (SkinState::default(), Vec::new());
     let inv = 1.0 / step as f64;
     // Each level's corners before the frame: what a reader stopping there holds, against which
     // corner updates are coded.
@@ -353,6 +428,19 @@ pub fn encode_until(
             l.observe(&enc.hierarchy().parent);
         }
         let positions = enc.node_positions();
+        if let (0, Some((input, placement))) = (f, skin_input) {
+            // The skeleton once, before the first frame, top band first.
+            let fit = fit_skin(input, enc.hierarchy(), positions, (lo, step), placement)?;
+            let offsets = &enc.hierarchy().offsets;
+            for j in (0..levels).rev() {
+                chunks.push(ChunkKind::Bind, 0, j as u32, write_binds(&fit.nodes[offsets[j] as usize..offsets[j + 1] as usize]))?;
+            }
+            header.skin = Some(fit.header.clone());
+            skin = Some(fit);
+        }
+        if let Some(fit) = &skin {
+            palette = fit.palette(f)?;
+        }
         let truth = |g: usize| {
             let p = positions[g] - lo;
             [p.x as f64 * inv, p.y as f64 * inv, p.z as f64 * inv]
@@ -370,12 +458,22 @@ pub fn encode_until(
             let corners: Vec<(u32, [u32; 3])> = delta.corners.iter().filter(|c| c.level as usize == j).map(|c| (c.t, c.corners)).collect();
             chunks.push(ChunkKind::Corners, f as u32, j as u32, payload::write_corner_updates(&corners, held))?;
         }
+        // The frame's pose goes before its bands, once they say which bands skinning predicts.
+        let pose_at = chunks.len();
+        let skinning = skin.as_ref().map(|s| Skinning { nodes: &s.nodes, palette: &palette, previous: &held.palette });
+        let mut mask = 0u64;
         for j in (0..levels).rev() {
             if let Some(k) = &key {
                 chunks.push(ChunkKind::Key, f as u32, j as u32, payload::write_key(&k.bands[j].parent))?;
             }
             chunks.push(ChunkKind::Delta, f as u32, j as u32, payload::write_delta(&net_moves(&delta, j)))?;
-            chunks.push(ChunkKind::Positions, f as u32, j as u32, coder.band(j, intra, enc.hierarchy(), truth))?;
+            let (positions, skinned) = coder.band(j, intra, enc.hierarchy(), truth, skinning);
+            mask |= (skinned as u64) << j;
+            chunks.push(ChunkKind::Positions, f as u32, j as u32, positions)?;
+        }
+        if skin.is_some() {
+            chunks.insert(pose_at, ChunkKind::Pose, f as u32, write_pose(mask, &palette, held.prediction(intra)))?;
+            held.advance(std::mem::take(&mut palette), intra, mask);
         }
         coder.next_frame();
         if progress(f).is_break() {

@@ -8,9 +8,10 @@ use serde::{Deserialize, Serialize};
 pub const MAGIC: [u8; 8] = *b"\x89PMC\r\n\x1a\n";
 /// Format version this crate writes and reads.
 pub const VERSION: u16 = 6;
-/// Oldest format version this crate still reads. Versions 3 to 5 differ from 6 only in their
+/// Oldest format version this crate still reads. Versions 3 to 5 differ from 6 in their
 /// header ([`HeaderV3`], [`HeaderV4`], [`HeaderV5`], migrated into [`Header`] on reading) and
-/// in having no appearance chunks, so servers that upgrade keep serving what they stored.
+/// in having neither appearance nor skin chunks, so servers that upgrade keep serving what they
+/// stored.
 pub const OLDEST_READABLE: u16 = 3;
 /// Size of the fixed preamble.
 pub const PREAMBLE_LEN: usize = 32;
@@ -159,20 +160,22 @@ pub struct Header {
     pub order: VertexOrder,
     /// Texture coordinates, colours and materials (version 6; `None` for a bare surface).
     pub appearance: Option<crate::appearance::AppearanceInfo>,
+    /// The skin, when node positions are predicted by skinning (version 6).
+    pub skin: Option<crate::skin::SkinHeader>,
 }
 
 impl Header {
     /// Parses the header of a file of format `version` (checked by [`Preamble::parse`]): each
     /// old version as the type it was written as, then migrated field by field into today's.
-    /// An old header must end with its last field (what its encoder wrote); version 5 readers
-    /// ignored bytes after it, and still do.
+    /// A header must end with its last field (what its encoder wrote), except version 5's:
+    /// its readers ignored bytes after it, and still do.
     pub fn from_bytes(bytes: &[u8], version: u16) -> Result<Header, crate::ContainerError> {
         let corrupt = |detail: String| crate::ContainerError::Corrupt { what: "header".into(), detail };
         match version {
-            3 => exactly::<HeaderV3>(bytes).map(|h| HeaderV4::from(h).into()),
-            4 => exactly::<HeaderV4>(bytes).map(Header::from),
+            3 => exactly::<HeaderV3>(bytes).map(|h| HeaderV5::from(HeaderV4::from(h)).into()),
+            4 => exactly::<HeaderV4>(bytes).map(|h| HeaderV5::from(h).into()),
             5 => postcard::from_bytes::<HeaderV5>(bytes).map(Header::from).map_err(|e| corrupt(e.to_string())),
-            _ => postcard::from_bytes(bytes).map_err(|e| corrupt(e.to_string())),
+            _ => exactly(bytes),
         }
     }
 
@@ -248,9 +251,27 @@ impl From<HeaderV3> for HeaderV4 {
     }
 }
 
-impl From<HeaderV4> for Header {
+/// The header of format version 5: version 3's, band 0's motion and order.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HeaderV5 {
+    pub v3: HeaderV3,
+    pub motion: Motion,
+    pub order: VertexOrder,
+}
+
+impl From<HeaderV4> for HeaderV5 {
     fn from(v4: HeaderV4) -> Self {
-        let HeaderV4 { v3, motion } = v4;
+        let motion = match v4.motion {
+            MotionV4::Mean => Motion::Mean,
+            MotionV4::Affine => Motion::Affine,
+        };
+        HeaderV5 { v3: v4.v3, motion, order: VertexOrder::Input }
+    }
+}
+
+impl From<HeaderV5> for Header {
+    fn from(v5: HeaderV5) -> Self {
+        let HeaderV5 { v3, motion, order } = v5;
         Header {
             vertex_count: v3.vertex_count,
             triangle_count: v3.triangle_count,
@@ -265,37 +286,18 @@ impl From<HeaderV4> for Header {
             encoded_with: v3.encoded_with,
             generator: v3.generator,
             frame_names: v3.frame_names,
-            motion: match motion {
-                MotionV4::Mean => Motion::Mean,
-                MotionV4::Affine => Motion::Affine,
-            },
-            order: VertexOrder::Input,
+            motion,
+            order,
             appearance: None,
+            skin: None,
         }
     }
 }
 
-/// The header of format version 5: version 4's with the keyframe affine motion, and band 0's
-/// order; no appearance.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct HeaderV5 {
-    pub v3: HeaderV3,
-    pub motion: Motion,
-    pub order: VertexOrder,
-}
-
-impl From<HeaderV5> for Header {
-    fn from(v5: HeaderV5) -> Self {
-        let HeaderV5 { v3, motion, order } = v5;
-        let mut h = Header::from(HeaderV4 { v3, motion: MotionV4::Mean });
-        h.motion = motion;
-        h.order = order;
-        h
-    }
-}
-
-/// What a chunk holds.
+/// What a chunk holds. Serialized as its number (a varint), so kinds added by later versions
+/// keep the numbers they were given.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(into = "u32", try_from = "u32")]
 pub enum ChunkKind {
     /// The input triangles (band 0 only; one per file).
     Triangles,
@@ -313,16 +315,48 @@ pub enum ChunkKind {
     Corners,
     /// Each triangle's chart, each chart's material and smoothing group (version 6; frame 0,
     /// band 0; every client reads it).
-    Charts,
+    Charts = 6,
     /// The band's (node, chart) attribute table: texture coordinates and colours (version 6;
     /// frame 0; read by clients whose finest level is the band or finer).
-    Attributes,
+    Attributes = 7,
     /// Materials, textures, samplers and image descriptions, postcard (version 6; frame 0,
     /// band 0; every client reads it).
-    Materials,
+    Materials = 8,
     /// One image's encoded bytes, PNG or JPEG; band = the image's index (version 6; frame 0;
     /// every client that draws textures reads them all).
-    Image,
+    Image = 9,
+    /// The skin of every node of the band: bind position and influences (version 6, frame 0).
+    Bind = 10,
+    /// A frame's joint palette and which bands skinning predicts (version 6, band 0; read by
+    /// every client).
+    Pose = 11,
+}
+
+impl From<ChunkKind> for u32 {
+    fn from(k: ChunkKind) -> u32 {
+        k as u32
+    }
+}
+
+impl TryFrom<u32> for ChunkKind {
+    type Error = String;
+    fn try_from(v: u32) -> Result<Self, String> {
+        Ok(match v {
+            0 => ChunkKind::Triangles,
+            1 => ChunkKind::Key,
+            2 => ChunkKind::Delta,
+            3 => ChunkKind::Positions,
+            4 => ChunkKind::Faces,
+            5 => ChunkKind::Corners,
+            6 => ChunkKind::Charts,
+            7 => ChunkKind::Attributes,
+            8 => ChunkKind::Materials,
+            9 => ChunkKind::Image,
+            10 => ChunkKind::Bind,
+            11 => ChunkKind::Pose,
+            _ => return Err(format!("unknown chunk kind {v}")),
+        })
+    }
 }
 
 impl ChunkKind {
@@ -332,7 +366,8 @@ impl ChunkKind {
     pub fn read_at(self, band: usize, min_level: usize) -> bool {
         match self {
             ChunkKind::Triangles => min_level == 0,
-            ChunkKind::Key | ChunkKind::Delta | ChunkKind::Positions => band >= min_level,
+            ChunkKind::Key | ChunkKind::Delta | ChunkKind::Positions | ChunkKind::Bind => band >= min_level,
+            ChunkKind::Pose => true,
             ChunkKind::Faces | ChunkKind::Corners => band == min_level,
             ChunkKind::Charts | ChunkKind::Materials | ChunkKind::Image => true,
             ChunkKind::Attributes => band >= min_level,
@@ -351,6 +386,8 @@ impl ChunkKind {
             ChunkKind::Attributes => "attributes",
             ChunkKind::Materials => "materials",
             ChunkKind::Image => "image",
+            ChunkKind::Bind => "bind",
+            ChunkKind::Pose => "pose",
         }
     }
 }

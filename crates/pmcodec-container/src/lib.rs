@@ -17,11 +17,12 @@ pub mod payload;
 pub mod predict;
 pub mod rans;
 mod read;
+pub mod skin;
 #[cfg(feature = "test-support")]
 pub mod testing;
 
 pub use decode::Decoder;
-pub use encode::{EncodeOptions, QuantizationChoice, encode, encode_until, write_file};
+pub use encode::{EncodeOptions, QuantizationChoice, SkinPlacement, encode, encode_until, write_file};
 pub use format::{ChunkEntry, ChunkKind, Header, Index, Motion, VertexOrder};
 pub use pmcodec_hierarchy::{CutTarget, Distance};
 pub use predict::coarse_shift;
@@ -76,6 +77,10 @@ pub struct Summary {
     pub delta_bytes: Vec<u64>,
     pub positions_bytes: Vec<u64>,
     pub delta_raw_bytes: Vec<u64>,
+    /// Per band: stored bytes of its nodes' skins (bind positions and influences).
+    pub bind_bytes: Vec<u64>,
+    /// Stored bytes of the joint palettes of every frame (read by every client).
+    pub pose_bytes: u64,
     /// Positions, all bands, in bits per input vertex per frame.
     pub positions_bits_per_vertex_frame: f64,
     /// Topology deltas (swaps), all bands, per frame (compressed and raw): what a
@@ -107,6 +112,8 @@ pub fn summary<S: ByteSource>(reader: &Reader<S>) -> Summary {
         delta_bytes: vec![0; levels],
         positions_bytes: vec![0; levels],
         delta_raw_bytes: vec![0; levels],
+        bind_bytes: vec![0; levels],
+        pose_bytes: 0,
         positions_bits_per_vertex_frame: 0.0,
         delta_bytes_per_frame: 0.0,
         delta_raw_bytes_per_frame: 0.0,
@@ -140,6 +147,8 @@ pub fn summary<S: ByteSource>(reader: &Reader<S>) -> Summary {
             ChunkKind::Attributes => s.attributes_bytes[b] += e.stored_len as u64,
             ChunkKind::Materials => s.materials_bytes += e.stored_len as u64,
             ChunkKind::Image => {}
+            ChunkKind::Bind => s.bind_bytes[b] += e.stored_len as u64,
+            ChunkKind::Pose => s.pose_bytes += e.stored_len as u64,
         }
     }
     let frames = s.header.frame_count.max(1) as f64;
@@ -149,7 +158,9 @@ pub fn summary<S: ByteSource>(reader: &Reader<S>) -> Summary {
     s.delta_raw_bytes_per_frame = s.delta_raw_bytes.iter().sum::<u64>() as f64 / frames;
     for l in 0..levels {
         s.bytes_per_frame_to_level[l] =
-            (s.delta_bytes[l..].iter().sum::<u64>() + s.positions_bytes[l..].iter().sum::<u64>() + s.corners_bytes[l]) as f64 / frames;
+            (s.delta_bytes[l..].iter().sum::<u64>() + s.positions_bytes[l..].iter().sum::<u64>() + s.corners_bytes[l] + s.pose_bytes)
+                as f64
+                / frames;
     }
     s
 }

@@ -238,6 +238,7 @@ impl<S: ByteSource> Reader<S> {
                 }
                 triangles_seen = true;
             }
+            crate::skin::check_entry(h, e).map_err(bad)?;
             let (least, most) = raw_len_range(h, e.kind, e.band as usize);
             if e.raw_len as u64 > most {
                 return Err(bad(format!("declared size {} beyond the {most} bytes the header allows", e.raw_len)));
@@ -286,6 +287,7 @@ fn raw_len_range(h: &Header, kind: ChunkKind, band: usize) -> (u64, u64) {
         }
         ChunkKind::Materials => (4, MAX_MATERIALS_LEN),
         ChunkKind::Image => (1, MAX_IMAGE_LEN),
+        ChunkKind::Bind | ChunkKind::Pose => crate::skin::raw_len_range(h, kind, n),
     }
 }
 
@@ -330,6 +332,9 @@ const POSITIONS_SLACK: u64 = 1024;
 /// Checks the header's own consistency before anything is sized from it.
 fn check_header(h: &Header) -> Result<(), ContainerError> {
     let bad = |d: String| Err(ContainerError::Corrupt { what: "header".into(), detail: d });
+    if let Some(detail) = crate::skin::check_header(h) {
+        return bad(detail);
+    }
     if h.level_sizes.is_empty() || h.level_sizes.len() > MAX_LEVELS {
         return bad(format!("{} levels", h.level_sizes.len()));
     }

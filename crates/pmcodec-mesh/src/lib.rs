@@ -16,12 +16,14 @@ pub mod gltf_input;
 pub mod limits;
 pub mod obj;
 pub mod samples;
+pub mod skin;
 pub mod write;
 
 pub use appearance::Appearance;
 pub use error::MeshError;
 use glam::Vec3;
 pub use limits::InputLimits;
+pub use skin::SequenceSkin;
 
 /// An indexed triangle mesh: the unit every writer and every measurement works on.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -76,6 +78,9 @@ pub struct Sequence {
     /// Texture coordinates, colours, input normals and materials, the same in every frame;
     /// `None` for a bare surface. Its `corner_wedges` are parallel to `triangles`.
     pub appearance: Option<Appearance>,
+    /// The skin that poses every frame (joint palette, influences, rest positions, matrices
+    /// per frame); `None` when the input is not skinned.
+    pub skin: Option<SequenceSkin>,
 }
 
 impl Sequence {
@@ -133,6 +138,9 @@ impl Sequence {
         }
         if !self.morph_displacement.is_empty() && self.morph_displacement.len() != n {
             return Err(MeshError::Invalid(format!("{} morph displacement weights for {n} vertices", self.morph_displacement.len())));
+        }
+        if let Some(skin) = &self.skin {
+            skin.validate(n, self.frames.len())?;
         }
         if let Some(appearance) = &self.appearance {
             appearance.validate(n, &self.triangles)?;

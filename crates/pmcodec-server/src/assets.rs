@@ -102,12 +102,12 @@ impl LoadedAsset {
 
     /// The chunks a client that draws down to `level` needs, in file order (which is playback
     /// order): the chunks of the bands `level..=top` of the frames from `from` on (faces and
-    /// corners of band `level` only), and the input triangles when `level` is 0.
+    /// corners of band `level` only), the input triangles when `level` is 0, and the skin's
+    /// bind chunks of those bands (frame 0) whatever `from` is.
     pub fn chunks_for(&self, level: usize, from: u32) -> impl Iterator<Item = (usize, &ChunkEntry)> {
-        self.chunks
-            .iter()
-            .enumerate()
-            .filter(move |(_, e)| e.kind.read_at(e.band as usize, level) && (e.kind == ChunkKind::Triangles || e.frame >= from))
+        self.chunks.iter().enumerate().filter(move |(_, e)| {
+            e.kind.read_at(e.band as usize, level) && (matches!(e.kind, ChunkKind::Triangles | ChunkKind::Bind) || e.frame >= from)
+        })
     }
 }
 

@@ -5,7 +5,7 @@ use crate::{EXIT_BAD_INPUT, EXIT_FAILURE, Exit, progress};
 use anyhow::{Context, anyhow};
 use clap::{Args, ValueEnum};
 use pmcodec_container::{
-    ContainerError, CutTarget, Decoder, Distance, EncodeOptions, FileSource, Header, Motion, QuantizationChoice, Reader, VertexOrder,
+    ContainerError, CutTarget, Decoder, Distance, EncodeOptions, FileSource, Header, Motion, QuantizationChoice, Reader, SkinPlacement, VertexOrder,
     encode, summary, verify, write_file,
 };
 use pmcodec_hierarchy::base::{PoseSet, VertexWeights};
@@ -31,6 +31,13 @@ pub enum MotionArg {
 pub enum OrderArg {
     BreadthFirst,
     Input,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SkinArg {
+    BackPropagated,
+    Centroid,
+    None,
 }
 
 #[derive(Args, Debug)]
@@ -74,6 +81,11 @@ pub struct EncodeArgs {
     /// (what format version 4 used; better with `--motion mean`).
     #[arg(long, value_enum, default_value_t = OrderArg::BreadthFirst)]
     pub order: OrderArg,
+    /// For a skinned glTF, where coarse nodes sit in bind space for prediction by skinning:
+    /// `back-propagated` (their frame-0 position through their blended transform, Houle &
+    /// Poulin), `centroid` (their cluster's rest centroid), or `none` (no skinning).
+    #[arg(long, value_enum, default_value_t = SkinArg::BackPropagated)]
+    pub skin: SkinArg,
     /// Quadrics the base hierarchy is built from: `first`, `all`, or a number of sampled frames.
     #[arg(long, default_value = "first")]
     pub base_poses: String,
@@ -184,6 +196,9 @@ pub(crate) fn check_fps(args: &InputArgs) -> Result<(), Exit> {
 pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
     check_fps(&args.input_args)?;
     let seq = input::load(&args.input, &args.input_args)?;
+    for w in seq.skin.iter().flat_map(|s| &s.warnings).filter(|_| !quiet) {
+        eprintln!("warning: {}: {w}", args.input.display());
+    }
     let coarse_grid = match args.coarse_grid.trim() {
         "none" => None,
         k => Some(k.parse::<u32>().map_err(|_| Exit(2, anyhow!("--coarse-grid {k:?}: use a number of levels or none")))?),
@@ -197,7 +212,12 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
         OrderArg::BreadthFirst => VertexOrder::BreadthFirst,
         OrderArg::Input => VertexOrder::Input,
     };
-    let mut opts = EncodeOptions { keyframe_interval: args.keyframe_interval, coarse_grid, motion, order, ..Default::default() };
+    let skin = match args.skin {
+        SkinArg::BackPropagated => Some(SkinPlacement::BackPropagated),
+        SkinArg::Centroid => Some(SkinPlacement::Centroid),
+        SkinArg::None => None,
+    };
+    let mut opts = EncodeOptions { keyframe_interval: args.keyframe_interval, coarse_grid, motion, order, skin, ..Default::default() };
     opts.build.branching = args.branching;
     opts.build.anchors = parse_anchors(&args.level_anchors)?;
     opts.base.poses = parse_poses(&args.base_poses).map_err(|e| Exit(2, e))?;
@@ -553,6 +573,11 @@ pub fn info_cmd(args: InfoArgs) -> Result<(), Exit> {
         }
     );
     println!("topology deltas   {:.0} B/frame ({:.0} B raw)", s.delta_bytes_per_frame, s.delta_raw_bytes_per_frame);
+    if let Some(skin) = &h.skin {
+        let frames = h.frame_count.max(1) as f64;
+        let bind: u64 = s.bind_bytes.iter().sum();
+        println!("skin              {} palette entries, pose {:.0} B/frame, bind {bind} B", skin.palette_len, s.pose_bytes as f64 / frames);
+    }
     println!("{:>6} {:>8} {:>12} {:>12} {:>12} {:>14}", "level", "nodes", "keyframes B", "deltas B", "positions B", "B/frame to L");
     for l in (0..h.levels()).rev() {
         println!(

@@ -9,6 +9,7 @@ import { readCornerUpdates, readDelta, readFaces, readKey, readPositions, readTr
 import { LowerNeighbours, affineMotion, keyedMotion, lowerNeighbours, stencilWeights } from "./predict.js";
 import type { Reader } from "./read.js";
 import { FrameDelta, KeyBand, Replay } from "./replay.js";
+import { SkinState, nodeSkins, readBinds } from "./skin.js";
 
 /** Plays a container down to a finest level: hierarchy (Replay) and quantized node positions. */
 export class Decoder {
@@ -23,6 +24,8 @@ export class Decoder {
   private weights: Float64Array | null = null;
   /** The appearance chunks (version 6), read by `loadAppearance`. */
   looks: { charts: Charts; tables: (Table | null)[]; materials: Materials } | null = null;
+  /** The skin of a skinned file, once its bind chunks are read. */
+  private skin: SkinState | null = null;
 
   constructor(readonly reader: Reader, readonly minLevel: number) {
     const h = reader.header;
@@ -56,7 +59,18 @@ export class Decoder {
       this.triangles = readTriangles(raw, "triangles chunk", h.triangleCount, h.vertexCount);
       this.lower = lowerNeighbours(h.vertexCount, this.triangles, h.order);
     }
+    if (h.skin && !this.skin) {
+      const nodes = nodeSkins(h.levelSizes.reduce((a, b) => a + b, 0));
+      let offset = 0;
+      for (let j = 0; j < h.levelSizes.length; j++) {
+        if (j >= this.minLevel) readBinds(await c.chunk(c.find(ChunkKind.Bind, 0, j)), `band ${j} bind`, h.levelSizes[j], h.skin.paletteLen, nodes, offset);
+        offset += h.levelSizes[j];
+      }
+      this.skin = new SkinState(nodes);
+    }
+    const pose = await this.readPose(k, true);
     this.replay.loadKeyframe(bands, this.triangles ?? undefined);
+    if (pose) this.skin!.advance(pose.palette, true, pose.mask);
     await this.decodePositions(k, true);
     if (h.motion === Motion.KeyframeAffine && this.lower) this.weights = stencilWeights(this.lower, this.current, h.vertexCount);
     this.frame = k;
@@ -68,6 +82,7 @@ export class Decoder {
     for (let j = h.levelSizes.length - 1; j >= this.minLevel; j--) {
       readDelta(await c.chunk(c.find(ChunkKind.Delta, f, j)), `frame ${f} band ${j} delta`, h.levelSizes, j, delta);
     }
+    const pose = await this.readPose(f, false);
     const L = this.minLevel;
     if (L > 0) {
       const raw = await c.chunk(c.find(ChunkKind.Corners, f, L)), what = `frame ${f} band ${L} corners`;
@@ -77,9 +92,17 @@ export class Decoder {
       for (const u of updates) delta.corners.push({ level: L, t: u.t, corners: u.corners });
     }
     this.replay.apply(delta);
+    if (pose) this.skin!.advance(pose.palette, false, pose.mask);
     [this.previous, this.current] = [this.current, this.previous];
     await this.decodePositions(f, false);
     this.frame = f;
+  }
+
+  /** Frame `f`'s pose (skinned files), read and checked but not yet applied. */
+  private async readPose(f: number, intra: boolean): Promise<{ palette: BigInt64Array; mask: bigint } | null> {
+    const c = this.reader, h = c.header;
+    if (!h.skin || !this.skin) return null;
+    return this.skin.readPose(await c.chunk(c.find(ChunkKind.Pose, f, 0)), `frame ${f} pose`, h.skin.paletteLen, h.levelSizes.length, intra);
   }
 
   /**
@@ -104,6 +127,8 @@ export class Decoder {
       const affineBand = inter0 && h.motion === Motion.Affine, keyedBand = inter0 && h.motion === Motion.KeyframeAffine && this.weights !== null;
       // Band 0 in its decoding order, coarser bands in node order; `before`: the node decoded last.
       const sequence = lower ? lower.sequence : null;
+      const skin = this.skin !== null && this.skin.uses(j) ? this.skin : null;
+      const skinned = new Int32Array(3), scratch = new Int32Array(3);
       let before = -1;
       for (let k = 0; k < h.levelSizes[j]; k++) {
         const v = sequence ? sequence[k] : k;
@@ -113,10 +138,13 @@ export class Decoder {
         const lo = lower ? lower.offsets[v] : 0, hi = lower ? lower.offsets[v + 1] : 0;
         const sib = !intra && local >= 0 && hi === lo ? sibCount[local] : 0;
         // Band 0 on inter frames: the affine motion of the vertex's stencil, when it fits.
-        const affine = hi > lo && ((affineBand && affineMotion(lower!, v, cur, prev, fit)) || (keyedBand && keyedMotion(lower!, this.weights!, v, cur, prev, fit)));
+        if (skin) skin.predict(g, intra, prev, skinned, scratch);
+        const affine = hi > lo && !skin && ((affineBand && affineMotion(lower!, v, cur, prev, fit)) || (keyedBand && keyedMotion(lower!, this.weights!, v, cur, prev, fit)));
         for (let a = 0; a < 3; a++) {
           let pred: number;
-          if (affine) {
+          if (skin) {
+            pred = skinned[a];
+          } else if (affine) {
             pred = fit[a];
           } else if (sib > 0) {
             pred = (prev[3 * g + a] + Math.floor((2 * sibSum[3 * local + a] + sib) / (2 * sib))) | 0;

@@ -4,13 +4,14 @@
 
 import { DecodeError } from "./error.js";
 import { Postcard } from "./payload.js";
+import { ENTRY, MAX_PALETTE, SkinHeader } from "./skin.js";
 
 export const MAGIC = [0x89, 0x50, 0x4d, 0x43, 0x0d, 0x0a, 0x1a, 0x0a];
 export const PREAMBLE_LEN = 32;
 /**
  * The format version this decoder reads, and the oldest it still reads (version 5: no
- * `appearance` in the header; version 4: no `order` either, faces and corners as plain ids;
- * version 3: no `motion` either).
+ * `appearance` nor `skin` in the header; version 4: no `order` either, faces and corners as
+ * plain ids; version 3: no `motion` either).
  */
 export const VERSION = 6, OLDEST_READABLE = 3;
 /** The largest header or index the preamble may declare. */
@@ -18,7 +19,7 @@ export const MAX_TABLE_LEN = 64 << 20;
 /** Caps on a header's declared sizes (proto/container.md, "Limits"). */
 export const MAX_VERTICES = 1 << 24, MAX_TRIANGLES = 1 << 25, MAX_NODES = 1 << 25, MAX_FRAMES = 1 << 20;
 
-export enum ChunkKind { Triangles = 0, Key = 1, Delta = 2, Positions = 3, Faces = 4, Corners = 5, Charts = 6, Attributes = 7, Materials = 8, Image = 9 }
+export enum ChunkKind { Triangles = 0, Key = 1, Delta = 2, Positions = 3, Faces = 4, Corners = 5, Charts = 6, Attributes = 7, Materials = 8, Image = 9, Bind = 10, Pose = 11 }
 /** Most materials and images a file may declare; the largest Materials and Image chunks. */
 export const MAX_MATERIALS = 1 << 16, MAX_IMAGES = 1 << 12, MAX_MATERIALS_LEN = 16 << 20, MAX_IMAGE_LEN = 256 << 20;
 /** How band 0 is predicted on frames that are not keyframes (proto/container.md, "Positions, band j"). */
@@ -34,7 +35,7 @@ export enum VertexOrder { Input = 0, BreadthFirst = 1 }
 export function readAt(kind: ChunkKind, band: number, minLevel: number): boolean {
   if (kind === ChunkKind.Triangles) return minLevel === 0;
   if (kind === ChunkKind.Faces || kind === ChunkKind.Corners) return band === minLevel;
-  if (kind === ChunkKind.Charts || kind === ChunkKind.Materials || kind === ChunkKind.Image) return true;
+  if (kind === ChunkKind.Charts || kind === ChunkKind.Materials || kind === ChunkKind.Image || kind === ChunkKind.Pose) return true;
   return band >= minLevel;
 }
 
@@ -48,6 +49,8 @@ export interface Header {
   order: VertexOrder;
   /** Texture coordinates, colours and materials (version 6), or null. */
   appearance: AppearanceInfo | null;
+  /** The skin, when node positions may be predicted by skinning (version 6). */
+  skin: SkinHeader | null;
 }
 
 /** The header's `appearance` (proto/container.md, "Header"). */
@@ -97,7 +100,7 @@ export function parseHeader(hb: Uint8Array, version: number): Header {
     levelSizes: p.seq(() => p.varint(), 64), branching: p.varint(),
     bboxMin: [p.f32(), p.f32(), p.f32()], bboxMax: [p.f32(), p.f32(), p.f32()],
     step: p.f32(), keyframeInterval: p.varint(), generator: "", frameNames: [], motion: Motion.Mean, order: VertexOrder.Input,
-    appearance: null,
+    appearance: null, skin: null,
   };
   // encoded_with: informative, read and dropped.
   p.str(); p.str(); p.f64(); p.f64(); p.varint(); p.bool(); p.bool(); p.option(() => p.f64()); p.option(() => p.u8());
@@ -113,6 +116,9 @@ export function parseHeader(hb: Uint8Array, version: number): Header {
       uvMin: [p.f32(), p.f32()], uvStep: [p.f32(), p.f32()], colors: p.bool(), normals: p.bool(),
     }));
   }
+  header.skin = version >= 6 ? p.option(() => ({ paletteLen: p.varint(), bindStep: p.f32() })) : null;
+  // Every version's header ends with its last field, except version 5's, whose readers ignored bytes after it.
+  if (version !== 5 && p.pos !== hb.length) throw new DecodeError(`header: ${hb.length - p.pos} bytes after its last field`);
   return header;
 }
 
@@ -120,7 +126,7 @@ export function parseIndex(ib: Uint8Array): ChunkEntry[] {
   const q = new Postcard(ib, "index");
   return q.seq((): ChunkEntry => {
     const kind = q.varint();
-    if (kind > 9) throw new DecodeError(`index: chunk kind ${kind}`);
+    if (kind > 11) throw new DecodeError(`index: chunk kind ${kind}`);
     return { kind, frame: q.varint(), band: q.varint(), offset: q.varint(), storedLen: q.varint(), rawLen: q.varint(), crc32: q.varint() };
   }, 1 << 24);
 }
@@ -143,13 +149,19 @@ export function checkTables(h: Header, index: ChunkEntry[], dataLen: number): vo
     || a.images > MAX_IMAGES || a.uvSets > 2 || !a.uvMin.every(Number.isFinite) || !a.uvStep.every((x) => Number.isFinite(x) && x > 0))) {
     throw new DecodeError("header: appearance out of range");
   }
+  if (h.skin && !(h.skin.paletteLen >= 1 && h.skin.paletteLen <= MAX_PALETTE && h.skin.bindStep > 0 && Number.isFinite(h.skin.bindStep))) {
+    throw new DecodeError(`header: skin palette of ${h.skin.paletteLen} entries, bind quantum ${h.skin.bindStep}`);
+  }
   let end = 0;
   const seen = new Set<string>();
   for (const e of index) {
+    if ((e.kind === ChunkKind.Bind || e.kind === ChunkKind.Pose) && !h.skin) throw new DecodeError(`${describe(e)}: a skin chunk in a file without a skin`);
+    if (e.kind === ChunkKind.Bind && e.frame !== 0) throw new DecodeError(`${describe(e)}: frame ${e.frame}, where bind chunks are frame 0`);
+    if (e.kind === ChunkKind.Pose && e.band !== 0) throw new DecodeError(`${describe(e)}: band ${e.band}, where pose chunks are band 0`);
     if (e.offset + e.storedLen > dataLen) throw new DecodeError(`${describe(e)}: the file ends before it does`);
     end = Math.max(end, e.offset + e.storedLen);
     if (e.kind !== ChunkKind.Triangles && e.kind !== ChunkKind.Image && (e.frame >= h.frameCount || e.band >= h.levelSizes.length)) throw new DecodeError(`${describe(e)}: frame or band beyond the header's counts`);
-    if (e.kind >= ChunkKind.Charts) {
+    if (e.kind >= ChunkKind.Charts && e.kind <= ChunkKind.Image) {
       // Appearance chunks: frame 0, once per kind and band, in a file with an appearance.
       const bandOk = e.kind === ChunkKind.Image ? a !== null && e.band < a.images : e.kind === ChunkKind.Attributes || e.band === 0;
       if (!a || e.frame !== 0 || !bandOk || seen.has(`${e.kind}/${e.band}`)) throw new DecodeError(`${describe(e)}: misplaced appearance chunk`);
@@ -174,6 +186,8 @@ function rawLenRange(h: Header, kind: ChunkKind, band: number): [number, number]
     case ChunkKind.Attributes: return [1, 5 + (10 + 5 * (h.appearance ? channels(h.appearance) : 0)) * 3 * t];
     case ChunkKind.Materials: return [4, MAX_MATERIALS_LEN];
     case ChunkKind.Image: return [1, MAX_IMAGE_LEN];
+    case ChunkKind.Bind: return [4 * n, 101 * n];
+    case ChunkKind.Pose: { const p = (h.skin?.paletteLen ?? 0) * ENTRY; return [1 + p, 10 + 10 * p]; }
     default: return [1, 1024 + 24 * n];
   }
 }

@@ -273,6 +273,7 @@ impl RiggedMesh {
             seq.frame_names.push(format!("{label}@{t:.3}s"));
         }
         seq.morph_displacement = self.morph_displacement();
+        seq.skin = crate::skin::sequence_skin(self, anim, &(0..count).map(|i| i as f32 / frame_rate).collect::<Vec<_>>());
         seq.appearance.clone_from(&self.appearance);
         seq.validate()?;
         Ok(seq)

@@ -1,0 +1,181 @@
+//! The encoder's side of skinning: the palette quantized frame by frame, and every node's skin.
+//! Input vertices keep their own; a coarser node takes the four strongest of its cluster's
+//! summed influences and a bind position, either the cluster's rest centroid or its frame-0
+//! position carried back to bind space through its blended transform (Houle and Poulin's
+//! bone-space placement, "Simplification and real-time smooth transitions of articulated
+//! meshes", 2001, which `pmcodec-lod` applies per collapse).
+
+use super::{ENTRY, LINEAR_BITS, MAX_BIND, MAX_MATRIX, NodeSkin, SkinHeader, TRANSLATION_BITS, WEIGHT_ONE};
+use crate::ContainerError;
+use crate::encode::SkinPlacement;
+use glam::{DMat3, DVec3, Vec3};
+use pmcodec_hierarchy::Hierarchy;
+use pmcodec_mesh::SequenceSkin;
+
+/// What the encoder knows of a sequence's skin.
+pub struct SkinFit<'a> {
+    pub header: SkinHeader,
+    skin: &'a SequenceSkin,
+    /// Every node's skin (global ids).
+    pub nodes: Vec<NodeSkin>,
+    lo: Vec3,
+    step: f64,
+}
+
+/// Influences as (entry, weight) quantized to weights in 1/65536 that sum to 65536 exactly, the
+/// strongest first, the weakest dropped when they round to nothing.
+fn quantize_weights(mut pairs: Vec<(u32, f64)>) -> ([u32; 4], [i64; 4]) {
+    pairs.retain(|p| p.1 > 0.0 && p.1.is_finite());
+    pairs.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+    pairs.truncate(4);
+    let sum: f64 = pairs.iter().map(|p| p.1).sum();
+    let (mut joints, mut weights) = ([0u32; 4], [0i64; 4]);
+    if sum <= 0.0 {
+        return (joints, weights);
+    }
+    let mut q: Vec<(u32, i64)> =
+        pairs.iter().map(|&(j, w)| (j, (w / sum * WEIGHT_ONE as f64).round() as i64)).filter(|p| p.1 > 0).collect();
+    if q.is_empty() {
+        q.push((pairs[0].0, WEIGHT_ONE));
+    }
+    // The strongest takes the rounding, so the sum is exact and every weight positive.
+    let rest: i64 = q[1..].iter().map(|p| p.1).sum();
+    q[0].1 = WEIGHT_ONE - rest;
+    for (slot, (j, w)) in q.into_iter().enumerate() {
+        joints[slot] = j;
+        weights[slot] = w;
+    }
+    (joints, weights)
+}
+
+/// The bind quantum: half the position quantum pulled back through the palette's typical scale
+/// in frame 0 (the median cube root of its linear parts' determinants), so bind positions are
+/// stored a little finer than positions whatever units the skeleton uses. Finer costs pose
+/// bytes every frame (the linear parts scale with it) for less rounding in the bind once.
+fn bind_step(skin: &SequenceSkin, step: f64) -> f64 {
+    let mut scales: Vec<f64> = skin
+        .matrices
+        .first()
+        .map(|ms| ms.iter().map(|m| linear(m).determinant().abs().cbrt()).filter(|s| s.is_finite() && *s > 1e-12).collect())
+        .unwrap_or_default();
+    scales.sort_by(f64::total_cmp);
+    let s = scales.get(scales.len() / 2).copied().unwrap_or(1.0);
+    step / (2.0 * s)
+}
+
+fn linear(m: &[f32; 12]) -> DMat3 {
+    DMat3::from_cols_array(&[m[0], m[4], m[8], m[1], m[5], m[9], m[2], m[6], m[10]].map(|x| x as f64))
+}
+
+fn translation(m: &[f32; 12]) -> DVec3 {
+    DVec3::new(m[3] as f64, m[7] as f64, m[11] as f64)
+}
+
+/// Fits the skin of every node of `h` (the hierarchy of frame 0, whose node positions are
+/// `positions0`) for positions quantized at `step` from `lo`.
+pub fn fit_skin<'a>(
+    skin: &'a SequenceSkin,
+    h: &Hierarchy,
+    positions0: &[Vec3],
+    (lo, step): (Vec3, f32),
+    placement: SkinPlacement,
+) -> Result<SkinFit<'a>, ContainerError> {
+    let step = step as f64;
+    let bstep = bind_step(skin, step);
+    if !(bstep.is_finite() && bstep > 0.0) {
+        return Err(ContainerError::Options(format!("skin: bind quantum {bstep} from a position quantum {step}")));
+    }
+    let header = SkinHeader { palette_len: skin.palette_len, bind_step: bstep as f32 };
+    let bstep = header.bind_step as f64;
+    let quantize_bind = |b: DVec3, what: &dyn Fn() -> String| -> Result<[i64; 3], ContainerError> {
+        let q = (b / bstep).round();
+        if !q.is_finite() || q.abs().max_element() > MAX_BIND as f64 {
+            return Err(ContainerError::Options(format!("skin: {} has a bind position {b} beyond the bind grid", what())));
+        }
+        Ok([q.x as i64, q.y as i64, q.z as i64])
+    };
+    let n0 = h.level_sizes[0] as usize;
+    let total = h.offsets.last().copied().unwrap_or(0) as usize;
+    let mut nodes = vec![NodeSkin::default(); total];
+    for v in 0..n0 {
+        let (joints, weights) = quantize_weights(skin.joints[v].iter().zip(&skin.weights[v]).map(|(&j, &w)| (j, w as f64)).collect());
+        let bind = quantize_bind(skin.rest[v].as_dvec3(), &|| format!("vertex {v}"))?;
+        nodes[v] = NodeSkin { bind, joints, weights };
+    }
+    let frame0 = skin.matrices.first().map(Vec::as_slice).unwrap_or_default();
+    let ancestors = h.all_ancestors();
+    for (j, anc) in ancestors.iter().enumerate().skip(1) {
+        let size = h.level_sizes[j] as usize;
+        let mut sums: Vec<Vec<(u32, f64)>> = vec![Vec::new(); size];
+        let mut centroid = vec![(DVec3::ZERO, 0u32); size];
+        for v in 0..n0 {
+            let node = anc[v] as usize;
+            for (&k, &w) in skin.joints[v].iter().zip(&skin.weights[v]) {
+                if w <= 0.0 {
+                    continue;
+                }
+                match sums[node].iter_mut().find(|p| p.0 == k) {
+                    Some(p) => p.1 += w as f64,
+                    None => sums[node].push((k, w as f64)),
+                }
+            }
+            centroid[node].0 += skin.rest[v].as_dvec3();
+            centroid[node].1 += 1;
+        }
+        for (local, pairs) in sums.into_iter().enumerate() {
+            let g = h.offsets[j] as usize + local;
+            let (joints, weights) = quantize_weights(pairs);
+            let rest = centroid[local].0 / centroid[local].1.max(1) as f64;
+            let bind = match placement {
+                SkinPlacement::Centroid => rest,
+                SkinPlacement::BackPropagated => back_propagate(&joints, &weights, frame0, positions0[g].as_dvec3()).unwrap_or(rest),
+            };
+            nodes[g] = NodeSkin { bind: quantize_bind(bind, &|| format!("level {j} node {local}"))?, joints, weights };
+        }
+    }
+    Ok(SkinFit { header, skin, nodes, lo, step })
+}
+
+/// The bind position that the blended transform of `joints`/`weights` in `frame` carries to
+/// `x`, or `None` when that transform is singular.
+fn back_propagate(joints: &[u32; 4], weights: &[i64; 4], frame: &[[f32; 12]], x: DVec3) -> Option<DVec3> {
+    let (mut a, mut t) = (DMat3::ZERO, DVec3::ZERO);
+    for (&j, &w) in joints.iter().zip(weights) {
+        if w == 0 {
+            continue;
+        }
+        let m = frame.get(j as usize)?;
+        let w = w as f64 / WEIGHT_ONE as f64;
+        a += linear(m) * w;
+        t += translation(m) * w;
+    }
+    let det = a.determinant();
+    (det.is_finite() && det.abs() > 1e-12).then(|| a.inverse() * (x - t)).filter(|b| b.is_finite())
+}
+
+impl SkinFit<'_> {
+    /// Frame `f`'s palette in the file's fixed point (ENTRY values per entry).
+    pub fn palette(&self, f: usize) -> Result<Vec<i64>, ContainerError> {
+        let scale = self.header.bind_step as f64 / self.step * (1u64 << LINEAR_BITS) as f64;
+        let tscale = (1u64 << TRANSLATION_BITS) as f64 / self.step;
+        let lo = self.lo.as_dvec3().to_array();
+        let frame = self.skin.matrices.get(f).map(Vec::as_slice).unwrap_or_default();
+        let mut out = Vec::with_capacity(frame.len() * ENTRY);
+        for (k, m) in frame.iter().enumerate() {
+            for a in 0..3 {
+                for c in 0..4 {
+                    let x = m[4 * a + c] as f64;
+                    let q = if c < 3 { (x * scale).round() } else { ((x - lo[a]) * tscale).round() };
+                    if !(q.is_finite() && q.abs() <= MAX_MATRIX as f64) {
+                        return Err(ContainerError::Options(format!(
+                            "skin: frame {f}: the matrix of {} does not fit the file's fixed point",
+                            self.skin.name(k)
+                        )));
+                    }
+                    out.push(q as i64);
+                }
+            }
+        }
+        Ok(out)
+    }
+}

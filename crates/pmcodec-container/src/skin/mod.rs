@@ -1,0 +1,167 @@
+//! Skinned streams (format version 6): the skeleton once, its joint palette's matrices per frame,
+//! and node positions predicted by linear blend skinning, so that only residuals are coded (the
+//! motion compensation of MPEG-4 FAMC: Mamou, Zaharia and Prêteux, "FAMC: the MPEG-4 standard
+//! for animated mesh compression", 2008; coarse nodes placed in bone space as Houle and Poulin,
+//! "Simplification and real-time smooth transitions of articulated meshes", 2001, place them).
+//!
+//! Everything a decoder computes here is integer arithmetic (proto/container.md, "Skinning"):
+//! a node's bind position in bind quanta, its at most four weights in 1/65536, the palette's
+//! linear parts in 2^-15 position quanta per bind quantum and translations in 2^-2 quanta, all
+//! combined in wrapping 64-bit integers, so a decoder in any language gets the same bits.
+
+// Per-axis and per-node loops index several parallel arrays at once, as the spec states them.
+#![allow(clippy::needless_range_loop)]
+
+mod fit;
+mod payload;
+
+pub(crate) use fit::{SkinFit, fit_skin};
+pub(crate) use payload::{PosePrediction, read_binds, read_pose, write_binds, write_pose};
+
+use serde::{Deserialize, Serialize};
+
+/// The header's skin fields (version 6; `None` in files without skinning).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SkinHeader {
+    /// Entries of the joint palette.
+    pub palette_len: u32,
+    /// The bind-space quantum: bind positions are stored as integers times this.
+    pub bind_step: f32,
+}
+
+/// Caps a reader checks so that what it allocates stays bounded and the arithmetic stays in
+/// range for sane files (proto/container.md, "Limits").
+pub const MAX_PALETTE: u32 = 1 << 16;
+/// Bound on a bind coordinate, in bind quanta.
+pub const MAX_BIND: i64 = 1 << 30;
+/// Bound on a matrix value, in its fixed-point units.
+pub const MAX_MATRIX: i64 = 1 << 40;
+/// Weights are in units of 2^-16 and sum to this.
+pub const WEIGHT_ONE: i64 = 1 << 16;
+/// Fixed-point bits of the palette's linear parts and of its translations.
+pub const LINEAR_BITS: u32 = 15;
+pub const TRANSLATION_BITS: u32 = 2;
+/// Values per palette entry: three rows of (three linear values, one translation).
+pub const ENTRY: usize = 12;
+
+/// One node's skin: bind position and influences (palette entry, weight; weight 0 unused).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct NodeSkin {
+    pub bind: [i64; 3],
+    pub joints: [u32; 4],
+    pub weights: [i64; 4],
+}
+
+/// Node `skin` posed by `palette` (ENTRY values per entry), in position quanta. Per influence
+/// `k` and axis `a`: `y = ((L[a][0] b0 + L[a][1] b1 + L[a][2] b2) >> 13) + T[a]` (2^-2 quanta),
+/// summed as `acc += w_k y`; the result is `(acc + 2^17) >> 18` wrapped to 32 bits. Every
+/// operation wraps in 64 bits and `>>` is arithmetic.
+#[inline]
+pub fn lbs(skin: &NodeSkin, palette: &[i64]) -> [i32; 3] {
+    let mut acc = [0i64; 3];
+    for k in 0..4 {
+        let w = skin.weights[k];
+        if w == 0 {
+            continue;
+        }
+        let base = skin.joints[k] as usize * ENTRY;
+        let Some(m) = palette.get(base..base + ENTRY) else { continue };
+        for a in 0..3 {
+            let r = &m[4 * a..4 * a + 4];
+            let dot =
+                r[0].wrapping_mul(skin.bind[0]).wrapping_add(r[1].wrapping_mul(skin.bind[1])).wrapping_add(r[2].wrapping_mul(skin.bind[2]));
+            let y = (dot >> (LINEAR_BITS - TRANSLATION_BITS)).wrapping_add(r[3]);
+            acc[a] = acc[a].wrapping_add(w.wrapping_mul(y));
+        }
+    }
+    let round = 1i64 << (15 + TRANSLATION_BITS);
+    acc.map(|v| (v.wrapping_add(round) >> (16 + TRANSLATION_BITS)) as i32)
+}
+
+/// The skinning prediction of a node stored as `prev` in the previous frame: on keyframes its
+/// skinned position, else its previous position moved as skinning moves it.
+#[inline]
+pub fn predict_skinned(skin: &NodeSkin, palette: &[i64], previous_palette: &[i64], intra: bool, prev: [i32; 3]) -> [i32; 3] {
+    let now = lbs(skin, palette);
+    if intra {
+        return now;
+    }
+    let before = lbs(skin, previous_palette);
+    [0, 1, 2].map(|a| prev[a].wrapping_add(now[a].wrapping_sub(before[a])))
+}
+
+/// What a decoder keeps of the skin: every decoded node's skin and the palettes of the current
+/// and the previous frame, with the current frame's band mask.
+#[derive(Clone, Debug, Default)]
+pub struct SkinState {
+    /// Per global node id (nodes of bands below the decoder's level stay default).
+    pub nodes: Vec<NodeSkin>,
+    pub palette: Vec<i64>,
+    /// The previous frame's palette, when the current frame is not a keyframe (empty else).
+    pub previous: Vec<i64>,
+    /// Bit j: band j is predicted by skinning in the current frame.
+    pub mask: u64,
+}
+
+impl SkinState {
+    /// How the next frame's pose is predicted: from nothing on a keyframe; else from the
+    /// current palette, and the one before it when both follow the last keyframe.
+    pub fn prediction(&self, intra: bool) -> PosePrediction<'_> {
+        match (intra, self.palette.is_empty(), self.previous.is_empty()) {
+            (true, ..) | (_, true, _) => PosePrediction::Key,
+            (false, false, true) => PosePrediction::Previous(&self.palette),
+            (false, false, false) => PosePrediction::Linear(&self.palette, &self.previous),
+        }
+    }
+
+    /// Makes `palette` the current frame's (`intra`: a keyframe's).
+    pub fn advance(&mut self, palette: Vec<i64>, intra: bool, mask: u64) {
+        self.previous = std::mem::replace(&mut self.palette, palette);
+        if intra {
+            // Nothing before a keyframe predicts what follows it.
+            self.previous.clear();
+        }
+        self.mask = mask;
+    }
+
+    /// Whether band `j` is predicted by skinning in the current frame.
+    pub fn uses(&self, j: usize) -> bool {
+        j < 64 && self.mask >> j & 1 == 1
+    }
+}
+
+/// The header's skin fields checked before anything is sized from them; `Some(detail)` when
+/// they are not what an encoder writes.
+pub fn check_header(h: &crate::Header) -> Option<String> {
+    let s = h.skin.as_ref()?;
+    if s.palette_len == 0 || s.palette_len > MAX_PALETTE {
+        return Some(format!("skin palette of {} entries (1 to {MAX_PALETTE})", s.palette_len));
+    }
+    if !(s.bind_step.is_finite() && s.bind_step > 0.0) {
+        return Some(format!("skin bind quantum {}", s.bind_step));
+    }
+    None
+}
+
+/// An index entry of a skin chunk where the format puts them: only in skinned files, Bind
+/// chunks in frame 0, Pose chunks in band 0.
+pub fn check_entry(h: &crate::Header, e: &crate::ChunkEntry) -> Result<(), String> {
+    use crate::ChunkKind;
+    match e.kind {
+        ChunkKind::Bind | ChunkKind::Pose if h.skin.is_none() => Err("a skin chunk in a file without a skin".into()),
+        ChunkKind::Bind if e.frame != 0 => Err(format!("frame {}, where bind chunks are frame 0", e.frame)),
+        ChunkKind::Pose if e.band != 0 => Err(format!("band {}, where pose chunks are band 0", e.band)),
+        _ => Ok(()),
+    }
+}
+
+/// The decompressed sizes a skin chunk may declare: a bind chunk of `n` nodes takes 4 to 101
+/// bytes per node (three coordinates, a count, four entries and three weights of up to 10
+/// bytes), a pose chunk 1 to 10 bytes per palette value and its mask.
+pub fn raw_len_range(h: &crate::Header, kind: crate::ChunkKind, n: u64) -> (u64, u64) {
+    let p = h.skin.as_ref().map_or(0, |s| s.palette_len as u64) * ENTRY as u64;
+    match kind {
+        crate::ChunkKind::Bind => (4 * n, 101 * n),
+        _ => (1 + p, 10 + 10 * p),
+    }
+}

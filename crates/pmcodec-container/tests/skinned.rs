@@ -1,0 +1,157 @@
+//! Skinned streams (format version 6): node positions predicted by linear blend skinning round
+//! trip within the quantization bound at every level, cost a fraction of the unskinned
+//! stream's position bytes when the deformation is skinning, and damaged skin chunks are
+//! refused by name.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use pmcodec_container::testing::reseal;
+use pmcodec_container::{
+    ChunkKind, ContainerError, Decoder, EncodeOptions, CutTarget, QuantizationChoice, Reader, encode, summary, verify,
+};
+use pmcodec_mesh::Sequence;
+use pmcodec_mesh::skin::bending_tube;
+
+fn options() -> EncodeOptions {
+    EncodeOptions {
+        build: pmcodec_hierarchy::BuildOptions { min_coarsest: 4, ..EncodeOptions::default().build },
+        keyframe_interval: 4,
+        quantization: QuantizationChoice::Bits(12),
+        ..Default::default()
+    }
+}
+
+/// Every frame decodes within the quantization bound of the input at full resolution, and a
+/// client stopping at each coarser level decodes the same positions for its bands as a full
+/// client, whether it plays through or seeks.
+fn round_trip(seq: &Sequence, bytes: &[u8]) {
+    let r = Reader::open(bytes).expect("open");
+    verify(&r).expect("verify");
+    let h = r.header().clone();
+    let bound = h.quantization.step * 0.5 * 3f32.sqrt() * 1.01;
+    let mut full = Decoder::new(r.borrowed(), 0).expect("decoder");
+    let mut coarse: Vec<_> = (1..h.levels()).map(|l| Decoder::new(r.borrowed(), l).expect("decoder")).collect();
+    for f in 0..h.frame_count {
+        full.seek(f).expect("frame");
+        let mesh = full.mesh(CutTarget::Level(0)).expect("mesh");
+        for (v, (a, b)) in mesh.positions.iter().zip(&seq.frames[f as usize]).enumerate() {
+            assert!((*a - *b).abs().max_element() <= bound, "frame {f} vertex {v}: {a} for {b} (bound {bound})");
+        }
+        for (l, d) in coarse.iter_mut().enumerate().map(|(i, d)| (i + 1, d)) {
+            d.seek(f).expect("coarse frame");
+            let from = Reader::open(bytes).expect("open").header().level_sizes[..l].iter().sum::<u32>() as usize;
+            assert_eq!(d.quantized()[from..], full.quantized()[from..], "frame {f} level {l}");
+        }
+    }
+    let mut seeker = Decoder::new(r.borrowed(), 0).expect("decoder");
+    seeker.keep_keyframes(2);
+    for f in (0..h.frame_count).rev() {
+        seeker.seek(f).expect("seek back");
+        full.seek(f).expect("seek");
+        assert_eq!(seeker.quantized(), full.quantized(), "seek to {f}");
+    }
+}
+
+#[test]
+fn exact_skinning_round_trips_with_a_fraction_of_the_position_bytes() {
+    let seq = bending_tube(16, 40, 24);
+    let skinned = encode(&seq, &options(), |_| {}).expect("encode skinned");
+    let plain = encode(&seq, &EncodeOptions { skin: None, ..options() }, |_| {}).expect("encode plain");
+    round_trip(&seq, &skinned);
+    round_trip(&seq, &plain);
+    let (rs, rp) = (Reader::open(skinned.as_slice()).expect("open"), Reader::open(plain.as_slice()).expect("open"));
+    assert!(rs.header().skin.is_some() && rp.header().skin.is_none());
+    assert!(rp.index().chunks.iter().all(|e| !matches!(e.kind, ChunkKind::Bind | ChunkKind::Pose)));
+    let (ss, sp) = (summary(&rs), summary(&rp));
+    // Band 0 follows the skin to within rounding: its residuals all but vanish.
+    assert!(
+        ss.positions_bytes[0] * 3 < sp.positions_bytes[0],
+        "band 0 positions: {} bytes skinned, {} without",
+        ss.positions_bytes[0],
+        sp.positions_bytes[0]
+    );
+    assert!(skinned.len() < plain.len(), "{} bytes skinned, {} without", skinned.len(), plain.len());
+    assert_eq!(ss.bind_bytes.iter().filter(|&&b| b > 0).count(), rs.header().levels());
+}
+
+/// A skinned file truncated to its first frames still carries matrices for every frame.
+#[test]
+fn real_skinned_models_round_trip() {
+    let path = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/gltf/Fox.glb"));
+    assert!(path.exists(), "{} is absent: these tests read the real meshes in ../shared/data beside the repository", path.display());
+    let mut seq = pmcodec_mesh::gltf_input::load_gltf(&path, &Default::default()).expect("Fox");
+    seq.frames.truncate(9);
+    let bytes = encode(&seq, &options(), |_| {}).expect("encode");
+    assert!(Reader::open(bytes.as_slice()).expect("open").header().skin.is_some());
+    round_trip(&seq, &bytes);
+}
+
+fn refused(bytes: &[u8]) -> ContainerError {
+    let r = match Reader::open(bytes) {
+        Ok(r) => r,
+        Err(e) => return e,
+    };
+    match verify(&r) {
+        Ok(_) => panic!("damage not detected"),
+        Err(e) => e,
+    }
+}
+
+#[test]
+fn damaged_skin_chunks_are_refused_by_name() {
+    let seq = bending_tube(8, 12, 6);
+    let bytes = encode(&seq, &options(), |_| {}).expect("encode");
+    let damage = |kind: ChunkKind, frame: u32, f: fn(&mut Vec<u8>)| {
+        reseal(&bytes, |u| {
+            let c = u.chunks.iter_mut().find(|c| c.entry.kind == kind && c.entry.frame == frame).expect("chunk");
+            f(&mut c.raw);
+        })
+        .expect("reseal")
+    };
+    type Damage = fn(&mut Vec<u8>);
+    let cases: [(ChunkKind, u32, Damage, &str); 4] = [
+        (ChunkKind::Bind, 0, |raw| raw.push(0), "bind: 1 bytes left over"),
+        (
+            ChunkKind::Bind,
+            0,
+            |raw| {
+                raw.fill(0);
+                raw[3] = 5;
+            },
+            "node 0: 5 influences, more than 4",
+        ),
+        (ChunkKind::Pose, 2, |raw| raw[0] = 0x7f, "frame 2 pose: band mask 0x7f names bands beyond"),
+        (ChunkKind::Pose, 0, |raw| raw.truncate(raw.len() / 2), "frame 0 band 0 pose: declared size"),
+    ];
+    for (kind, frame, f, expected) in cases {
+        let e = refused(&damage(kind, frame, f));
+        assert!(matches!(e, ContainerError::Corrupt { .. }) && e.to_string().contains(expected), "{kind:?}: {e}");
+    }
+    // The header's skin: a palette of no entries.
+    let bad = reseal(&bytes, |u| {
+        let mut h = u.parsed_header().expect("header");
+        h.skin.as_mut().expect("skin").palette_len = 0;
+        u.set_header(&h);
+    })
+    .expect("reseal");
+    let e = refused(&bad).to_string();
+    assert!(e.contains("header") && e.contains("skin palette of 0 entries"), "{e}");
+}
+
+/// What a network client prefetches for a frame holds the skin it needs: the bind chunks of
+/// its bands, once, and the pose of every frame from the keyframe on.
+#[test]
+fn chunks_for_a_frame_include_the_skin() {
+    let seq = bending_tube(8, 12, 10);
+    let bytes = encode(&seq, &options(), |_| {}).expect("encode");
+    let r = Reader::open(bytes.as_slice()).expect("open");
+    for level in 0..r.header().levels() {
+        let mut d = Decoder::new(r.borrowed(), level).expect("decoder");
+        let want = d.chunks_for(6);
+        let binds: Vec<u32> = want.iter().filter(|e| e.kind == ChunkKind::Bind).map(|e| e.band).collect();
+        let poses: Vec<u32> = want.iter().filter(|e| e.kind == ChunkKind::Pose).map(|e| e.frame).collect();
+        assert_eq!(binds, (level as u32..r.header().levels() as u32).rev().collect::<Vec<_>>(), "level {level}");
+        assert_eq!(poses, vec![4, 5, 6], "level {level}: keyframe 4 and the frames after it");
+        d.seek(6).expect("seek");
+        assert!(d.chunks_for(7).iter().all(|e| e.kind != ChunkKind::Bind), "bind chunks are read once");
+    }
+}

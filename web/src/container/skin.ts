@@ -1,0 +1,145 @@
+// Skinned streams (format version 6), as `pmcodec_container::skin`: every node's bind position
+// and influences (Bind chunks), each frame's joint palette and skinned bands (Pose chunks), and
+// the integer linear blend skinning that predicts node positions (proto/container.md,
+// "Skinning"). The arithmetic is wrapping 64-bit, done with BigInt so it matches Rust bit for bit.
+
+import { DecodeError } from "./error.js";
+
+export const MAX_PALETTE = 1 << 16;
+const MAX_BIND = 1n << 30n, MAX_MATRIX = 1n << 40n, WEIGHT_ONE = 1n << 16n;
+const LINEAR_BITS = 15n, TRANSLATION_BITS = 2n;
+export const ENTRY = 12;
+
+/** The header's skin fields. */
+export interface SkinHeader { paletteLen: number; bindStep: number }
+
+/** Every decoded node's skin: bind position and up to four (entry, weight) influences. */
+export interface NodeSkins { bind: BigInt64Array; joints: Uint32Array; weights: BigInt64Array; count: Uint8Array }
+
+export function nodeSkins(n: number): NodeSkins {
+  return { bind: new BigInt64Array(3 * n), joints: new Uint32Array(4 * n), weights: new BigInt64Array(4 * n), count: new Uint8Array(n) };
+}
+
+/** Varints up to 64 bits (the tenth byte at most 1). */
+class Cursor64 {
+  pos = 0;
+  constructor(private b: Uint8Array, private what: string) {}
+  corrupt(detail: string): DecodeError { return new DecodeError(`${this.what}: ${detail}`); }
+  get(): bigint {
+    let v = 0n;
+    for (let shift = 0n; shift < 64n; shift += 7n) {
+      if (this.pos >= this.b.length) throw this.corrupt(`ends inside a number at byte ${this.pos}`);
+      const byte = this.b[this.pos++];
+      if (shift === 63n && byte > 1) throw this.corrupt("number beyond 64 bits");
+      v |= BigInt(byte & 0x7f) << shift;
+      if (!(byte & 0x80)) return v;
+    }
+    throw this.corrupt("number longer than 10 bytes");
+  }
+  signed(): bigint { const z = this.get(); return BigInt.asIntN(64, (z >> 1n) ^ -(z & 1n)); }
+  finish(): void { if (this.pos !== this.b.length) throw this.corrupt(`${this.b.length - this.pos} bytes left over`); }
+}
+
+const abs = (v: bigint): bigint => (v < 0n ? -v : v);
+const wrap = (v: bigint): bigint => BigInt.asIntN(64, v);
+
+/** Reads a Bind chunk of `count` nodes into `out` from node `offset` on. */
+export function readBinds(raw: Uint8Array, what: string, count: number, palette: number, out: NodeSkins, offset: number): void {
+  const c = new Cursor64(raw, what);
+  if (count * 4 > raw.length) throw c.corrupt(`${count} nodes in ${raw.length} bytes`);
+  const before = [0n, 0n, 0n];
+  for (let v = 0; v < count; v++) {
+    const g = offset + v;
+    for (let a = 0; a < 3; a++) {
+      const b = wrap(before[a] + c.signed());
+      if (abs(b) > MAX_BIND) throw c.corrupt(`node ${v}: bind coordinate ${b} beyond the limit of ${MAX_BIND}`);
+      before[a] = b;
+      out.bind[3 * g + a] = b;
+    }
+    const k = c.get();
+    if (k > 4n) throw c.corrupt(`node ${v}: ${k} influences, more than 4`);
+    const n = Number(k);
+    for (let s = 0; s < n; s++) {
+      const j = c.get();
+      if (j >= BigInt(palette)) throw c.corrupt(`node ${v} influence ${s}: joint ${j} beyond the palette of ${palette}`);
+      out.joints[4 * g + s] = Number(j);
+    }
+    let left = WEIGHT_ONE;
+    for (let s = 0; s < n; s++) {
+      let w = s + 1 === n ? left : c.get();
+      if (w > WEIGHT_ONE + 1n) w = WEIGHT_ONE + 1n;
+      if (w <= 0n || w > left) throw c.corrupt(`node ${v}: weights do not sum to ${WEIGHT_ONE} with every one positive`);
+      out.weights[4 * g + s] = w;
+      left -= w;
+    }
+    out.count[g] = n;
+  }
+  c.finish();
+}
+
+/** The palettes a decoder holds: the current frame's, and the previous frame's unless the current is a keyframe. */
+export class SkinState {
+  palette: BigInt64Array | null = null;
+  previous: BigInt64Array | null = null;
+  mask = 0n;
+  constructor(readonly nodes: NodeSkins) {}
+
+  uses(j: number): boolean { return j < 64 && ((this.mask >> BigInt(j)) & 1n) === 1n; }
+
+  /** Reads a Pose chunk predicted from the held palettes; returns the palette and mask, not yet applied. */
+  readPose(raw: Uint8Array, what: string, entries: number, levels: number, intra: boolean): { palette: BigInt64Array; mask: bigint } {
+    const c = new Cursor64(raw, what);
+    const mask = c.get();
+    if (levels < 64 && mask >> BigInt(levels) !== 0n) throw c.corrupt(`band mask 0x${mask.toString(16)} names bands beyond the file's ${levels}`);
+    const n = entries * ENTRY;
+    if (n > raw.length) throw c.corrupt(`${entries} palette entries in ${raw.length} bytes`);
+    const p = intra ? null : this.palette, q = intra ? null : this.previous;
+    const out = new BigInt64Array(n);
+    for (let i = 0; i < n; i++) {
+      const predicted = p === null ? 0n : q === null ? (p[i] ?? 0n) : wrap(2n * (p[i] ?? 0n) - (q[i] ?? 0n));
+      const v = wrap(predicted + c.signed());
+      if (abs(v) > MAX_MATRIX) throw c.corrupt(`palette entry ${Math.floor(i / ENTRY)} ${i % 4 === 3 ? "translation" : "linear value"} ${v} beyond the limit of ${MAX_MATRIX}`);
+      out[i] = v;
+    }
+    c.finish();
+    return { palette: out, mask };
+  }
+
+  advance(palette: BigInt64Array, intra: boolean, mask: bigint): void {
+    this.previous = intra ? null : this.palette;
+    this.palette = palette;
+    this.mask = mask;
+  }
+
+  /** Node `g` posed by `palette`, in position quanta, written to out[0..3]. */
+  lbs(g: number, palette: BigInt64Array, out: Int32Array): void {
+    const s = this.nodes;
+    let ax = 0n, ay = 0n, az = 0n;
+    const b0 = s.bind[3 * g], b1 = s.bind[3 * g + 1], b2 = s.bind[3 * g + 2];
+    for (let k = 0; k < s.count[g]; k++) {
+      const w = s.weights[4 * g + k], m = s.joints[4 * g + k] * ENTRY;
+      if (m + ENTRY > palette.length) continue;
+      const y = (a: number): bigint => {
+        const r = m + 4 * a;
+        const dot = wrap(wrap(wrap(palette[r] * b0) + wrap(palette[r + 1] * b1)) + wrap(palette[r + 2] * b2));
+        return wrap((dot >> (LINEAR_BITS - TRANSLATION_BITS)) + palette[r + 3]);
+      };
+      ax = wrap(ax + wrap(w * y(0)));
+      ay = wrap(ay + wrap(w * y(1)));
+      az = wrap(az + wrap(w * y(2)));
+    }
+    const round = 1n << (15n + TRANSLATION_BITS), shift = 16n + TRANSLATION_BITS;
+    out[0] = Number(BigInt.asIntN(32, wrap(ax + round) >> shift));
+    out[1] = Number(BigInt.asIntN(32, wrap(ay + round) >> shift));
+    out[2] = Number(BigInt.asIntN(32, wrap(az + round) >> shift));
+  }
+
+  /** The skinning prediction of node `g` (proto/container.md, "Skinning") into out[0..3]. */
+  predict(g: number, intra: boolean, prev: Int32Array, out: Int32Array, scratch: Int32Array): void {
+    if (this.palette === null) throw new DecodeError("skin: no pose read");
+    this.lbs(g, this.palette, out);
+    if (intra) return;
+    this.lbs(g, this.previous ?? new BigInt64Array(0), scratch);
+    for (let a = 0; a < 3; a++) out[a] = (prev[3 * g + a] + ((out[a] - scratch[a]) | 0)) | 0;
+  }
+}
