@@ -1,15 +1,17 @@
 //! Older format versions still read. `tests/compat/v3-cloth-k1.pmc` was written by the version
 //! 3 encoder (the fuzz corpus's `valid-cloth-k1` before version 4), `v4-cloth-affine-k4.pmc` by
 //! the version 4 encoder with affine motion, `v5-cloth-k4.pmc` by the version 5 encoder with
-//! its defaults (keyframe affine motion, breadth-first order). Each must verify and decode to
-//! exactly what today's encoder makes of the same input with the options those versions had
-//! (band 0 in input order and mean motion or affine; version 5's defaults), frame by frame.
+//! its defaults (keyframe affine motion, breadth-first order). Each must verify, decode every
+//! frame to the input within its quantization step, and cut as today's files do; today's
+//! encoder, given the options those versions had, writes the same header choices. (Their
+//! hierarchies are not compared: the encoder's clustering has changed since, levels anchored
+//! by triangles and contractions checked for validity, which no decoder depends on.)
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use pmcodec_container::{CutTarget, Decoder, EncodeOptions, Motion, QuantizationChoice, Reader, VertexOrder, encode, verify};
 
-/// Decodes `old` (of format `version`) and today's encoding of the cloth (`frames` frames) with
-/// `opts`, and compares them frame by frame.
+/// Decodes `old` (of format `version`) frame by frame against the cloth it was made from
+/// (`frames` frames), and today's encoding of it with `opts`; returns today's bytes.
 fn decodes_as_today(file: &str, version: u16, frames: u32, opts: &EncodeOptions) -> Vec<u8> {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/compat").join(file);
     let old = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
@@ -19,18 +21,23 @@ fn decodes_as_today(file: &str, version: u16, frames: u32, opts: &EncodeOptions)
     let (a, b) = (Reader::open(old.as_slice()).expect("open old"), Reader::open(new.as_slice()).expect("open new"));
     verify(&a).expect("verify old");
     assert_eq!((a.header().motion, a.header().order), (opts.motion, opts.order));
-    // The headers differ only in what names the encoder.
-    assert_eq!(
-        (&a.header().level_sizes, a.header().quantization, a.header().frame_count),
-        (&b.header().level_sizes, b.header().quantization, frames)
-    );
+    assert_eq!((a.header().quantization, a.header().frame_count), (b.header().quantization, frames));
+    assert_eq!(a.header().level_sizes[0], b.header().level_sizes[0]);
+    // Stored positions lie on the grid within a step of the true ones on every axis.
+    let tolerance = a.header().quantization.step * 1.01;
     let (mut da, mut db) = (Decoder::new(a.borrowed(), 0).expect("decoder"), Decoder::new(b.borrowed(), 0).expect("decoder"));
     for f in 0..frames {
         da.seek(f).expect("old frame");
         db.seek(f).expect("new frame");
-        assert_eq!(da.replay().expect("replay").h, db.replay().expect("replay").h, "{file} frame {f}: hierarchy");
-        assert_eq!(da.quantized(), db.quantized(), "{file} frame {f}: positions");
-        assert_eq!(da.mesh(CutTarget::Triangles(60)).expect("cut"), db.mesh(CutTarget::Triangles(60)).expect("cut"), "frame {f}");
+        for d in [&mut da, &mut db] {
+            let full = d.mesh(CutTarget::Level(0)).expect("level 0");
+            assert_eq!(full.triangles, seq.triangles, "{file} frame {f}: triangles");
+            for (v, (p, t)) in full.positions.iter().zip(&seq.frames[f as usize]).enumerate() {
+                assert!((*p - *t).abs().max_element() <= tolerance, "{file} frame {f} vertex {v}: {p} for {t}");
+            }
+            let cut = d.mesh(CutTarget::Triangles(60)).expect("cut");
+            assert!(!cut.triangles.is_empty() && cut.triangles.len() <= 60, "{file} frame {f}: {} triangles", cut.triangles.len());
+        }
     }
     new
 }
