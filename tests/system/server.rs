@@ -3,6 +3,7 @@
 //! served LODs equal local decoding bit for bit; the Rust client plays a whole sequence; bad
 //! uploads, missing tokens, path tricks and cut-off range requests fail cleanly and leave
 //! nothing behind; and the S3 backend runs against a real S3-compatible server (s3s-fs).
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use pmcodec_client::Client;
 use pmcodec_container::{Decoder, MeshTarget, Reader};

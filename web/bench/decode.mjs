@@ -1,26 +1,26 @@
 // Node throughput of the TypeScript decoder (a benchmark, not a test), at full resolution over
 // every frame of a .pmc, `loops` times (default 3):
-//   - decode: container.ts's Player alone (what the Rust bench decode_horse_48_frames measures);
+//   - decode: the Decoder (src/container/decode.ts) alone (what the Rust bench decode_horse_48_frames measures);
 //   - worker path: what the player's worker does per frame (src/player/session.ts): decode, cut
 //     at the full triangle count, gather the cut's vertices, normals.
 // Prints frames per second and the container bytes per second that makes (bytes of the file's
 // chunks read per frame, over the time per frame).
 //   npx tsc -p tsconfig.test.json && node bench/decode.mjs /path/to/horse-gallop.pmc [loops]
 import { readFileSync } from "node:fs";
-import { Container, Player } from "../build-test/src/container.js";
+import { Decoder, Reader } from "../build-test/src/container/index.js";
 import { Session } from "../build-test/src/player/session.js";
 
 const path = process.argv[2];
 if (!path) { console.error("usage: node bench/decode.mjs FILE.pmc [loops]"); process.exit(2); }
 const loops = Number(process.argv[3] ?? 3);
 const file = new Uint8Array(readFileSync(path));
-const c = await Container.open(async (o, n) => file.subarray(o, o + n), file.length);
+const c = await Reader.open(async (o, n) => file.subarray(o, o + n), file.length);
 const h = c.header;
 console.log(`${path}: ${h.vertexCount} vertices, ${h.triangleCount} triangles, ${h.frameCount} frames, ${file.length} bytes`);
 
 // Decode only. The first loop warms the JIT and is not counted.
 {
-  const player = new Player(c, 0);
+  const player = new Decoder(c, 0);
   for (let f = 0; f < h.frameCount; f++) await player.seek(f);
   const read0 = c.bytesRead, t0 = performance.now();
   for (let l = 0; l < loops; l++) for (let f = 0; f < h.frameCount; f++) await player.seek(f);

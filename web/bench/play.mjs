@@ -13,7 +13,7 @@
 import { chromium } from "playwright-core";
 import { spawn } from "node:child_process";
 import { readFileSync } from "node:fs";
-import { Container } from "../build-test/src/container.js";
+import { Reader } from "../build-test/src/container/index.js";
 
 const root = new URL("../..", import.meta.url).pathname;
 const dir = process.argv[2];
@@ -90,7 +90,7 @@ try {
 
   // Which frame each fetched byte belongs to, from the container's index.
   const file = new Uint8Array(readFileSync(`${dir}/${asset}.pmc`));
-  const container = await Container.open(async (o, n) => file.subarray(o, o + n), file.length);
+  const container = await Reader.open(async (o, n) => file.subarray(o, o + n), file.length);
   function perFrame(rs) {
     const out = new Float64Array(info.frames);
     for (const e of container.index) {

@@ -1,4 +1,5 @@
-// Geomorphs between cuts (Houle & Poulin, seed 000, section 5): when the cut changes (the
+// Geomorphs between cuts (J. Houle and P. Poulin, "Simplification and Real-time Smooth
+// Transitions of Articulated Meshes", 2001, section 5): when the cut changes (the
 // budget moved, or the hierarchy changed between frames), each vertex of the new mesh starts at
 // the position of the node that stood for it before and moves to its own position over a short
 // time, instead of popping.
@@ -8,7 +9,7 @@
 // cut node that is an ancestor of old cut nodes starts at their centroid (a coarsening: the
 // parts slide together); a node in both cuts does not morph.
 
-import { NONE, Replay } from "./replay.js";
+import { NONE, Replay } from "./container/index.js";
 
 /** Render-ready mesh of a cut: one vertex per used cut node, indices into them. */
 export interface CutMesh {

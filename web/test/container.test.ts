@@ -7,8 +7,7 @@ import { execFileSync } from "node:child_process";
 import { existsSync, mkdtempSync, readdirSync, readFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
-import { Container, Motion, Player, VertexOrder } from "../src/container.js";
-import { BELOW, DecodeError, NONE } from "../src/replay.js";
+import { BELOW, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder } from "../src/container/index.js";
 
 const root = repoRoot();
 const bin = pmcodecBin(root);
@@ -33,9 +32,9 @@ function readObj(path: string): { positions: number[]; indices: number[] } {
   return { positions, indices };
 }
 
-async function open(pmc: string): Promise<Container> {
+async function open(pmc: string): Promise<Reader> {
   const bytes = new Uint8Array(readFileSync(pmc));
-  return Container.open(async (o, n) => bytes.slice(o, o + n), bytes.length);
+  return Reader.open(async (o, n) => bytes.slice(o, o + n), bytes.length);
 }
 
 const { dir, pmc } = fixtures();
@@ -43,7 +42,7 @@ const { dir, pmc } = fixtures();
 test("decodes the same cut and positions as the Rust decoder", async () => {
   const c = await open(pmc);
   assert.equal(c.header.frameCount, 20);
-  const player = new Player(c, 0);
+  const player = new Decoder(c, 0);
   for (const [frame, budget] of [[0, 300], [5, 1000], [13, 4000], [19, 150]]) {
     const out = join(dir, `expected-${frame}-${budget}.obj`);
     execFileSync(bin, ["decode", "-q", pmc, "--frame", String(frame), "--triangles", String(budget), "-o", out]);
@@ -62,7 +61,7 @@ test("decodes the same cut and positions as the Rust decoder", async () => {
 
 test("level 0 is the input within the quantization bound", async () => {
   const c = await open(pmc);
-  const player = new Player(c, 0);
+  const player = new Decoder(c, 0);
   await player.seek(7);
   const pos = player.positions();
   const input = readObj(join(dir, "frames", "frame-0007.obj"));
@@ -74,13 +73,13 @@ test("level 0 is the input within the quantization bound", async () => {
 });
 
 /** Every frame's input vertices as the Rust decoder writes them, beside this decoder's. */
-async function sameAsRust(pmc: string, name: string): Promise<Container> {
+async function sameAsRust(pmc: string, name: string): Promise<Reader> {
   const out = join(dir, `${name}-frames`);
   execFileSync(bin, ["decode", "-q", pmc, "--all-frames", "--level", "0", "-o", out]);
   const c = await open(pmc);
   const files = readdirSync(out).filter((f) => f.endsWith(".obj")).sort();
   assert.equal(files.length, c.header.frameCount);
-  const player = new Player(c, 0);
+  const player = new Decoder(c, 0);
   for (let f = 0; f < files.length; f++) {
     await player.seek(f);
     const pos = player.positions(), expected = readObj(join(out, files[f]));
@@ -116,12 +115,12 @@ test("version 3 and 4 files still decode, as the Rust decoder decodes them", asy
   }
   const bytes = new Uint8Array(readFileSync(join(root, "crates/pmcodec-container/tests/compat/v3-cloth-k1.pmc")));
   bytes[8] = 9;
-  await assert.rejects(Container.open(async (o, n) => bytes.slice(o, o + n), bytes.length), /version 9 is not supported/);
+  await assert.rejects(Reader.open(async (o, n) => bytes.slice(o, o + n), bytes.length), /version 9 is not supported/);
 });
 
 test("a level-limited player reads fewer bytes and agrees above its level", async () => {
   const full = await open(pmc), part = await open(pmc);
-  const a = new Player(full, 0), b = new Player(part, 2);
+  const a = new Decoder(full, 0), b = new Decoder(part, 2);
   await a.seek(11);
   await b.seek(11);
   assert.ok(part.bytesRead * 3 < full.bytesRead, `${part.bytesRead} vs ${full.bytesRead}`);
@@ -131,7 +130,7 @@ test("a level-limited player reads fewer bytes and agrees above its level", asyn
 
 test("level-limited players derive the same degenerate sets as a full one, frame by frame", async () => {
   for (const level of [1, 2]) {
-    const a = new Player(await open(pmc), 0), b = new Player(await open(pmc), level);
+    const a = new Decoder(await open(pmc), 0), b = new Decoder(await open(pmc), level);
     const firstAbove = a.replay.offsets[level + 1];
     let alive = 0;
     for (let f = 0; f < 20; f++) {
@@ -156,8 +155,8 @@ test("damaged files are errors, not crashes", async () => {
     const b = bytes.slice();
     b[at] ^= 0x5a;
     await assert.rejects(async () => {
-      const c = await Container.open(async (o, n) => b.slice(o, o + n), b.length);
-      const p = new Player(c, 0);
+      const c = await Reader.open(async (o, n) => b.slice(o, o + n), b.length);
+      const p = new Decoder(c, 0);
       for (let f = 0; f < c.header.frameCount; f++) await p.seek(f);
     }, DecodeError, `flip at ${at}`);
   }

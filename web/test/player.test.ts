@@ -9,7 +9,7 @@ import { execFileSync } from "node:child_process";
 import { existsSync, mkdtempSync, readFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
-import { ChunkKind, Player, VERSION } from "../src/container.js";
+import { ChunkKind, Decoder, VERSION } from "../src/container/index.js";
 import { httpRange, RangeCache, type FetchRange } from "../src/player/ranges.js";
 import { Session } from "../src/player/session.js";
 
@@ -171,7 +171,7 @@ test("session: the whole-mesh shortcut draws the triangles a full budget cut sel
   const { fetch } = recorder(file);
   const s = await Session.open(fetch, { readAhead: 0 });
   const c = s.container, h = c.header;
-  const reference = new Player(c, 0);
+  const reference = new Decoder(c, 0);
   const triples = (pos: Float32Array, idx: Uint32Array) => {
     const out: string[] = [];
     for (let t = 0; t < idx.length; t += 3) {

@@ -1,7 +1,7 @@
 // Unit tests of the viewer's replay and geomorph logic on a small hand-made hierarchy.
 import { test } from "node:test";
 import assert from "node:assert/strict";
-import { Replay, NONE, DecodeError } from "../src/replay.js";
+import { Replay, NONE, DecodeError } from "../src/container/index.js";
 import { buildCutMesh, morphStarts, blend } from "../src/geomorph.js";
 
 // A 3x3 vertex grid (8 triangles); level 1 has 3 clusters, level 2 has 1 root.

@@ -9,8 +9,7 @@ import assert from "node:assert/strict";
 import { readdirSync, readFileSync } from "node:fs";
 import { join } from "node:path";
 import { isMainThread, parentPort, Worker, workerData } from "node:worker_threads";
-import { Container, Player } from "../src/container.js";
-import { DecodeError } from "../src/replay.js";
+import { DecodeError, Decoder, Reader } from "../src/container/index.js";
 
 /** Per file: what a client does must end within this. */
 const TIME_LIMIT_MS = 10_000;
@@ -24,11 +23,11 @@ interface Outcome { result: "ok" | "DecodeError" | string; message: string; rssG
 /** What a client does with a file: open it, then play every frame at full resolution, at
  * level 1 and at the top level, cutting a triangle budget on the last frame. */
 async function play(bytes: Uint8Array): Promise<void> {
-  const c = await Container.open(async (o, n) => bytes.slice(o, o + n), bytes.length);
+  const c = await Reader.open(async (o, n) => bytes.slice(o, o + n), bytes.length);
   const levels = new Set([0, 1, c.header.levelSizes.length - 1]);
   for (const level of levels) {
     if (level >= c.header.levelSizes.length) continue;
-    const p = new Player(c, level);
+    const p = new Decoder(c, level);
     for (let f = 0; f < c.header.frameCount; f++) await p.seek(f);
     const pos = p.positions();
     p.replay.selectTriangles(50, p.replay.nodeErrors(pos));

@@ -1,5 +1,6 @@
 //! The client against a real server on loopback: listing, LOD on demand, and a playback
 //! session that reads only its bands and yields the same meshes as decoding the whole file.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use pmcodec_client::{Client, parse_bin_mesh};
 use pmcodec_container::{Decoder, MeshTarget, Reader};

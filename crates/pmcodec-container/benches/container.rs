@@ -1,5 +1,6 @@
 //! Encode and decode speed of the container on the horse gallop.
 //! `cargo bench -p pmcodec-container --bench container`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::{Decoder, EncodeOptions, MeshTarget, Motion, Reader, VertexOrder, encode};
 use std::sync::OnceLock;
 

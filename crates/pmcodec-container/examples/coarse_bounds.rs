@@ -12,6 +12,7 @@
 //! - fine affine: the affine map that carries its cluster's fine vertices (the same caveat).
 //!
 //! `cargo run --release -p pmcodec-container --example coarse_bounds -- DIR`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
 use pmcodec_hierarchy::progressive::Encoder;
 use pmcodec_hierarchy::{BuildOptions, FineTopology, build};

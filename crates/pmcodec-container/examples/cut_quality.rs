@@ -2,6 +2,7 @@
 //! `coarse_grid`, decodes every frame at a triangle budget, and prints the mean symmetric RMS
 //! distance to the input frame (% of its bounding-box diagonal).
 //! `cargo run --release -p pmcodec-container --example cut_quality -- DIR [triangles] [bits]`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::{Decoder, EncodeOptions, MeshTarget, QuantizationChoice, Reader, encode};
 
 fn main() {

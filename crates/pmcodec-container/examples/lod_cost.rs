@@ -1,6 +1,7 @@
 //! Development probe: the cost of `Decoder::mesh` at triangle budgets on a decoded frame (what
 //! the server's LOD endpoint spends per request on a warm state).
 //! `cargo run --release -p pmcodec-container --example lod_cost -- FILE.pmc [budget]`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::{Decoder, MeshTarget, Reader};
 
 fn main() {

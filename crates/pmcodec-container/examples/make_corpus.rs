@@ -1,5 +1,6 @@
 //! Writes the committed fuzz corpus (tests/corpus): small valid files and damaged copies.
 //! `cargo run -p pmcodec-container --example make_corpus`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::{EncodeOptions, Motion, QuantizationChoice, VertexOrder, encode};
 
 fn main() {

@@ -11,6 +11,7 @@
 //!   after, for each span `s` a hierarchy of B-frames would use.
 //!
 //! `cargo run --release -p pmcodec-container --example position_bounds -- DIR [bits]`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::VertexOrder;
 use pmcodec_container::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, predict};
 #[path = "common/entropy.rs"]

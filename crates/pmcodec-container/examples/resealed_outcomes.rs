@@ -3,6 +3,7 @@
 //! which `tests/resealed.rs` then holds every later build to. Run it after adding files, and
 //! read the changes it makes: a file that used to be refused and now plays needs a reason.
 //! `cargo run -p pmcodec-container --features test-support --example resealed_outcomes`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::testing::outcome;
 use std::fmt::Write;
 

@@ -1,6 +1,7 @@
 //! Development probe: empirical entropy of position residuals per band under several
 //! predictors and coarse-level residual steps, closed loop, to see where the bits go.
 //! `cargo run --release -p pmcodec-container --example residuals -- DIR [bits] [shift per level]`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
 use pmcodec_hierarchy::progressive::Encoder;
 use pmcodec_hierarchy::{BuildOptions, FineTopology, build};

@@ -1,6 +1,7 @@
 //! Container sizes beside the references of the issue: raw float positions, every frame
 //! compressed on its own with zstd, and the paper's per-frame figures.
 //! `cargo run --release -p pmcodec-container --example sizes -- ../shared/data/horse-gallop [bits] [coarse grid k|none]`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::{EncodeOptions, QuantizationChoice, Reader, encode, summary};
 
 fn main() {

@@ -1,6 +1,7 @@
 //! Development probe: decode and seek speed on a sequence at 12-bit quantization, in CPU time
 //! of this process (the build machine is shared, so wall time overstates it), for profiling.
 //! `cargo run --release -p pmcodec-container --example speed -- DIR|FILE.pmc [passes]`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::{Decoder, EncodeOptions, Motion, QuantizationChoice, Reader, encode};
 
 /// CPU seconds (user + system) this process has used, from /proc (10 ms ticks).

@@ -159,10 +159,6 @@ impl<S: ByteSource> Decoder<S> {
         self.replay.as_ref()
     }
 
-    pub fn replay_mut(&mut self) -> Option<&mut Replay> {
-        self.replay.as_mut()
-    }
-
     fn chunk(&self, kind: ChunkKind, frame: u32, band: usize) -> Result<Vec<u8>, ContainerError> {
         let e = self.reader.find(kind, frame, band as u32).ok_or_else(|| ContainerError::Corrupt {
             what: format!("frame {frame} band {band} {}", kind.name()),
@@ -221,12 +217,6 @@ impl<S: ByteSource> Decoder<S> {
             });
         }
         Ok(())
-    }
-
-    /// Advances one frame.
-    pub fn next_frame(&mut self) -> Result<(), ContainerError> {
-        let f = self.frame.map_or(0, |f| f + 1);
-        self.seek(f)
     }
 
     fn load_keyframe(&mut self, frame: u32) -> Result<(), ContainerError> {
@@ -355,15 +345,8 @@ impl<S: ByteSource> Decoder<S> {
             // Parents exist below the top band only (offsets has one entry more than sizes).
             let up = if j + 1 < sizes.len() { offsets.get(j + 1).map(|&o| o as usize) } else { None };
             self.siblings.reset(sizes.get(j + 1).map_or(0, |&n| n as usize));
-            let motion = match h.motion {
-                _ if j > 0 || intra => Band0Motion::Mean,
-                Motion::Mean => Band0Motion::Mean,
-                Motion::Affine => {
-                    self.fits.prepare(&self.lower, &self.previous, sizes[0] as usize);
-                    Band0Motion::Affine(&self.fits)
-                }
-                Motion::KeyframeAffine => Band0Motion::KeyframeAffine(&self.weights),
-            };
+            let n0 = sizes[0] as usize;
+            let motion = Band0Motion::select(h.motion, j == 0 && !intra, &self.lower, &self.previous, n0, &mut self.fits, &self.weights);
             // Band 0 in its decoding order (a permutation of the input vertices, as many as
             // the band has), coarser bands in node order.
             let sequence = if j == 0 { Some(self.lower.sequence()) } else { None };

@@ -5,10 +5,11 @@ use crate::ContainerError;
 use crate::format::*;
 use crate::payload;
 use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, coarse_shift, predict};
+use glam::Vec3;
 use pmcodec_hierarchy::base::{BaseOptions, PoseSet, VertexWeights, base_quadrics};
 use pmcodec_hierarchy::progressive::{Encoder, FrameDelta};
 use pmcodec_hierarchy::recluster::ReclusterOptions;
-use pmcodec_hierarchy::{BuildOptions, FineTopology, build};
+use pmcodec_hierarchy::{BuildOptions, FineTopology, Hierarchy, build};
 use pmcodec_mesh::Sequence;
 use std::collections::HashMap;
 use std::ops::ControlFlow;
@@ -129,16 +130,8 @@ pub fn encode(seq: &Sequence, opts: &EncodeOptions, mut progress: impl FnMut(usi
     })
 }
 
-/// Encodes a sequence, asking `progress(f)` after each frame whether to go on: a
-/// [`ControlFlow::Break`] stops the work at once with [`ContainerError::Cancelled`] (a
-/// server's cancelled job), and nothing is returned.
-pub fn encode_until(
-    seq: &Sequence,
-    opts: &EncodeOptions,
-    mut progress: impl FnMut(usize) -> ControlFlow<()>,
-) -> Result<Vec<u8>, ContainerError> {
-    seq.validate()?;
-    let (lo, hi) = seq.bounds().ok_or_else(|| ContainerError::Options("empty sequence".into()))?;
+/// The quantization step `opts` asks for over the bounding box `lo..hi`.
+fn quantization_step(opts: &EncodeOptions, lo: Vec3, hi: Vec3) -> Result<f32, ContainerError> {
     let diag = (hi - lo).length().max(f32::MIN_POSITIVE);
     let extent = (hi - lo).max_element().max(f32::MIN_POSITIVE);
     let step = match opts.quantization {
@@ -149,54 +142,62 @@ pub fn encode_until(
     if !(step.is_finite() && step > 0.0) || (extent / step) as f64 > (1u64 << 30) as f64 {
         return Err(ContainerError::Options(format!("quantization step {step} does not fit 30 bits over the bounding box")));
     }
-    let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
-    let q = base_quadrics(seq, &topo, &opts.base);
-    let base = build(&topo, &q, &opts.build)?;
-    let mut enc = Encoder::new(base, topo, seq.triangles.clone(), opts.recluster.clone());
-    let levels = enc.hierarchy().levels();
-    let sizes = enc.hierarchy().level_sizes.clone();
-    let offsets = enc.hierarchy().offsets.clone();
+    Ok(step)
+}
 
-    let header = Header {
+/// The options as the header records them.
+fn encoded_with(opts: &EncodeOptions) -> EncodedWith {
+    EncodedWith {
+        base_poses: pose_name(opts.base.poses),
+        base_weights: match opts.base.weights {
+            VertexWeights::None => "none".into(),
+            VertexWeights::Tertiles => "tertiles".into(),
+            VertexWeights::Smooth => "smooth".into(),
+        },
+        beta: opts.recluster.beta,
+        min_relative_benefit: opts.recluster.min_relative_benefit,
+        max_passes: opts.recluster.max_passes,
+        homeomorphism: opts.recluster.homeomorphism,
+        exact_benefit: opts.recluster.exact_benefit,
+        max_error: match opts.quantization {
+            QuantizationChoice::MaxError(e) => Some(e),
+            _ => None,
+        },
+        quant_bits: match opts.quantization {
+            QuantizationChoice::Bits(b) => Some(b),
+            _ => None,
+        },
+    }
+}
+
+/// The header of `seq` encoded with `opts` over the bounding box `lo..hi` at `step`, with a
+/// hierarchy of `level_sizes`.
+fn header(seq: &Sequence, opts: &EncodeOptions, (lo, hi): (Vec3, Vec3), step: f32, level_sizes: Vec<u32>) -> Header {
+    Header {
         vertex_count: seq.vertex_count() as u32,
         triangle_count: seq.triangles.len() as u32,
         frame_count: seq.frame_count() as u32,
         frame_rate: seq.frame_rate,
-        level_sizes: sizes.clone(),
+        level_sizes,
         branching: opts.build.branching,
         bbox_min: lo.to_array(),
         bbox_max: hi.to_array(),
         quantization: Quantization { step },
         keyframe_interval: opts.keyframe_interval,
-        encoded_with: EncodedWith {
-            base_poses: pose_name(opts.base.poses),
-            base_weights: match opts.base.weights {
-                VertexWeights::None => "none".into(),
-                VertexWeights::Tertiles => "tertiles".into(),
-                VertexWeights::Smooth => "smooth".into(),
-            },
-            beta: opts.recluster.beta,
-            min_relative_benefit: opts.recluster.min_relative_benefit,
-            max_passes: opts.recluster.max_passes,
-            homeomorphism: opts.recluster.homeomorphism,
-            exact_benefit: opts.recluster.exact_benefit,
-            max_error: match opts.quantization {
-                QuantizationChoice::MaxError(e) => Some(e),
-                _ => None,
-            },
-            quant_bits: match opts.quantization {
-                QuantizationChoice::Bits(b) => Some(b),
-                _ => None,
-            },
-        },
+        encoded_with: encoded_with(opts),
         generator: format!("pmcodec {}", env!("CARGO_PKG_VERSION")),
         frame_names: seq.frame_names.clone(),
         motion: opts.motion,
         order: opts.order,
-    };
+    }
+}
 
-    let mut chunks: Vec<(ChunkEntry, Vec<u8>)> = Vec::new();
-    let mut push = |kind: ChunkKind, frame: u32, band: u32, raw: Vec<u8>| -> Result<(), ContainerError> {
+/// The chunks written so far, compressed, in file order.
+#[derive(Default)]
+struct Chunks(Vec<(ChunkEntry, Vec<u8>)>);
+
+impl Chunks {
+    fn push(&mut self, kind: ChunkKind, frame: u32, band: u32, raw: Vec<u8>) -> Result<(), ContainerError> {
         let stored = zstd::bulk::compress(&raw, ZSTD_LEVEL).map_err(|e| ContainerError::Io(format!("zstd: {e}")))?;
         let entry = ChunkEntry {
             kind,
@@ -207,98 +208,14 @@ pub fn encode_until(
             raw_len: raw.len() as u32,
             crc32: crc32fast::hash(&stored),
         };
-        chunks.push((entry, stored));
+        self.0.push((entry, stored));
         Ok(())
-    };
-    push(ChunkKind::Triangles, 0, 0, payload::write_triangles(&seq.triangles))?;
-
-    let total = *offsets.last().unwrap_or(&0) as usize;
-    let lower = LowerNeighbours::new(seq.vertex_count(), &seq.triangles, opts.order);
-    let shifts: Vec<u32> = (0..levels).map(|j| coarse_shift(&header, j, opts.coarse_grid)).collect();
-    // The radius (in quanta) input vertices may move from their true position: the bound the
-    // quantization states, |error| <= sqrt(3)/2 step (the farthest rounding goes), less a
-    // margin for the f32 arithmetic of dequantization.
-    const SLACK2: f64 = 0.72;
-    let inv = 1.0 / step as f64;
-    let mut previous = vec![[0i32; 3]; total];
-    let mut current = vec![[0i32; 3]; total];
-    let mut residuals: Vec<[i32; 3]> = Vec::new();
-    let mut siblings = Siblings::default();
-    let mut fits = AffineFits::default();
-    let mut weights = StencilWeights::default();
-    // Each level's corners before the frame: what a reader stopping there holds, against which
-    // corner updates are coded.
-    let mut held_corners: Vec<Vec<[u32; 3]>> = vec![Vec::new(); levels];
-    for (f, frame) in seq.frames.iter().enumerate() {
-        for (j, b) in held_corners.iter_mut().enumerate().skip(1) {
-            b.clear();
-            b.extend_from_slice(enc.corners_at(j));
-        }
-        let (delta, _) = enc.encode_frame(frame);
-        let h = enc.hierarchy();
-        let positions = enc.node_positions();
-        let truth = |g: usize| {
-            let p = positions[g] - lo;
-            [p.x as f64 * inv, p.y as f64 * inv, p.z as f64 * inv]
-        };
-        let intra = header.is_keyframe(f as u32);
-        let key = intra.then(|| enc.keyframe());
-        // First what only a client stopping at band j reads (faces on keyframes, corner
-        // updates), finest band first; then the bands every client from there down reads, top
-        // first. So a full-resolution client's part of a frame is one contiguous span, and a
-        // level-j client's span holds only the (smaller) faces and corners of coarser bands.
-        for (j, held) in held_corners.iter().enumerate().skip(1) {
-            if let Some(k) = &key {
-                push(ChunkKind::Faces, f as u32, j as u32, payload::write_faces(&k.bands[j].faces))?;
-            }
-            let corners: Vec<(u32, [u32; 3])> = delta.corners.iter().filter(|c| c.level as usize == j).map(|c| (c.t, c.corners)).collect();
-            push(ChunkKind::Corners, f as u32, j as u32, payload::write_corner_updates(&corners, held))?;
-        }
-        for j in (0..levels).rev() {
-            if let Some(k) = &key {
-                push(ChunkKind::Key, f as u32, j as u32, payload::write_key(&k.bands[j].parent))?;
-            }
-            push(ChunkKind::Delta, f as u32, j as u32, payload::write_delta(&net_moves(&delta, j)))?;
-            residuals.clear();
-            let shift = shifts[j];
-            siblings.reset(if j + 1 < levels { sizes[j + 1] as usize } else { 0 });
-            let motion = match opts.motion {
-                _ if j > 0 || intra => Band0Motion::Mean,
-                Motion::Mean => Band0Motion::Mean,
-                Motion::Affine => {
-                    fits.prepare(&lower, &previous, sizes[0] as usize);
-                    Band0Motion::Affine(&fits)
-                }
-                Motion::KeyframeAffine => Band0Motion::KeyframeAffine(&weights),
-            };
-            // Band 0 in its decoding order, coarser bands in node order.
-            let sequence = (j == 0).then(|| lower.sequence());
-            let mut before = None;
-            for k in 0..sizes[j] as usize {
-                let v = sequence.map_or(k, |s| s[k] as usize);
-                let g = offsets[j] as usize + v;
-                let parent = (j + 1 < levels).then(|| ((offsets[j + 1] + h.parent[j][v]) as usize, h.parent[j][v] as usize));
-                let p = predict(j, v, g, before, parent, &lower, motion, &siblings, intra, &current, &previous);
-                before = Some(g);
-                let t = truth(g);
-                let (q, r) = if j == 0 { choose(t, p, SLACK2) } else { on_grid(t, p, shift, SLACK2) };
-                current[g] = q;
-                if let Some((_, local)) = parent {
-                    siblings.add(local, q, previous[g]);
-                }
-                residuals.push(r);
-            }
-            push(ChunkKind::Positions, f as u32, j as u32, payload::write_positions(shift, &residuals))?;
-            if j == 0 && intra && opts.motion == Motion::KeyframeAffine {
-                weights.compute(&lower, &current, sizes[0] as usize);
-            }
-        }
-        std::mem::swap(&mut previous, &mut current);
-        if progress(f).is_break() {
-            return Err(ContainerError::Cancelled);
-        }
     }
+}
 
+/// The file: preamble, header, index and chunks.
+fn assemble(header: &Header, chunks: Chunks) -> Result<Vec<u8>, ContainerError> {
+    let mut chunks = chunks.0;
     // Offsets are relative to the chunk area, so the index's own length does not feed back.
     let mut offset = 0u64;
     let mut index = Index::default();
@@ -307,7 +224,7 @@ pub fn encode_until(
         offset += bytes.len() as u64;
         index.chunks.push(*e);
     }
-    let hb = postcard::to_stdvec(&header).map_err(|e| ContainerError::Io(format!("header: {e}")))?;
+    let hb = postcard::to_stdvec(header).map_err(|e| ContainerError::Io(format!("header: {e}")))?;
     let ib = postcard::to_stdvec(&index).map_err(|e| ContainerError::Io(format!("index: {e}")))?;
     let pre = Preamble {
         version: VERSION,
@@ -325,6 +242,139 @@ pub fn encode_until(
         out.extend_from_slice(bytes);
     }
     Ok(out)
+}
+
+/// The radius (in quanta) input vertices may move from their true position: the bound the
+/// quantization states, |error| <= sqrt(3)/2 step (the farthest rounding goes), less a margin
+/// for the f32 arithmetic of dequantization.
+const SLACK2: f64 = 0.72;
+
+/// The state of position coding across frames: the stored positions of the previous and
+/// current frames and the predictors' scratch, as the decoder keeps them.
+struct PositionCoder {
+    motion: Motion,
+    lower: LowerNeighbours,
+    shifts: Vec<u32>,
+    previous: Vec<[i32; 3]>,
+    current: Vec<[i32; 3]>,
+    residuals: Vec<[i32; 3]>,
+    siblings: Siblings,
+    fits: AffineFits,
+    weights: StencilWeights,
+}
+
+impl PositionCoder {
+    /// Stores band `j` of a frame (`intra`: a keyframe) whose hierarchy is `h` and whose true
+    /// node positions, in quanta, `truth` gives; returns the band's positions payload.
+    fn band(&mut self, j: usize, intra: bool, h: &Hierarchy, truth: impl Fn(usize) -> [f64; 3]) -> Vec<u8> {
+        let (sizes, offsets, levels) = (&h.level_sizes, &h.offsets, h.levels());
+        self.residuals.clear();
+        let shift = self.shifts[j];
+        self.siblings.reset(if j + 1 < levels { sizes[j + 1] as usize } else { 0 });
+        let n0 = sizes[0] as usize;
+        let motion = Band0Motion::select(self.motion, j == 0 && !intra, &self.lower, &self.previous, n0, &mut self.fits, &self.weights);
+        // Band 0 in its decoding order, coarser bands in node order.
+        let sequence = (j == 0).then(|| self.lower.sequence());
+        let mut before = None;
+        for k in 0..sizes[j] as usize {
+            let v = sequence.map_or(k, |s| s[k] as usize);
+            let g = offsets[j] as usize + v;
+            let parent = (j + 1 < levels).then(|| ((offsets[j + 1] + h.parent[j][v]) as usize, h.parent[j][v] as usize));
+            let p = predict(j, v, g, before, parent, &self.lower, motion, &self.siblings, intra, &self.current, &self.previous);
+            before = Some(g);
+            let t = truth(g);
+            let (q, r) = if j == 0 { choose(t, p, SLACK2) } else { on_grid(t, p, shift, SLACK2) };
+            self.current[g] = q;
+            if let Some((_, local)) = parent {
+                self.siblings.add(local, q, self.previous[g]);
+            }
+            self.residuals.push(r);
+        }
+        if j == 0 && intra && self.motion == Motion::KeyframeAffine {
+            self.weights.compute(&self.lower, &self.current, n0);
+        }
+        payload::write_positions(shift, &self.residuals)
+    }
+
+    /// Ends a frame: its positions become the previous frame's.
+    fn next_frame(&mut self) {
+        std::mem::swap(&mut self.previous, &mut self.current);
+    }
+}
+
+/// Encodes a sequence, asking `progress(f)` after each frame whether to go on: a
+/// [`ControlFlow::Break`] stops the work at once with [`ContainerError::Cancelled`] (a
+/// server's cancelled job), and nothing is returned.
+pub fn encode_until(
+    seq: &Sequence,
+    opts: &EncodeOptions,
+    mut progress: impl FnMut(usize) -> ControlFlow<()>,
+) -> Result<Vec<u8>, ContainerError> {
+    seq.validate()?;
+    let (lo, hi) = seq.bounds().ok_or_else(|| ContainerError::Options("empty sequence".into()))?;
+    let step = quantization_step(opts, lo, hi)?;
+    let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
+    let q = base_quadrics(seq, &topo, &opts.base);
+    let base = build(&topo, &q, &opts.build)?;
+    let mut enc = Encoder::new(base, topo, seq.triangles.clone(), opts.recluster.clone());
+    let levels = enc.hierarchy().levels();
+    let header = header(seq, opts, (lo, hi), step, enc.hierarchy().level_sizes.clone());
+
+    let mut chunks = Chunks::default();
+    chunks.push(ChunkKind::Triangles, 0, 0, payload::write_triangles(&seq.triangles))?;
+    let total = enc.hierarchy().offsets.last().copied().unwrap_or(0) as usize;
+    let mut coder = PositionCoder {
+        motion: opts.motion,
+        lower: LowerNeighbours::new(seq.vertex_count(), &seq.triangles, opts.order),
+        shifts: (0..levels).map(|j| coarse_shift(&header, j, opts.coarse_grid)).collect(),
+        previous: vec![[0i32; 3]; total],
+        current: vec![[0i32; 3]; total],
+        residuals: Vec::new(),
+        siblings: Siblings::default(),
+        fits: AffineFits::default(),
+        weights: StencilWeights::default(),
+    };
+    let inv = 1.0 / step as f64;
+    // Each level's corners before the frame: what a reader stopping there holds, against which
+    // corner updates are coded.
+    let mut held_corners: Vec<Vec<[u32; 3]>> = vec![Vec::new(); levels];
+    for (f, frame) in seq.frames.iter().enumerate() {
+        for (j, b) in held_corners.iter_mut().enumerate().skip(1) {
+            b.clear();
+            b.extend_from_slice(enc.corners_at(j));
+        }
+        let (delta, _) = enc.encode_frame(frame);
+        let positions = enc.node_positions();
+        let truth = |g: usize| {
+            let p = positions[g] - lo;
+            [p.x as f64 * inv, p.y as f64 * inv, p.z as f64 * inv]
+        };
+        let intra = header.is_keyframe(f as u32);
+        let key = intra.then(|| enc.keyframe());
+        // First what only a client stopping at band j reads (faces on keyframes, corner
+        // updates), finest band first; then the bands every client from there down reads, top
+        // first. So a full-resolution client's part of a frame is one contiguous span, and a
+        // level-j client's span holds only the (smaller) faces and corners of coarser bands.
+        for (j, held) in held_corners.iter().enumerate().skip(1) {
+            if let Some(k) = &key {
+                chunks.push(ChunkKind::Faces, f as u32, j as u32, payload::write_faces(&k.bands[j].faces))?;
+            }
+            let corners: Vec<(u32, [u32; 3])> = delta.corners.iter().filter(|c| c.level as usize == j).map(|c| (c.t, c.corners)).collect();
+            chunks.push(ChunkKind::Corners, f as u32, j as u32, payload::write_corner_updates(&corners, held))?;
+        }
+        for j in (0..levels).rev() {
+            if let Some(k) = &key {
+                chunks.push(ChunkKind::Key, f as u32, j as u32, payload::write_key(&k.bands[j].parent))?;
+            }
+            chunks.push(ChunkKind::Delta, f as u32, j as u32, payload::write_delta(&net_moves(&delta, j)))?;
+            chunks.push(ChunkKind::Positions, f as u32, j as u32, coder.band(j, intra, enc.hierarchy(), truth))?;
+        }
+        coder.next_frame();
+        if progress(f).is_break() {
+            return Err(ContainerError::Cancelled);
+        }
+    }
+    assemble(&header, chunks)
 }
 
 /// Writes a file through a temporary file in the same folder and a rename, so a failed or

@@ -9,9 +9,8 @@ pub const MAGIC: [u8; 8] = *b"\x89PMC\r\n\x1a\n";
 /// Format version this crate writes and reads.
 pub const VERSION: u16 = 5;
 /// Oldest format version this crate still reads. Versions 3 and 4 differ from 5 only in their
-/// header, which ends before `order` (band 0 in input order), and in version 3 before `motion`
-/// (band 0 always moved by the mean motion), so servers that upgrade keep serving what they
-/// stored.
+/// header ([`HeaderV3`], [`HeaderV4`], migrated into [`Header`] on reading), so servers that
+/// upgrade keep serving what they stored.
 pub const OLDEST_READABLE: u16 = 3;
 /// Size of the fixed preamble.
 pub const PREAMBLE_LEN: usize = 32;
@@ -161,23 +160,17 @@ pub struct Header {
 }
 
 impl Header {
-    /// Parses the header of a file of format `version` (checked by [`Preamble::parse`]).
-    pub fn from_bytes(bytes: &[u8], version: u16) -> Result<Header, postcard::Error> {
-        if version >= 5 {
-            return postcard::from_bytes(bytes);
+    /// Parses the header of a file of format `version` (checked by [`Preamble::parse`]): each
+    /// old version as the type it was written as, then migrated field by field into today's.
+    /// An old header must end with its last field (what its encoder wrote); version 5 readers
+    /// ignored bytes after it, and still do.
+    pub fn from_bytes(bytes: &[u8], version: u16) -> Result<Header, crate::ContainerError> {
+        let corrupt = |detail: String| crate::ContainerError::Corrupt { what: "header".into(), detail };
+        match version {
+            3 => exactly::<HeaderV3>(bytes).map(|h| HeaderV4::from(h).into()),
+            4 => exactly::<HeaderV4>(bytes).map(Header::from),
+            _ => postcard::from_bytes(bytes).map_err(|e| corrupt(e.to_string())),
         }
-        // Versions 3 and 4: the same fields without the trailing `order` (version 3 also
-        // without `motion`); the encodings of `Input` and of `Mean` are one zero byte each.
-        let missing = if version >= 4 { 1 } else { 2 };
-        let mut v5 = Vec::with_capacity(bytes.len() + missing);
-        v5.extend_from_slice(bytes);
-        v5.resize(bytes.len() + missing, 0);
-        let h: Header = postcard::from_bytes(&v5)?;
-        if h.motion == Motion::KeyframeAffine {
-            // Version 4 knew two motions.
-            return Err(postcard::Error::DeserializeBadEnum);
-        }
-        Ok(h)
     }
 
     pub fn levels(&self) -> usize {
@@ -199,6 +192,82 @@ impl Header {
 
     pub fn node_count(&self) -> u64 {
         self.level_sizes.iter().map(|&s| s as u64).sum()
+    }
+}
+
+/// A postcard value that fills `bytes` exactly.
+fn exactly<'a, T: Deserialize<'a>>(bytes: &'a [u8]) -> Result<T, crate::ContainerError> {
+    let corrupt = |detail: String| crate::ContainerError::Corrupt { what: "header".into(), detail };
+    let (value, rest) = postcard::take_from_bytes(bytes).map_err(|e| corrupt(e.to_string()))?;
+    if !rest.is_empty() {
+        return Err(corrupt(format!("{} bytes after its last field", rest.len())));
+    }
+    Ok(value)
+}
+
+/// The header of format version 3: today's fields up to `frame_names`; band 0 always moved by
+/// the mean motion and decoded in input order. Postcard writes a struct as its fields one after
+/// another, so the later versions nest it as their first field and read the same bytes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HeaderV3 {
+    pub vertex_count: u32,
+    pub triangle_count: u32,
+    pub frame_count: u32,
+    pub frame_rate: f32,
+    pub level_sizes: Vec<u32>,
+    pub branching: u32,
+    pub bbox_min: [f32; 3],
+    pub bbox_max: [f32; 3],
+    pub quantization: Quantization,
+    pub keyframe_interval: u32,
+    pub encoded_with: EncodedWith,
+    pub generator: String,
+    pub frame_names: Vec<String>,
+}
+
+/// Band 0's motions version 4 knew (a third discriminant is not a version 4 file).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum MotionV4 {
+    Mean,
+    Affine,
+}
+
+/// The header of format version 4: version 3's and band 0's motion; band 0 in input order.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HeaderV4 {
+    pub v3: HeaderV3,
+    pub motion: MotionV4,
+}
+
+impl From<HeaderV3> for HeaderV4 {
+    fn from(v3: HeaderV3) -> Self {
+        HeaderV4 { v3, motion: MotionV4::Mean }
+    }
+}
+
+impl From<HeaderV4> for Header {
+    fn from(v4: HeaderV4) -> Self {
+        let HeaderV4 { v3, motion } = v4;
+        Header {
+            vertex_count: v3.vertex_count,
+            triangle_count: v3.triangle_count,
+            frame_count: v3.frame_count,
+            frame_rate: v3.frame_rate,
+            level_sizes: v3.level_sizes,
+            branching: v3.branching,
+            bbox_min: v3.bbox_min,
+            bbox_max: v3.bbox_max,
+            quantization: v3.quantization,
+            keyframe_interval: v3.keyframe_interval,
+            encoded_with: v3.encoded_with,
+            generator: v3.generator,
+            frame_names: v3.frame_names,
+            motion: match motion {
+                MotionV4::Mean => Motion::Mean,
+                MotionV4::Affine => Motion::Affine,
+            },
+            order: VertexOrder::Input,
+        }
     }
 }
 

@@ -7,6 +7,7 @@
 //! - [`Reader`] opens any [`ByteSource`] (a slice, a file, an HTTP client) and checks and
 //!   decompresses chunks; [`Decoder`] replays frames and extracts meshes at any cut.
 //! - [`verify`] and [`summary`] back the CLI's `verify` and `info`.
+#![forbid(unsafe_code)]
 
 mod decode;
 mod encode;

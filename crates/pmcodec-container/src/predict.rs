@@ -4,7 +4,7 @@
 //! arithmetic in an order the spec fixes, without fused multiply-adds, so a decoder in any
 //! language that follows it gets the same bits.
 
-use crate::format::{Header, VertexOrder};
+use crate::format::{Header, Motion, VertexOrder};
 
 /// For each input vertex, its *lower neighbours*: the distinct vertices that share an input
 /// triangle with it and are decoded before it in band 0's [`VertexOrder`], in compressed rows
@@ -240,6 +240,31 @@ pub enum Band0Motion<'a> {
     Affine(&'a AffineFits),
     /// The stencil's motions weighted as the keyframe's geometry gives.
     KeyframeAffine(&'a StencilWeights),
+}
+
+impl<'a> Band0Motion<'a> {
+    /// What a band moves by, as encoder and decoder both choose it: the header's `motion` for
+    /// band 0 on inter frames (`inter_band_0`; the affine fits prepared from `previous`, the
+    /// first `n0` nodes), the mean motion everywhere else (where band 0's is not read).
+    pub fn select(
+        motion: Motion,
+        inter_band_0: bool,
+        lower: &LowerNeighbours,
+        previous: &[[i32; 3]],
+        n0: usize,
+        fits: &'a mut AffineFits,
+        weights: &'a StencilWeights,
+    ) -> Self {
+        match motion {
+            _ if !inter_band_0 => Band0Motion::Mean,
+            Motion::Mean => Band0Motion::Mean,
+            Motion::Affine => {
+                fits.prepare(lower, previous, n0);
+                Band0Motion::Affine(fits)
+            }
+            Motion::KeyframeAffine => Band0Motion::KeyframeAffine(weights),
+        }
+    }
 }
 
 /// The prediction of node `v` (global id `g`) of band `j`. `before` is the global id of the

@@ -116,8 +116,7 @@ impl<S: ByteSource> Reader<S> {
         if crc32fast::hash(&hb) != pre.header_crc {
             return Err(ContainerError::Checksum { what: "header".into() });
         }
-        let header =
-            Header::from_bytes(&hb, pre.version).map_err(|e| ContainerError::Corrupt { what: "header".into(), detail: e.to_string() })?;
+        let header = Header::from_bytes(&hb, pre.version)?;
         let ib = source.read_at(PREAMBLE_LEN as u64 + pre.header_len as u64, pre.index_len as usize)?;
         if crc32fast::hash(&ib) != pre.index_crc {
             return Err(ContainerError::Checksum { what: "index".into() });

@@ -1,8 +1,10 @@
 //! Older format versions still read. `tests/compat/v3-cloth-k1.pmc` was written by the version
 //! 3 encoder (the fuzz corpus's `valid-cloth-k1` before version 4), `v4-cloth-affine-k4.pmc` by
-//! the version 4 encoder with affine motion. Each must verify and decode to exactly what
-//! today's encoder makes of the same input with the options those versions had (band 0 in
-//! input order; mean motion, or affine), frame by frame.
+//! the version 4 encoder with affine motion, `v5-cloth-k4.pmc` by the version 5 encoder with
+//! its defaults (keyframe affine motion, breadth-first order). Each must verify and decode to
+//! exactly what today's encoder makes of the same input with the options those versions had
+//! (band 0 in input order and mean motion or affine; version 5's defaults), frame by frame.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use pmcodec_container::{Decoder, EncodeOptions, MeshTarget, Motion, QuantizationChoice, Reader, VertexOrder, encode, verify};
 
@@ -16,7 +18,7 @@ fn decodes_as_today(file: &str, version: u16, frames: u32, opts: &EncodeOptions)
     let new = encode(&seq, opts, |_| {}).expect("encode");
     let (a, b) = (Reader::open(old.as_slice()).expect("open old"), Reader::open(new.as_slice()).expect("open new"));
     verify(&a).expect("verify old");
-    assert_eq!((a.header().motion, a.header().order), (opts.motion, VertexOrder::Input));
+    assert_eq!((a.header().motion, a.header().order), (opts.motion, opts.order));
     // The headers differ only in what names the encoder.
     assert_eq!(
         (&a.header().level_sizes, a.header().quantization, a.header().frame_count),
@@ -31,6 +33,13 @@ fn decodes_as_today(file: &str, version: u16, frames: u32, opts: &EncodeOptions)
         assert_eq!(da.mesh(MeshTarget::Triangles(60)).expect("cut"), db.mesh(MeshTarget::Triangles(60)).expect("cut"), "frame {f}");
     }
     new
+}
+
+#[test]
+fn version_5_files_decode_as_they_did() {
+    let opts = EncodeOptions { keyframe_interval: 4, quantization: QuantizationChoice::Bits(12), ..Default::default() };
+    assert_eq!((opts.motion, opts.order), (Motion::KeyframeAffine, VertexOrder::BreadthFirst));
+    decodes_as_today("v5-cloth-k4.pmc", 5, 6, &opts);
 }
 
 #[test]

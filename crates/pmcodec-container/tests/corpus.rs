@@ -1,5 +1,6 @@
 //! The committed fuzz corpus as a regular test: valid files verify, damaged ones give errors,
 //! and every single-byte corruption of the valid files is survived without a panic.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use pmcodec_container::{Decoder, MeshTarget, Reader, verify};
 

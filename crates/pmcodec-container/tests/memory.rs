@@ -2,6 +2,10 @@
 //! refused by name, a payload claiming more elements than it can hold is refused before
 //! anything is sized from the claim, and no resealed damage makes a decoder allocate more than
 //! the stated multiple of the header's declared sizes.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+// Counting allocations means implementing GlobalAlloc, an unsafe trait: the one place of the
+// workspace with unsafe code (pmcodec-container's Cargo.toml lowers `forbid` to `deny` for it).
+#![allow(unsafe_code)]
 
 use pmcodec_container::format::{MAX_FRAMES, MAX_NODES, MAX_TRIANGLES, MAX_VERTICES};
 use pmcodec_container::testing::{Rng, Unsealed, allocation_bound, allocation_bound_unopened, exercise, mutate, reseal};

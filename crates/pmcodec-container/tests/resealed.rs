@@ -3,6 +3,7 @@
 //! true (`pmcodec_container::testing`). A seeded, deterministic run of the fuzz target's
 //! mutations, cheap enough for every test run; and the fuzzer's minimized corpus and crashers
 //! (`tests/resealed/`), each of which must give the outcome recorded for it.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use pmcodec_container::testing::{Rng, Unsealed, exercise, mutate, reseal, stopped_at_the_door, variant};
 use pmcodec_container::{ContainerError, Reader};

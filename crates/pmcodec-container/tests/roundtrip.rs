@@ -1,6 +1,7 @@
 //! Round trips on real sequences and generated fixtures: the decoded hierarchy equals the
 //! encoder's, positions are within the stated bound, keyframe seeks agree with playback, and a
 //! level-limited reader fetches only its bands.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use glam::Vec3;
 use pmcodec_container::*;
@@ -197,8 +198,8 @@ fn gltf_round_trip(path: &std::path::Path) {
 }
 
 /// Every glTF in the data folder round trips: skinned (Fox), morph targets (Horse), both
-/// (RobotExpressive, 19 primitives). The Draco-compressed Parrot is refused by name (it round
-/// trips once decoded: `draco_parrot_decoded_round_trips`).
+/// (RobotExpressive, 19 primitives), and morph targets under Draco compression (the Parrot,
+/// read directly: `draco_parrot_round_trips`).
 #[test]
 fn every_gltf_round_trips() {
     let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/gltf"));
@@ -207,17 +208,14 @@ fn every_gltf_round_trips() {
         assert!(path.exists(), "{} is absent: these tests read the real meshes in ../shared/data beside the repository", path.display());
         gltf_round_trip(&path);
     }
-    let err = pmcodec_mesh::gltf_input::load_gltf(&dir.join("Parrot.glb"), &Default::default()).expect_err("Draco is not read");
-    assert!(err.to_string().contains("KHR_draco_mesh_compression"), "{err}");
 }
 
-/// The Parrot, decoded from Draco by `tests/draco-decompress.mjs` (Node), round trips.
-/// `tests/run-all.sh` decodes it and runs this with the decoded file's path.
+/// The Draco-compressed Parrot round trips, read straight from its GLB.
 #[test]
-#[ignore = "needs PMCODEC_PARROT_PLAIN, the Parrot decoded from Draco; tests/run-all.sh runs it"]
-fn draco_parrot_decoded_round_trips() {
-    let path = std::env::var_os("PMCODEC_PARROT_PLAIN").expect("PMCODEC_PARROT_PLAIN: the path of the Parrot decoded from Draco");
-    gltf_round_trip(std::path::Path::new(&path));
+fn draco_parrot_round_trips() {
+    let path = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/gltf/Parrot.glb"));
+    assert!(path.exists(), "{} is absent: these tests read the real meshes in ../shared/data beside the repository", path.display());
+    gltf_round_trip(&path);
 }
 
 /// Counts the bytes a reader fetches.

@@ -1,6 +1,7 @@
 //! Symmetric surface distance on the real horse (16,843 triangles) against a ~1,600-triangle
 //! vertex-clustered copy, 20,000 samples each way: the measurement every quality figure costs.
 //! `cargo bench -p pmcodec-eval --bench distance`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 use glam::Vec3;
 use pmcodec_eval::{SampleOptions, SurfaceIndex, one_sided_indexed, symmetric};
 use pmcodec_mesh::TriMesh;

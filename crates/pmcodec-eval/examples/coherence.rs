@@ -1,5 +1,6 @@
 //! Development probe: share of shown triangles changing per frame at a triangle budget.
 //! `cargo run --release -p pmcodec-eval --example coherence -- ../shared/data/horse-gallop 1600`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_eval::{self as approx, ApproxOptions, ApproxTarget, Method};
 
 fn main() {

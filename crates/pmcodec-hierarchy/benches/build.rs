@@ -3,6 +3,7 @@
 //! Two meshes: the 8,431-vertex horse and a 270k-triangle mesh made by subdividing it twice.
 //!
 //! `cargo bench -p pmcodec-hierarchy --bench build`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use glam::Vec3;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
@@ -62,8 +63,9 @@ fn meshopt_simplify(seq: &Sequence, target_vertices: usize) -> Vec<u32> {
 }
 
 fn bytemuck_positions(p: &[Vec3]) -> &[u8] {
-    // Vec3 is three packed f32 (glam's scalar Vec3 is #[repr(C)] without padding).
-    unsafe { std::slice::from_raw_parts(p.as_ptr().cast::<u8>(), std::mem::size_of_val(p)) }
+    // Vec3 is three packed f32 (glam's scalar Vec3 is #[repr(C)] without padding); meshopt's own
+    // cast keeps the workspace free of unsafe code.
+    meshopt::utilities::typed_to_bytes(p)
 }
 
 fn coarsest(seq: &Sequence) -> usize {

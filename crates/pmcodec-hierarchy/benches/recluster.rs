@@ -3,6 +3,7 @@
 //! under 0.1 ms).
 //!
 //! `cargo bench -p pmcodec-hierarchy --bench recluster`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
 use pmcodec_hierarchy::cut::{self, ChildIndex, CutTarget};

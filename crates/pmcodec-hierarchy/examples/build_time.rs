@@ -1,4 +1,5 @@
 //! Development probe: where the multilevel build spends its time on a subdivided horse.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
 use pmcodec_hierarchy::*;
 use std::time::Instant;

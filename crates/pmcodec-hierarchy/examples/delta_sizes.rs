@@ -2,6 +2,7 @@
 //! integers per swap; a degenerate-set change as a 32-bit triangle and a 32-bit node), beside a
 //! full hierarchy per frame (a parent per node plus every node's degenerate set).
 //! `cargo run --release -p pmcodec-hierarchy --example delta_sizes -- ../shared/data/horse-gallop`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
 use pmcodec_hierarchy::progressive::Encoder;
 use pmcodec_hierarchy::*;

@@ -1,6 +1,7 @@
 //! Fits the growth exponent beta of equation 2 by regression, as Kircher & Garland did: the
 //! total quadric error of a level grows like |M_i|^-beta as levels coarsen.
 //! `cargo run --release -p pmcodec-hierarchy --example fit_beta -- ../shared/data/horse-gallop`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
 use pmcodec_hierarchy::*;
 

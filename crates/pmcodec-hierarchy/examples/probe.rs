@@ -1,5 +1,6 @@
 //! Development probe: per-frame swaps, time and level QEM error of reclustering vs static.
 //! `cargo run --release -p pmcodec-hierarchy --example probe -- ../shared/data/horse-gallop 800`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_hierarchy::FineTopology;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
 use pmcodec_hierarchy::build::anchored_build;

@@ -1,9 +1,11 @@
 //! The quadrics the base hierarchy H_0 is built from.
 //!
-//! Kircher & Garland build H_0 from frame 0 alone. Mohr & Gleicher (seed 001, section 4) sum one
-//! quadric per example pose, so a collapse is cheap only if it is cheap in every pose; Berner &
-//! Rieger (seed 003) weight each vertex's quadric by how far it moves between morph targets, so
-//! regions that deform are kept denser. Both are options here.
+//! Kircher & Garland ("Progressive Multiresolution Meshes for Deforming Surfaces", 2005) build H_0
+//! from frame 0 alone. Mohr & Gleicher ("Deformation Sensitive Decimation", 2003, section 4) sum
+//! one quadric per example pose, so a collapse is cheap only if it is cheap in every pose; Berner &
+//! Rieger ("Surface Simplification Guided by Morph-Targets", 2006) weight each vertex's quadric by
+//! how far it moves between morph targets, so regions that deform are kept denser. Both are options
+//! here.
 
 use crate::quadric::{Quadric, QuadricOptions, vertex_quadrics};
 use crate::topology::FineTopology;

@@ -1,5 +1,6 @@
 //! The multilevel mesh on real and generated meshes: structure, connected clusters, degenerate
 //! sets against brute force, and cuts.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 use common::*;

@@ -1,5 +1,6 @@
 //! The split order on real sequences: budget and error cuts are prefixes that are maximal for
 //! their target, closed upward, and show exactly the mesh the replay shows for the same cut.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 use common::*;

@@ -3,10 +3,8 @@
 //! for meshoptimizer on the rest pose (Regularize) and for our LODs with each placement.
 //!
 //! `cargo run --release -p pmcodec-lod --example lod_eval [-- FILE.glb ...]`
-//! (default: Fox, RobotExpressive, Horse, Parrot from ../shared/data/gltf). The Parrot is
-//! Draco-compressed, which our reader does not decode: decode it first with
-//! `(cd tests && npm ci) && node tests/draco-decompress.mjs ../shared/data/gltf/Parrot.glb /tmp/Parrot.glb`
-//! and pass the copy. A file that does not load is reported and skipped.
+//! (default: Fox, RobotExpressive, Horse, Parrot from ../shared/data/gltf; the Parrot's Draco
+//! geometry is decoded by the reader). A file that does not load is reported and skipped.
 //! `LOD_WEIGHTING=none|tertiles|smooth` and `LOD_PER_ANIMATION=N` change the pose options;
 //! `LOD_REFIT=N` the refit rounds (0: off), `LOD_REFIT_MORPH=0` and `LOD_REFIT_SKIN=0`
 //! keep morph deltas and skin weights out of it.

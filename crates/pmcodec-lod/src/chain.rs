@@ -3,7 +3,8 @@
 //!
 //! All levels come from one collapse run ([`crate::simplify`]), so they are nested: every
 //! vertex of level k was merged into exactly one survivor of level k + 1, and that survivor is
-//! where it should move to when an engine geomorphs from k to k + 1 (Houle & Poulin, seed 000,
+//! where it should move to when an engine geomorphs from k to k + 1 (Houle & Poulin,
+//! "Simplification and Real-time Smooth Transitions of Articulated Meshes", 2001,
 //! section 5). Because a level's vertex is posed by the same skin as the survivor it maps to
 //! (collapses stay within a class), the morph can run after skinning in any pose.
 //!

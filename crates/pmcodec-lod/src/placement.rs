@@ -4,7 +4,8 @@
 //! weighted) at the vertex's position *in that pose*, which depends on the vertex's skin and
 //! morph deltas (see [`crate::attrs`]). Three policies:
 //!
-//! * [`Placement::Endpoint`] (Mohr & Gleicher, seed 001, section 4.3): the survivor is one of the
+//! * [`Placement::Endpoint`] (Mohr & Gleicher, "Deformation Sensitive
+//!   Decimation", 2003, section 4.3): the survivor is one of the
 //!   two endpoints, unchanged. Influence sets, weights and morph deltas stay exactly those of an
 //!   input vertex. The cheaper endpoint wins.
 //! * [`Placement::Blended`]: influences blended half and half from both endpoints, cut to the
@@ -12,7 +13,8 @@
 //!   the summed quadric pulled back to rest space through every pose's affine map (exact for
 //!   linear blend skinning: the pose position is affine in the rest position once the weights
 //!   are fixed).
-//! * [`Placement::HoulePoulin`] (seed 000, section 4.1): the survivor keeps one endpoint's skin
+//! * [`Placement::HoulePoulin`] (Houle & Poulin, "Simplification and Real-time Smooth
+//!   Transitions of Articulated Meshes", 2001, section 4.1): the survivor keeps one endpoint's skin
 //!   and morph deltas, and its position moves by a translation expressed in that vertex's own
 //!   bone space, i.e. in rest space before skinning. Houle & Poulin pick the translation in one
 //!   pose; we pick it as the minimiser over all poses (the same pull-back), for both endpoints,

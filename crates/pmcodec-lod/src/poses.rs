@@ -1,17 +1,17 @@
 //! The example poses the collapse cost is measured in, and per-vertex importance.
 //!
-//! Mohr & Gleicher (seed 001, section 4) sum one quadric per example pose so that a collapse is
-//! cheap only if it is cheap in every pose. Our examples are: the rest pose, frames sampled
-//! evenly from every animation of the file, and every morph target alone at full weight (Berner
-//! & Rieger, seed 003, simplify against the targets). Each pose's quadrics are multiplied by the
-//! weight of its source (`rest`, `morph`, or the animation's name), 1 unless the user says
-//! otherwise.
+//! Mohr & Gleicher ("Deformation Sensitive Decimation", 2003, section 4) sum one quadric per
+//! example pose so that a collapse is cheap only if it is cheap in every pose. Our examples are:
+//! the rest pose, frames sampled evenly from every animation of the file, and every morph target
+//! alone at full weight (Berner & Rieger, "Surface Simplification Guided by Morph-Targets", 2006,
+//! simplify against the targets). Each pose's quadrics are multiplied by the weight of its source
+//! (`rest`, `morph`, or the animation's name), 1 unless the user says otherwise.
 //!
-//! Per-vertex importance (seed 003): a vertex's displacement is the summed distance, over the
-//! sampled poses, between where it really is and where the single transform that dominates it
+//! Per-vertex importance (Berner & Rieger 2006): a vertex's displacement is the summed distance,
+//! over the sampled poses, between where it really is and where the single transform that dominates it
 //! would put it (its heaviest joint, or its node for rigid parts), without morphing. Rigidly
 //! carried vertices get 0 however far the character walks; vertices in skin-blending zones
-//! (elbows, knees) and under morph targets (mouth corners) get large values. Seed 003 maps
+//! (elbows, knees) and under morph targets (mouth corners) get large values. Berner & Rieger map
 //! displacement tertiles to weights 0.33 / 0.66 / 1.0; the smooth variant is
 //! `1/3 + 2/3 * d / max d`. Ties go to the lower class, so the many rigid vertices with d = 0 all
 //! weigh 0.33 (the paper's vertices never tie; this is our choice).

@@ -140,24 +140,6 @@ impl Sequence {
         Ok(())
     }
 
-    /// Removes triangles that repeat a corner (they carry no surface) and returns how many went.
-    /// OBJ exports from some tools contain them; everything downstream assumes none.
-    pub fn drop_degenerate_faces(&mut self) -> usize {
-        let before = self.triangles.len();
-        let kept: Vec<usize> = (0..before)
-            .filter(|&i| {
-                let t = self.triangles[i];
-                t[0] != t[1] && t[1] != t[2] && t[0] != t[2]
-            })
-            .collect();
-        self.triangles = kept.iter().map(|&i| self.triangles[i]).collect();
-        // Corner wedges stay parallel to the triangles.
-        if let Some(app) = &mut self.appearance {
-            app.retain_triangles(&kept);
-        }
-        before - self.triangles.len()
-    }
-
     /// Bounding box over all frames.
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         self.frames.iter().filter_map(|f| bounds_of(f)).reduce(|(a, b), (c, d)| (a.min(c), b.max(d)))

@@ -1,6 +1,7 @@
 //! Input limits: every reader stops at the first vertex, triangle or frame past its
 //! [`InputLimits`], while it parses, with an error that names the limit and the file and line
 //! (or the primitive, or the animation).
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use pmcodec_mesh::MeshError;
 use pmcodec_mesh::gltf_input::{GltfOptions, load_gltf};

@@ -1,5 +1,6 @@
 //! Writers: OBJ and GLB round trips, the GLB container layout, empty meshes, and no half files
 //! on failure.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use glam::Vec3;
 use pmcodec_mesh::TriMesh;

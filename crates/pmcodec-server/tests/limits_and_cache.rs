@@ -1,6 +1,7 @@
 //! Resources a request can take, against the router (no socket): the input limits of uploads
 //! (checked while the meshes are parsed, in the encode job), and the decoder states the LOD
 //! workers share (counted through `/metrics`, not timed).
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use axum::body::Body;
 use axum::http::{Method, Request, StatusCode};

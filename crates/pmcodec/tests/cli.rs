@@ -1,5 +1,6 @@
 //! The `pmcodec` binary end to end on a generated OBJ sequence: encode, info, verify, decode,
 //! and the errors and exit codes users see.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -1,10 +1,10 @@
 // The decoding side of a player (it runs in the worker; nothing here touches the DOM, so Node
-// tests drive it too): opens a container through a RangeCache, keeps one decoder (container.ts's
-// Player) at the finest level the triangle budget needs, fetches each frame's bands in one
+// tests drive it too): opens a container through a RangeCache, keeps one Decoder
+// (container/decode.ts) at the finest level the triangle budget needs, fetches each frame's bands in one
 // request a few frames ahead, and turns a decoded frame into render-ready buffers: the budget
 // cut's vertices, smooth normals and indices, computed once per decoded frame.
 
-import { ChunkEntry, ChunkKind, Container, Player, readAt } from "../container.js";
+import { ChunkEntry, ChunkKind, Decoder, Reader, readAt } from "../container/index.js";
 import { buildCutMesh, morphStarts } from "../geomorph.js";
 import { FetchRange, RangeCache } from "./ranges.js";
 import type { ColourMode, FramePayload, OpenedInfo } from "./protocol.js";
@@ -32,11 +32,11 @@ export class Session {
   readonly cache: RangeCache;
   private byFrame: ChunkEntry[][] = [];
   private triangles: ChunkEntry | undefined;
-  private decoder: Player | null = null;
-  private coarseDecoder: Player | null = null;
-  private errorsOf: { decoder: Player; frame: number; positions: Float32Array; errors: Float64Array | null } | null = null;
+  private decoder: Decoder | null = null;
+  private coarseDecoder: Decoder | null = null;
+  private errorsOf: { decoder: Decoder; frame: number; positions: Float32Array; errors: Float64Array | null } | null = null;
   /** The decoder whose cut is the whole mesh of its level, every node expanded. */
-  private fullOn: Player | null = null;
+  private fullOn: Decoder | null = null;
   private lastIndices: Uint32Array | null = null;
   private indexVersion = 0;
   /** The cut a geomorph starts from, which morph it is, and the frames it has lasted. */
@@ -49,7 +49,7 @@ export class Session {
   budget: number;
   colour: ColourMode = "plain";
 
-  private constructor(readonly container: Container, cache: RangeCache, opts: SessionOptions) {
+  private constructor(readonly container: Reader, cache: RangeCache, opts: SessionOptions) {
     this.cache = cache;
     const h = container.header;
     this.trianglesPerLevel = opts.trianglesPerLevel?.length === h.levelSizes.length
@@ -75,7 +75,7 @@ export class Session {
     await cache.ensure([[0, FIRST_READ]]).catch((e) => { throw new Error(`reading the container's start: ${e instanceof Error ? e.message : e}`); });
     if (!(total > 0)) throw new Error("the server did not say how long the container is (no Content-Range)");
     // The first span may be shorter than FIRST_READ: the whole file.
-    const container = await Container.open((o, n) => cache.read(o, n), total);
+    const container = await Reader.open((o, n) => cache.read(o, n), total);
     return new Session(container, cache, opts);
   }
 
@@ -118,7 +118,7 @@ export class Session {
     const key = c.keyframeBefore(f);
     let d = this.decoder;
     const continues = d !== null && d.frame >= key && d.frame <= f;
-    if (!d || want < d.minLevel || (want > d.minLevel && (!continues || f === key))) d = this.decoder = new Player(c, want);
+    if (!d || want < d.minLevel || (want > d.minLevel && (!continues || f === key))) d = this.decoder = new Decoder(c, want);
     const from = d.frame >= key && d.frame <= f ? d.frame + 1 : key;
     const need: [number, number][] = [];
     if (d.minLevel === 0 && this.triangles) need.push([c.dataStart + this.triangles.offset, c.dataStart + this.triangles.offset + this.triangles.storedLen]);
@@ -151,7 +151,7 @@ export class Session {
     const d = this.decoder, key = c.keyframeBefore(f);
     if (level <= want || (d && d.frame >= key && d.frame <= f && d.minLevel <= want)) return null;
     let cd = this.coarseDecoder;
-    if (!cd || cd.minLevel !== level) cd = this.coarseDecoder = new Player(c, level);
+    if (!cd || cd.minLevel !== level) cd = this.coarseDecoder = new Decoder(c, level);
     const from = cd.frame >= key && cd.frame <= f ? cd.frame + 1 : key;
     const need: [number, number][] = [];
     for (let g = from; g <= f; g++) this.spans(g, level, need);
@@ -168,7 +168,7 @@ export class Session {
     return this.cut(d, d.frame, 0, t);
   }
 
-  private cut(d: Player, f: number, decodeMs: number, t0: number): FramePayload {
+  private cut(d: Decoder, f: number, decodeMs: number, t0: number): FramePayload {
     const r = d.replay;
     // A budget that holds the level's whole mesh: every node stays expanded from frame to frame
     // (a delta moves nodes, never collapses them), so the cut is the replay's as it stands and
@@ -219,7 +219,7 @@ export class Session {
   }
 }
 
-function allExpanded(r: Player["replay"]): boolean {
+function allExpanded(r: Decoder["replay"]): boolean {
   for (let g = r.offsets[r.minLevel + 1] ?? r.nodeCount; g < r.nodeCount; g++) if (!r.expanded[g]) return false;
   return true;
 }
@@ -250,7 +250,7 @@ export function vertexNormals(pos: Float32Array, idx: Uint32Array): Float32Array
 }
 
 /** Per-vertex colours: the hierarchy level of each vertex's node, or its split priority. */
-function colourOf(mode: ColourMode, nodes: Uint32Array, r: Player["replay"], errors: Float64Array): Float32Array {
+function colourOf(mode: ColourMode, nodes: Uint32Array, r: Decoder["replay"], errors: Float64Array): Float32Array {
   const out = new Float32Array(nodes.length * 3);
   let maxErr = 1e-12;
   if (mode === "error") for (const g of nodes) maxErr = Math.max(maxErr, errors[g]);

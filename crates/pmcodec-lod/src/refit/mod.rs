@@ -13,10 +13,12 @@
 //! (conjugate gradients on the normal equations), recompute the correspondences and repeat a
 //! few times: iterative closest point (Besl & McKay 1992; point-to-plane residuals after Chen &
 //! Medioni 1992), in the spirit of the "fit" step of Hoppe et al.'s 1993 mesh optimisation,
-//! with the skin of Houle & Poulin (seed 000, section 4.1) held fixed: the fit moves vertices in
+//! with the skin of Houle & Poulin ("Simplification and Real-time Smooth Transitions of
+//! Articulated Meshes", 2001, section 4.1) held fixed: the fit moves vertices in
 //! bone space, i.e. in rest space before skinning. Refitting the deltas fits each vertex's
-//! morph targets to the input's in the poses that use them (Berner & Rieger, seed 003, simplify
-//! against the targets; we also fit to them).
+//! morph targets to the input's in the poses that use them (Berner & Rieger, "Surface
+//! Simplification Guided by Morph-Targets", 2006, simplify against the targets; we also fit to
+//! them).
 //!
 //! Skin weights are refitted in rounds of their own, alternating with the positions' after
 //! the first two: with positions fixed a vertex is linear in its weights (`sum_c w_c M_c q`),
@@ -26,7 +28,7 @@
 //! all vertices moving at once can overshoot: a skin round that makes the objective worse is
 //! undone and the rest of the refit runs on positions alone.
 //!
-//! This is our addition to the seeds. It never increases the sampled objective: an iteration
+//! This is our addition to the papers. It never increases the sampled objective: an iteration
 //! whose result is worse than the best so far is dropped, and so is the move of any vertex that
 //! would flip one of its triangles in any example pose.
 
@@ -477,8 +479,8 @@ pub fn refit(
 /// pulled slightly toward `current`. Every support of one to four candidates is tried (the
 /// equality-constrained minimum by its KKT system, kept when no weight is negative): at most
 /// 162 for eight candidates. `None` when the system says nothing. Our addition: the linear
-/// blend skinning weights of Mohr & Gleicher (seed 001, section 4.3) fitted to sampled surface
-/// correspondences instead of blended from the endpoints.
+/// blend skinning weights of Mohr & Gleicher ("Deformation Sensitive Decimation", 2003, section
+/// 4.3) fitted to sampled surface correspondences instead of blended from the endpoints.
 pub fn skin_step(h: &[f64], g: &[f64], current: &[f64], cands: &[(u16, f64)]) -> Option<Skin> {
     let n = cands.len();
     if n == 0 || h.len() != n * n || g.len() != n || current.len() != n {

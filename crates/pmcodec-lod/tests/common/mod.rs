@@ -1,4 +1,5 @@
 //! Small deterministic rigs built in code, and the checks every LOD output must pass.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 #![allow(dead_code)]
 
 use pmcodec_lod::LodChain;

@@ -3,10 +3,16 @@
 use super::*;
 
 /// A parsed document and the bytes of every buffer an accessor uses (others stay `None`: a
-/// buffer that only holds images is never loaded).
+/// buffer that only holds images is never loaded, nor a meshopt fallback buffer).
 pub(super) struct GltfFile {
     pub(super) root: json::Root,
     pub(super) buffers: Vec<Option<Vec<u8>>>,
+    /// The decoded bytes of every meshopt-compressed bufferView (see [`super::meshopt`]),
+    /// read in place of the view's own.
+    decoded_views: HashMap<usize, Vec<u8>>,
+    /// The elements of every accessor a Draco primitive stands for (see [`super::draco`]),
+    /// tightly packed in the accessor's component type, read in place of a bufferView.
+    decoded_accessors: HashMap<usize, Vec<u8>>,
     /// Materials, textures, samplers and images as serialized (see `looks`).
     pub(super) looks: looks_raw::RawLooks,
     /// The folder external images are read from (`None` for bytes in memory).
@@ -17,11 +23,15 @@ pub(super) const ANY_NUMBER: &[ComponentType] =
     &[ComponentType::F32, ComponentType::I8, ComponentType::U8, ComponentType::I16, ComponentType::U16, ComponentType::U32];
 
 /// Extensions that do not change how positions, skins, morphs or animations are stored, and
-/// KHR_mesh_quantization, whose integer attributes the accessor reader decodes. Any other
-/// required extension (Draco, meshopt, ...) changes the data and is refused by name.
+/// KHR_mesh_quantization, whose integer attributes the accessor reader decodes, and the
+/// geometry compressions decoded when the file is parsed (Draco, meshopt). Any other required
+/// extension changes the data and is refused by name.
 pub(super) fn extension_is_supported(name: &str) -> bool {
     const SUPPORTED: &[&str] = &[
         "KHR_mesh_quantization",
+        "KHR_draco_mesh_compression",
+        "EXT_meshopt_compression",
+        "KHR_meshopt_compression",
         "KHR_texture_transform",
         "KHR_texture_basisu",
         "EXT_texture_webp",
@@ -38,15 +48,16 @@ impl GltfFile {
         self.root.accessors.get(index).map_or(0, |a| usize::try_from(a.count.0).unwrap_or(usize::MAX))
     }
 
-    pub(super) fn open(path: &Path) -> Result<Self, MeshError> {
+    pub(super) fn open(path: &Path, limits: &InputLimits) -> Result<Self, MeshError> {
         let bytes = std::fs::read(path).map_err(|error| MeshError::Io { path: path.to_path_buf(), error })?;
         let base = path.parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });
-        Self::parse(&bytes, base).map_err(|e| at_path(path, e))
+        Self::parse(&bytes, base, limits).map_err(|e| at_path(path, e))
     }
 
     /// Parses a GLB or a JSON document; `base` is the folder external buffers are read from
-    /// (`None` for bytes in memory, where they cannot be).
-    pub(super) fn parse(bytes: &[u8], base: Option<&Path>) -> Result<Self, MeshError> {
+    /// (`None` for bytes in memory, where they cannot be). Draco primitives and meshopt views
+    /// are decoded here, Draco ones within `limits`.
+    pub(super) fn parse(bytes: &[u8], base: Option<&Path>, limits: &InputLimits) -> Result<Self, MeshError> {
         let (json_bytes, bin) = if bytes.starts_with(b"glTF") {
             split_glb(bytes)?
         } else {
@@ -62,13 +73,23 @@ impl GltfFile {
         if !unsupported.is_empty() {
             return Err(MeshError::Unsupported(format!("required extension {}", unsupported.join(", "))));
         }
+        let meshopt = meshopt_views(json_bytes)?;
+        let draco = draco_primitives(json_bytes)?;
         let looks: looks_raw::RawLooks = serde_json::from_slice(json_bytes).map_err(|e| gltf_error(format!("materials or images: {e}")))?;
         let mut needed = vec![false; root.buffers.len()];
         let mut need_view = |view: usize| {
-            if let Some(b) = root.buffer_views.get(view).and_then(|v| needed.get_mut(v.buffer.value())) {
+            // A compressed view needs the buffer of its compressed bytes, not its own.
+            let buffer = match meshopt.get(view) {
+                Some(Some(m)) => Some(m.buffer),
+                _ => root.buffer_views.get(view).map(|v| v.buffer.value()),
+            };
+            if let Some(b) = buffer.and_then(|b| needed.get_mut(b)) {
                 *b = true;
             }
         };
+        for prim in &draco {
+            need_view(prim.buffer_view);
+        }
         for acc in &root.accessors {
             if let Some(v) = acc.buffer_view {
                 need_view(v.value());
@@ -101,12 +122,25 @@ impl GltfFile {
             data.truncate(declared);
             buffers.push(Some(data));
         }
-        Ok(GltfFile { root, buffers, looks, base: base.map(Path::to_path_buf) })
+        let mut file = GltfFile {
+            root,
+            buffers,
+            looks,
+            base: base.map(Path::to_path_buf),
+            decoded_views: HashMap::new(),
+            decoded_accessors: HashMap::new(),
+        };
+        file.decoded_views = decode_meshopt(&file, &meshopt)?;
+        file.decoded_accessors = decode_draco(&file, &draco, limits)?;
+        Ok(file)
     }
 
     /// The bytes of a buffer view and its stride (if it declares one).
     pub(super) fn view(&self, index: usize, what: &str) -> Result<(&[u8], Option<usize>), MeshError> {
         let view = self.root.buffer_views.get(index).ok_or_else(|| gltf_error(format!("{what}: bufferView {index} does not exist")))?;
+        if let Some(decoded) = self.decoded_views.get(&index) {
+            return Ok((decoded, view.byte_stride.map(|s| s.0)));
+        }
         let buffer = view.buffer.value();
         let data = self
             .buffers
@@ -172,14 +206,19 @@ impl GltfFile {
             Some(())
         };
         let outside = || gltf_error(format!("{what}: {count} elements run past the end of their bufferView"));
-        // Without a bufferView the elements are zeros (before sparse substitution).
-        if let Some(view) = acc.buffer_view {
-            let (bytes, stride) = self.view(view.value(), &what)?;
+        // A Draco-decoded accessor reads its decoded elements; without a bufferView the
+        // elements are zeros (before sparse substitution).
+        let source = match (self.decoded_accessors.get(&index), acc.buffer_view) {
+            (Some(decoded), _) => Some((decoded.as_slice(), None, true)),
+            (None, Some(view)) => Some(self.view(view.value(), &what).map(|(b, s)| (b, s, false))?),
+            (None, None) => None,
+        };
+        if let Some((bytes, stride, decoded)) = source {
             let stride = stride.unwrap_or(element);
             if stride < element {
                 return Err(gltf_error(format!("{what}: byteStride {stride} is less than its {element}-byte elements")));
             }
-            let offset = usize::try_from(acc.byte_offset.map_or(0, |o| o.0)).map_err(|_| outside())?;
+            let offset = if decoded { 0 } else { usize::try_from(acc.byte_offset.map_or(0, |o| o.0)).map_err(|_| outside())? };
             if count > 0 {
                 let end = (count - 1).checked_mul(stride).and_then(|x| x.checked_add(offset)).and_then(|x| x.checked_add(element));
                 if end.is_none_or(|end| end > bytes.len()) {

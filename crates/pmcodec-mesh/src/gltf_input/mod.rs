@@ -28,6 +28,12 @@
 //!   follows §3.11 and Appendix C: STEP, LINEAR (rotations by spherical interpolation on the
 //!   shorter arc) and CUBICSPLINE (Hermite, tangents scaled by the key interval), clamped to the
 //!   first and last key outside the keyed range.
+//! * **Compressed geometry.** `KHR_draco_mesh_compression` primitives and
+//!   `EXT_meshopt_compression` / `KHR_meshopt_compression` bufferViews are decoded when the file
+//!   is parsed (see the `draco` and `meshopt` modules), into the same accessor and bufferView
+//!   bytes an uncompressed file has: every accessor read (positions, indices, skins, morph
+//!   targets, UVs, normals, colours, animation keys) sees decoded data without knowing it was
+//!   compressed. Morph targets of a Draco primitive stay plain accessors, as the extension says.
 //! * **Welding.** Exporters split vertices at UV and normal seams, and some write every triangle
 //!   with its own three vertices, which leaves a surface in pieces. [`RiggedMesh::weld`] merges
 //!   vertices that land on the same bits in every pose: same rest position, same skin influences,
@@ -46,6 +52,9 @@
 //! `count: 0`, and hit `unreachable!()` on unexpected component types. Every index, length,
 //! stride and component type is checked here instead, and buffers (including GLB chunks and
 //! `data:` URIs) are decoded here. A file path may only reference buffers inside its own folder.
+//! Compressed data is decoded only to the sizes its accessors and views declare, checked first
+//! against the input limits (Draco) or a cap on decoded bytes (meshopt); a truncated or corrupt
+//! stream is an error naming its primitive or bufferView.
 
 use crate::{InputLimits, MeshError, Sequence, SourceVertex};
 use glam::{Mat4, Quat, Vec3, Vec4};
@@ -57,18 +66,24 @@ use std::ops::Range;
 use std::path::{Component, Path, PathBuf};
 
 mod animation;
+#[cfg(test)]
+mod compressed_tests;
+mod draco;
 mod file;
 mod looks;
 mod looks_raw;
+mod meshopt;
 mod rigged;
 mod scene;
 #[cfg(test)]
 mod tests;
 
 use self::animation::*;
+use self::draco::*;
 use self::file::*;
 pub use self::looks::image_mime_type;
 use self::looks::*;
+use self::meshopt::*;
 pub use self::rigged::*;
 use self::scene::*;
 
@@ -122,25 +137,25 @@ pub struct AnimationInfo {
 ///
 /// External buffers of a `.gltf` are read from the file's folder (never from outside it).
 pub fn load_gltf(path: &Path, opts: &GltfOptions) -> Result<Sequence, MeshError> {
-    let file = GltfFile::open(path)?;
+    let file = GltfFile::open(path, &opts.limits)?;
     file_to_sequence(&file, opts).map_err(|e| at_path(path, e))
 }
 
 /// Reads a GLB, or a `.gltf` whose buffers are embedded as `data:` URIs, from memory (uploads).
 /// A `.gltf` that references external files can only be read from a path.
 pub fn load_gltf_bytes(bytes: &[u8], opts: &GltfOptions) -> Result<Sequence, MeshError> {
-    file_to_sequence(&GltfFile::parse(bytes, None)?, opts)
+    file_to_sequence(&GltfFile::parse(bytes, None, &opts.limits)?, opts)
 }
 
 /// Every animation of a file, in file order, with its duration.
 pub fn list_animations(path: &Path) -> Result<Vec<AnimationInfo>, MeshError> {
-    let file = GltfFile::open(path)?;
+    let file = GltfFile::open(path, &InputLimits::default())?;
     animation_infos(&file).map_err(|e| at_path(path, e))
 }
 
 /// [`list_animations`] for a file in memory.
 pub fn list_animations_bytes(bytes: &[u8]) -> Result<Vec<AnimationInfo>, MeshError> {
-    animation_infos(&GltfFile::parse(bytes, None)?)
+    animation_infos(&GltfFile::parse(bytes, None, &InputLimits::default())?)
 }
 
 fn animation_infos(file: &GltfFile) -> Result<Vec<AnimationInfo>, MeshError> {

@@ -181,7 +181,7 @@ impl RiggedMesh {
 
     /// [`RiggedMesh::from_path`] under the given limits on vertices and triangles.
     pub fn from_path_with(path: &Path, limits: &InputLimits) -> Result<Self, MeshError> {
-        let file = GltfFile::open(path)?;
+        let file = GltfFile::open(path, limits)?;
         Self::from_file(&file, limits).map_err(|e| at_path(path, e))
     }
 
@@ -192,7 +192,7 @@ impl RiggedMesh {
 
     /// [`RiggedMesh::from_bytes`] under the given limits on vertices and triangles.
     pub fn from_bytes_with(bytes: &[u8], limits: &InputLimits) -> Result<Self, MeshError> {
-        Self::from_file(&GltfFile::parse(bytes, None)?, limits)
+        Self::from_file(&GltfFile::parse(bytes, None, limits)?, limits)
     }
 
     pub(super) fn from_file(file: &GltfFile, limits: &InputLimits) -> Result<Self, MeshError> {

@@ -1,6 +1,10 @@
 // Playback of a pmcodec progressive hierarchy down to a finest level L, mirroring
 // `pmcodec_hierarchy::progressive::Replay` (see proto/container.md, "The model the file
-// encodes"). Everything is flat typed arrays indexed by u32 node and triangle ids.
+// encodes"). In Rust it lives in the hierarchy crate; here only the decoder (decode.ts) and the
+// viewer's geomorphs use it, so it sits beside the decoder. Everything is flat typed arrays
+// indexed by u32 node and triangle ids.
+
+import { DecodeError } from "./error.js";
 
 export const NONE = 0xffffffff;
 /** Degeneration node of a triangle that is not alive at this replay's finest level. */
@@ -11,8 +15,6 @@ export interface CornerUpdate { level: number; t: number; corners: [number, numb
 /** Swaps and corner updates; degenerate-set changes are derived (proto/container.md). */
 export interface FrameDelta { swaps: Swap[]; corners: CornerUpdate[] }
 export interface KeyBand { parent: Uint32Array; faces: { t: number; corners: [number, number, number] }[] }
-
-export class DecodeError extends Error {}
 
 /** A growable set of u32 with O(1) insert/remove by slot, like the Rust side's Vec + slot map. */
 class SlotList {

@@ -1,0 +1,148 @@
+// The byte layout of a .pmc file (proto/container.md), as `pmcodec_container::format`: the
+// preamble, the postcard header and index, their checks and limits, and the CRC-32 every
+// region carries.
+
+import { DecodeError } from "./error.js";
+import { Postcard } from "./payload.js";
+
+export const MAGIC = [0x89, 0x50, 0x4d, 0x43, 0x0d, 0x0a, 0x1a, 0x0a];
+export const PREAMBLE_LEN = 32;
+/**
+ * The format version this decoder reads, and the oldest it still reads (version 4: no `order`
+ * in the header, faces and corners as plain ids; version 3: no `motion` either).
+ */
+export const VERSION = 5, OLDEST_READABLE = 3;
+/** The largest header or index the preamble may declare. */
+export const MAX_TABLE_LEN = 64 << 20;
+/** Caps on a header's declared sizes (proto/container.md, "Limits"). */
+export const MAX_VERTICES = 1 << 24, MAX_TRIANGLES = 1 << 25, MAX_NODES = 1 << 25, MAX_FRAMES = 1 << 20;
+
+export enum ChunkKind { Triangles = 0, Key = 1, Delta = 2, Positions = 3, Faces = 4, Corners = 5 }
+/** How band 0 is predicted on frames that are not keyframes (proto/container.md, "Positions, band j"). */
+export enum Motion { Mean = 0, Affine = 1, KeyframeAffine = 2 }
+/** The order band 0 is decoded in (proto/container.md, "Band 0 order"). */
+export enum VertexOrder { Input = 0, BreadthFirst = 1 }
+
+/**
+ * Whether a client whose finest level is `minLevel` reads chunks of this kind in `band`: every
+ * band from its level up, except faces and corners, which only the band of its finest level
+ * needs (proto/container.md, "Who reads what").
+ */
+export function readAt(kind: ChunkKind, band: number, minLevel: number): boolean {
+  if (kind === ChunkKind.Triangles) return minLevel === 0;
+  if (kind === ChunkKind.Faces || kind === ChunkKind.Corners) return band === minLevel;
+  return band >= minLevel;
+}
+
+export interface Header {
+  vertexCount: number; triangleCount: number; frameCount: number; frameRate: number;
+  levelSizes: number[]; branching: number; bboxMin: number[]; bboxMax: number[];
+  step: number; keyframeInterval: number; generator: string; frameNames: string[];
+  /** Band 0's prediction on inter frames. */
+  motion: Motion;
+  /** Band 0's decoding order. */
+  order: VertexOrder;
+}
+
+export interface ChunkEntry { kind: ChunkKind; frame: number; band: number; offset: number; storedLen: number; rawLen: number; crc32: number }
+
+/** The fixed 32 bytes at the start of a file: version, table lengths and their checksums. */
+export interface Preamble { version: number; headerLen: number; indexLen: number; headerCrc: number; indexCrc: number }
+
+const CRC_TABLE = (() => {
+  const t = new Uint32Array(256);
+  for (let n = 0; n < 256; n++) {
+    let c = n;
+    for (let k = 0; k < 8; k++) c = c & 1 ? 0xedb88320 ^ (c >>> 1) : c >>> 1;
+    t[n] = c >>> 0;
+  }
+  return t;
+})();
+
+export function crc32(b: Uint8Array): number {
+  let c = 0xffffffff;
+  for (let i = 0; i < b.length; i++) c = CRC_TABLE[(c ^ b[i]) & 0xff] ^ (c >>> 8);
+  return (c ^ 0xffffffff) >>> 0;
+}
+
+/** Reads the preamble (at least PREAMBLE_LEN bytes): magic number, a readable version, lengths. */
+export function parsePreamble(pre: Uint8Array): Preamble {
+  for (let i = 0; i < 8; i++) if (pre[i] !== MAGIC[i]) throw new DecodeError("not a .pmc file (bad magic number)");
+  const dv = new DataView(pre.buffer, pre.byteOffset, pre.byteLength);
+  const version = dv.getUint16(8, true);
+  if (version < OLDEST_READABLE || version > VERSION) throw new DecodeError(`container version ${version} is not supported (this decoder reads versions ${OLDEST_READABLE} to ${VERSION})`);
+  return { version, headerLen: dv.getUint32(12, true), indexLen: dv.getUint32(16, true), headerCrc: dv.getUint32(20, true), indexCrc: dv.getUint32(24, true) };
+}
+
+/** The header of a file of `version` (older versions lack the fields added since). */
+export function parseHeader(hb: Uint8Array, version: number): Header {
+  const p = new Postcard(hb, "header");
+  const header: Header = {
+    vertexCount: p.varint(), triangleCount: p.varint(), frameCount: p.varint(), frameRate: p.f32(),
+    levelSizes: p.seq(() => p.varint(), 64), branching: p.varint(),
+    bboxMin: [p.f32(), p.f32(), p.f32()], bboxMax: [p.f32(), p.f32(), p.f32()],
+    step: p.f32(), keyframeInterval: p.varint(), generator: "", frameNames: [], motion: Motion.Mean, order: VertexOrder.Input,
+  };
+  // encoded_with: informative, read and dropped.
+  p.str(); p.str(); p.f64(); p.f64(); p.varint(); p.bool(); p.bool(); p.option(() => p.f64()); p.option(() => p.u8());
+  header.generator = p.str();
+  header.frameNames = p.seq(() => p.str(), 1 << 20);
+  header.motion = version >= 4 ? p.varint() : Motion.Mean;
+  if (header.motion > (version >= 5 ? Motion.KeyframeAffine : Motion.Affine)) throw new DecodeError(`header: unknown band-0 motion ${header.motion}`);
+  header.order = version >= 5 ? p.varint() : VertexOrder.Input;
+  if (header.order > VertexOrder.BreadthFirst) throw new DecodeError(`header: unknown band-0 order ${header.order}`);
+  return header;
+}
+
+export function parseIndex(ib: Uint8Array): ChunkEntry[] {
+  const q = new Postcard(ib, "index");
+  return q.seq((): ChunkEntry => {
+    const kind = q.varint();
+    if (kind > 5) throw new DecodeError(`index: chunk kind ${kind}`);
+    return { kind, frame: q.varint(), band: q.varint(), offset: q.varint(), storedLen: q.varint(), rawLen: q.varint(), crc32: q.varint() };
+  }, 1 << 24);
+}
+
+/**
+ * Checks a header and index against each other and the file: consistent counts, shrinking
+ * levels, sizes within the limits, every chunk inside the data and of a plausible size, and no
+ * bytes after the last chunk. `dataLen`: the bytes after the preamble, header and index.
+ */
+export function checkTables(h: Header, index: ChunkEntry[], dataLen: number): void {
+  if (h.levelSizes.length === 0 || h.levelSizes[0] !== h.vertexCount || h.frameCount === 0 || !(h.step > 0)) throw new DecodeError("header: inconsistent counts");
+  if (h.levelSizes.some((s, i) => i > 0 && (s === 0 || s > h.levelSizes[i - 1]))) throw new DecodeError(`header: level sizes ${h.levelSizes} do not shrink`);
+  // Declared sizes are capped, so what a player allocates from them is bounded (proto/container.md, "Limits").
+  const nodes = h.levelSizes.reduce((a, b) => a + b, 0);
+  if (h.vertexCount > MAX_VERTICES || h.triangleCount > MAX_TRIANGLES || nodes > MAX_NODES || h.frameCount > MAX_FRAMES) {
+    throw new DecodeError(`header: ${h.vertexCount} vertices, ${h.triangleCount} triangles, ${nodes} nodes, ${h.frameCount} frames: beyond the limits`);
+  }
+  let end = 0;
+  for (const e of index) {
+    if (e.offset + e.storedLen > dataLen) throw new DecodeError(`${describe(e)}: the file ends before it does`);
+    end = Math.max(end, e.offset + e.storedLen);
+    if (e.kind !== ChunkKind.Triangles && (e.frame >= h.frameCount || e.band >= h.levelSizes.length)) throw new DecodeError(`${describe(e)}: frame or band beyond the header's counts`);
+    const [least, most] = rawLenRange(h, e.kind, e.band);
+    if (e.rawLen < least || e.rawLen > most) throw new DecodeError(`${describe(e)}: declared size ${e.rawLen} outside ${least}..${most}`);
+  }
+  if (end < dataLen) throw new DecodeError(`${dataLen - end} bytes after the end of the container`);
+}
+
+/** The decompressed sizes a chunk may declare (proto/container.md, "Limits"). */
+function rawLenRange(h: Header, kind: ChunkKind, band: number): [number, number] {
+  const t = h.triangleCount, n = h.levelSizes[band] ?? 0, belowTop = band < h.levelSizes.length - 1;
+  switch (kind) {
+    case ChunkKind.Triangles: return [1 + 3 * t, 5 + 15 * t];
+    case ChunkKind.Key: return belowTop ? [1 + n, 5 + 5 * n] : [1, 5];
+    case ChunkKind.Delta: return [1, 5 + 10 * n];
+    case ChunkKind.Faces: return [1, 5 + 20 * t];
+    case ChunkKind.Corners: return [1, 5 + 25 * t];
+    default: return [1, 1024 + 24 * n];
+  }
+}
+
+export function isKeyframe(h: Header, f: number): boolean { return f === 0 || (h.keyframeInterval > 0 && f % h.keyframeInterval === 0); }
+export function keyframeBefore(h: Header, f: number): number { const k = h.keyframeInterval; return k === 0 ? 0 : f - (f % k); }
+
+export function describe(e: ChunkEntry): string {
+  return e.kind === ChunkKind.Triangles ? "triangles chunk" : `frame ${e.frame} band ${e.band} ${ChunkKind[e.kind].toLowerCase()}`;
+}

@@ -1,0 +1,26 @@
+// A decoder of the .pmc container written from proto/container.md, its modules mirroring the
+// Rust crate `pmcodec_container` so the two decoders read side by side:
+//
+// - format.ts: magic number, versions, preamble, header, index, limits, CRC-32 (`format`);
+// - payload.ts: postcard and varint readers, the chunks' payloads (`payload`);
+// - rans.ts: the position residuals' entropy decoder (`rans`);
+// - predict.ts: band 0's neighbours and stencils, motion, node prediction (`predict`);
+// - read.ts: `Reader`, which opens a file and fetches checked chunks (`Reader`);
+// - decode.ts: `Decoder`, which replays frames and selects cuts (`Decoder`);
+// - replay.ts: the progressive hierarchy's replay (`pmcodec_hierarchy::progressive::Replay`);
+// - error.ts: `DecodeError` (`ContainerError`).
+
+export { DecodeError } from "./error.js";
+export {
+  ChunkKind, MAGIC, MAX_FRAMES, MAX_NODES, MAX_TABLE_LEN, MAX_TRIANGLES, MAX_VERTICES, Motion, OLDEST_READABLE, PREAMBLE_LEN, VERSION,
+  VertexOrder, crc32, describe, readAt,
+} from "./format.js";
+export type { ChunkEntry, Header } from "./format.js";
+export { readPositions } from "./payload.js";
+export { affineMotion, keyedMotion, lowerNeighbours, stencilWeights } from "./predict.js";
+export type { LowerNeighbours } from "./predict.js";
+export { Reader } from "./read.js";
+export type { ReadAt } from "./read.js";
+export { Decoder } from "./decode.js";
+export { BELOW, MaxHeap, NONE, Replay } from "./replay.js";
+export type { CornerUpdate, FrameDelta, KeyBand, Swap } from "./replay.js";

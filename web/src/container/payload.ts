@@ -1,0 +1,196 @@
+// The readers of what a file's bytes hold, as `pmcodec_container::payload`: postcard (the
+// header and index) and the varint payloads of the chunks (proto/container.md, "Chunks"):
+// triangles, keyframe parent maps, faces, corner updates, swaps and position residuals.
+
+import { DecodeError } from "./error.js";
+import { decodeResiduals, ESCAPE, MAX_SYMBOLS, rAnsTable } from "./rans.js";
+import type { FrameDelta, KeyBand } from "./replay.js";
+
+/** postcard's wire format, the parts the header and index use. */
+export class Postcard {
+  pos = 0;
+  private view: DataView;
+  constructor(private b: Uint8Array, private what: string) { this.view = new DataView(b.buffer, b.byteOffset, b.byteLength); }
+  private need(n: number): void { if (this.pos + n > this.b.length) throw new DecodeError(`${this.what}: ends early`); }
+  varint(): number {
+    let v = 0, mul = 1;
+    for (let i = 0; i < 10; i++) {
+      this.need(1);
+      const byte = this.b[this.pos++];
+      v += (byte & 0x7f) * mul;
+      if (!(byte & 0x80)) { if (v > Number.MAX_SAFE_INTEGER) throw new DecodeError(`${this.what}: number too large`); return v; }
+      mul *= 128;
+    }
+    throw new DecodeError(`${this.what}: varint too long`);
+  }
+  u8(): number { this.need(1); return this.b[this.pos++]; }
+  bool(): boolean { const v = this.u8(); if (v > 1) throw new DecodeError(`${this.what}: bad bool`); return v === 1; }
+  f32(): number { this.need(4); const v = this.view.getFloat32(this.pos, true); this.pos += 4; return v; }
+  f64(): number { this.need(8); const v = this.view.getFloat64(this.pos, true); this.pos += 8; return v; }
+  str(): string { const n = this.varint(); this.need(n); const s = new TextDecoder().decode(this.b.subarray(this.pos, this.pos + n)); this.pos += n; return s; }
+  seq<T>(item: () => T, max: number): T[] {
+    const n = this.varint();
+    if (n > max) throw new DecodeError(`${this.what}: ${n} items is too many`);
+    return Array.from({ length: n }, item);
+  }
+  option<T>(item: () => T): T | null { return this.bool() ? item() : null; }
+}
+
+/** Varint payload reader (proto/container.md, "Chunks"), the Rust side's `payload::Cursor`. */
+export class Cursor {
+  pos = 0;
+  constructor(private b: Uint8Array, private what: string) {}
+  get(): number {
+    let v = 0, mul = 1;
+    for (let i = 0; i < 5; i++) {
+      if (this.pos >= this.b.length) throw new DecodeError(`${this.what}: ends inside a number`);
+      const byte = this.b[this.pos++];
+      v += (byte & 0x7f) * mul;
+      if (!(byte & 0x80)) { if (v > 0xffffffff) throw new DecodeError(`${this.what}: number beyond 32 bits`); return v; }
+      mul *= 128;
+    }
+    throw new DecodeError(`${this.what}: number longer than 5 bytes`);
+  }
+  id(limit: number, name: string): number { const v = this.get(); if (v >= limit) throw new DecodeError(`${this.what}: ${name} ${v} out of range`); return v; }
+  count(limit: number, name: string): number { const v = this.get(); if (v > limit) throw new DecodeError(`${this.what}: ${v} ${name}`); return v; }
+  ascending(prev: { v: number | null }, limit: number, name: string): number {
+    const d = this.get();
+    const v = prev.v === null ? d : prev.v + d + 1;
+    if (v >= limit) throw new DecodeError(`${this.what}: ${name} ${v} out of range`);
+    prev.v = v;
+    return v;
+  }
+  zigzag(): number { const v = this.get(); return (v >>> 1) ^ -(v & 1); }
+  finish(): void { if (this.pos !== this.b.length) throw new DecodeError(`${this.what}: ${this.b.length - this.pos} bytes left over`); }
+}
+
+/** The triangles chunk: `triangles` input triangles, 3 vertex ids each. */
+export function readTriangles(raw: Uint8Array, what: string, triangles: number, vertices: number): Uint32Array {
+  const p = new Cursor(raw, what);
+  const n = p.count(triangles, "triangles");
+  if (n !== triangles) throw new DecodeError(`${what}: ${n} triangles`);
+  const tris = new Uint32Array(3 * n);
+  for (let i = 0; i < 3 * n; i++) tris[i] = p.id(vertices, "vertex");
+  p.finish();
+  return tris;
+}
+
+/** A keyframe's parent map of `band` (empty for the top band). */
+export function readKey(raw: Uint8Array, what: string, sizes: number[], band: number): Uint32Array {
+  const c = new Cursor(raw, what);
+  const top = sizes.length - 1;
+  const n = c.count(sizes[band], "parents");
+  if (n !== (band < top ? sizes[band] : 0)) throw new DecodeError(`${what}: ${n} parents`);
+  const parent = new Uint32Array(n);
+  for (let i = 0; i < n; i++) parent[i] = c.id(sizes[band + 1], "parent");
+  c.finish();
+  return parent;
+}
+
+/**
+ * Faces (keyframes) of one band: triangle ascending, 3 corners, from version 5 each the zigzag
+ * difference from the same corner of the face before; in versions 3 and 4 plain, and corner
+ * updates (frames) coded the same way.
+ */
+export function readFaces(raw: Uint8Array, what: string, size: number, triangles: number, version: number): KeyBand["faces"] {
+  const c = new Cursor(raw, what);
+  const m = c.count(triangles, "faces");
+  const faces: KeyBand["faces"] = [];
+  const prev = { v: null as number | null };
+  let last: [number, number, number] = [0, 0, 0];
+  for (let i = 0; i < m; i++) {
+    const t = c.ascending(prev, triangles, "triangle");
+    const corners: [number, number, number] = [0, 0, 0];
+    for (let k = 0; k < 3; k++) {
+      corners[k] = version >= 5 ? (last[k] + c.zigzag()) >>> 0 : c.get();
+      if (corners[k] >= size) throw new DecodeError(`${what}: corner ${corners[k]} out of range`);
+    }
+    last = corners;
+    faces.push({ t, corners });
+  }
+  c.finish();
+  return faces;
+}
+
+/**
+ * Corner updates of one band from version 5, against the corners the reader holds (`held`, 3
+ * per triangle): for a triangle alive before, a mask of the corners that change and their
+ * zigzag differences; otherwise its three new corners.
+ */
+export function readCornerUpdates(raw: Uint8Array, what: string, size: number, held: Uint32Array): KeyBand["faces"] {
+  const c = new Cursor(raw, what);
+  const triangles = held.length / 3;
+  const m = c.count(triangles, "corner updates");
+  const out: KeyBand["faces"] = [];
+  const prev = { v: null as number | null };
+  for (let i = 0; i < m; i++) {
+    const t = c.ascending(prev, triangles, "triangle");
+    const corners: [number, number, number] = [held[3 * t], held[3 * t + 1], held[3 * t + 2]];
+    const alive = corners[0] !== corners[1] && corners[1] !== corners[2] && corners[0] !== corners[2];
+    if (alive) {
+      const mask = c.get();
+      if (mask < 1 || mask > 7) throw new DecodeError(`${what}: triangle ${t}: corner mask ${mask} (1 to 7)`);
+      for (let k = 0; k < 3; k++) {
+        if (!(mask & (1 << k))) continue;
+        corners[k] = (corners[k] + c.zigzag()) >>> 0;
+        if (corners[k] >= size) throw new DecodeError(`${what}: corner ${corners[k]} out of range`);
+      }
+    } else {
+      for (let k = 0; k < 3; k++) corners[k] = c.id(size, "corner");
+    }
+    out.push({ t, corners });
+  }
+  c.finish();
+  return out;
+}
+
+/** The swaps of one band of a frame (node ascending, new parent), appended to `out`. */
+export function readDelta(raw: Uint8Array, what: string, sizes: number[], band: number, out: FrameDelta): void {
+  const c = new Cursor(raw, what);
+  const top = sizes.length - 1;
+  const n = c.count(band < top ? sizes[band] : 0, "moves");
+  const prev = { v: null as number | null };
+  for (let i = 0; i < n; i++) {
+    const v = c.ascending(prev, sizes[band], "node");
+    out.swaps.push({ level: band, v, to: c.id(sizes[band + 1], "parent") });
+  }
+  c.finish();
+}
+
+/** The largest residual shift a positions chunk may declare. */
+export const MAX_SHIFT = 16;
+
+/** A positions chunk: its residual shift and 3 residuals per node (units of 2^shift quanta). */
+export function readPositions(raw: Uint8Array, what: string, count: number): { shift: number; res: Int32Array } {
+  const p = new Cursor(raw, what);
+  // shift + 32 * coding: 0 rANS, 1 plain zigzag varints (small bands, version 5).
+  const first = p.get(), shift = first % 32, coding = Math.floor(first / 32);
+  if (shift > MAX_SHIFT) throw new DecodeError(`${what}: residual shift ${shift} beyond ${MAX_SHIFT}`);
+  if (coding === 1) {
+    const res = new Int32Array(3 * count);
+    for (let i = 0; i < 3 * count; i++) res[i] = p.zigzag();
+    p.finish();
+    return { shift, res };
+  }
+  if (coding !== 0) throw new DecodeError(`${what}: residual coding ${coding} (0 rANS, 1 varints)`);
+  // One frequency table per axis, then the stream; escapes follow it, read as they are met.
+  const tables: Uint32Array[] = [];
+  for (let a = 0; a < 3; a++) {
+    const n = p.count(MAX_SYMBOLS, "symbols");
+    const freqs: number[] = [];
+    for (let s = 0; s < n; s++) freqs.push(p.get());
+    tables.push(rAnsTable(freqs, what));
+  }
+  const len = p.count(raw.length, "stream bytes");
+  if (p.pos + len > raw.length) throw new DecodeError(`${what}: rANS stream beyond the chunk`);
+  const stream = raw.subarray(p.pos, p.pos + len);
+  p.pos += len;
+  const res = new Int32Array(3 * count);
+  decodeResiduals(stream, tables, res, what, () => {
+    const z = p.get() + ESCAPE;
+    if (z > 0xffffffff) throw new DecodeError(`${what}: escaped residual beyond 32 bits`);
+    return z;
+  });
+  p.finish();
+  return { shift, res };
+}

@@ -1,0 +1,62 @@
+// Opening a .pmc file, as `pmcodec_container::Reader`: the preamble, header and index read and
+// checked, then chunks fetched by (kind, frame, band), checked against their CRC-32 and
+// decompressed. Byte access is a callback, so the same code reads a file in Node or HTTP
+// ranges in a browser.
+
+import { decompress } from "fzstd";
+import { DecodeError } from "./error.js";
+import {
+  ChunkEntry, ChunkKind, Header, MAX_TABLE_LEN, PREAMBLE_LEN, checkTables, crc32, describe, isKeyframe, keyframeBefore,
+  parseHeader, parseIndex, parsePreamble,
+} from "./format.js";
+
+/** Fetches `len` bytes at `offset`. */
+export type ReadAt = (offset: number, len: number) => Promise<Uint8Array>;
+
+export class Reader {
+  private constructor(readonly readAt: ReadAt, readonly version: number, readonly header: Header, readonly index: ChunkEntry[], readonly dataStart: number, readonly fileLen: number) {}
+  /** Bytes fetched so far: preamble, header, index and chunks. */
+  bytesRead = 0;
+
+  static async open(readAt: ReadAt, fileLen: number): Promise<Reader> {
+    if (fileLen < PREAMBLE_LEN) throw new DecodeError("not a .pmc file (too short)");
+    const { version, headerLen, indexLen, headerCrc, indexCrc } = parsePreamble(await readAt(0, PREAMBLE_LEN));
+    const dataStart = PREAMBLE_LEN + headerLen + indexLen;
+    if (dataStart > fileLen || headerLen > MAX_TABLE_LEN || indexLen > MAX_TABLE_LEN) throw new DecodeError("header and index: the file ends before they do");
+    const tables = await readAt(PREAMBLE_LEN, headerLen + indexLen);
+    const hb = tables.subarray(0, headerLen), ib = tables.subarray(headerLen);
+    if (crc32(hb) !== headerCrc) throw new DecodeError("header: checksum mismatch");
+    if (crc32(ib) !== indexCrc) throw new DecodeError("index: checksum mismatch");
+    const header = parseHeader(hb, version);
+    const index = parseIndex(ib);
+    checkTables(header, index, fileLen - dataStart);
+    const r = new Reader(readAt, version, header, index, dataStart, fileLen);
+    r.bytesRead = dataStart;
+    return r;
+  }
+
+  isKeyframe(f: number): boolean { return isKeyframe(this.header, f); }
+  keyframeBefore(f: number): number { return keyframeBefore(this.header, f); }
+
+  find(kind: ChunkKind, frame: number, band: number): ChunkEntry {
+    const e = this.index.find((x) => x.kind === kind && x.frame === frame && x.band === band);
+    if (!e) throw new DecodeError(`frame ${frame} band ${band} ${ChunkKind[kind]}: missing from the index`);
+    return e;
+  }
+
+  /** A chunk's decompressed bytes, checked against its CRC-32 and declared size. */
+  async chunk(e: ChunkEntry): Promise<Uint8Array> {
+    const stored = await this.readAt(this.dataStart + e.offset, e.storedLen);
+    this.bytesRead += stored.length;
+    if (crc32(stored) !== e.crc32) throw new DecodeError(`${describe(e)}: checksum mismatch`);
+    let raw: Uint8Array;
+    try {
+      raw = decompress(stored, new Uint8Array(e.rawLen));
+    } catch (err) {
+      // fzstd throws plain Errors on a frame that does not fit or does not parse.
+      throw new DecodeError(`${describe(e)}: zstd: ${err instanceof Error ? err.message : String(err)}`);
+    }
+    if (raw.length !== e.rawLen) throw new DecodeError(`${describe(e)}: ${raw.length} bytes where the index says ${e.rawLen}`);
+    return raw;
+  }
+}
