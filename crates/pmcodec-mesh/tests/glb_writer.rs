@@ -1,5 +1,6 @@
 //! The GLB writer with an appearance: what the glTF reader gets back from it (UVs, colours,
 //! materials, textures, images, one primitive per material), its normals, and its errors.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use glam::Vec3;
 use pmcodec_mesh::appearance::{Appearance, Image, Material, Texture, TextureRef, TextureTransform};

@@ -1,5 +1,6 @@
 //! Appearance input (UVs, normals, colours, materials, textures, images) on the real models and
 //! on small generated files, and its bad-input errors.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use pmcodec_mesh::appearance::{AlphaMode, Appearance};
 use pmcodec_mesh::gltf_input::{GltfOptions, RiggedMesh, load_gltf, load_gltf_bytes};
