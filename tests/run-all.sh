@@ -71,7 +71,8 @@ for m in Fox RobotExpressive Horse Parrot; do
 done
 node tests/gltf-validate.mjs "$lod_out"/*.glb
 # Every level of every chain plays in three.js's stock glTF loader (web/lod.html in headless
-# Chromium): loads, skins or morphs, animates, draws, and has fewer triangles than the last.
+# Chromium): loads, skins or morphs, animates on the one shared skeleton with no track missing
+# its node, draws (textured when the file has images), and has fewer triangles than the last.
 echo "== three.js plays pmcodec lod output"
 bin_abs="$(cd "$(dirname "$bin")" && pwd)/$(basename "$bin")"
 (cd web && PMCODEC_BIN="$bin_abs" node test/lod-e2e.mjs "$lod_out"/*-lod.glb)
