@@ -6,7 +6,7 @@
 
 use pmcodec_container::testing::reseal;
 use pmcodec_container::{
-    ChunkKind, ContainerError, Decoder, EncodeOptions, CutTarget, QuantizationChoice, Reader, encode, summary, verify,
+    ChunkKind, ContainerError, CutTarget, Decoder, EncodeOptions, QuantizationChoice, Reader, encode, summary, verify,
 };
 use pmcodec_mesh::Sequence;
 use pmcodec_mesh::skin::bending_tube;

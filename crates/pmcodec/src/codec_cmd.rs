@@ -5,8 +5,8 @@ use crate::{EXIT_BAD_INPUT, EXIT_FAILURE, Exit, progress};
 use anyhow::{Context, anyhow};
 use clap::{Args, ValueEnum};
 use pmcodec_container::{
-    ContainerError, CutTarget, Decoder, Distance, EncodeOptions, FileSource, Header, Motion, QuantizationChoice, Reader, SkinPlacement, VertexOrder,
-    encode, summary, verify, write_file,
+    ContainerError, CutTarget, Decoder, Distance, EncodeOptions, FileSource, Header, Motion, QuantizationChoice, Reader, SkinPlacement,
+    VertexOrder, encode, summary, verify, write_file,
 };
 use pmcodec_hierarchy::base::{PoseSet, VertexWeights};
 use pmcodec_hierarchy::recluster::ReclusterOptions;
