@@ -391,9 +391,12 @@ fn write_frame(dec: &mut Decoder<&FileSource>, input: &Path, frame: u32, target:
     let where_ = || format!("{} frame {frame}", input.display());
     dec.seek(frame).map_err(|e| container_error(e, where_()))?;
     let mesh = if dec.appearance_info().is_some() {
-        let (mesh, app) = dec.textured_mesh(target).map_err(|e| container_error(e, where_()))?;
-        write_textured(path, &mesh, &app).with_context(|| format!("writing {}", path.display()))?;
-        mesh
+        let (wedged, app) = dec.textured_mesh(target).map_err(|e| container_error(e, where_()))?;
+        // An OBJ indexes positions and attributes apart: its `v` lines are the cut's nodes (at
+        // level 0 the input's vertices, in their order), as in an untextured decode.
+        let plain = dec.mesh(target).map_err(|e| container_error(e, where_()))?;
+        write_textured(path, &plain, &wedged, &app).with_context(|| format!("writing {}", path.display()))?;
+        plain
     } else {
         let mesh = dec.mesh(target).map_err(|e| container_error(e, where_()))?;
         pmcodec_mesh::write::write_mesh_file(path, &mesh).with_context(|| format!("writing {}", path.display()))?;
@@ -409,9 +412,15 @@ fn write_frame(dec: &mut Decoder<&FileSource>, input: &Path, frame: u32, target:
 }
 
 /// A cut with its appearance: a textured GLB, or an OBJ with its MTL (`NAME.mtl`) and the
-/// images beside it (`texture-*`, shared by the frames of a folder). Every file is written
-/// whole or not at all; on an error the ones already written are removed.
-fn write_textured(path: &Path, mesh: &pmcodec_mesh::TriMesh, app: &pmcodec_mesh::Appearance) -> anyhow::Result<()> {
+/// images beside it (`texture-*`, shared by the frames of a folder). `plain` is the cut's mesh
+/// by node, `mesh` the same triangles with one vertex per wedge. Every file is written whole or
+/// not at all; on an error the ones already written are removed.
+fn write_textured(
+    path: &Path,
+    plain: &pmcodec_mesh::TriMesh,
+    mesh: &pmcodec_mesh::TriMesh,
+    app: &pmcodec_mesh::Appearance,
+) -> anyhow::Result<()> {
     use pmcodec_container::appearance::export;
     use pmcodec_mesh::write::write_atomic;
     let is_obj = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"));
@@ -421,7 +430,7 @@ fn write_textured(path: &Path, mesh: &pmcodec_mesh::TriMesh, app: &pmcodec_mesh:
     let dir = path.parent().unwrap_or(Path::new("."));
     let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "mesh".into());
     let mtl_name = format!("{stem}.mtl");
-    let (obj, mtl) = export::textured_obj(mesh, app, &mtl_name, "texture");
+    let (obj, mtl) = export::textured_obj(plain, &mesh.triangles, app, &mtl_name, "texture")?;
     let mut files: Vec<(std::path::PathBuf, Vec<u8>)> =
         (0..app.images.len()).map(|i| (dir.join(export::image_file_name(app, i, "texture")), app.images[i].bytes.clone())).collect();
     files.push((dir.join(&mtl_name), mtl.into_bytes()));

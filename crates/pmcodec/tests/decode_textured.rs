@@ -64,4 +64,13 @@ fn decode_writes_textured_glb_and_obj_with_mtl() {
     assert_eq!(a.images[0].bytes, want.images[0].bytes);
     assert_eq!(a.triangle_material, want.triangle_material);
     assert_eq!(back.triangles.len(), seq.triangles.len());
+    // Positions and attributes are indexed apart: a seam does not split a vertex, so level 0
+    // holds exactly the input's vertices, within a quantization step.
+    assert_eq!(back.frames[0].len(), seq.frames[0].len(), "the OBJ's v lines are the input's vertices");
+    let lo = seq.frames[0].iter().copied().reduce(|a, b| a.min(b)).unwrap();
+    let hi = seq.frames[0].iter().copied().reduce(|a, b| a.max(b)).unwrap();
+    let tol = (hi - lo).length() * 1e-3;
+    for (a, b) in back.frames[0].iter().zip(&seq.frames[0]) {
+        assert!(a.distance(*b) <= tol, "{a} vs {b}");
+    }
 }

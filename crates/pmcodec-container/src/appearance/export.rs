@@ -2,6 +2,7 @@
 //! images embedded) or OBJ with its MTL and image files. A local writer until the workspace's
 //! unified GLB writer takes appearance; [`textured_glb`] is the one function to swap.
 
+use crate::ContainerError;
 use pmcodec_mesh::appearance::{AlphaMode, TextureRef};
 use pmcodec_mesh::{Appearance, TriMesh};
 use serde_json::{Value, json};
@@ -237,10 +238,21 @@ pub fn image_file_name(app: &Appearance, i: usize, stem: &str) -> String {
     }
 }
 
-/// An OBJ of `mesh` with `app` (`v`, `vt` with v flipped to OBJ's upward axis, `vn`,
-/// `usemtl` runs) naming `mtl_name`, and that MTL's text (`Kd`, `d`, `map_Kd` naming the files
-/// [`image_file_name`] gives).
-pub fn textured_obj(mesh: &TriMesh, app: &Appearance, mtl_name: &str, stem: &str) -> (String, String) {
+/// An OBJ of `mesh` with `app` (`v` per vertex of `mesh`, `vt` with v flipped to OBJ's upward
+/// axis and `vn` per wedge, `usemtl` runs) naming `mtl_name`, and that MTL's text (`Kd`, `d`,
+/// `map_Kd` naming the files [`image_file_name`] gives). `wedges[t]` are the wedges of
+/// `mesh.triangles[t]`'s corners (the same triangles, indexed into `app`'s per-wedge arrays):
+/// an OBJ indexes positions and attributes apart, so a seam does not split a vertex.
+pub fn textured_obj(
+    mesh: &TriMesh,
+    wedges: &[[u32; 3]],
+    app: &Appearance,
+    mtl_name: &str,
+    stem: &str,
+) -> Result<(String, String), ContainerError> {
+    if wedges.len() != mesh.triangles.len() {
+        return Err(ContainerError::Options(format!("{} triangles with wedges for {} triangles", mesh.triangles.len(), wedges.len())));
+    }
     let mut obj = String::new();
     let _ = writeln!(obj, "# pmcodec\nmtllib {mtl_name}");
     for p in &mesh.positions {
@@ -254,19 +266,19 @@ pub fn textured_obj(mesh: &TriMesh, app: &Appearance, mtl_name: &str, stem: &str
     }
     let (has_uv, has_n) = (!app.uv0.is_empty(), !app.normals.is_empty());
     let mut current = u32::MAX;
-    for (t, tri) in mesh.triangles.iter().enumerate() {
+    for (t, (tri, tw)) in mesh.triangles.iter().zip(wedges).enumerate() {
         let m = app.triangle_material.get(t).copied().unwrap_or(0);
         if m != current && !app.materials.is_empty() {
             let _ = writeln!(obj, "usemtl material{m}");
             current = m;
         }
         obj.push('f');
-        for &v in tri {
-            let i = v + 1;
+        for (&v, &w) in tri.iter().zip(tw) {
+            let (i, j) = (v + 1, w + 1);
             let _ = match (has_uv, has_n) {
-                (true, true) => write!(obj, " {i}/{i}/{i}"),
-                (true, false) => write!(obj, " {i}/{i}"),
-                (false, true) => write!(obj, " {i}//{i}"),
+                (true, true) => write!(obj, " {i}/{j}/{j}"),
+                (true, false) => write!(obj, " {i}/{j}"),
+                (false, true) => write!(obj, " {i}//{j}"),
                 (false, false) => write!(obj, " {i}"),
             };
         }
@@ -283,5 +295,5 @@ pub fn textured_obj(mesh: &TriMesh, app: &Appearance, mtl_name: &str, stem: &str
             let _ = writeln!(mtl, "map_Kd {}", image_file_name(app, t.image as usize, stem));
         }
     }
-    (obj, mtl)
+    Ok((obj, mtl))
 }
