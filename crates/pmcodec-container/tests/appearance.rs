@@ -127,3 +127,49 @@ fn a_bare_surface_has_no_appearance() {
     assert!(d.textured_mesh(CutTarget::Level(0)).is_err());
     assert!(d.images().expect("none").is_empty());
 }
+
+/// A tube whose triangles fall into many small UV islands (a chart per triangle band, as in a
+/// low-poly character's atlas): budget cuts that mix levels put a coarse corner beside fine
+/// ones of another chart. Every budget of every frame must find its (node, chart) entries.
+#[test]
+fn budget_cuts_mixing_levels_find_every_chart_entry() {
+    let mut seq = pmcodec_mesh::samples::twisting_tube(24, 20, 6);
+    let mut app = pmcodec_mesh::Appearance::default();
+    let mut wedge: std::collections::HashMap<(u32, u32), u32> = Default::default();
+    for (t, tri) in seq.triangles.iter().enumerate() {
+        // A chart per 7 triangles, scattered: charts meet along many short seams.
+        let chart = ((t as u32).wrapping_mul(2_654_435_761) >> 7) % 37;
+        let mut cw = [0u32; 3];
+        for i in 0..3 {
+            let next = app.wedge_vertex.len() as u32;
+            cw[i] = *wedge.entry((tri[i], chart)).or_insert(next);
+            if cw[i] == next {
+                app.wedge_vertex.push(tri[i]);
+                let p = seq.frames[0][tri[i] as usize];
+                app.uv0.push([chart as f32 + 0.5 * p.x.fract().abs(), 0.5 * p.z.fract().abs()]);
+            }
+        }
+        app.corner_wedges.push(cw);
+    }
+    app.validate(seq.frames[0].len(), &seq.triangles).expect("a valid appearance");
+    seq.appearance = Some(app);
+    let opts = EncodeOptions { keyframe_interval: 3, quantization: QuantizationChoice::Bits(12), ..Default::default() };
+    let bytes = encode(&seq, &opts, |_| {}).expect("encode");
+    let reader = Reader::open(bytes.as_slice()).expect("open");
+    let mut d = Decoder::new(reader.borrowed(), 0).expect("decoder");
+    let n = seq.triangles.len() as u32;
+    let mut mixed = 0;
+    for f in 0..6 {
+        d.seek(f).expect("seek");
+        for budget in (1..=n).step_by(7) {
+            let (mesh, app) = d.textured_mesh(CutTarget::Triangles(budget)).unwrap_or_else(|e| panic!("frame {f} budget {budget}: {e}"));
+            assert_eq!(mesh.triangles.len(), d.mesh(CutTarget::Triangles(budget)).expect("mesh").triangles.len());
+            // Every corner's u lies in its chart's strip [chart, chart + 0.5], within the
+            // quantization step (37 units over the texture-coordinate bits).
+            let tol = 0.02;
+            assert!(app.uv0.iter().all(|uv| uv[0].fract() <= 0.5 + tol || uv[0].fract() >= 1.0 - tol), "frame {f} budget {budget}");
+            mixed += 1;
+        }
+    }
+    assert!(mixed > 100);
+}

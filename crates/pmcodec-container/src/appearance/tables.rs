@@ -1,10 +1,12 @@
 //! The encoder's attribute tables: for every level L and every (level-L node, chart) pair
-//! that some triangle alive at L shows in ANY frame (the hierarchy changes by swaps, so the
-//! pairs do), the attribute value a decoder draws there.
+//! that some cut can show in ANY frame (the hierarchy changes by swaps, so the pairs do), the
+//! attribute value a decoder draws there.
 //!
-//! A shown triangle's corners are cut nodes at levels below its degeneration node, where it is
-//! alive, and each is that corner's ancestor at its level: so the level-L table covers every
-//! cut a decoder can make. At level 0 the value is the input's wedge (one per (vertex, chart),
+//! A shown triangle's corners are cut nodes, each its corner's ancestor at its own level; the
+//! levels can differ (a budget cut mixes them). A cut is a front, so a corner cut at its
+//! level-L ancestor g shares g with every corner under g: the triangle shows only if its other
+//! corners lie under other level-L nodes. Those (g, chart) pairs are the table, and it covers
+//! every cut a decoder can make. At level 0 the value is the input's wedge (one per (vertex, chart),
 //! see [`super::charts`]). Above, it is solved from the cluster's fine wedges of that chart:
 //! their mean weighted by a third of the area of each fine triangle of the chart at them,
 //! summed over the frames (Garland & Heckbert 1998 weight attribute quadrics by area the same
@@ -120,7 +122,6 @@ impl<'a> TableBuilder<'a> {
             let sums = &mut self.levels[l];
             for (t, tri) in self.triangles.iter().enumerate() {
                 let g = tri.map(|v| self.ancestor[v as usize]);
-                let alive = g[0] != g[1] && g[1] != g[2] && g[0] != g[2];
                 let chart = self.charts.triangle_chart[t];
                 for i in 0..3 {
                     let key = ((g[i] as u64) << 32) | chart as u64;
@@ -137,7 +138,11 @@ impl<'a> TableBuilder<'a> {
                     for (s, x) in sums.sums[e * channels..].iter_mut().zip(&self.scratch) {
                         *s += w * x;
                     }
-                    sums.needed[e] |= alive;
+                    // A cut holding g[i] for this corner shows the triangle exactly when the other
+                    // corners lie outside g[i]'s cluster: corners inside it are cut at g[i] too (a
+                    // cut is a front), while corners under one other node can still be cut apart,
+                    // below this level, in a budget cut that mixes levels.
+                    sums.needed[e] |= g[i] != g[(i + 1) % 3] && g[i] != g[(i + 2) % 3];
                 }
             }
         }
