@@ -12,38 +12,55 @@ const size = Number(q.get("size") ?? "256");
 const status = document.getElementById("status") as HTMLDivElement;
 
 function report(fields: Record<string, string | number>): void {
+  for (const k of Object.keys(status.dataset)) delete status.dataset[k];
   for (const [k, v] of Object.entries(fields)) status.dataset[k] = String(v);
   status.textContent = Object.entries(status.dataset).map(([k, v]) => `${k} ${v}`).join("\n");
 }
 
-/** A renderer on one canvas and a scene lit the same way as the other's. */
-function stage(id: string): { renderer: THREE.WebGLRenderer; scene: THREE.Scene } {
-  const canvas = document.getElementById(id) as HTMLCanvasElement;
-  const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
-  renderer.setPixelRatio(1);
-  renderer.setSize(size, size, false);
+// One renderer for every comparison: three.js compiles a material's shaders once per renderer,
+// and on a software GPU that compiling is most of the page's time.
+const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+renderer.setPixelRatio(1);
+renderer.setSize(size, size, false);
+const env = roomEnvironment(renderer, 64);
+
+/**
+ * One scene per side, lit the same way: the same environment (made once: prefiltering it is
+ * the slowest step of the page on a software GPU) and the same sun.
+ */
+function stage(env: THREE.Texture): THREE.Scene {
   const scene = new THREE.Scene();
   scene.background = new THREE.Color(0x1d2026);
-  scene.environment = roomEnvironment(renderer);
+  scene.environment = env;
   const sun = new THREE.DirectionalLight(0xffffff, 1.5);
   sun.position.set(3, 5, 4);
   scene.add(sun);
-  return { renderer, scene };
+  return scene;
 }
 
-async function main(): Promise<void> {
-  const pmc = q.get("pmc"), glb = q.get("glb");
-  if (!pmc || !glb) throw new Error("give ?pmc=URL&glb=URL");
-  const ours = stage("stream"), theirs = stage("reference");
+/** Draws what the renderer shows into 2D canvas `id` (the test reads it and saves it). */
+function keep(renderer: THREE.WebGLRenderer, id: string): void {
+  const c = document.getElementById(id) as HTMLCanvasElement;
+  c.width = size;
+  c.height = size;
+  c.getContext("2d")!.drawImage(renderer.domElement, 0, 0);
+}
+
+/** Compares stream `pmc` with its GLB `glb`; resolves with what #status shows. */
+async function compare(pmc: string, glb: string): Promise<Record<string, string | number>> {
+  const tStage = performance.now();
+  const ours = stage(env), theirs = stage(env);
 
   // The reference: the GLB as three.js loads it, posed at the first animation's time 0.
   const loader = new GLTFLoader();
   const draco = new DRACOLoader().setDecoderPath(q.get("draco") ?? "/draco/");
   loader.setDRACOLoader(draco);
+  const t0 = performance.now();
   const gltf = await loader.loadAsync(glb);
+  const tGlb = performance.now();
   draco.dispose();
   const root = gltf.scene;
-  theirs.scene.add(root);
+  theirs.add(root);
   const mixer = new THREE.AnimationMixer(root);
   const clip = gltf.animations[0];
   if (clip) mixer.clipAction(clip).play();
@@ -63,37 +80,64 @@ async function main(): Promise<void> {
 
   // The stream: frame 0, every triangle, no geomorph, its own materials.
   const player = PmcPlayer.fromUrl(pmc, { autoplay: false, morphMs: 0 });
+  let failure: Error | null = null;
+  player.addEventListener("error", (e) => { failure = e.error; console.error(`player: ${e.error.message}`); });
   player.frustumCulled = false;
-  ours.scene.add(player);
-  const info = await player.ready;
-  player.seek(0);
-  const materials = new Promise<void>((res) => { if (!info.appearance || player.materials) res(); else player.addEventListener("materials", () => res()); });
-  player.addEventListener("error", (e) => { console.error(`player: ${e.error.message}`); report({ error: e.error.message }); });
-  await materials;
-  await new Promise<void>((res) => {
-    const tick = (): void => {
-      player.update(performance.now());
-      if (player.stats.frame === 0 && player.stats.triangles === info.triangles && (!info.appearance || Array.isArray(player.mesh.material))) res();
-      else requestAnimationFrame(tick);
+  ours.add(player);
+  try {
+    const info = await player.ready;
+    player.seek(0);
+    await new Promise<void>((res, rej) => {
+      const tick = (): void => {
+        if (failure) { rej(failure); return; }
+        player.update(performance.now());
+        const drawn = player.stats.frame === 0 && player.stats.triangles === info.triangles;
+        if (drawn && (!info.appearance || Array.isArray(player.mesh.material))) res();
+        else requestAnimationFrame(tick);
+      };
+      tick();
+    });
+    const tFrame = performance.now();
+    renderer.render(ours, camera);
+    keep(renderer, "stream");
+    renderer.render(theirs, camera);
+    keep(renderer, "reference");
+    const tRender = performance.now();
+    let triangles = 0, textured = 0;
+    root.traverse((o) => {
+      const m = o as THREE.Mesh;
+      if (!m.isMesh) return;
+      const idx = m.geometry.getIndex();
+      triangles += (idx ? idx.count : m.geometry.getAttribute("position").count) / 3;
+      for (const mat of Array.isArray(m.material) ? m.material : [m.material]) if ((mat as THREE.MeshStandardMaterial).map) textured++;
+    });
+    const ourMaterials = Array.isArray(player.mesh.material) ? player.mesh.material : [player.mesh.material];
+    return {
+      done: 1, triangles: player.stats.triangles, referenceTriangles: triangles, frames: info.frames,
+      materials: ourMaterials.length, textured: ourMaterials.filter((m) => (m as THREE.MeshStandardMaterial).map).length,
+      referenceTextured: textured, appearance: info.appearance ? 1 : 0, animation: clip?.name ?? "",
+      ms: [t0 - tStage, tGlb - t0, tFrame - tGlb, tRender - tFrame].map((x) => x.toFixed(0)).join(" "),
     };
-    tick();
-  });
-  ours.renderer.render(ours.scene, camera);
-  theirs.renderer.render(theirs.scene, camera);
-  let triangles = 0, textured = 0;
-  root.traverse((o) => {
-    const m = o as THREE.Mesh;
-    if (!m.isMesh) return;
-    const idx = m.geometry.getIndex();
-    triangles += (idx ? idx.count : m.geometry.getAttribute("position").count) / 3;
-    for (const mat of Array.isArray(m.material) ? m.material : [m.material]) if ((mat as THREE.MeshStandardMaterial).map) textured++;
-  });
-  const ourMaterials = Array.isArray(player.mesh.material) ? player.mesh.material : [player.mesh.material];
-  report({
-    done: 1, triangles: player.stats.triangles, referenceTriangles: triangles, frames: info.frames,
-    materials: ourMaterials.length, textured: ourMaterials.filter((m) => (m as THREE.MeshStandardMaterial).map).length,
-    referenceTextured: textured, appearance: info.appearance ? 1 : 0, animation: clip?.name ?? "",
-  });
+  } finally {
+    player.dispose();
+    root.traverse((o) => {
+      const m = o as THREE.Mesh;
+      if (!m.isMesh) return;
+      m.geometry.dispose();
+      for (const mat of Array.isArray(m.material) ? m.material : [m.material]) mat.dispose();
+    });
+  }
 }
 
-main().catch((e) => report({ error: String(e?.message ?? e) }));
+async function run(pmc: string, glb: string): Promise<Record<string, string | number>> {
+  report({ running: pmc });
+  const r = await compare(pmc, glb).catch((e) => ({ error: String(e?.message ?? e) }));
+  report(r);
+  return r;
+}
+
+// For the test harness: compare one pair after another on this page.
+Object.defineProperty(window, "pmcodecCompare", { value: run });
+const pmc = q.get("pmc"), glb = q.get("glb");
+if (pmc && glb) void run(pmc, glb);
+else report({ ready: 1 });

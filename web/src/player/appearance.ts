@@ -157,11 +157,12 @@ function defaultMaterial(): Material {
  * An environment light for PBR materials: three.js's RoomEnvironment prefiltered by
  * PMREMGenerator (the image-based lighting of B. Karis, "Real Shading in Unreal Engine 4",
  * 2013, that MeshStandardMaterial samples); without one, metallic surfaces render black.
- * Set the result as `scene.environment`.
+ * Set the result as `scene.environment`. `size`: the cube faces' size (smaller is faster to
+ * make, blurrier in mirror-like materials).
  */
-export function roomEnvironment(renderer: THREE.WebGLRenderer): THREE.Texture {
+export function roomEnvironment(renderer: THREE.WebGLRenderer, size = 256): THREE.Texture {
   const pmrem = new THREE.PMREMGenerator(renderer);
-  const env = pmrem.fromScene(new RoomEnvironment(), 0.04).texture;
+  const env = pmrem.fromScene(new RoomEnvironment(), 0.04, 0.1, 100, { size }).texture;
   pmrem.dispose();
   return env;
 }
