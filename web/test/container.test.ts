@@ -7,7 +7,7 @@ import { execFileSync } from "node:child_process";
 import { existsSync, mkdtempSync, readdirSync, readFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
-import { BELOW, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder } from "../src/container/index.js";
+import { BELOW, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, dequantizeUv } from "../src/container/index.js";
 
 const root = repoRoot();
 const bin = pmcodecBin(root);
@@ -209,6 +209,22 @@ test("version 6 appearance: the same texture coordinates, colours, normals and m
     assert.deepEqual(Array.from(mesh.normals), Array.from(accessor(glb, attr.NORMAL)), `${what}: normals`);
     assert.deepEqual(Array.from(mesh.uv0!), Array.from(accessor(glb, attr.TEXCOORD_0)), `${what}: texture coordinates`);
     assert.deepEqual(Array.from(mesh.colors!), Array.from(accessor(glb, attr.COLOR_0)), `${what}: colours`);
+    // Each vertex's node and chart name its entry: the values drawn are that entry's.
+    const nv = mesh.positions.length / 3;
+    assert.equal(mesh.nodes.length, nv);
+    assert.equal(mesh.charts.length, nv);
+    const looks = player.looks!;
+    for (let v = 0; v < nv; v++) {
+      const e = attributeEntry(a, looks.tables, player.replay.offsets, mesh.nodes[v], mesh.charts[v]);
+      assert.ok(e, `${what}: vertex ${v} has no entry`);
+      assert.deepEqual([Math.fround(dequantizeUv(a, 0, e[0])), Math.fround(dequantizeUv(a, 1, e[1]))], Array.from(mesh.uv0!.subarray(2 * v, 2 * v + 2)), `${what}: vertex ${v}`);
+      assert.deepEqual(Array.from(e.subarray(2, 6), (x) => Math.fround(x / 255)), Array.from(mesh.colors!.subarray(4 * v, 4 * v + 4)), `${what}: vertex ${v} colour`);
+      // Positions are the node's.
+      assert.deepEqual(Array.from(mesh.positions.subarray(3 * v, 3 * v + 3)), Array.from(pos.subarray(3 * mesh.nodes[v], 3 * mesh.nodes[v] + 3)));
+    }
+    // A chart out of range, or a node beyond the last level, has no entry.
+    assert.equal(attributeEntry(a, looks.tables, player.replay.offsets, mesh.nodes[0], a.charts), null);
+    assert.equal(attributeEntry(a, looks.tables, player.replay.offsets, player.replay.nodeCount, 0), null);
     // One primitive per material used, each with that material's triangles in mesh order.
     const used = [...new Set(mesh.triangleMaterial)].sort();
     assert.deepEqual(prims.map((p: any) => p.material), used, `${what}: materials`);
