@@ -103,6 +103,20 @@ async function compare(pmc: string, glb: string): Promise<Record<string, string 
     renderer.render(theirs, camera);
     keep(renderer, "reference");
     const tRender = performance.now();
+    // The toggle back to flat colour by level, and back again: the material and the colour
+    // attribute change, and so does the picture.
+    const authored = pixels(renderer, ours, camera);
+    player.colourMode = "level";
+    await until(player, () => !Array.isArray(player.mesh.material) && player.geometry.getAttribute("color")?.itemSize === 3 && !player.geometry.getAttribute("uv"));
+    const level = pixels(renderer, ours, camera);
+    player.colourMode = "authored";
+    await until(player, () => !info.appearance || (Array.isArray(player.mesh.material) && player.geometry.getAttribute("color")?.itemSize !== 3));
+    const again = pixels(renderer, ours, camera);
+    let changed = 0, back = 0;
+    for (let i = 0; i < authored.length; i += 4) {
+      if (Math.abs(authored[i] - level[i]) + Math.abs(authored[i + 1] - level[i + 1]) + Math.abs(authored[i + 2] - level[i + 2]) > 30) changed++;
+      if (Math.abs(authored[i] - again[i]) + Math.abs(authored[i + 1] - again[i + 1]) + Math.abs(authored[i + 2] - again[i + 2]) > 3) back++;
+    }
     let triangles = 0, textured = 0;
     root.traverse((o) => {
       const m = o as THREE.Mesh;
@@ -116,6 +130,7 @@ async function compare(pmc: string, glb: string): Promise<Record<string, string 
       done: 1, triangles: player.stats.triangles, referenceTriangles: triangles, frames: info.frames,
       materials: ourMaterials.length, textured: ourMaterials.filter((m) => (m as THREE.MeshStandardMaterial).map).length,
       referenceTextured: textured, appearance: info.appearance ? 1 : 0, animation: clip?.name ?? "",
+      toggleChanged: changed, toggleBack: back,
       ms: [t0 - tStage, tGlb - t0, tFrame - tGlb, tRender - tFrame].map((x) => x.toFixed(0)).join(" "),
     };
   } finally {
@@ -127,6 +142,28 @@ async function compare(pmc: string, glb: string): Promise<Record<string, string 
       for (const mat of Array.isArray(m.material) ? m.material : [m.material]) mat.dispose();
     });
   }
+}
+
+/** What the renderer draws of `scene`, as RGBA bytes. */
+function pixels(renderer: THREE.WebGLRenderer, scene: THREE.Scene, camera: THREE.Camera): Uint8Array {
+  renderer.render(scene, camera);
+  const gl = renderer.getContext(), out = new Uint8Array(size * size * 4);
+  gl.readPixels(0, 0, size, size, gl.RGBA, gl.UNSIGNED_BYTE, out);
+  return out;
+}
+
+/** Updates the player every animation frame until `done` holds (10 s at most). */
+function until(player: PmcPlayer, done: () => boolean): Promise<void> {
+  const end = performance.now() + 10_000;
+  return new Promise((res, rej) => {
+    const tick = (): void => {
+      player.update(performance.now());
+      if (done()) res();
+      else if (performance.now() > end) rej(new Error("the colour mode did not change"));
+      else requestAnimationFrame(tick);
+    };
+    tick();
+  });
 }
 
 async function run(pmc: string, glb: string): Promise<Record<string, string | number>> {

@@ -3,7 +3,8 @@
 // resolution by pmcodec-three (web/compare.html) beside the GLB drawn by three.js's own
 // GLTFLoader (with its DRACOLoader) in the first animation's pose at time 0, one camera, the
 // same lights and environment. The two images' SSIM must be at least 0.97. Both images of each
-// model are saved under web/test-artifacts/appearance/ (the path is printed).
+// model are saved under web/test-artifacts/appearance/ (the path is printed). The page also
+// switches the colour mode to "level" and back: the picture changes, then comes back exactly.
 // Usage: node test/appearance-e2e.mjs [Model ...]   (default: every .glb in ../shared/data/gltf)
 // Needs: web/dist (npm run build), the pmcodec binary (PMCODEC_BIN, default target/debug/pmcodec),
 // Debian's chromium at /usr/bin/chromium.
@@ -144,6 +145,9 @@ try {
       assert.ok(covered > mask.length * 0.05, `${name}: the model covers only ${covered} pixels`);
       assert.ok(Number(status.appearance) === 1, `${name}: the stream carries no appearance`);
       assert.equal(Number(status.textured) > 0, Number(status.referenceTextured) > 0, `${name}: textured in one image only`);
+      // The colour toggle: flat colour by level changes the picture; back to authored restores it.
+      assert.ok(Number(status.toggleChanged) > covered * 0.2, `${name}: colour by level changed only ${status.toggleChanged} of ${covered} pixels`);
+      assert.equal(Number(status.toggleBack), 0, `${name}: back to authored, ${status.toggleBack} pixels differ`);
       assert.ok(s.ssim >= BAR, `${line}: below the bar ${BAR}`);
       results.push([name, null]);
       console.log(`ok - ${line}`);
