@@ -77,6 +77,22 @@ async function compare(pmc: string, glb: string): Promise<Record<string, string 
   camera.position.copy(sphere.center).add(new THREE.Vector3(0.6, 0.4, 1).normalize().multiplyScalar(fit));
   camera.lookAt(sphere.center);
   camera.updateMatrixWorld();
+  // Zoomed (a view offset: the same camera, cropped) onto the square around what the reference
+  // draws, so the model rather than the background makes most of the images compared.
+  const first = pixels(renderer, theirs, camera);
+  let x0 = size, y0 = size, x1 = -1, y1 = -1;
+  for (let y = 0; y < size; y++) for (let x = 0; x < size; x++) {
+    const o = 4 * (y * size + x);
+    if (Math.abs(first[o] - 0x1d) + Math.abs(first[o + 1] - 0x20) + Math.abs(first[o + 2] - 0x26) <= 6) continue;
+    // readPixels' rows run bottom up; a view offset's from the top.
+    const top = size - 1 - y;
+    x0 = Math.min(x0, x); x1 = Math.max(x1, x); y0 = Math.min(y0, top); y1 = Math.max(y1, top);
+  }
+  if (x1 >= 0) {
+    const side = Math.min(size, Math.max(x1 - x0, y1 - y0) * 1.1 + 4);
+    camera.setViewOffset(size, size, (x0 + x1) / 2 - side / 2, (y0 + y1) / 2 - side / 2, side, side);
+    camera.updateProjectionMatrix();
+  }
 
   // The stream: frame 0, every triangle, no geomorph, its own materials.
   const player = PmcPlayer.fromUrl(pmc, { autoplay: false, morphMs: 0 });
@@ -109,6 +125,7 @@ async function compare(pmc: string, glb: string): Promise<Record<string, string 
     player.colourMode = "level";
     await until(player, () => !Array.isArray(player.mesh.material) && player.geometry.getAttribute("color")?.itemSize === 3 && !player.geometry.getAttribute("uv"));
     const level = pixels(renderer, ours, camera);
+    keep(renderer, "level");
     player.colourMode = "authored";
     await until(player, () => !info.appearance || (Array.isArray(player.mesh.material) && player.geometry.getAttribute("color")?.itemSize !== 3));
     const again = pixels(renderer, ours, camera);

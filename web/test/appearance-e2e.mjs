@@ -122,15 +122,15 @@ try {
       assert.ok(!status.error, `${name}: ${status.error}`);
       assert.deepEqual(errors, [], `${name}: errors on the page`);
       // Both canvases' pixels (top row first, as the PNGs) and PNGs of them.
-      const shots = await page.evaluate(() => ["stream", "reference"].map((id) => {
+      const shots = await page.evaluate(() => ["stream", "reference", "level"].map((id) => {
         const c = document.getElementById(id), w = c.width, h = c.height;
         const px = c.getContext("2d").getImageData(0, 0, w, h).data;
         let s = "";
         for (let i = 0; i < px.length; i += 0x8000) s += String.fromCharCode(...px.subarray(i, i + 0x8000));
         return { w, h, rgba: btoa(s), png: c.toDataURL("image/png") };
       }));
-      const [a, b] = shots.map((s) => ({ ...s, rgba: Buffer.from(s.rgba, "base64") }));
-      for (const [s, kind] of [[a, "stream"], [b, "three"]]) writeFileSync(join(artifacts, `${name}-${kind}.png`), Buffer.from(s.png.split(",")[1], "base64"));
+      const [a, b, c] = shots.map((s) => ({ ...s, rgba: Buffer.from(s.rgba, "base64") }));
+      for (const [s, kind] of [[a, "stream"], [b, "three"], [c, "stream-level"]]) writeFileSync(join(artifacts, `${name}-${kind}.png`), Buffer.from(s.png.split(",")[1], "base64"));
       assert.equal(a.w, SIZE);
       const ya = luminance(a.rgba, a.w, a.h), yb = luminance(b.rgba, b.w, b.h);
       // The model's pixels: either image differs from the background there.
@@ -141,7 +141,9 @@ try {
         if (off(a.rgba) || off(b.rgba)) { mask[i] = 1; covered++; }
       }
       const s = ssim(ya, yb, a.w, a.h, mask);
-      const line = `${name}: SSIM ${s.ssim.toFixed(4)} (over the model's windows ${s.masked.toFixed(4)}; model covers ${(100 * covered / mask.length).toFixed(1)}% of ${a.w}x${a.h}), ${status.triangles} triangles (GLB ${status.referenceTriangles}), ${status.materials} materials, ${status.textured} textured (GLB ${status.referenceTextured}), animation "${status.animation}"; ${Date.now() - t0} ms (page: ${status.ms} ms to set up, load the GLB, show the frame, render)`;
+      // A control: the same stream coloured by level (no materials) against the reference.
+      const control = ssim(luminance(c.rgba, c.w, c.h), yb, a.w, a.h, mask);
+      const line = `${name}: SSIM ${s.ssim.toFixed(4)} (over the model's windows ${s.masked.toFixed(4)}; model covers ${(100 * covered / mask.length).toFixed(1)}% of ${a.w}x${a.h}; coloured by level instead: ${control.ssim.toFixed(4)}, ${control.masked.toFixed(4)}), ${status.triangles} triangles (GLB ${status.referenceTriangles}), ${status.materials} materials, ${status.textured} textured (GLB ${status.referenceTextured}), animation "${status.animation}"; ${Date.now() - t0} ms (page: ${status.ms} ms to set up, load the GLB, show the frame, render)`;
       assert.ok(covered > mask.length * 0.05, `${name}: the model covers only ${covered} pixels`);
       assert.ok(Number(status.appearance) === 1, `${name}: the stream carries no appearance`);
       assert.equal(Number(status.textured) > 0, Number(status.referenceTextured) > 0, `${name}: textured in one image only`);
@@ -149,6 +151,8 @@ try {
       assert.ok(Number(status.toggleChanged) > covered * 0.2, `${name}: colour by level changed only ${status.toggleChanged} of ${covered} pixels`);
       assert.equal(Number(status.toggleBack), 0, `${name}: back to authored, ${status.toggleBack} pixels differ`);
       assert.ok(s.ssim >= BAR, `${line}: below the bar ${BAR}`);
+      // And the bar tells a drawing with the stream's materials from one without.
+      assert.ok(control.ssim < BAR, `${line}: coloured by level, the stream passes the bar too`);
       results.push([name, null]);
       console.log(`ok - ${line}`);
     } catch (e) {
