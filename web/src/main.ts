@@ -32,7 +32,8 @@ const controls = new OrbitControls(camera, canvas);
 // An environment light for the streams' own PBR materials (metallic surfaces render black
 // without one), used only while they are drawn: flat colours keep the lights they were tuned with.
 const environment = roomEnvironment(renderer);
-scene.add(new THREE.HemisphereLight(0xffffff, 0x404050, 1.2));
+const hemisphere = new THREE.HemisphereLight(0xffffff, 0x404050, 1.2);
+scene.add(hemisphere);
 const sun = new THREE.DirectionalLight(0xffffff, 1.5);
 sun.position.set(3, 5, 4);
 scene.add(sun);
@@ -43,6 +44,9 @@ let player: PmcPlayer | null = null;
 function updateEnvironment(): void {
   const p = player;
   scene.environment = p && p.info?.appearance && p.colourMode === "authored" ? environment : null;
+  // The environment is the ambient light then (as on web/compare.html, where streams are
+  // checked against three.js's own drawing of their GLB): the hemisphere would add to it.
+  hemisphere.visible = scene.environment === null;
 }
 let assets: AssetSummary[] = [];
 /** The last address written, so history gets one entry per change that matters. */
