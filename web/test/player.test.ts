@@ -11,6 +11,7 @@ import { tmpdir } from "node:os";
 import { join } from "node:path";
 import { ChunkKind, Decoder, NONE, VERSION } from "../src/container/index.js";
 import { morphAttributeStarts } from "../src/geomorph.js";
+import type { Materials, TextureRef } from "../src/container/appearance.js";
 import { httpRange, RangeCache, type FetchRange } from "../src/player/ranges.js";
 import { Session } from "../src/player/session.js";
 
@@ -326,4 +327,61 @@ test("geomorph of texture coordinates: a refined vertex starts at its old ancest
   const own = Float32Array.from([0, 0, 1, 0, 7, 7, 3, 3, 0.3, 0.3, 0.2, 0.2, 1, 1]);
   const s = morphAttributeStarts(nodes, charts, Uint32Array.from([4, 2, 3]), own, 2, (g) => parent[g], valueOf);
   assert.deepEqual(Array.from(s), [0.5, 0.5, 0.5, 0.5, 0.9, 0.9, 3, 3, 0, 1, 1, 1, 1, 1].map(Math.fround));
+});
+
+test("pmcodec-three's materials: glTF's metallic-roughness materials as GLTFLoader builds them (maps, colour spaces, coordinate sets, texture transforms, samplers, alpha modes, sides, flat shading)", async () => {
+  const THREE = await import("three");
+  const { ALPHA_BLEND, ALPHA_MASK, ALPHA_OPAQUE, buildMaterials, buildTextures } = await import("../src/player/appearance.js");
+  const ref = (texture: number, texCoord = 0, transform: TextureRef["transform"] = null): TextureRef => ({ texture, texCoord, transform });
+  const base = {
+    name: null, baseColorFactor: [1, 1, 1, 1], baseColorTexture: null, metallicFactor: 1, roughnessFactor: 1, metallicRoughnessTexture: null,
+    normalTexture: null, normalScale: 1, occlusionTexture: null, occlusionStrength: 1, emissiveTexture: null, emissiveFactor: [0, 0, 0],
+    alphaMode: ALPHA_OPAQUE, alphaCutoff: 0.5, doubleSided: false,
+  };
+  const materials: Materials = {
+    materials: [
+      { ...base, name: "skin", baseColorFactor: [0.5, 0.25, 1, 0.75], baseColorTexture: ref(0), metallicFactor: 0.1, roughnessFactor: 0.9, metallicRoughnessTexture: ref(1, 1),
+        normalTexture: ref(1), normalScale: 0.5, occlusionTexture: ref(1, 1), occlusionStrength: 0.3, emissiveTexture: ref(0, 0, { offset: [0.25, 0.5], rotation: 0.5, scale: [2, 3], texCoord: 1 }),
+        emissiveFactor: [1, 0.5, 0], alphaMode: ALPHA_MASK, alphaCutoff: 0.3, doubleSided: true },
+      { ...base, alphaMode: ALPHA_BLEND },
+    ],
+    textures: [{ image: 0, sampler: 0 }, { image: 0, sampler: null }],
+    samplers: [{ magFilter: 9728, minFilter: 9984, wrapS: 33071, wrapT: 33648 }],
+    images: [{ name: "albedo", mimeType: "image/png", byteLength: 4 }],
+  };
+  // Any image object will do for three.js outside a browser: nothing is uploaded.
+  const textures = buildTextures(materials, [{ width: 1, height: 1 } as unknown as HTMLCanvasElement]);
+  assert.equal(textures[0]!.magFilter, THREE.NearestFilter);
+  assert.equal(textures[0]!.minFilter, THREE.NearestMipmapNearestFilter);
+  assert.equal(textures[0]!.wrapS, THREE.ClampToEdgeWrapping);
+  assert.equal(textures[0]!.wrapT, THREE.MirroredRepeatWrapping);
+  // glTF's defaults where the texture has no sampler.
+  assert.equal(textures[1]!.minFilter, THREE.LinearMipmapLinearFilter);
+  assert.equal(textures[1]!.wrapS, THREE.RepeatWrapping);
+  assert.equal(textures[0]!.flipY, false);
+  const [skin, glass] = buildMaterials(materials, textures, { vertexColors: true, flatShading: true });
+  assert.ok(skin instanceof THREE.MeshStandardMaterial);
+  assert.equal(skin.name, "skin");
+  // Factors are linear: the colour keeps them as they are.
+  assert.deepEqual([skin.color.r, skin.color.g, skin.color.b, skin.opacity], [0.5, 0.25, 1, 0.75]);
+  assert.deepEqual([skin.metalness, skin.roughness, skin.aoMapIntensity], [0.1, 0.9, 0.3]);
+  assert.deepEqual([skin.emissive.r, skin.emissive.g, skin.emissive.b], [1, 0.5, 0]);
+  assert.equal(skin.map!.colorSpace, THREE.SRGBColorSpace);
+  assert.equal(skin.emissiveMap!.colorSpace, THREE.SRGBColorSpace);
+  assert.equal(skin.normalMap!.colorSpace, THREE.NoColorSpace);
+  assert.equal(skin.metalnessMap, skin.roughnessMap, "one texture: roughness in G, metalness in B");
+  assert.equal(skin.metalnessMap!.channel, 1);
+  assert.equal(skin.aoMap!.channel, 1);
+  assert.equal(skin.map!.channel, 0);
+  // The texture transform: offset, rotation, scale, and its own coordinate set.
+  assert.deepEqual([skin.emissiveMap!.offset.x, skin.emissiveMap!.offset.y, skin.emissiveMap!.rotation, skin.emissiveMap!.repeat.x, skin.emissiveMap!.repeat.y, skin.emissiveMap!.channel], [0.25, 0.5, 0.5, 2, 3, 1]);
+  assert.equal(skin.map!.offset.x, 0, "a transform on one use leaves the others alone");
+  // No tangents: the derivative frame's bitangent is flipped, as GLTFLoader flips it.
+  assert.deepEqual([skin.normalScale.x, skin.normalScale.y], [0.5, -0.5]);
+  assert.deepEqual([skin.alphaTest, skin.transparent, skin.side, skin.vertexColors, skin.flatShading], [0.3, false, THREE.DoubleSide, true, true]);
+  assert.deepEqual([glass.transparent, glass.depthWrite, glass.alphaTest, glass.side, glass.map], [true, false, 0, THREE.FrontSide, null]);
+  // An image that did not decode leaves its uses untextured.
+  const [plain] = buildMaterials(materials, buildTextures(materials, [null]));
+  assert.equal(plain.map, null);
+  assert.deepEqual([plain.normalScale.x, plain.normalScale.y], [1, 1]);
 });
