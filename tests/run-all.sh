@@ -42,6 +42,7 @@ fi
 (cd web && PMCODEC_BIN="$PWD/../target/debug/pmcodec" node test/e2e.mjs)
 # The viewer and the pmcodec-three package, one check per bug of issue 18 (uploads included).
 (cd web && PMCODEC_BIN="$PWD/../target/debug/pmcodec" node test/viewer-e2e.mjs)
+(cd web && PMCODEC_BIN="$PWD/../target/debug/pmcodec" node test/appearance-e2e.mjs) # issue 16: each shared GLB's stream vs three.js, SSIM >= 0.97
 
 # ---- glTF validator on `pmcodec lod` output --------------------------------------------------
 # LOD chains of the built-in test rig, of a generated multi-part character (many small parts on

@@ -80,6 +80,52 @@ export function morphStarts(mesh: CutMesh, oldNodes: Uint32Array, positions: Flo
   return start;
 }
 
+/**
+ * Start values of a per-vertex attribute (texture coordinates) for the geomorph that
+ * `morphStarts` gives the positions, so the texture slides with the surface instead of
+ * popping. Hoppe ("Progressive Meshes", 1996, section 4.2) morphs every attribute of a vertex
+ * split with its position; here a vertex is a (node, chart) pair, and a node has values only in
+ * the charts it touches, so the start is taken in the vertex's own chart: a refinement starts
+ * at the old ancestor's values, a coarsening at the mean over the old descendants that have
+ * values in that chart; a node in both cuts, or one whose source has no values in the chart
+ * (a chart that appears with the split), starts at its own values and does not morph.
+ *
+ * `nodes` and `charts` give each vertex's node and chart, `own` its values (`width` each);
+ * `valueOf(g, chart, out, at)` writes node g's values in that chart at out[at..] and tells
+ * whether it has any.
+ */
+export function morphAttributeStarts(
+  nodes: Uint32Array, charts: Uint32Array, oldNodes: Uint32Array, own: Float32Array, width: number,
+  parentOf: (g: number) => number, valueOf: (g: number, chart: number, out: Float32Array, at: number) => boolean,
+): Float32Array {
+  const wasCut = new Set<number>(oldNodes), newSet = new Set<number>(nodes);
+  const start = own.slice();
+  // Old cut nodes under each new node that is their ancestor (coarsening).
+  const under = new Map<number, number[]>();
+  for (const o of oldNodes) {
+    let a = parentOf(o);
+    while (a !== NONE && !newSet.has(a)) a = parentOf(a);
+    if (a === NONE) continue;
+    const list = under.get(a);
+    if (list) list.push(o); else under.set(a, [o]);
+  }
+  const scratch = new Float32Array(width);
+  for (let i = 0; i < nodes.length; i++) {
+    const g = nodes[i], chart = charts[i];
+    if (wasCut.has(g)) continue;
+    let a = parentOf(g);
+    while (a !== NONE && !wasCut.has(a)) a = parentOf(a);
+    if (a !== NONE) { valueOf(a, chart, start, width * i); continue; }
+    const list = under.get(g);
+    if (!list) continue;
+    let n = 0;
+    const sum = new Float64Array(width);
+    for (const o of list) if (valueOf(o, chart, scratch, 0)) { n++; for (let k = 0; k < width; k++) sum[k] += scratch[k]; }
+    if (n > 0) for (let k = 0; k < width; k++) start[width * i + k] = sum[k] / n;
+  }
+  return start;
+}
+
 /** Writes the morphed positions at blend `alpha` (0 = start, 1 = target) into `out`. */
 export function blend(mesh: CutMesh, start: Float32Array, positions: Float32Array, alpha: number, out: Float32Array): void {
   const a = Math.min(1, Math.max(0, alpha));

@@ -5,7 +5,7 @@
 
 import * as THREE from "three";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
-import { PmcPlayer, type ColourMode } from "pmcodec-three";
+import { PmcPlayer, roomEnvironment, type ColourMode } from "pmcodec-three";
 
 interface AssetSummary { id: string; frames: number; frame_rate: number; triangles: number }
 
@@ -29,12 +29,25 @@ const scene = new THREE.Scene();
 scene.background = new THREE.Color(0x1d2026);
 const camera = new THREE.PerspectiveCamera(40, 1, 0.01, 1000);
 const controls = new OrbitControls(camera, canvas);
-scene.add(new THREE.HemisphereLight(0xffffff, 0x404050, 1.2));
+// An environment light for the streams' own PBR materials (metallic surfaces render black
+// without one), used only while they are drawn: flat colours keep the lights they were tuned with.
+const environment = roomEnvironment(renderer);
+const hemisphere = new THREE.HemisphereLight(0xffffff, 0x404050, 1.2);
+scene.add(hemisphere);
 const sun = new THREE.DirectionalLight(0xffffff, 1.5);
 sun.position.set(3, 5, 4);
 scene.add(sun);
 
 let player: PmcPlayer | null = null;
+
+/** The environment light while the player draws a stream's materials. */
+function updateEnvironment(): void {
+  const p = player;
+  scene.environment = p && p.info?.appearance && p.colourMode === "authored" ? environment : null;
+  // The environment is the ambient light then (as on web/compare.html, where streams are
+  // checked against three.js's own drawing of their GLB): the hemisphere would add to it.
+  hemisphere.visible = scene.environment === null;
+}
 let assets: AssetSummary[] = [];
 /** The last address written, so history gets one entry per change that matters. */
 let lastUrl = "";
@@ -91,7 +104,7 @@ function open(id: string, at: { frame?: number | null; budget?: number | null } 
   const p = PmcPlayer.fromServer(location.origin, id, { budget, autoplay: at.frame === null || at.frame === undefined });
   player = p;
   p.colourMode = colourSel.value as ColourMode;
-  (p.mesh.material as THREE.MeshStandardMaterial).wireframe = wireBox.checked;
+  p.wireframe = wireBox.checked;
   if (at.frame !== null && at.frame !== undefined) p.seek(at.frame);
   scene.add(p);
   p.addEventListener("load", ({ info }) => {
@@ -101,6 +114,7 @@ function open(id: string, at: { frame?: number | null; budget?: number | null } 
     budgetSlider.value = String(Math.min(p.budget, info.triangles));
     playBtn.textContent = p.playing ? "pause" : "play";
     frameView(p);
+    updateEnvironment();
     writeAddress();
   });
   p.addEventListener("frame", ({ frame }) => {
@@ -136,8 +150,8 @@ frameSlider.oninput = () => { player?.seek(Number(frameSlider.value)); };
 frameSlider.onchange = () => { frameSlider.blur(); writeAddress(); };
 budgetSlider.oninput = () => { if (player) player.budget = Number(budgetSlider.value); };
 budgetSlider.onchange = () => { writeAddress(); };
-wireBox.onchange = () => { if (player) (player.mesh.material as THREE.MeshStandardMaterial).wireframe = wireBox.checked; };
-colourSel.onchange = () => { if (player) player.colourMode = colourSel.value as ColourMode; };
+wireBox.onchange = () => { if (player) player.wireframe = wireBox.checked; };
+colourSel.onchange = () => { if (player) player.colourMode = colourSel.value as ColourMode; updateEnvironment(); };
 
 // ---- uploads -----------------------------------------------------------------------------------
 

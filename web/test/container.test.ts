@@ -7,7 +7,7 @@ import { execFileSync } from "node:child_process";
 import { existsSync, mkdtempSync, readdirSync, readFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
-import { BELOW, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder } from "../src/container/index.js";
+import { BELOW, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, dequantizeUv, texturedMesh } from "../src/container/index.js";
 
 const root = repoRoot();
 const bin = pmcodecBin(root);
@@ -209,6 +209,22 @@ test("version 6 appearance: the same texture coordinates, colours, normals and m
     assert.deepEqual(Array.from(mesh.normals), Array.from(accessor(glb, attr.NORMAL)), `${what}: normals`);
     assert.deepEqual(Array.from(mesh.uv0!), Array.from(accessor(glb, attr.TEXCOORD_0)), `${what}: texture coordinates`);
     assert.deepEqual(Array.from(mesh.colors!), Array.from(accessor(glb, attr.COLOR_0)), `${what}: colours`);
+    // Each vertex's node and chart name its entry: the values drawn are that entry's.
+    const nv = mesh.positions.length / 3;
+    assert.equal(mesh.nodes.length, nv);
+    assert.equal(mesh.charts.length, nv);
+    const looks = player.looks!;
+    for (let v = 0; v < nv; v++) {
+      const e = attributeEntry(a, looks.tables, player.replay.offsets, mesh.nodes[v], mesh.charts[v]);
+      assert.ok(e, `${what}: vertex ${v} has no entry`);
+      assert.deepEqual([Math.fround(dequantizeUv(a, 0, e[0])), Math.fround(dequantizeUv(a, 1, e[1]))], Array.from(mesh.uv0!.subarray(2 * v, 2 * v + 2)), `${what}: vertex ${v}`);
+      assert.deepEqual(Array.from(e.subarray(2, 6), (x) => Math.fround(x / 255)), Array.from(mesh.colors!.subarray(4 * v, 4 * v + 4)), `${what}: vertex ${v} colour`);
+      // Positions are the node's.
+      assert.deepEqual(Array.from(mesh.positions.subarray(3 * v, 3 * v + 3)), Array.from(pos.subarray(3 * mesh.nodes[v], 3 * mesh.nodes[v] + 3)));
+    }
+    // A chart out of range, or a node beyond the last level, has no entry.
+    assert.equal(attributeEntry(a, looks.tables, player.replay.offsets, mesh.nodes[0], a.charts), null);
+    assert.equal(attributeEntry(a, looks.tables, player.replay.offsets, player.replay.nodeCount, 0), null);
     // One primitive per material used, each with that material's triangles in mesh order.
     const used = [...new Set(mesh.triangleMaterial)].sort();
     assert.deepEqual(prims.map((p: any) => p.material), used, `${what}: materials`);
@@ -235,5 +251,41 @@ test("a skinned glTF's stream (version 6): every frame's input vertices equal th
     await full.seek(f);
     await coarse.seek(f);
     assert.deepEqual(Array.from(coarse.current.subarray(from)), Array.from(full.current.subarray(from)), `frame ${f}`);
+  }
+});
+
+test("a lenient textured mesh fills in (node, chart) entries a budget cut reaches but the tables lack, and counts them", async () => {
+  const fox = join(root, "../shared/data/gltf/Fox.glb");
+  if (!existsSync(fox)) throw new Error(`${fox} is absent: this test reads the real models in ../shared/data beside the repository`);
+  const file = join(dir, "fox-lenient.pmc");
+  execFileSync(bin, ["encode", "-q", fox, "-o", file]);
+  const c = await open(file), a = c.header.appearance!;
+  const d = new Decoder(c, 0);
+  await d.loadAppearance();
+  await d.seek(0);
+  const pos = d.positions();
+  for (const share of [1, 0.5, 0.25, 0.1]) {
+    const budget = Math.round(c.header.triangleCount * share);
+    d.replay.selectTriangles(budget, d.replay.nodeErrors(pos));
+    const r = d.replay, rep = r.cutNodes(), base = r.offsets[r.minLevel];
+    const shown = Uint32Array.from(r.appearing), cut = new Uint32Array(3 * shown.length);
+    shown.forEach((t, i) => { for (let k = 0; k < 3; k++) cut[3 * i + k] = rep[base + r.corners[3 * t + k]]; });
+    const looks = d.looks!;
+    const mesh = texturedMesh(a, looks.charts, looks.tables, r.offsets, pos, shown, cut, { lenient: true });
+    const nv = mesh.nodes.length;
+    let absent = 0;
+    for (let v = 0; v < nv; v++) {
+      const e = attributeEntry(a, looks.tables, r.offsets, mesh.nodes[v], mesh.charts[v]);
+      if (!e) { absent++; continue; }
+      // Present entries are drawn as they are.
+      assert.equal(mesh.uv0![2 * v], Math.fround(dequantizeUv(a, 0, e[0])));
+    }
+    assert.equal(mesh.missing, absent, `budget ${budget}: missing entries counted`);
+    assert.equal(mesh.indices.length, 3 * shown.length, "every triangle drawn");
+    for (const x of mesh.uv0!) assert.ok(Number.isFinite(x));
+    // Strict (the specification's reading): the same mesh when nothing is missing, else a DecodeError.
+    if (absent === 0) assert.deepEqual(Array.from(texturedMesh(a, looks.charts, looks.tables, r.offsets, pos, shown, cut).uv0!), Array.from(mesh.uv0!));
+    else assert.throws(() => texturedMesh(a, looks.charts, looks.tables, r.offsets, pos, shown, cut), DecodeError);
+    if (share === 1) assert.equal(absent, 0, "the whole mesh has every entry");
   }
 });

@@ -9,7 +9,9 @@ import { execFileSync } from "node:child_process";
 import { existsSync, mkdtempSync, readFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
-import { ChunkKind, Decoder, VERSION } from "../src/container/index.js";
+import { ChunkKind, Decoder, NONE, VERSION } from "../src/container/index.js";
+import { morphAttributeStarts } from "../src/geomorph.js";
+import type { Materials, TextureRef } from "../src/container/appearance.js";
 import { httpRange, RangeCache, type FetchRange } from "../src/player/ranges.js";
 import { Session } from "../src/player/session.js";
 
@@ -145,6 +147,7 @@ test("the built package exports the player and says which container version it r
   assert.equal(m.FORMAT_VERSION, VERSION);
   const THREE = await import("three");
   assert.ok(m.PmcPlayer.prototype instanceof THREE.Object3D);
+  for (const f of ["buildMaterials", "buildTextures", "decodeImages", "roomEnvironment"]) assert.equal(typeof m[f], "function", `the package exports ${f}`);
 });
 
 test("session: after a jump, a coarse cut comes from a coarse decoder, then the budget's at that frame", async () => {
@@ -247,4 +250,138 @@ test("session: a budget change geomorphs over the next frames, on one morph id, 
   assert.ok(carried.length > 1 && carried.length < morphs.length, `morph on ${carried.length} of ${morphs.length} frames`);
   assert.ok(carried.every((m) => m === carried[0]), "one morph id");
   assert.notEqual(morphs[0], null, "the morph starts with the change");
+});
+
+test("session, authored mode on a stream with appearance: every triangle in the group of its material, texture coordinates and colours per vertex, UVs geomorph from the old cut's", async () => {
+  const cloth = new Uint8Array(readFileSync(join(root, "crates/pmcodec-container/tests/compat/v6-textured-cloth-k4.pmc")));
+  const s = await Session.open(recorder(cloth).fetch, { readAhead: 0 });
+  const h = s.container.header, a = h.appearance!;
+  assert.equal(s.info().appearance, true);
+  assert.equal(s.colour, "authored");
+  const looks = await s.looks();
+  assert.ok(looks && looks.materials.materials.length === a.materials && looks.images.length === a.images);
+  assert.equal(looks.images[0].bytes.length, looks.materials.images[0].byteLength);
+  const reference = new Decoder(s.container, 0);
+  await reference.loadAppearance();
+  for (const [f, budget] of [[0, h.triangleCount], [2, 40]]) {
+    s.budget = budget;
+    const p = await s.frame(f);
+    const nv = p.positions.length / 3;
+    assert.ok(p.uvs && p.uvs.length === 2 * nv, "two texture coordinates per vertex");
+    assert.ok(p.colours && p.colours.length === 4 * nv, "RGBA colours per vertex");
+    assert.equal(p.normals.length, 3 * nv);
+    // Groups tile the index buffer in material order; each triangle's material is its chart's.
+    const groups = p.groups!, idx = p.indices!;
+    assert.equal(groups[0].start, 0);
+    for (let g = 1; g < groups.length; g++) assert.equal(groups[g].start, groups[g - 1].start + groups[g - 1].count);
+    assert.equal(groups.at(-1)!.start + groups.at(-1)!.count, p.indexCount);
+    assert.ok(groups.every((g, i) => i === 0 || g.material > groups[i - 1].material));
+    // The same triangles (as sets of corner positions and UVs) as the decoder's own textured mesh.
+    await reference.seek(f);
+    const pos = reference.positions();
+    reference.replay.selectTriangles(budget, reference.replay.nodeErrors(pos));
+    const want = reference.texturedMesh(pos);
+    const key = (P: Float32Array, U: Float32Array, i: number[]) => i.map((v) => `${P[3 * v]},${P[3 * v + 1]},${P[3 * v + 2]}/${U[2 * v]},${U[2 * v + 1]}`).sort().join(" ");
+    const got = new Map<string, number>();
+    for (const g of groups) for (let t = g.start; t < g.start + g.count; t += 3) got.set(key(p.positions, p.uvs, [idx[t], idx[t + 1], idx[t + 2]]), g.material);
+    assert.equal(got.size, want.indices.length / 3, `frame ${f} budget ${budget}: triangles`);
+    for (let t = 0; t < want.indices.length / 3; t++) {
+      const k = key(want.positions, want.uv0!, Array.from(want.indices.subarray(3 * t, 3 * t + 3)));
+      assert.equal(got.get(k), want.triangleMaterial[t], `frame ${f} budget ${budget}: triangle ${t} and its material`);
+    }
+  }
+  // Raising the budget again geomorphs: texture coordinates start somewhere else for some
+  // vertices (those that come out of a coarser node) and equal their own for the others.
+  s.budget = h.triangleCount;
+  const m = await s.frame(3);
+  assert.ok(m.starts && m.uvStarts && m.uvStarts.length === m.uvs!.length, "a geomorph with texture coordinates");
+  let moved = 0;
+  for (let i = 0; i < m.uvs!.length; i++) if (m.uvStarts[i] !== m.uvs![i]) moved++;
+  assert.ok(moved > 0, "no texture coordinate morphs");
+  // Plain mode: no appearance in the frames.
+  s.colour = "plain";
+  const q = await s.frame(3);
+  assert.equal(q.uvs, undefined);
+  assert.equal(q.groups, undefined);
+  assert.equal(q.colours, undefined);
+});
+
+test("geomorph of texture coordinates: a refined vertex starts at its old ancestor's values in its own chart, a coarsened one at its old descendants' mean, a kept one does not move", () => {
+  // Nodes 0..3 at level 0; 4 (parent of 0, 1) and 5 (parent of 2, 3) at level 1; 6 the root.
+  const parent = [4, 4, 5, 5, 6, 6, NONE];
+  const values: Record<string, [number, number]> = {
+    "4/0": [0.5, 0.5], "4/1": [0.9, 0.9], "0/0": [0, 0], "1/0": [1, 0], "2/0": [0, 1], "3/1": [1, 1], "5/1": [0.2, 0.2],
+  };
+  const valueOf = (g: number, chart: number, out: Float32Array, at: number): boolean => {
+    const v = values[`${g}/${chart}`];
+    if (!v) return false;
+    out[at] = v[0]; out[at + 1] = v[1];
+    return true;
+  };
+  // Old cut {4, 2, 3}. New vertices: nodes 0 and 1 refine 4 (chart 0: from 4's values in
+  // chart 0; node 1 in chart 1: from 4's in chart 1; node 0 in chart 2, where 4 has none: its
+  // own), node 5 coarsens 2 and 3 (chart 0: only 2 has values there; chart 1: only 3), node 3
+  // is in both cuts.
+  const nodes = Uint32Array.from([0, 1, 1, 0, 5, 5, 3]);
+  const charts = Uint32Array.from([0, 0, 1, 2, 0, 1, 1]);
+  const own = Float32Array.from([0, 0, 1, 0, 7, 7, 3, 3, 0.3, 0.3, 0.2, 0.2, 1, 1]);
+  const s = morphAttributeStarts(nodes, charts, Uint32Array.from([4, 2, 3]), own, 2, (g) => parent[g], valueOf);
+  assert.deepEqual(Array.from(s), [0.5, 0.5, 0.5, 0.5, 0.9, 0.9, 3, 3, 0, 1, 1, 1, 1, 1].map(Math.fround));
+});
+
+test("pmcodec-three's materials: glTF's metallic-roughness materials as GLTFLoader builds them (maps, colour spaces, coordinate sets, texture transforms, samplers, alpha modes, sides, flat shading)", async () => {
+  const THREE = await import("three");
+  const { ALPHA_BLEND, ALPHA_MASK, ALPHA_OPAQUE, buildMaterials, buildTextures } = await import("../src/player/appearance.js");
+  const ref = (texture: number, texCoord = 0, transform: TextureRef["transform"] = null): TextureRef => ({ texture, texCoord, transform });
+  const base = {
+    name: null, baseColorFactor: [1, 1, 1, 1], baseColorTexture: null, metallicFactor: 1, roughnessFactor: 1, metallicRoughnessTexture: null,
+    normalTexture: null, normalScale: 1, occlusionTexture: null, occlusionStrength: 1, emissiveTexture: null, emissiveFactor: [0, 0, 0],
+    alphaMode: ALPHA_OPAQUE, alphaCutoff: 0.5, doubleSided: false,
+  };
+  const materials: Materials = {
+    materials: [
+      { ...base, name: "skin", baseColorFactor: [0.5, 0.25, 1, 0.75], baseColorTexture: ref(0), metallicFactor: 0.1, roughnessFactor: 0.9, metallicRoughnessTexture: ref(1, 1),
+        normalTexture: ref(1), normalScale: 0.5, occlusionTexture: ref(1, 1), occlusionStrength: 0.3, emissiveTexture: ref(0, 0, { offset: [0.25, 0.5], rotation: 0.5, scale: [2, 3], texCoord: 1 }),
+        emissiveFactor: [1, 0.5, 0], alphaMode: ALPHA_MASK, alphaCutoff: 0.3, doubleSided: true },
+      { ...base, alphaMode: ALPHA_BLEND },
+    ],
+    textures: [{ image: 0, sampler: 0 }, { image: 0, sampler: null }],
+    samplers: [{ magFilter: 9728, minFilter: 9984, wrapS: 33071, wrapT: 33648 }],
+    images: [{ name: "albedo", mimeType: "image/png", byteLength: 4 }],
+  };
+  // Any image object will do for three.js outside a browser: nothing is uploaded.
+  const textures = buildTextures(materials, [{ width: 1, height: 1 } as unknown as HTMLCanvasElement]);
+  assert.equal(textures[0]!.magFilter, THREE.NearestFilter);
+  assert.equal(textures[0]!.minFilter, THREE.NearestMipmapNearestFilter);
+  assert.equal(textures[0]!.wrapS, THREE.ClampToEdgeWrapping);
+  assert.equal(textures[0]!.wrapT, THREE.MirroredRepeatWrapping);
+  // glTF's defaults where the texture has no sampler.
+  assert.equal(textures[1]!.minFilter, THREE.LinearMipmapLinearFilter);
+  assert.equal(textures[1]!.wrapS, THREE.RepeatWrapping);
+  assert.equal(textures[0]!.flipY, false);
+  const [skin, glass] = buildMaterials(materials, textures, { vertexColors: true, flatShading: true });
+  assert.ok(skin instanceof THREE.MeshStandardMaterial);
+  assert.equal(skin.name, "skin");
+  // Factors are linear: the colour keeps them as they are.
+  assert.deepEqual([skin.color.r, skin.color.g, skin.color.b, skin.opacity], [0.5, 0.25, 1, 0.75]);
+  assert.deepEqual([skin.metalness, skin.roughness, skin.aoMapIntensity], [0.1, 0.9, 0.3]);
+  assert.deepEqual([skin.emissive.r, skin.emissive.g, skin.emissive.b], [1, 0.5, 0]);
+  assert.equal(skin.map!.colorSpace, THREE.SRGBColorSpace);
+  assert.equal(skin.emissiveMap!.colorSpace, THREE.SRGBColorSpace);
+  assert.equal(skin.normalMap!.colorSpace, THREE.NoColorSpace);
+  assert.equal(skin.metalnessMap, skin.roughnessMap, "one texture: roughness in G, metalness in B");
+  assert.equal(skin.metalnessMap!.channel, 1);
+  assert.equal(skin.aoMap!.channel, 1);
+  assert.equal(skin.map!.channel, 0);
+  // The texture transform: offset, rotation, scale, and its own coordinate set.
+  assert.deepEqual([skin.emissiveMap!.offset.x, skin.emissiveMap!.offset.y, skin.emissiveMap!.rotation, skin.emissiveMap!.repeat.x, skin.emissiveMap!.repeat.y, skin.emissiveMap!.channel], [0.25, 0.5, 0.5, 2, 3, 1]);
+  assert.equal(skin.map!.offset.x, 0, "a transform on one use leaves the others alone");
+  // No tangents: the derivative frame's bitangent is flipped, as GLTFLoader flips it.
+  assert.deepEqual([skin.normalScale.x, skin.normalScale.y], [0.5, -0.5]);
+  assert.deepEqual([skin.alphaTest, skin.transparent, skin.side, skin.vertexColors, skin.flatShading], [0.3, false, THREE.DoubleSide, true, true]);
+  assert.deepEqual([glass.transparent, glass.depthWrite, glass.alphaTest, glass.side, glass.map], [true, false, 0, THREE.FrontSide, null]);
+  // An image that did not decode leaves its uses untextured.
+  const [plain] = buildMaterials(materials, buildTextures(materials, [null]));
+  assert.equal(plain.map, null);
+  assert.deepEqual([plain.normalScale.x, plain.normalScale.y], [1, 1]);
 });

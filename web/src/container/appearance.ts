@@ -115,6 +115,37 @@ export function readMaterials(raw: Uint8Array, a: AppearanceInfo): Materials {
 export interface TexturedMesh {
   positions: Float32Array; normals: Float32Array; uv0: Float32Array | null; uv1: Float32Array | null; colors: Float32Array | null;
   indices: Uint32Array; triangleMaterial: Uint32Array;
+  /** Each vertex's cut node (global id) and chart: what a geomorph needs to find its start. */
+  nodes: Uint32Array; charts: Uint32Array;
+  /** Vertices whose (node, chart) entry was missing and filled in (`lenient` only; else 0). */
+  missing: number;
+}
+
+/** The level a global node id belongs to, `offsets` the levels' first global ids. */
+function levelOfNode(offsets: number[], g: number): number {
+  let l = 0;
+  while (l + 1 < offsets.length && offsets[l + 1] <= g) l++;
+  return l;
+}
+
+/**
+ * The quantized attribute values (texture coordinates, then colours: `channels` of them) of
+ * node `g` (global id) in `chart`, or null when the node has no entry for that chart or its
+ * band's table is not read. A geomorph starts a vertex's texture coordinates at those of the
+ * node it comes from, in the vertex's own chart.
+ */
+export function attributeEntry(a: AppearanceInfo, tables: (Table | null)[], offsets: number[], g: number, chart: number): Int32Array | null {
+  const ch = channels(a), level = levelOfNode(offsets, g), tb = tables[level];
+  if (!tb) return null;
+  const local = g - offsets[level];
+  if (local < 0 || local + 1 >= tb.first.length) return null;
+  for (let x = tb.first[local]; x < tb.first[local + 1]; x++) if (tb.charts[x] === chart) return tb.values.subarray(x * ch, x * ch + ch);
+  return null;
+}
+
+/** Texture coordinate `q` (quantized) on `axis`, as `texturedMesh` dequantizes it. */
+export function dequantizeUv(a: AppearanceInfo, axis: number, q: number): number {
+  return a.uvMin[axis] + q * a.uvStep[axis];
 }
 
 /**
@@ -122,13 +153,17 @@ export interface TexturedMesh {
  * cut nodes (global ids, 3 per triangle); `offsets` the levels' first global ids; `positions`
  * 3 floats per global id (proto/container.md, "Drawing a cut's appearance").
  */
-export function texturedMesh(a: AppearanceInfo, charts: Charts, tables: (Table | null)[], offsets: number[], positions: Float32Array, shown: ArrayLike<number>, cut: ArrayLike<number>): TexturedMesh {
+export function texturedMesh(
+  a: AppearanceInfo, charts: Charts, tables: (Table | null)[], offsets: number[], positions: Float32Array, shown: ArrayLike<number>, cut: ArrayLike<number>,
+  options: { lenient?: boolean } = {},
+): TexturedMesh {
+  let missing = 0;
   const ch = channels(a), nt = shown.length;
   const vertexOf = new Map<string, number>();
-  const key: number[] = [], nodeOfVertex: number[] = [], values: number[] = [];
+  const key: number[] = [], nodeOfVertex: number[] = [], chartOfVertex: number[] = [], values: number[] = [];
   const sums = new Map<string, number[]>();
   const indices = new Uint32Array(3 * nt), triangleMaterial = new Uint32Array(nt);
-  const levelOf = (g: number): number => { let l = 0; while (l + 1 < offsets.length && offsets[l + 1] <= g) l++; return l; };
+  const levelOf = (g: number): number => levelOfNode(offsets, g);
   for (let i = 0; i < nt; i++) {
     const t = shown[i], chart = charts.triangleChart[t], group = charts.triangleGroup[t];
     const g0 = cut[3 * i], g1 = cut[3 * i + 1], g2 = cut[3 * i + 2];
@@ -144,9 +179,21 @@ export function texturedMesh(a: AppearanceInfo, charts: Charts, tables: (Table |
         const level = levelOf(g), local = g - offsets[level], tb = tables[level];
         let e = -1;
         if (tb) for (let x = tb.first[local]; x < tb.first[local + 1]; x++) if (tb.charts[x] === chart) { e = x; break; }
-        if (!tb || e < 0) throw new DecodeError(`band ${level} attributes: no entry for node ${local}, chart ${chart}`);
-        for (let q = 0; q < ch; q++) values.push(tb.values[e * ch + q]);
+        if (tb && e >= 0) for (let q = 0; q < ch; q++) values.push(tb.values[e * ch + q]);
+        else if (options.lenient && tb) {
+          // A viewer's choice, not the format's (the specification makes a missing entry a
+          // corrupt file): the mean of the triangle's other corners' entries in the chart,
+          // else the node's first entry, else zeros, so one bad entry does not blank a frame.
+          missing++;
+          const others = [cut[3 * i], cut[3 * i + 1], cut[3 * i + 2]].filter((x) => x !== g)
+            .map((x) => attributeEntry(a, tables, offsets, x, chart)).filter((x): x is Int32Array => x !== null);
+          for (let q = 0; q < ch; q++) {
+            if (others.length > 0) values.push(Math.round(others.reduce((acc, x) => acc + x[q], 0) / others.length));
+            else values.push(tb.first[local] < tb.first[local + 1] ? tb.values[tb.first[local] * ch + q] : 0);
+          }
+        } else throw new DecodeError(`band ${level} attributes: no entry for node ${local}, chart ${chart}`);
         nodeOfVertex.push(g);
+        chartOfVertex.push(chart);
         key.push(group);
       }
       indices[3 * i + c] = v;
@@ -161,9 +208,10 @@ export function texturedMesh(a: AppearanceInfo, charts: Charts, tables: (Table |
     positions: new Float32Array(3 * nv), normals: new Float32Array(3 * nv),
     uv0: a.uvSets >= 1 ? new Float32Array(2 * nv) : null, uv1: a.uvSets >= 2 ? new Float32Array(2 * nv) : null,
     colors: a.colors ? new Float32Array(4 * nv) : null, indices, triangleMaterial,
+    nodes: Uint32Array.from(nodeOfVertex), charts: Uint32Array.from(chartOfVertex), missing,
   };
   // binary64 from the binary32 fields, rounded once (Float32Array stores round to binary32).
-  const uv = (axis: number, q: number): number => a.uvMin[axis] + q * a.uvStep[axis];
+  const uv = (axis: number, q: number): number => dequantizeUv(a, axis, q);
   for (let v = 0; v < nv; v++) {
     const g = nodeOfVertex[v];
     out.positions.set(positions.subarray(3 * g, 3 * g + 3), 3 * v);

@@ -4,10 +4,13 @@
 // copies them into the mesh's GPU buffers.
 
 import * as THREE from "three";
-import type { ColourMode, FramePayload, FromWorker, OpenedInfo, Source, ToWorker } from "./protocol.js";
+import { buildMaterials, buildTextures, decodeImages } from "./appearance.js";
+import type { ColourMode, FramePayload, FromWorker, LooksPayload, MaterialGroup, OpenedInfo, Source, ToWorker } from "./protocol.js";
 
-export type { ColourMode, OpenedInfo as PmcInfo, Source as PmcSource } from "./protocol.js";
+export type { ColourMode, MaterialGroup, OpenedInfo as PmcInfo, Source as PmcSource } from "./protocol.js";
 export { DEFAULT_CACHE_BYTES } from "./ranges.js";
+export { ALPHA_BLEND, ALPHA_MASK, ALPHA_OPAQUE, buildMaterials, buildTextures, decodeImages, roomEnvironment } from "./appearance.js";
+export type { BuildOptions, EncodedImage, Material, Materials, TextureRef } from "./appearance.js";
 
 /** The container format version this package reads (and the oldest it still reads: 3). */
 export const FORMAT_VERSION = 6;
@@ -21,8 +24,14 @@ export interface PmcPlayerOptions {
   loop?: boolean;
   /** Playback speed (default 1). */
   speed?: number;
-  /** The mesh's material (default: a MeshStandardMaterial). Vertex normals are always set. */
+  /**
+   * The mesh's material when it does not draw the stream's own materials (colour modes other
+   * than "authored", or a stream without appearance); default: a MeshStandardMaterial.
+   * Vertex normals are always set.
+   */
   material?: THREE.Material;
+  /** How the mesh is coloured (default "authored": the stream's materials and textures). */
+  colourMode?: ColourMode;
   /** Memory limit of the worker's byte cache (default 64 MiB). */
   cacheBytes?: number;
   /** Frames whose bytes are fetched ahead of the one being decoded (default 8). */
@@ -40,6 +49,8 @@ export interface PmcProgressEvent { bytes: number; requests: number; cached: num
 
 export interface PmcPlayerEventMap extends THREE.Object3DEventMap {
   load: { info: OpenedInfo };
+  /** The stream's materials are built (their images decoded): "authored" frames draw with them. */
+  materials: { materials: THREE.Material[] };
   frame: PmcFrameEvent;
   progress: PmcProgressEvent;
   error: { error: Error };
@@ -74,8 +85,16 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
   private isPlaying: boolean;
   private due = 0;
   private triangleBudget: number;
-  private mode: ColourMode = "plain";
-  private morph: { from: Float32Array; to: Float32Array; start: number; id: number } | null = null;
+  private mode: ColourMode;
+  private morph: { from: Float32Array; to: Float32Array; uv: [Float32Array, Float32Array][]; start: number; id: number } | null = null;
+  /** The material drawn without the stream's own (options.material or the default), and whether it is ours. */
+  private readonly flat: THREE.Material;
+  private readonly ownsFlat: boolean;
+  /** The stream's materials, once its looks arrived and its images decoded. */
+  private authored: THREE.Material[] | null = null;
+  /** The material groups of the frame shown (an "authored" frame), or null. */
+  private groups: MaterialGroup[] | null = null;
+  private wire = false;
   private morphClock = { id: -1, start: 0 };
   private disposed = false;
   private indexes = new Map<number, Uint32Array>();
@@ -88,8 +107,10 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
     this.morphMs = options.morphMs ?? 250;
     this.isPlaying = options.autoplay ?? true;
     this.triangleBudget = options.budget ?? Infinity;
-    const material = options.material ?? new THREE.MeshStandardMaterial({ color: 0xc8b89a, roughness: 0.7, side: THREE.DoubleSide });
-    this.mesh = new THREE.Mesh(this.geometry, material);
+    this.flat = options.material ?? new THREE.MeshStandardMaterial({ color: 0xc8b89a, roughness: 0.7, side: THREE.DoubleSide });
+    this.ownsFlat = !options.material;
+    this.mode = options.colourMode ?? "authored";
+    this.mesh = new THREE.Mesh(this.geometry, this.flat);
     this.add(this.mesh);
     this.worker = options.workerUrl
       ? new Worker(options.workerUrl, { type: "module" })
@@ -105,6 +126,8 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
         this.setUp(m.info);
         opened(m.info);
         this.dispatchEvent({ type: "load", info: m.info });
+      } else if (m.type === "looks") {
+        this.takeLooks(m);
       } else if (m.type === "error") {
         const error = new Error(m.message);
         if (!this.info) failed(error);
@@ -126,6 +149,8 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
       this.dispatchEvent({ type: "error", error });
     };
     this.send({ type: "open", source, cacheBytes: options.cacheBytes, readAhead: options.readAhead, headers: options.headers });
+    this.send({ type: "colour", mode: this.mode });
+    this.applyMaterial();
     if (Number.isFinite(this.triangleBudget)) this.send({ type: "budget", triangles: this.triangleBudget });
   }
 
@@ -146,8 +171,11 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
     const g = this.geometry;
     // Buffers for the finest cut, reused for every frame: three.js redraws a wireframe only when
     // the index attribute's version rises, which a fresh attribute per frame never does.
-    const pos = new THREE.BufferAttribute(new Float32Array(3 * info.vertices), 3).setUsage(THREE.DynamicDrawUsage);
-    const nrm = new THREE.BufferAttribute(new Float32Array(3 * info.vertices), 3).setUsage(THREE.DynamicDrawUsage);
+    // With appearance a cut node is a vertex per chart and smoothing group it touches: at most
+    // one per triangle corner.
+    const capacity = info.appearance ? 3 * info.triangles : info.vertices;
+    const pos = new THREE.BufferAttribute(new Float32Array(3 * capacity), 3).setUsage(THREE.DynamicDrawUsage);
+    const nrm = new THREE.BufferAttribute(new Float32Array(3 * capacity), 3).setUsage(THREE.DynamicDrawUsage);
     const idx = new THREE.BufferAttribute(new Uint32Array(3 * info.triangles), 1).setUsage(THREE.DynamicDrawUsage);
     g.setAttribute("position", pos);
     g.setAttribute("normal", nrm);
@@ -210,14 +238,60 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
     this.send({ type: "budget", triangles: t });
   }
 
-  /** Vertex colours: none, the hierarchy level of each vertex's node, or its split priority. */
+  /**
+   * The stream's materials and textures ("authored"; a stream without appearance draws as
+   * "plain"), one flat material ("plain"), or vertex colours by the hierarchy level of each
+   * vertex's node ("level") or by its split priority ("error").
+   */
   get colourMode(): ColourMode { return this.mode; }
   set colourMode(mode: ColourMode) {
+    if (mode === this.mode) return;
     this.mode = mode;
-    const m = this.mesh.material as THREE.Material & { vertexColors?: boolean };
-    m.vertexColors = mode !== "plain";
-    m.needsUpdate = true;
+    this.applyMaterial();
     this.send({ type: "colour", mode });
+  }
+
+  /** The stream's materials (after the `materials` event), or null. */
+  get materials(): THREE.Material[] | null { return this.authored; }
+
+  /** Draws every material as a wireframe. */
+  get wireframe(): boolean { return this.wire; }
+  set wireframe(on: boolean) {
+    this.wire = on;
+    for (const m of [this.flat, ...(this.authored ?? [])]) if ("wireframe" in m) (m as THREE.MeshStandardMaterial).wireframe = on;
+  }
+
+  /** Builds the stream's materials from the worker's looks (images decoded on the page). */
+  private takeLooks(m: LooksPayload): void {
+    decodeImages(m.images).then((bitmaps) => {
+      if (this.disposed) { for (const b of bitmaps) b?.close(); return; }
+      const textures = buildTextures(m.materials, bitmaps);
+      this.authored = buildMaterials(m.materials, textures, { vertexColors: m.vertexColors, flatShading: !m.normals });
+      // The clones in the materials hold the images; the shared textures are not used.
+      for (const t of textures) t?.dispose();
+      this.wireframe = this.wire;
+      this.applyMaterial();
+      this.dispatchEvent({ type: "materials", materials: this.authored });
+    }, (e) => this.dispatchEvent({ type: "error", error: e instanceof Error ? e : new Error(String(e)) }));
+  }
+
+  /**
+   * The stream's materials, one per group, when the frame shown carries them ("authored" on a
+   * stream with appearance, its materials built); else the flat material, with vertex colours
+   * in "level" and "error" modes.
+   */
+  private applyMaterial(): void {
+    const g = this.geometry;
+    g.clearGroups();
+    if (this.mode === "authored" && this.authored && this.groups) {
+      for (const x of this.groups) g.addGroup(x.start, x.count, Math.min(x.material, this.authored.length - 1));
+      this.mesh.material = this.authored;
+      return;
+    }
+    this.mesh.material = this.flat;
+    const f = this.flat as THREE.Material & { vertexColors?: boolean };
+    const colours = this.mode === "level" || this.mode === "error";
+    if (f.vertexColors !== colours) { f.vertexColors = colours; f.needsUpdate = true; }
   }
 
   /**
@@ -258,6 +332,7 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
     if (this.morph) {
       const a = this.morphMs > 0 ? Math.min(1, (now - this.morph.start) / this.morphMs) : 1;
       blendInto(this.morph.from, this.morph.to, a, this.geometry.getAttribute("position") as THREE.BufferAttribute);
+      this.morph.uv.forEach(([from, to], k) => blendInto(from, to, a, this.geometry.getAttribute(k === 0 ? "uv" : "uv1") as THREE.BufferAttribute));
       if (a >= 1) this.morph = null;
       changed = true;
     }
@@ -278,11 +353,19 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
       const start = this.morphClock.id === p.morphId ? this.morphClock.start : now;
       this.morphClock = { id: p.morphId, start };
       const a = Math.min(1, (now - start) / this.morphMs);
-      this.morph = a < 1 ? { from: p.starts, to: p.positions, start, id: p.morphId } : null;
+      const uv: [Float32Array, Float32Array][] = [];
+      if (p.uvs && p.uvStarts) uv.push([p.uvStarts, p.uvs]);
+      if (p.uvs && p.uvStarts && p.uv1 && p.uv1Starts) uv.push([p.uv1Starts, p.uv1]);
+      this.morph = a < 1 ? { from: p.starts, to: p.positions, uv, start, id: p.morphId } : null;
       blendInto(p.starts, p.positions, a, pos);
+      this.setVertexAttribute("uv", 2, p.uvs);
+      this.setVertexAttribute("uv1", 2, p.uv1);
+      uv.forEach(([from, to], k) => blendInto(from, to, a, g.getAttribute(k === 0 ? "uv" : "uv1") as THREE.BufferAttribute));
     } else {
       this.morph = null;
       upload(pos, p.positions);
+      this.setVertexAttribute("uv", 2, p.uvs);
+      this.setVertexAttribute("uv1", 2, p.uv1);
     }
     upload(nrm, p.normals);
     if (p.indexVersion !== this.uploadedIndex) {
@@ -295,15 +378,11 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
       }
       for (const v of this.indexes.keys()) if (v < p.indexVersion) this.indexes.delete(v);
     }
-    if (p.colours) {
-      let col = g.getAttribute("color") as THREE.BufferAttribute | undefined;
-      if (!col || col.array.length < p.colours.length) {
-        col = new THREE.BufferAttribute(new Float32Array((pos.array as Float32Array).length), 3).setUsage(THREE.DynamicDrawUsage);
-        g.setAttribute("color", col);
-      }
-      upload(col, p.colours);
-    } else if (g.getAttribute("color")) g.deleteAttribute("color");
+    // Authored vertex colours are RGBA (glTF's COLOR_0), the level and error colours RGB.
+    this.setVertexAttribute("color", p.uvs || p.groups ? 4 : 3, p.colours);
     g.setDrawRange(0, p.indexCount);
+    const groups = p.groups ?? null;
+    if (groups !== this.groups) { this.groups = groups; this.applyMaterial(); }
     const progressed = p.fetched !== this.stats.fetched;
     Object.assign(this.stats, { frame: p.frame, triangles: p.triangles, level: p.level, decodeMs: p.decodeMs, cutMs: p.cutMs, fetched: p.fetched, requests: p.requests, cached: p.cached });
     this.stats.shown++;
@@ -314,6 +393,22 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
     if (progressed && this.info) this.dispatchEvent({ type: "progress", bytes: p.fetched, requests: p.requests, cached: p.cached, total: this.info.bytes });
   }
 
+  /**
+   * Puts `values` (`size` floats per vertex) in the geometry's attribute `name`, made (once, as
+   * large as the position buffer) when missing or of another size; removes it when absent.
+   */
+  private setVertexAttribute(name: string, size: number, values: Float32Array | undefined): void {
+    const g = this.geometry;
+    let attr = g.getAttribute(name) as THREE.BufferAttribute | undefined;
+    if (!values) { if (attr) g.deleteAttribute(name); return; }
+    const vertices = (g.getAttribute("position") as THREE.BufferAttribute).count;
+    if (!attr || attr.itemSize !== size || attr.count < values.length / size) {
+      attr = new THREE.BufferAttribute(new Float32Array(size * Math.max(vertices, values.length / size)), size).setUsage(THREE.DynamicDrawUsage);
+      g.setAttribute(name, attr);
+    }
+    upload(attr, values);
+  }
+
   /** Stops the worker and frees the GPU buffers (and the material, unless it was given). */
   dispose(): void {
     if (this.disposed) return;
@@ -321,7 +416,12 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
     this.worker.terminate();
     this.queue.clear();
     this.geometry.dispose();
-    (this.mesh.material as THREE.Material).dispose();
+    if (this.ownsFlat) this.flat.dispose();
+    for (const m of this.authored ?? []) {
+      const s = m as THREE.MeshStandardMaterial;
+      for (const t of [s.map, s.metalnessMap, s.normalMap, s.aoMap, s.emissiveMap]) t?.dispose();
+      m.dispose();
+    }
     this.removeFromParent();
   }
 }

@@ -4,10 +4,10 @@
 // request a few frames ahead, and turns a decoded frame into render-ready buffers: the budget
 // cut's vertices, smooth normals and indices, computed once per decoded frame.
 
-import { ChunkEntry, ChunkKind, Decoder, Reader, readAt } from "../container/index.js";
-import { buildCutMesh, morphStarts } from "../geomorph.js";
+import { ChunkEntry, ChunkKind, Decoder, Reader, attributeEntry, dequantizeUv, readAt, readMaterials, texturedMesh } from "../container/index.js";
+import { buildCutMesh, morphAttributeStarts, morphStarts } from "../geomorph.js";
 import { FetchRange, RangeCache } from "./ranges.js";
-import type { ColourMode, FramePayload, OpenedInfo } from "./protocol.js";
+import type { ColourMode, FramePayload, LooksPayload, MaterialGroup, OpenedInfo } from "./protocol.js";
 
 /** The first request of a container: its preamble, header and index, and usually more. */
 const FIRST_READ = 64 << 10;
@@ -47,7 +47,7 @@ export class Session {
   readonly trianglesPerLevel: number[];
   readonly readAhead: number;
   budget: number;
-  colour: ColourMode = "plain";
+  colour: ColourMode = "authored";
 
   private constructor(readonly container: Reader, cache: RangeCache, opts: SessionOptions) {
     this.cache = cache;
@@ -85,7 +85,29 @@ export class Session {
       frames: h.frameCount, frameRate: h.frameRate, vertices: h.vertexCount, triangles: h.triangleCount,
       levels: h.levelSizes.slice(), trianglesPerLevel: this.trianglesPerLevel.slice(), keyframeInterval: h.keyframeInterval,
       bboxMin: h.bboxMin.slice(), bboxMax: h.bboxMax.slice(), bytes: this.container.fileLen, version: this.container.version,
+      appearance: h.appearance !== null,
     };
+  }
+
+  /** Whether frames carry the stream's appearance: "authored" mode on a stream that has one. */
+  get textured(): boolean { return this.colour === "authored" && this.container.header.appearance !== null; }
+
+  /**
+   * The stream's materials and its images' encoded bytes (null without appearance): what the
+   * page needs once to build its materials (pmcodec-three's appearance module).
+   */
+  async looks(): Promise<LooksPayload | null> {
+    const c = this.container, a = c.header.appearance;
+    if (!a) return null;
+    const materials = readMaterials(await c.chunk(c.find(ChunkKind.Materials, 0, 0)), a);
+    const images = [];
+    for (const [i, d] of materials.images.entries()) {
+      // A copy: the cache's bytes stay in the cache when the copy is transferred to the page.
+      const bytes = (await c.chunk(c.find(ChunkKind.Image, 0, i))).slice();
+      if (bytes.length !== d.byteLength) throw new Error(`image ${i}: ${bytes.length} bytes where the materials chunk says ${d.byteLength}`);
+      images.push({ name: d.name, mimeType: d.mimeType, bytes });
+    }
+    return { type: "looks", materials, images, vertexColors: a.colors, normals: a.normals };
   }
 
   /** The coarsest level whose whole mesh has the budget's triangles. */
@@ -134,6 +156,7 @@ export class Session {
     await this.cache.ensure(need);
     this.cache.ensure(ahead).catch((e) => { this.aheadError = e; });
     await d.seek(f);
+    if (this.textured) await d.loadAppearance();
     const tDecode = performance.now();
     return this.cut(d, f, performance.now() - t0, tDecode);
   }
@@ -157,13 +180,14 @@ export class Session {
     for (let g = from; g <= f; g++) this.spans(g, level, need);
     await this.cache.ensure(need);
     await cd.seek(f);
+    if (this.textured) await cd.loadAppearance();
     return this.cut(cd, f, performance.now() - t0, performance.now());
   }
 
   /** Cuts the decoder's frame at the budget again (a budget change while paused). */
   recut(): FramePayload | null {
     const d = this.decoder;
-    if (!d || d.frame < 0 || this.levelFor(this.budget) < d.minLevel) return null;
+    if (!d || d.frame < 0 || this.levelFor(this.budget) < d.minLevel || (this.textured && !d.looks)) return null;
     const t = performance.now();
     return this.cut(d, d.frame, 0, t);
   }
@@ -185,7 +209,9 @@ export class Session {
       r.selectTriangles(this.budget, memo.errors!);
       this.fullOn = this.budget >= this.trianglesPerLevel[d.minLevel] && allExpanded(r) ? d : null;
     }
-    const mesh = buildCutMesh(r);
+    const cutMesh = buildCutMesh(r);
+    const looks = this.textured ? texturedCut(d, all) : null;
+    const mesh = looks ? { nodes: looks.mesh.nodes, indices: looks.indices } : cutMesh;
     // The index buffer only when it changed: at full resolution it rarely does.
     let indices: Uint32Array | undefined = mesh.indices;
     if (this.lastIndices && equal(this.lastIndices, mesh.indices)) indices = undefined;
@@ -196,27 +222,79 @@ export class Session {
       const g = 3 * mesh.nodes[i];
       positions[3 * i] = all[g]; positions[3 * i + 1] = all[g + 1]; positions[3 * i + 2] = all[g + 2];
     }
-    const normals = vertexNormals(positions, mesh.indices);
+    // With appearance, the decoder's normals: split at seams and smoothing groups
+    // (proto/container.md, "Drawing a cut's appearance"), as the server's GLB answers draw them.
+    const normals = looks ? looks.mesh.normals : vertexNormals(positions, mesh.indices);
     // A geomorph when the cut moved for another reason than time (the budget or the level): from
     // the cut before the change, carried on over the next frames while playing (each frame's
     // starts are the old cut's nodes at that frame's positions), so the page blends on one clock.
     let starts: Float32Array | undefined;
     const prev = this.last;
+    // The old cut is kept as its distinct nodes (a textured mesh repeats a node once per chart
+    // and group).
     if (prev && (prev.budget !== this.budget || prev.level !== d.minLevel)) this.morphFrom = { nodes: prev.nodes, id: ++this.morphId, frames: 0 };
     const from = this.morphFrom;
+    let uvStarts: Float32Array | undefined, uv1Starts: Float32Array | undefined;
     if (from && from.frames < MORPH_FRAMES && from.nodes.every((g) => g >= r.offsets[d.minLevel])) {
       starts = morphStarts(mesh, from.nodes, all, (g) => r.parentGlobal(g));
+      if (looks) [uvStarts, uv1Starts] = looks.uvStarts(from.nodes);
       from.frames++;
     } else this.morphFrom = null;
     let colours: Float32Array | undefined;
-    if (this.colour !== "plain") colours = colourOf(this.colour, mesh.nodes, r, memo.errors ?? new Float64Array(r.nodeCount));
-    this.last = { nodes: mesh.nodes, budget: this.budget, level: d.minLevel, frame: f };
+    if (looks) colours = looks.mesh.colors ?? undefined;
+    else if (this.colour === "level" || this.colour === "error") colours = colourOf(this.colour, mesh.nodes, r, memo.errors ?? new Float64Array(r.nodeCount));
+    this.last = { nodes: cutMesh.nodes, budget: this.budget, level: d.minLevel, frame: f };
     return {
       type: "frame", seq: 0, frame: f, budget: this.budget, level: d.minLevel, triangles: mesh.indices.length / 3,
       positions, normals, indices, indexVersion: this.indexVersion, indexCount: mesh.indices.length, starts, morphId: this.morphId, colours,
+      uvs: looks?.mesh.uv0 ?? undefined, uv1: looks?.mesh.uv1 ?? undefined, uvStarts, uv1Starts, groups: looks?.groups,
       decodeMs, cutMs: performance.now() - t0, fetched: this.cache.fetched, requests: this.cache.requests, cached: this.cache.size,
     };
   }
+}
+
+/**
+ * The replay's shown triangles with the stream's appearance (the decoder's `loadAppearance`
+ * done): one vertex per (cut node, chart, smoothing group), triangles sorted by material so
+ * each material draws as one group; and, for a geomorph, where each vertex's texture
+ * coordinates start (`morphAttributeStarts`: those of the node the vertex's position starts
+ * from, in the vertex's own chart).
+ */
+/** Whether missing attribute entries were reported (once per worker). */
+let warned = false;
+
+function texturedCut(d: Decoder, positions: Float32Array): { mesh: ReturnType<typeof texturedMesh>; indices: Uint32Array; groups: MaterialGroup[]; uvStarts: (old: Uint32Array) => [Float32Array | undefined, Float32Array | undefined] } | null {
+  const a = d.reader.header.appearance, looks = d.looks;
+  if (!a || !looks) return null;
+  const r = d.replay, rep = r.cutNodes(), base = r.offsets[r.minLevel];
+  const shown = r.shown, cut = new Uint32Array(3 * shown.length);
+  for (let i = 0; i < shown.length; i++) for (let c = 0; c < 3; c++) cut[3 * i + c] = rep[base + r.corners[3 * shown[i] + c]];
+  // Lenient: containers written so far lack some (node, chart) entries that budget cuts mixing
+  // levels reach (the Rust decoder refuses those cuts too); such a vertex takes its
+  // neighbours' values rather than the frame failing.
+  const mesh = texturedMesh(a, looks.charts, looks.tables, r.offsets, positions, shown, cut, { lenient: true });
+  if (mesh.missing > 0 && !warned) {
+    warned = true;
+    console.warn(`pmcodec: ${mesh.missing} vertices of a cut have no texture coordinates in the file's tables; filled in from their neighbours`);
+  }
+  // Counting sort of the triangles by material (stable: mesh order within a material).
+  const nm = Math.max(1, looks.materials.materials.length), count = new Uint32Array(nm + 1);
+  for (const m of mesh.triangleMaterial) count[Math.min(m, nm - 1) + 1]++;
+  for (let m = 0; m < nm; m++) count[m + 1] += count[m];
+  const groups: MaterialGroup[] = [];
+  for (let m = 0; m < nm; m++) if (count[m + 1] > count[m]) groups.push({ start: 3 * count[m], count: 3 * (count[m + 1] - count[m]), material: m });
+  const indices = new Uint32Array(mesh.indices.length), at = count.slice(0, nm);
+  mesh.triangleMaterial.forEach((m, t) => { indices.set(mesh.indices.subarray(3 * t, 3 * t + 3), 3 * at[Math.min(m, nm - 1)]++); });
+  const uvStarts = (old: Uint32Array): [Float32Array | undefined, Float32Array | undefined] => {
+    const set = (k: number, own: Float32Array | null): Float32Array | undefined => own ? morphAttributeStarts(mesh.nodes, mesh.charts, old, own, 2, (g) => r.parentGlobal(g), (g, chart, out, o) => {
+      const e = attributeEntry(a, looks.tables, r.offsets, g, chart);
+      if (!e) return false;
+      out[o] = dequantizeUv(a, 0, e[2 * k]); out[o + 1] = dequantizeUv(a, 1, e[2 * k + 1]);
+      return true;
+    }) : undefined;
+    return [set(0, mesh.uv0), set(1, mesh.uv1)];
+  };
+  return { mesh, indices, groups, uvStarts };
 }
 
 function allExpanded(r: Decoder["replay"]): boolean {

@@ -21,7 +21,9 @@ let running = false;
 let coarseTried = false;
 /** Budget and colour mode as last asked for (they may come before the container is open). */
 let budget: number | null = null;
-let colour: ColourMode = "plain";
+let colour: ColourMode = "authored";
+/** Whether the stream's materials and images were sent (once, when "authored" is first asked for). */
+let looksSent = false;
 
 const post = (m: FromWorker, transfer: Transferable[] = []) => (self as unknown as Worker).postMessage(m, transfer);
 
@@ -37,12 +39,19 @@ async function containerUrl(source: Source, headers: Record<string, string> | un
   return { url: new URL(info.file, base).href, trianglesPerLevel: tpl };
 }
 
-function send(p: FramePayload): void {
-  p.seq = seq;
+/**
+ * Posts a frame for seek `tag`. A frame of an older seek is still posted when it carries an
+ * index buffer: the session counts it as sent, and later frames refer to it by version only
+ * (the page keeps it, and drops the frame itself).
+ */
+function send(p: FramePayload, tag = seq): void {
+  if (tag !== seq && !p.indices) return;
+  p.seq = tag;
   const transfer: Transferable[] = [p.positions.buffer, p.normals.buffer];
   if (p.indices) transfer.push(p.indices.buffer);
   if (p.starts) transfer.push(p.starts.buffer);
   if (p.colours) transfer.push(p.colours.buffer);
+  for (const a of [p.uvs, p.uv1, p.uvStarts, p.uv1Starts]) if (a) transfer.push(a.buffer);
   post(p, transfer);
 }
 
@@ -54,6 +63,16 @@ function next(): number | null {
   // A playhead past what was sent (the page skipped ahead): start over from it.
   if (ahead > DECODE_AHEAD + 1) return playhead;
   return ahead < DECODE_AHEAD ? (sent + 1) % frames : null;
+}
+
+/** Sends the stream's materials and images, the first time "authored" is asked for. */
+function sendLooks(): void {
+  const s = session;
+  if (!s || looksSent || !s.textured) return;
+  looksSent = true;
+  s.looks()
+    .then((l) => { if (l) post(l, l.images.map((i) => i.bytes.buffer as ArrayBuffer)); })
+    .catch((e) => post({ type: "error", message: e instanceof Error ? e.message : String(e) }));
 }
 
 async function pump(): Promise<void> {
@@ -72,11 +91,11 @@ async function pump(): Promise<void> {
         // A jump: a coarse cut first, then the budget's.
         coarseTried = true;
         const q = await s.coarse(f);
+        if (q) send(q, mine);
         if (mine !== seq) continue;
-        if (q) send(q);
       }
       const p = await s.frame(f);
-      if (mine !== seq) continue; // a seek came in meanwhile
+      if (mine !== seq) { send(p, mine); continue; } // a seek came in meanwhile
       sent = f;
       send(p);
     }
@@ -99,6 +118,7 @@ self.onmessage = (ev: MessageEvent<ToWorker>) => {
           s.colour = colour;
           frames = s.container.header.frameCount;
           post({ type: "opened", info: s.info() });
+          sendLooks();
           void pump();
         })
         .catch((e) => post({ type: "error", message: e instanceof Error ? e.message : String(e) }));
@@ -124,6 +144,7 @@ self.onmessage = (ev: MessageEvent<ToWorker>) => {
     case "colour":
       colour = m.mode;
       if (session) session.colour = m.mode;
+      sendLooks();
       recut = true;
       void pump();
       break;
