@@ -66,4 +66,3 @@ pub fn image(a: &LoadedAsset, n: u32) -> Result<(Bytes, &'static str), ApiError>
     let mime = pmcodec_mesh::appearance::image_mime_type(&raw).unwrap_or("application/octet-stream");
     Ok((Bytes::from(raw), mime))
 }
-
