@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Every test of the project, on a fresh machine (installs what it needs):
-#   1. the Rust workspace: unit, integration, property, corpus and CLI tests, and the system tests
+#   1. the Rust workspace: clippy with warnings as errors, then unit, integration, property, corpus
+#      and CLI tests, and the system tests
 #      in tests/system (the server on real sockets, uploads of ../shared/data, the client, the S3
 #      store against s3s-fs, installed here with cargo when missing);
 #   2. the viewer: TypeScript unit tests (node's test runner) and the production build;
@@ -25,6 +26,11 @@ fi
 
 echo "== unused dependencies (a text check, about a second)"
 tests/unused-deps.sh
+
+echo "== cargo clippy (every crate and target, warnings are errors)"
+# Before the tests: it checks what they compile anyway (about a minute more on a warm build,
+# see README.md), and a lint failure should not wait for the whole test run.
+cargo clippy --workspace --all-targets --locked -- -D warnings 2>&1
 
 echo "== cargo test"
 cargo test --workspace --locked --no-fail-fast 2>&1

@@ -178,9 +178,11 @@ function readGlb(path: string): { json: any; bin: Uint8Array } {
   return { json, bin: b.subarray(binStart, binStart + dv.getUint32(20 + jsonLen, true)) };
 }
 
-function accessor(glb: { json: any; bin: Uint8Array }, i: number): Float32Array | Uint32Array {
+function accessor(glb: { json: any; bin: Uint8Array }, i: number): Float32Array | Uint32Array | Uint16Array {
   const a = glb.json.accessors[i], v = glb.json.bufferViews[a.bufferView];
   const bytes = glb.bin.slice(v.byteOffset, v.byteOffset + v.byteLength);
+  // Indices are 16-bit up to 65,535 vertices (the GLB writer's choice), else 32-bit.
+  if (a.componentType === 5123) return new Uint16Array(bytes.buffer);
   return a.componentType === 5125 ? new Uint32Array(bytes.buffer) : new Float32Array(bytes.buffer);
 }
 

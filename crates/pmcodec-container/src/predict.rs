@@ -31,19 +31,7 @@ fn neighbour_rows(n: usize, triangles: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) {
             .flat_map(|t| [(t[0], t[1]), (t[1], t[0]), (t[1], t[2]), (t[2], t[1]), (t[2], t[0]), (t[0], t[2])])
             .filter(move |&(a, b)| a != b && (a as usize) < n && (b as usize) < n)
     };
-    let mut offsets = vec![0u32; n + 1];
-    for (a, _) in pairs() {
-        offsets[a as usize + 1] += 1;
-    }
-    for i in 0..n {
-        offsets[i + 1] += offsets[i];
-    }
-    let mut fill = offsets.clone();
-    let mut items = vec![0u32; offsets[n] as usize];
-    for (a, b) in pairs() {
-        items[fill[a as usize] as usize] = b;
-        fill[a as usize] += 1;
-    }
+    let (offsets, mut items) = pmcodec_hierarchy::rows::compressed_rows(n, pairs);
     // Sort and de-duplicate each row, closing the gaps.
     let mut out = vec![0u32; n + 1];
     let mut w = 0usize;

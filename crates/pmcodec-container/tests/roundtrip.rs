@@ -306,14 +306,7 @@ fn level_limited_decoding_reads_only_its_bands() {
 
 fn wave(frames: usize) -> Sequence {
     let (w, h) = (12u32, 9u32);
-    let mut seq = Sequence { frame_rate: 24.0, ..Default::default() };
-    for y in 0..h - 1 {
-        for x in 0..w - 1 {
-            let i = y * w + x;
-            seq.triangles.push([i, i + 1, i + w + 1]);
-            seq.triangles.push([i, i + w + 1, i + w]);
-        }
-    }
+    let mut seq = Sequence { frame_rate: 24.0, triangles: pmcodec_mesh::samples::grid_triangles(w, h), ..Default::default() };
     for f in 0..frames {
         seq.frames.push((0..w * h).map(|i| Vec3::new((i % w) as f32, (i / w) as f32, ((i % w) as f32 * 0.7 + f as f32).sin())).collect());
     }

@@ -44,7 +44,7 @@ fn main() {
         let ms = t.elapsed().as_secs_f64() * 1e3;
         let nodes = NodeState::compute(&h, &q, &seq.frames[0]);
         let d = DegenerateSets::new(&h, &seq.triangles);
-        let c = cut::select(&h, &d, &ChildIndex::new(&h), &nodes, CutTarget::Level(level));
+        let c = pmcodec_eval::select_cut(&h, &d, &ChildIndex::new(&h), &nodes, CutTarget::Level(level));
         let (mesh, _) = cut::extract(&h, &d, &seq.triangles, &c, &nodes.positions);
         // Folds: a shown triangle (fine triangle t with its corners' nodes) facing away from t.
         let shown = cut::shown_triangles(&d, &c);

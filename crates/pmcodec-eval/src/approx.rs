@@ -53,7 +53,7 @@ pub struct ApproxOptions {
 
 fn select(h: &Hierarchy, triangles: &[[u32; 3]], nodes: &NodeState, target: CutTarget) -> cut::Cut {
     let d = DegenerateSets::new(h, triangles);
-    cut::select(h, &d, &cut::ChildIndex::new(h), nodes, target)
+    crate::select_cut(h, &d, &cut::ChildIndex::new(h), nodes, target)
 }
 
 /// The hierarchy an approximation cuts, and the cut it takes: for `Vertices(n)`, a hierarchy

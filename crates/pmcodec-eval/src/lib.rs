@@ -11,7 +11,8 @@
 //! What is measured also lives here: [`approximate`] makes every frame's approximation by this
 //! project's reclustering and by the two baselines of Kircher & Garland figure 11 (first-frame
 //! static, each frame simplified on its own), [`changed_share`] measures their temporal
-//! coherence, and [`rebalance`] carries a cut from frame to frame as a player does. All
+//! coherence, [`select_cut`] takes the greedy cut by node error the methods are compared at, and
+//! [`rebalance`] carries a cut from frame to frame as a player does. All
 //! sampling draws from [`SplitMix64`].
 #![warn(missing_docs)]
 // `!(x > 0.0)` is written on purpose: it is also true for NaN, which these checks must reject.
@@ -20,6 +21,7 @@
 mod approx;
 mod bvh;
 mod coherence;
+mod greedy;
 pub mod made;
 mod rebalance;
 mod rng;
@@ -30,6 +32,7 @@ pub use approx::{ApproxOptions, Method, approximate};
 pub use bvh::SurfaceIndex;
 pub use coherence::{Approximation, changed_share};
 use glam::Vec3;
+pub use greedy::select_cut;
 use pmcodec_mesh::TriMesh;
 use rayon::prelude::*;
 pub use rebalance::{rebalance, repair};

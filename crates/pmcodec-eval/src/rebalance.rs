@@ -83,7 +83,7 @@ pub fn rebalance(h: &Hierarchy, d: &DegenerateSets, children: &ChildIndex, nodes
         CutTarget::Triangles(n) => (n, |c| c.triangles),
         CutTarget::Vertices(n) => (n, |c| c.vertices),
         _ => {
-            *cut = cut::select(h, d, children, nodes, target);
+            *cut = crate::select_cut(h, d, children, nodes, target);
             return;
         }
     };

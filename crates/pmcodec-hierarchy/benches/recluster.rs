@@ -7,7 +7,7 @@
 
 use pmcodec_hierarchy::CutTarget;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
-use pmcodec_hierarchy::cut::{self, ChildIndex};
+use pmcodec_hierarchy::cut::ChildIndex;
 use pmcodec_hierarchy::progressive::{Encoder, FrameDelta, Replay};
 use pmcodec_hierarchy::recluster::ReclusterOptions;
 use pmcodec_hierarchy::*;
@@ -65,7 +65,7 @@ fn replay_inputs() -> &'static Vec<(Replay, FrameDelta)> {
                 replay.apply(&delta).expect("delta");
                 let h = enc.hierarchy();
                 let d = DegenerateSets::from_nodes(h.node_count(), enc.degeneration().to_vec());
-                let c = cut::select(h, &d, &ChildIndex::new(h), enc.nodes(), CutTarget::Triangles(2000));
+                let c = pmcodec_eval::select_cut(h, &d, &ChildIndex::new(h), enc.nodes(), CutTarget::Triangles(2000));
                 replay.set_cut(&c.expanded);
                 continue;
             }

@@ -26,6 +26,7 @@ pub enum PoseSet {
 /// Per-vertex importance multiplied into the quadrics.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum VertexWeights {
+    /// Every vertex weighs 1.
     #[default]
     None,
     /// Berner & Rieger: displacement between the morph targets (from the input), falling back to
@@ -36,10 +37,15 @@ pub enum VertexWeights {
     Smooth,
 }
 
+/// The quadrics the base hierarchy H_0 is built from: which frames, how vertices are weighted,
+/// and the quadric options.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct BaseOptions {
+    /// The frames whose quadrics are summed (Mohr & Gleicher 2003: several poses).
     pub poses: PoseSet,
+    /// Per-vertex weights on the quadrics (Berner & Rieger 2006).
     pub weights: VertexWeights,
+    /// How each frame's quadrics are made.
     pub quadric: QuadricOptions,
 }
 

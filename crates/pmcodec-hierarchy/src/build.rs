@@ -35,16 +35,27 @@ impl Default for BuildOptions {
     }
 }
 
+/// Options or input a hierarchy cannot be built from.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum BuildError {
+    /// The branching factor is outside 2..=16.
     #[error("branching factor {0} is outside 2..=16")]
     Branching(u32),
+    /// The quadrics do not match the vertices one to one.
     #[error("{0} quadrics for {1} vertices")]
     QuadricCount(usize, u32),
+    /// Explicit level sizes that do not decrease strictly from the input's vertex count.
     #[error("level sizes must decrease strictly from the {fine} input vertices and stay above 0: {sizes:?}")]
-    LevelSizes { fine: u32, sizes: Vec<u32> },
+    LevelSizes {
+        /// The input's vertex count.
+        fine: u32,
+        /// The level sizes asked for.
+        sizes: Vec<u32>,
+    },
+    /// A mesh without vertices.
     #[error("the mesh has no vertices")]
     Empty,
+    /// A level anchor that is not a decreasing fraction in (0, 1).
     #[error("level anchor {0}: anchors are decreasing fractions of the input vertices, between 0 and 1")]
     Anchor(f64),
 }

@@ -9,30 +9,33 @@
 use crate::Hierarchy;
 use crate::degenerate::DegenerateSets;
 use crate::hierarchy::NONE;
-use crate::nodes::NodeState;
 use crate::rows::compressed_rows;
-use crate::target::CutTarget;
 use glam::Vec3;
 use pmcodec_mesh::TriMesh;
 use std::cmp::Ordering;
-use std::collections::BinaryHeap;
 
 /// A cut: the expanded flags of all nodes (global ids) and the counts they give.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Cut {
+    /// Whether each node (global id) is expanded: its children are shown instead of it.
     pub expanded: Vec<bool>,
+    /// Triangles the cut shows.
     pub triangles: u32,
+    /// Cut nodes, the vertices of the mesh the cut shows.
     pub vertices: u32,
 }
 
 /// Children of every node (global ids) in compressed rows.
 #[derive(Clone, Debug, Default)]
 pub struct ChildIndex {
+    /// `children[offsets[g]..offsets[g + 1]]` are node `g`'s children.
     pub offsets: Vec<u32>,
+    /// Every node's children (global ids), row by row.
     pub children: Vec<u32>,
 }
 
 impl ChildIndex {
+    /// The children of every node of `h`.
     pub fn new(h: &Hierarchy) -> Self {
         // Every node below the top, as (global parent, global child).
         let edges = || {
@@ -43,6 +46,7 @@ impl ChildIndex {
         ChildIndex { offsets, children }
     }
 
+    /// The children of node `g` (global ids).
     #[inline]
     pub fn of(&self, g: u32) -> &[u32] {
         &self.children[self.offsets[g as usize] as usize..self.offsets[g as usize + 1] as usize]
@@ -69,66 +73,12 @@ pub fn coarsest(h: &Hierarchy, d: &DegenerateSets) -> Cut {
     Cut { expanded: vec![false; h.node_count()], triangles: d.never.len() as u32, vertices: h.level_sizes[h.top()] }
 }
 
-/// Chooses a cut for `target` using this frame's node errors. A [`CutTarget::MaxError`] is
-/// compared with each node's error distance ([`NodeState::error_distance`]); a diagonal fraction
-/// is of this frame's input vertices' bounding box.
-pub fn select(h: &Hierarchy, d: &DegenerateSets, children: &ChildIndex, nodes: &NodeState, target: CutTarget) -> Cut {
-    let mut cut = coarsest(h, d);
-    let top = h.top();
-    let n0 = h.level_sizes[0];
-    match target {
-        CutTarget::Level(level) => {
-            let level = level.min(top);
-            for g in h.offsets[level + 1]..h.offsets[top + 1] {
-                cut.expanded[g as usize] = true;
-                cut.triangles += d.size(g);
-            }
-            cut.vertices = h.level_sizes[level];
-        }
-        CutTarget::MaxError(distance) => {
-            let fine = nodes.positions.get(..n0 as usize).and_then(pmcodec_mesh::bounds_of);
-            let tol = distance.in_model_units(fine.map_or(0.0, |(lo, hi)| (hi - lo).length() as f64));
-            let mut stack: Vec<u32> = (h.offsets[top]..h.offsets[top + 1]).collect();
-            while let Some(g) = stack.pop() {
-                if g >= n0 && nodes.error_distance(g) > tol {
-                    expand(&mut cut, d, children, g);
-                    stack.extend_from_slice(children.of(g));
-                }
-            }
-        }
-        CutTarget::Triangles(budget) => greedy(&mut cut, h, d, children, nodes, |c, g| c.triangles + d.size(g) <= budget),
-        CutTarget::Vertices(budget) => {
-            greedy(&mut cut, h, d, children, nodes, |c, g| c.vertices + children.of(g).len() as u32 - 1 <= budget)
-        }
-    }
-    cut
-}
-
 /// Expands cut node `g`, keeping the cut's counts.
 #[inline]
 pub fn expand(cut: &mut Cut, d: &DegenerateSets, children: &ChildIndex, g: u32) {
     cut.expanded[g as usize] = true;
     cut.triangles += d.size(g);
     cut.vertices += children.of(g).len() as u32 - 1;
-}
-
-/// Expands the highest-error cut node that still fits, until none does.
-fn greedy(cut: &mut Cut, h: &Hierarchy, d: &DegenerateSets, children: &ChildIndex, nodes: &NodeState, fits: impl Fn(&Cut, u32) -> bool) {
-    let top = h.top();
-    let n0 = h.level_sizes[0];
-    let mut heap: BinaryHeap<ByError> =
-        (h.offsets[top]..h.offsets[top + 1]).filter(|&g| g >= n0).map(|g| ByError(nodes.error(g), g)).collect();
-    while let Some(ByError(_, g)) = heap.pop() {
-        if !fits(cut, g) {
-            continue;
-        }
-        expand(cut, d, children, g);
-        for &c in children.of(g) {
-            if c >= n0 {
-                heap.push(ByError(nodes.error(c), c));
-            }
-        }
-    }
 }
 
 /// For every node, the cut node that stands for it (itself, or its cut ancestor), or [`NONE`]

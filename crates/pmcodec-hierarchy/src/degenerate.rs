@@ -18,6 +18,7 @@ pub struct DegenerateSets {
     pub node_of: Vec<u32>,
     /// `triangles[offsets[g]..offsets[g + 1]]` is D_g (ascending triangle ids).
     pub offsets: Vec<u32>,
+    /// Every set's triangles, row by row (see `offsets`).
     pub triangles: Vec<u32>,
     /// Triangles that never degenerate (shown by every cut).
     pub never: Vec<u32>,
@@ -49,6 +50,7 @@ pub fn degeneration_nodes(h: &Hierarchy, triangles: &[[u32; 3]], out: &mut Vec<u
 }
 
 impl DegenerateSets {
+    /// The degenerate sets of `triangles` (the fine mesh's) in `h`.
     pub fn new(h: &Hierarchy, triangles: &[[u32; 3]]) -> Self {
         let mut node_of = Vec::new();
         degeneration_nodes(h, triangles, &mut node_of);
@@ -69,6 +71,7 @@ impl DegenerateSets {
         &self.triangles[self.offsets[g as usize] as usize..self.offsets[g as usize + 1] as usize]
     }
 
+    /// |D_g|: the triangles expanding node `g` shows.
     #[inline]
     pub fn size(&self, g: u32) -> u32 {
         self.offsets[g as usize + 1] - self.offsets[g as usize]

@@ -58,6 +58,7 @@ impl Hierarchy {
         *self.offsets.last().unwrap_or(&0) as usize
     }
 
+    /// Global id of node `v` of level `level`.
     #[inline]
     pub fn global(&self, level: usize, v: u32) -> u32 {
         self.offsets[level] + v

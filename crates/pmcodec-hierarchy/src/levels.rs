@@ -9,16 +9,20 @@ use crate::topology::FineTopology;
 /// Vertex adjacency of one level in compressed rows (rows sorted ascending).
 #[derive(Clone, Debug, Default)]
 pub struct LevelAdjacency {
+    /// `adjacency[offsets[v]..offsets[v + 1]]` are vertex `v`'s neighbours.
     pub offsets: Vec<u32>,
+    /// Every vertex's neighbours (level-local ids), row by row, ascending.
     pub adjacency: Vec<u32>,
 }
 
 impl LevelAdjacency {
+    /// The neighbours of vertex `v`, ascending.
     #[inline]
     pub fn row(&self, v: u32) -> &[u32] {
         &self.adjacency[self.offsets[v as usize] as usize..self.offsets[v as usize + 1] as usize]
     }
 
+    /// Whether `u` and `w` share an edge at this level.
     #[inline]
     pub fn adjacent(&self, u: u32, w: u32) -> bool {
         self.row(u).binary_search(&w).is_ok()

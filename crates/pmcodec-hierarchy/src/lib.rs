@@ -1,10 +1,11 @@
 //! The multilevel hierarchy of Kircher & Garland, *Progressive Multiresolution Meshes for
-//! Deforming Surfaces*: built by QEM edge collapse (section 3, [`build`]), with degenerate sets
+//! Deforming Surfaces* (2005): built by QEM edge collapse (section 3, [`build`]), with degenerate sets
 //! ([`degenerate`]) that make triangle budgets exact, and cuts ([`cut`]) that extract a mesh for
 //! any frame.
 //!
 //! Data is flat arrays indexed by `u32`; nodes have a global id (see [`Hierarchy`]).
 
+#![warn(missing_docs)]
 // `!(x > 0.0)` is written on purpose: it is also true for NaN, which these checks must reject.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 

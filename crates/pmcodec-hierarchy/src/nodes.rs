@@ -8,7 +8,9 @@ use glam::Vec3;
 /// Quadrics, positions and errors of all nodes (indexed by global id) for one frame.
 #[derive(Clone, Debug, Default)]
 pub struct NodeState {
+    /// Every node's quadric: the sum of its cluster's fine quadrics.
     pub quadrics: Vec<Quadric>,
+    /// Every node's position: the input's at level 0, the quadric-optimal one above.
     pub positions: Vec<Vec3>,
 }
 

@@ -16,12 +16,15 @@ use std::ops::{AddAssign, SubAssign};
 pub struct Quadric {
     /// Upper triangle of A: a00 a01 a02 a11 a12 a22.
     pub a: [f64; 6],
+    /// The linear term b.
     pub b: [f64; 3],
+    /// The constant term c.
     pub c: f64,
     /// Total area weight (area of the faces that contributed, divided among their corners).
     pub area: f64,
     /// Number of fine vertices in the cluster and the sum of their positions.
     pub count: f64,
+    /// Sum of the cluster's fine vertex positions (its centroid times `count`).
     pub sum: [f64; 3],
 }
 
@@ -53,6 +56,7 @@ impl Quadric {
         x.dot(ax) + 2.0 * x.dot(DVec3::from_array(self.b)) + self.c
     }
 
+    /// Q(x) at a single-precision point.
     #[inline]
     pub fn eval_f32(&self, x: Vec3) -> f64 {
         self.eval(x.as_dvec3())

@@ -17,9 +17,13 @@ use glam::Vec3;
 /// (both level `level + 1` nodes).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Swap {
+    /// The level of the node that moves.
     pub level: u32,
+    /// The node that moves (level-local id).
     pub v: u32,
+    /// Its old parent (level `level + 1` local id).
     pub from: u32,
+    /// Its new parent (level `level + 1` local id).
     pub to: u32,
 }
 
@@ -69,9 +73,13 @@ impl Default for ReclusterOptions {
 /// Counters of one frame's reclustering.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct FrameStats {
+    /// Swaps made.
     pub swaps: u32,
+    /// Independent-set passes run, over all levels.
     pub passes: u32,
+    /// Candidate swaps evaluated.
     pub candidates: u64,
+    /// Candidates rejected because they would break a cluster or the homeomorphism rule.
     pub rejected_invalid: u64,
 }
 
@@ -134,14 +142,17 @@ impl Reclusterer {
         &self.nodes
     }
 
+    /// The options reclustering runs with.
     pub fn options(&self) -> &ReclusterOptions {
         &self.opts
     }
 
+    /// The fine mesh's topology.
     pub fn topology(&self) -> &FineTopology {
         &self.topo
     }
 
+    /// The fine mesh's triangles.
     pub fn triangles(&self) -> &[[u32; 3]] {
         &self.triangles
     }

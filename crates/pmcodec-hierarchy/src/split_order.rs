@@ -113,6 +113,7 @@ impl SplitOrder {
         self.priority.len()
     }
 
+    /// Whether no split is recorded yet.
     pub fn is_empty(&self) -> bool {
         self.priority.is_empty()
     }

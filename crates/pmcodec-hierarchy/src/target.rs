@@ -1,7 +1,7 @@
-//! What a cut is chosen by, with its units explicit: one type for the hierarchy's cuts
-//! ([`crate::cut::select`]), the split-order prefixes a decoder shows
-//! ([`crate::split_order::SplitOrder::prefix`]), the measured approximations of `pmcodec-eval`,
-//! the server's LOD requests and the CLI.
+//! What a cut is chosen by, with its units explicit: one type for the split-order prefixes a
+//! decoder shows ([`crate::split_order::SplitOrder::prefix`]), the greedy cuts and measured
+//! approximations of `pmcodec-eval` (`select_cut`, `approximate`), the server's LOD requests
+//! and the CLI.
 
 /// A distance, in model units or relative to the model's bounding-box diagonal.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -6,11 +6,13 @@ use crate::levels::LevelAdjacency;
 /// Edges and adjacency of M0.
 #[derive(Clone, Debug, Default)]
 pub struct FineTopology {
+    /// Vertices of M0.
     pub vertex_count: u32,
     /// Unique undirected edges `(a, b)` with `a < b`, sorted.
     pub edges: Vec<[u32; 2]>,
     /// `adjacency[adj_offsets[v]..adj_offsets[v + 1]]` are v's neighbours, ascending.
     pub adj_offsets: Vec<u32>,
+    /// Every vertex's neighbours, row by row (see `adj_offsets`).
     pub adjacency: Vec<u32>,
     /// Edges used by exactly one triangle, as `(v0, v1, triangle)` with v0 -> v1 in that
     /// triangle's winding.
@@ -51,6 +53,7 @@ impl FineTopology {
         FineTopology { vertex_count, edges, adj_offsets, adjacency, boundary, triangles: triangles.to_vec() }
     }
 
+    /// The neighbours of vertex `v`, ascending.
     #[inline]
     pub fn neighbours(&self, v: u32) -> &[u32] {
         &self.adjacency[self.adj_offsets[v as usize] as usize..self.adj_offsets[v as usize + 1] as usize]

@@ -41,14 +41,7 @@ impl Rng {
 
 /// A wavy grid of `w x h` vertices: a small generated fixture with a boundary.
 pub fn grid(w: u32, h: u32, frames: usize) -> Sequence {
-    let mut seq = Sequence { frame_rate: 30.0, ..Default::default() };
-    for y in 0..h - 1 {
-        for x in 0..w - 1 {
-            let i = y * w + x;
-            seq.triangles.push([i, i + 1, i + w + 1]);
-            seq.triangles.push([i, i + w + 1, i + w]);
-        }
-    }
+    let mut seq = Sequence { frame_rate: 30.0, triangles: pmcodec_mesh::samples::grid_triangles(w, h), ..Default::default() };
     for f in 0..frames {
         let t = f as f32 * 0.2;
         seq.frames.push(

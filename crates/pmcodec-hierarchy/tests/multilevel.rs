@@ -83,7 +83,7 @@ fn budget_cuts_are_exact_and_full() {
     let nodes = NodeState::compute(&b.h, &base_quadrics(&b.seq, &b.topo, &BaseOptions::default()), &b.seq.frames[0]);
     let max_d = (0..b.h.node_count() as u32).map(|g| b.d.size(g)).max().unwrap_or(0);
     for budget in [100, 1600, 2000, 5000, 16000] {
-        let c = cut::select(&b.h, &b.d, &children, &nodes, CutTarget::Triangles(budget));
+        let c = pmcodec_eval::select_cut(&b.h, &b.d, &children, &nodes, CutTarget::Triangles(budget));
         let (mesh, _) = cut::extract(&b.h, &b.d, &b.seq.triangles, &c, &nodes.positions);
         assert_eq!(mesh.triangles.len() as u32, c.triangles, "counted = extracted");
         assert!(c.triangles <= budget, "{} > {budget}", c.triangles);
@@ -91,23 +91,23 @@ fn budget_cuts_are_exact_and_full() {
         assert!(mesh.positions.len() as u32 <= c.vertices, "a cut node may carry no shown triangle, never the reverse");
     }
     for level in 0..b.h.levels() {
-        let c = cut::select(&b.h, &b.d, &children, &nodes, CutTarget::Level(level));
+        let c = pmcodec_eval::select_cut(&b.h, &b.d, &children, &nodes, CutTarget::Level(level));
         let (mesh, _) = cut::extract(&b.h, &b.d, &b.seq.triangles, &c, &nodes.positions);
         assert!(mesh.positions.len() as u32 <= b.h.level_sizes[level]);
         if level == 0 {
             assert_eq!(mesh.triangles.len(), b.seq.triangles.len());
         }
     }
-    let c = cut::select(&b.h, &b.d, &children, &nodes, CutTarget::Vertices(800));
+    let c = pmcodec_eval::select_cut(&b.h, &b.d, &children, &nodes, CutTarget::Vertices(800));
     assert!(c.vertices <= 800 && c.vertices > 780, "{}", c.vertices);
     // Max error: a looser tolerance never gives more triangles.
     let diag = b.seq.frame_mesh(0).unwrap().diagonal() as f64;
     let mut last = u32::MAX;
     for tol in [0.0001, 0.001, 0.01, 0.1] {
-        let c = cut::select(&b.h, &b.d, &children, &nodes, CutTarget::MaxError(Distance::Absolute(tol * diag)));
+        let c = pmcodec_eval::select_cut(&b.h, &b.d, &children, &nodes, CutTarget::MaxError(Distance::Absolute(tol * diag)));
         assert!(c.triangles <= last);
         // The same bound as a fraction of the diagonal (nodes are of frame 0) is the same cut.
-        let fraction = cut::select(&b.h, &b.d, &children, &nodes, CutTarget::MaxError(Distance::DiagonalFraction(tol)));
+        let fraction = pmcodec_eval::select_cut(&b.h, &b.d, &children, &nodes, CutTarget::MaxError(Distance::DiagonalFraction(tol)));
         assert_eq!(fraction.expanded, c.expanded, "tolerance {tol} of the diagonal");
         last = c.triangles;
     }

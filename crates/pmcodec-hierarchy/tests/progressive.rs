@@ -46,7 +46,7 @@ fn replay_matches(seq: &pmcodec_mesh::Sequence, opts: ReclusterOptions) -> Repla
             let d = DegenerateSets::from_nodes(h.node_count(), enc.degeneration().to_vec());
             let nodes = NodeState::compute(h, &vec![Quadric::default(); seq.vertex_count()], frame);
             let budget = [2000, 500, 9000][f % 3];
-            let c = cut::select(h, &d, &ChildIndex::new(h), &nodes, CutTarget::Triangles(budget));
+            let c = pmcodec_eval::select_cut(h, &d, &ChildIndex::new(h), &nodes, CutTarget::Triangles(budget));
             replay.set_cut(&c.expanded);
         }
         replay.apply(&delta).unwrap_or_else(|e| panic!("frame {f}: {e}"));

@@ -48,7 +48,7 @@ fn level_report(seq: &Sequence) -> Vec<(usize, usize, usize, (usize, usize))> {
     };
     (1..h.levels())
         .map(|level| {
-            let c = cut::select(&h, &d, &children, &nodes, CutTarget::Level(level));
+            let c = pmcodec_eval::select_cut(&h, &d, &children, &nodes, CutTarget::Level(level));
             let (mesh, _) = cut::extract(&h, &d, &seq.triangles, &c, &nodes.positions);
             let shown = cut::shown_triangles(&d, &c);
             let folded = shown

@@ -271,47 +271,7 @@ fn cube(n: usize) -> Part {
 pub fn multi_part_character(spec: &CharacterSpec) -> RiggedMesh {
     let mut rng = Rng(pmcodec_eval::SplitMix64::new(spec.seed));
     let meshes = spec.meshes.max(1);
-    // The skeleton: hips, spine (3), neck, head, two arms and two legs of three joints each.
-    let parents: Vec<Option<usize>> = vec![
-        None,
-        Some(0),
-        Some(1),
-        Some(2),
-        Some(3),
-        Some(4),
-        Some(3),
-        Some(6),
-        Some(7),
-        Some(3),
-        Some(9),
-        Some(10),
-        Some(0),
-        Some(12),
-        Some(13),
-        Some(0),
-        Some(15),
-        Some(16),
-    ];
-    let offsets = [
-        Vec3::new(0.0, 1.0, 0.0),
-        Vec3::new(0.0, 0.15, 0.0),
-        Vec3::new(0.0, 0.15, 0.0),
-        Vec3::new(0.0, 0.15, 0.0),
-        Vec3::new(0.0, 0.12, 0.0),
-        Vec3::new(0.0, 0.1, 0.0),
-        Vec3::new(0.15, 0.0, 0.0),
-        Vec3::new(0.25, 0.0, 0.0),
-        Vec3::new(0.25, 0.0, 0.0),
-        Vec3::new(-0.15, 0.0, 0.0),
-        Vec3::new(-0.25, 0.0, 0.0),
-        Vec3::new(-0.25, 0.0, 0.0),
-        Vec3::new(0.1, -0.05, 0.0),
-        Vec3::new(0.0, -0.45, 0.0),
-        Vec3::new(0.0, -0.45, 0.0),
-        Vec3::new(-0.1, -0.05, 0.0),
-        Vec3::new(0.0, -0.45, 0.0),
-        Vec3::new(0.0, -0.45, 0.0),
-    ];
+    let (parents, offsets) = humanoid_skeleton();
     let joint_count = parents.len();
     let mut world = vec![Vec3::ZERO; joint_count];
     for j in 0..joint_count {
@@ -371,25 +331,7 @@ pub fn multi_part_character(spec: &CharacterSpec) -> RiggedMesh {
         // Unwelded: runs of three triangles get their own copies of their corners, the copies
         // after the first run with weights moved by a little, so welding cannot join them.
         if spec.unwelded && p % 2 == 1 {
-            let mut split_pos = Vec::new();
-            let mut split_skin = Vec::new();
-            for (run, chunk) in tris.chunks_mut(3).enumerate() {
-                let mut local: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
-                for c in chunk.iter_mut().flatten() {
-                    *c = *local.entry(*c).or_insert_with(|| {
-                        let (j, mut w) = skin[*c as usize];
-                        if run > 0 {
-                            let e = 1e-3 * run as f32;
-                            w = if w[0] > 0.5 { [w[0] - e, w[1] + e, 0.0, 0.0] } else { [w[0] + e, w[1] - e, 0.0, 0.0] };
-                        }
-                        split_pos.push(pos[*c as usize]);
-                        split_skin.push((j, w));
-                        split_pos.len() as u32 - 1
-                    });
-                }
-            }
-            pos = split_pos;
-            skin = split_skin;
+            (pos, skin) = split_runs(&mut tris, &pos, &skin);
         }
         let base = bp.len() as u32;
         bp.extend(&pos);
@@ -428,7 +370,85 @@ pub fn multi_part_character(spec: &CharacterSpec) -> RiggedMesh {
             default_weights,
         });
     }
-    // A walk: arms and legs swing, the spine twists, over one second.
+    rig.animations = vec![walk(morph_node)];
+    rig
+}
+
+/// The character's skeleton: hips, spine (3), neck, head, two arms and two legs of three joints
+/// each, as each joint's parent and its offset from it.
+fn humanoid_skeleton() -> (Vec<Option<usize>>, [Vec3; 18]) {
+    let parents: Vec<Option<usize>> = vec![
+        None,
+        Some(0),
+        Some(1),
+        Some(2),
+        Some(3),
+        Some(4),
+        Some(3),
+        Some(6),
+        Some(7),
+        Some(3),
+        Some(9),
+        Some(10),
+        Some(0),
+        Some(12),
+        Some(13),
+        Some(0),
+        Some(15),
+        Some(16),
+    ];
+    let offsets = [
+        Vec3::new(0.0, 1.0, 0.0),
+        Vec3::new(0.0, 0.15, 0.0),
+        Vec3::new(0.0, 0.15, 0.0),
+        Vec3::new(0.0, 0.15, 0.0),
+        Vec3::new(0.0, 0.12, 0.0),
+        Vec3::new(0.0, 0.1, 0.0),
+        Vec3::new(0.15, 0.0, 0.0),
+        Vec3::new(0.25, 0.0, 0.0),
+        Vec3::new(0.25, 0.0, 0.0),
+        Vec3::new(-0.15, 0.0, 0.0),
+        Vec3::new(-0.25, 0.0, 0.0),
+        Vec3::new(-0.25, 0.0, 0.0),
+        Vec3::new(0.1, -0.05, 0.0),
+        Vec3::new(0.0, -0.45, 0.0),
+        Vec3::new(0.0, -0.45, 0.0),
+        Vec3::new(-0.1, -0.05, 0.0),
+        Vec3::new(0.0, -0.45, 0.0),
+        Vec3::new(0.0, -0.45, 0.0),
+    ];
+    (parents, offsets)
+}
+
+/// A vertex's four joints and their weights.
+type Influences = ([u16; 4], [f32; 4]);
+
+/// Gives each run of three triangles its own copies of their corners, the copies after the
+/// first run with weights moved by a little, so that welding cannot join them.
+fn split_runs(tris: &mut [[u32; 3]], pos: &[Vec3], skin: &[Influences]) -> (Vec<Vec3>, Vec<Influences>) {
+    let mut split_pos = Vec::new();
+    let mut split_skin = Vec::new();
+    for (run, chunk) in tris.chunks_mut(3).enumerate() {
+        let mut local: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+        for c in chunk.iter_mut().flatten() {
+            *c = *local.entry(*c).or_insert_with(|| {
+                let (j, mut w) = skin[*c as usize];
+                if run > 0 {
+                    let e = 1e-3 * run as f32;
+                    w = if w[0] > 0.5 { [w[0] - e, w[1] + e, 0.0, 0.0] } else { [w[0] + e, w[1] - e, 0.0, 0.0] };
+                }
+                split_pos.push(pos[*c as usize]);
+                split_skin.push((j, w));
+                split_pos.len() as u32 - 1
+            });
+        }
+    }
+    (split_pos, split_skin)
+}
+
+/// The character's "walk": arms and legs swing, the spine twists, over one second; the morph
+/// target's weight (on `morph_node`, if any) goes from 0 to 1.
+fn walk(morph_node: Option<usize>) -> Animation {
     let swing = |angle: f32, axis: Vec3| {
         [Quat::IDENTITY, Quat::from_axis_angle(axis, angle), Quat::IDENTITY, Quat::from_axis_angle(axis, -angle), Quat::IDENTITY]
             .iter()
@@ -458,6 +478,5 @@ pub fn multi_part_character(spec: &CharacterSpec) -> RiggedMesh {
             width: 1,
         });
     }
-    rig.animations = vec![Animation { index: 0, name: Some("walk".into()), duration: 1.0, channels }];
-    rig
+    Animation { index: 0, name: Some("walk".into()), duration: 1.0, channels }
 }

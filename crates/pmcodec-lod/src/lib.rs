@@ -1,6 +1,7 @@
 //! Deformation-aware discrete LODs for skinned and morph-target glTF models (issue 7).
 //!
-//! The pipeline, one module per step:
+//! The pipeline, one module per step (private but for the writer and the measurement; the API
+//! is what this file exports):
 //! 1. [`poses`]: the example poses (frames sampled from every animation, each morph target at
 //!    full weight, the rest pose), their user weights, the per-pose transforms, and the
 //!    per-vertex displacement weights of Berner & Rieger (tertiles, or a smooth variant).
@@ -24,17 +25,17 @@
 // `!(x > 0.0)` is written on purpose: it is also true for NaN, which these checks must reject.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-pub mod attrs;
-pub mod chain;
-pub mod error;
+mod attrs;
+mod chain;
+mod error;
 pub mod fixture;
 pub mod gltf_out;
 pub mod measure;
-pub mod placement;
-pub mod poses;
-pub mod refit;
-pub mod simplify;
-pub mod wedges;
+mod placement;
+mod poses;
+mod refit;
+mod simplify;
+mod wedges;
 
 pub use chain::{LodChain, LodLevel, build_chain, build_chain_with};
 pub use error::LodError;

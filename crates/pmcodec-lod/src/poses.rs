@@ -143,8 +143,6 @@ pub fn pose_at(rig: &RiggedMesh, animation: Option<&Animation>, t: f32) -> Pose 
     Pose { label, weight: 1.0, joints: p.joints, world: p.world, morph: p.morph }
 }
 
-pub use pmcodec_mesh::gltf_input::world_transforms;
-
 /// The example poses of a rig: rest, every morph target alone at full weight, and
 /// `per_animation` frames of every animation, each with its source's weight. Poses of weight 0
 /// are left out.

@@ -37,9 +37,8 @@ pub struct Snapshot {
     /// The target asked for, and the triangles actually reached (more when no valid collapse
     /// was left).
     pub target: usize,
-    /// Vertex records by input id (only `alive` ones are meaningful).
+    /// Vertex records by input id (only those `rep` maps to themselves are meaningful).
     pub verts: Vec<Vertex>,
-    pub alive: Vec<bool>,
     /// Triangles over input ids.
     pub triangles: Vec<[u32; 3]>,
     /// For every input id, the alive id it has been merged into (itself when alive).
@@ -372,7 +371,6 @@ impl State<'_> {
         Snapshot {
             target,
             verts: self.verts.clone(),
-            alive: self.alive.clone(),
             triangles: live.iter().map(|&t| self.tris[t]).collect(),
             rep,
             corner: live.iter().map(|&t| self.corner[t]).collect(),

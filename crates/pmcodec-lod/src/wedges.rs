@@ -95,10 +95,6 @@ impl Wedges {
         self.vertex.len()
     }
 
-    pub fn is_empty(&self) -> bool {
-        self.vertex.is_empty()
-    }
-
     /// Per wedge and channel, the attribute quadric of its faces in `rest` positions.
     pub fn quadrics(&self, rest: &[Vec3], triangles: &[[u32; 3]]) -> Vec<AttrQuadric> {
         let c = self.channels;

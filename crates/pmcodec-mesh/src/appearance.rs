@@ -147,6 +147,20 @@ pub struct Image {
     pub bytes: Vec<u8>,
 }
 
+/// The MIME type of encoded image bytes from their signature, whatever a file or name declares:
+/// the two formats glTF 2.0 allows (§3.8.2), PNG by its 8-byte signature (ISO/IEC 15948 §5.2)
+/// and JPEG by its SOI marker and the start of the next marker. Every reader of images (glTF,
+/// MTL, the server's image route) asks this one function.
+pub fn image_mime_type(bytes: &[u8]) -> Option<&'static str> {
+    if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+        Some("image/png")
+    } else if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
+        Some("image/jpeg")
+    } else {
+        None
+    }
+}
+
 impl Appearance {
     /// Number of wedges.
     pub fn wedge_count(&self) -> usize {
@@ -289,5 +303,21 @@ impl Appearance {
     /// Material of triangle `t` (0 when triangles carry none).
     pub fn material_of(&self, t: usize) -> u32 {
         self.triangle_material.get(t).copied().unwrap_or(0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::image_mime_type;
+
+    #[test]
+    fn images_are_known_by_their_signatures_alone() {
+        assert_eq!(image_mime_type(b"\x89PNG\r\n\x1a\n rest"), Some("image/png"));
+        assert_eq!(image_mime_type(&[0xFF, 0xD8, 0xFF, 0xE0]), Some("image/jpeg"));
+        // A truncated signature, a GIF and nothing at all are neither.
+        assert_eq!(image_mime_type(b"\x89PNG\r\n"), None);
+        assert_eq!(image_mime_type(b"GIF89a"), None);
+        assert_eq!(image_mime_type(&[0xFF, 0xD8]), None);
+        assert_eq!(image_mime_type(&[]), None);
     }
 }

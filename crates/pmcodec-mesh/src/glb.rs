@@ -124,8 +124,9 @@ impl GlbBuilder {
 }
 
 /// Header and chunks: each chunk's data padded to a multiple of 4 bytes, JSON with spaces
-/// (still valid JSON), BIN with zeros; no BIN chunk without binary data.
-fn assemble(json: &Value, mut bin: Vec<u8>) -> Result<Vec<u8>, MeshError> {
+/// (still valid JSON), BIN with zeros; no BIN chunk without binary data. For a document whose
+/// binary data is already laid out (see [`GlbBuilder`] to lay it out); errors past 4 GiB.
+pub fn assemble(json: &Value, mut bin: Vec<u8>) -> Result<Vec<u8>, MeshError> {
     let mut text = serde_json::to_vec(json).map_err(|e| MeshError::Invalid(format!("GLB JSON: {e}")))?;
     while !text.len().is_multiple_of(4) {
         text.push(b' ');

@@ -81,6 +81,21 @@ pub fn twisting_tube(segments: u32, rings: u32, frames: u32) -> Sequence {
     seq
 }
 
+/// The triangles of a `w` x `h` vertex grid (row-major vertex ids): two per cell, split along
+/// the diagonal from its first corner, `[i, i + 1, i + w + 1]` and `[i, i + w + 1, i + w]`.
+/// The topology of the small generated grids tests build.
+pub fn grid_triangles(w: u32, h: u32) -> Vec<[u32; 3]> {
+    let mut triangles = Vec::with_capacity(2 * (w.saturating_sub(1) * h.saturating_sub(1)) as usize);
+    for y in 0..h.saturating_sub(1) {
+        for x in 0..w.saturating_sub(1) {
+            let i = y * w + x;
+            triangles.push([i, i + 1, i + w + 1]);
+            triangles.push([i, i + w + 1, i + w]);
+        }
+    }
+    triangles
+}
+
 /// A `w` x `h` cloth sheet pinned along its top edge, waving with travelling waves.
 pub fn waving_cloth(w: u32, h: u32, frames: u32) -> Sequence {
     let (w, h) = (w.max(2), h.max(2));

@@ -82,6 +82,28 @@ pub fn glb_bytes(mesh: &TriMesh) -> Vec<u8> {
 /// materials, textures, samplers and images (as buffer views) as in the appearance. Errors
 /// name what does not match (the appearance is validated against the mesh) or the size.
 pub fn glb_bytes_with(mesh: &TriMesh, appearance: Option<&Appearance>) -> Result<Vec<u8>, MeshError> {
+    glb_document(mesh, appearance, WedgeNormals::FromPositions)
+}
+
+/// [`glb_bytes_with`] for a decoder's textured cut, whose appearance already holds the normals
+/// to show (`normals`, one per wedge, as `pmcodec-container` computes them over the cut, so
+/// that every decoder of the stream shows the same bits): they are written as given. Without
+/// normals in the appearance they are computed as in [`glb_bytes_with`].
+pub fn glb_bytes_with_normals(mesh: &TriMesh, appearance: &Appearance) -> Result<Vec<u8>, MeshError> {
+    let source = if appearance.normals.is_empty() { WedgeNormals::FromPositions } else { WedgeNormals::Given };
+    glb_document(mesh, Some(appearance), source)
+}
+
+/// Where a textured GLB's `NORMAL`s come from.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum WedgeNormals {
+    /// From the positions, split where the input's normals differ ([`wedge_normals`]).
+    FromPositions,
+    /// The appearance's own per-wedge normals.
+    Given,
+}
+
+fn glb_document(mesh: &TriMesh, appearance: Option<&Appearance>, normal_source: WedgeNormals) -> Result<Vec<u8>, MeshError> {
     let asset = json!({"version": "2.0", "generator": "pmcodec"});
     if mesh.triangles.is_empty() || mesh.positions.is_empty() {
         // One scene holding one node without a mesh: `scene.nodes` may not be an empty array
@@ -104,7 +126,10 @@ pub fn glb_bytes_with(mesh: &TriMesh, appearance: Option<&Appearance>) -> Result
             let positions: Vec<Vec3> = app.wedge_vertex.iter().map(|&v| mesh.positions[v as usize]).collect();
             let mut attributes = wedge_attributes(&mut b, app);
             attributes.insert("POSITION".into(), json!(b.vec3s(&positions, Some(ARRAY_BUFFER), true)));
-            let normals = wedge_normals(&mesh.positions, &mesh.triangles, app);
+            let normals = match normal_source {
+                WedgeNormals::FromPositions => wedge_normals(&mesh.positions, &mesh.triangles, app),
+                WedgeNormals::Given => app.normals.iter().map(|&n| Vec3::from_array(n)).collect(),
+            };
             attributes.insert("NORMAL".into(), json!(b.vec3s(&normals, Some(ARRAY_BUFFER), false)));
             write_looks(&mut b, app, &mut root);
             triangles_by_material(app)

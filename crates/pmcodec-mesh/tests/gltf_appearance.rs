@@ -7,13 +7,9 @@ use pmcodec_mesh::gltf_input::{GltfOptions, RiggedMesh, load_gltf, load_gltf_byt
 use pmcodec_mesh::{MeshError, Sequence};
 use serde_json::{Value, json};
 use std::collections::BTreeSet;
-use std::path::PathBuf;
 
-fn data(name: &str) -> PathBuf {
-    let path = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/gltf")).join(name);
-    assert!(path.is_file(), "{} is absent; these tests read the real models in ../shared/data beside the repository", path.display());
-    path
-}
+mod common;
+use common::{Bin, base64, data, glb};
 
 /// Checks what every appearance must satisfy and returns it.
 fn checked(seq: &Sequence) -> &Appearance {
@@ -106,65 +102,6 @@ fn horse_keeps_its_vertex_colours_and_uvs() {
 // Generated files
 // ------------------------------------------------------------------------------------------------
 
-#[derive(Default)]
-struct Bin {
-    bytes: Vec<u8>,
-    views: Vec<Value>,
-    accessors: Vec<Value>,
-}
-
-impl Bin {
-    fn view(&mut self, data: &[u8]) -> usize {
-        while !self.bytes.len().is_multiple_of(4) {
-            self.bytes.push(0);
-        }
-        self.views.push(json!({"buffer": 0, "byteOffset": self.bytes.len(), "byteLength": data.len()}));
-        self.bytes.extend_from_slice(data);
-        self.views.len() - 1
-    }
-    fn add(&mut self, data: &[u8], count: usize, ty: &str, component: u32, normalized: bool) -> usize {
-        let view = self.view(data);
-        let mut acc = json!({"bufferView": view, "componentType": component, "count": count, "type": ty});
-        if normalized {
-            acc["normalized"] = json!(true);
-        }
-        self.accessors.push(acc);
-        self.accessors.len() - 1
-    }
-    fn f32(&mut self, v: &[f32], ty: &str, dims: usize) -> usize {
-        let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
-        self.add(&bytes, v.len() / dims, ty, 5126, false)
-    }
-    fn document(&self, mut doc: Value) -> Value {
-        doc["asset"] = json!({"version": "2.0"});
-        doc["buffers"] = json!([{"byteLength": self.bytes.len()}]);
-        doc["bufferViews"] = Value::Array(self.views.clone());
-        doc["accessors"] = Value::Array(self.accessors.clone());
-        doc
-    }
-}
-
-fn glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
-    let mut j = serde_json::to_vec(doc).unwrap();
-    while !j.len().is_multiple_of(4) {
-        j.push(b' ');
-    }
-    let mut b = bin.to_vec();
-    while !b.len().is_multiple_of(4) {
-        b.push(0);
-    }
-    let mut out = b"glTF".to_vec();
-    out.extend(2u32.to_le_bytes());
-    out.extend(((12 + 8 + j.len() + 8 + b.len()) as u32).to_le_bytes());
-    out.extend((j.len() as u32).to_le_bytes());
-    out.extend(b"JSON");
-    out.extend(&j);
-    out.extend((b.len() as u32).to_le_bytes());
-    out.extend(b"BIN\0");
-    out.extend(&b);
-    out
-}
-
 const PNG: &[u8] = b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR-not-a-real-image-but-the-signature-is-right";
 const JPEG: &[u8] = b"\xFF\xD8\xFF\xE0\0\x10JFIF\0";
 
@@ -174,14 +111,14 @@ const JPEG: &[u8] = b"\xFF\xD8\xFF\xE0\0\x10JFIF\0";
 /// image 0 through sampler 0.
 fn two_material_square() -> (Bin, Value) {
     let mut bin = Bin::default();
-    let p0 = bin.f32(&[0., 0., 0., 1., 0., 0., 1., 1., 0.], "VEC3", 3);
-    let p1 = bin.f32(&[0., 0., 0., 1., 1., 0., 0., 1., 0.], "VEC3", 3);
-    let uv0 = bin.f32(&[0.0, 0.0, 0.5, 0.0, 0.5, 0.5], "VEC2", 2);
+    let p0 = bin.f32(&[0., 0., 0., 1., 0., 0., 1., 1., 0.], "VEC3");
+    let p1 = bin.f32(&[0., 0., 0., 1., 1., 0., 0., 1., 0.], "VEC3");
+    let uv0 = bin.f32(&[0.0, 0.0, 0.5, 0.0, 0.5, 0.5], "VEC2");
     // u8 normalised: 255 is 1.0.
     let uv1 = bin.add(&[128, 0, 255, 255, 128, 255], 3, "VEC2", 5121, true);
     // NORMAL as normalised i8 (KHR_mesh_quantization) for one primitive, float for the other.
     let n0 = bin.add(&[0, 0, 127, 0, 0, 127, 0, 0, 127], 3, "VEC3", 5120, true);
-    let n1 = bin.f32(&[0., 0., 1., 0., 0., 1., 0., 0., 1.], "VEC3", 3);
+    let n1 = bin.f32(&[0., 0., 1., 0., 0., 1., 0., 0., 1.], "VEC3");
     // COLOR_0 as VEC3 of normalised u8 and as VEC4 of normalised u16.
     let c0 = bin.add(&[255, 0, 0, 255, 0, 0, 255, 0, 0, 0], 3, "VEC3", 5121, true);
     let c1_bytes: Vec<u8> = [0u16, 65535, 0, 65535].repeat(3).iter().flat_map(|x| x.to_le_bytes()).collect();
@@ -265,8 +202,8 @@ fn duplicate_wedges_merge_and_unused_ones_go() {
     // Every triangle with its own vertices and equal attributes at shared positions: welding
     // leaves one wedge per vertex; a vertex no triangle uses takes its wedge with it.
     let mut bin = Bin::default();
-    let p = bin.f32(&[0., 0., 0., 1., 0., 0., 1., 1., 0., 0., 0., 0., 1., 1., 0., 0., 1., 0., 5., 5., 5.], "VEC3", 3);
-    let uv = bin.f32(&[0., 0., 1., 0., 1., 1., 0., 0., 1., 1., 0., 1., 9., 9.], "VEC2", 2);
+    let p = bin.f32(&[0., 0., 0., 1., 0., 0., 1., 1., 0., 0., 0., 0., 1., 1., 0., 0., 1., 0., 5., 5., 5.], "VEC3");
+    let uv = bin.f32(&[0., 0., 1., 0., 1., 1., 0., 0., 1., 1., 0., 1., 9., 9.], "VEC2");
     let idx = bin.add(&[0, 1, 2, 3, 4, 5], 6, "SCALAR", 5121, false);
     let doc = json!({"scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
         "meshes": [{"primitives": [{"attributes": {"POSITION": p, "TEXCOORD_0": uv}, "indices": idx}]}]});
@@ -279,18 +216,6 @@ fn duplicate_wedges_merge_and_unused_ones_go() {
     assert_eq!(app.materials[0].base_color_factor, [1.0; 4]);
     assert_eq!(app.materials[0].metallic_factor, 1.0);
     assert_eq!(app.triangle_material, [0, 0]);
-}
-
-fn base64(bytes: &[u8]) -> String {
-    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::new();
-    for chunk in bytes.chunks(3) {
-        let n = chunk.iter().enumerate().fold(0u32, |acc, (i, &b)| acc | (u32::from(b) << (16 - 8 * i)));
-        for i in 0..4 {
-            out.push(if i <= chunk.len() { ALPHABET[(n >> (18 - 6 * i) & 63) as usize] as char } else { '=' });
-        }
-    }
-    out
 }
 
 #[test]
@@ -345,18 +270,18 @@ fn bad_appearance_input_is_named() {
     assert!(e.contains("image 0") && e.contains("checker") && e.contains("neither PNG nor JPEG"), "{e}");
     // NaN texture coordinates.
     let e = error_after(&|d, b| {
-        let uv = b.f32(&[0.0, 0.0, f32::NAN, 0.0, 1.0, 1.0], "VEC2", 2);
+        let uv = b.f32(&[0.0, 0.0, f32::NAN, 0.0, 1.0, 1.0], "VEC2");
         d["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(uv);
     });
     assert!(e.contains("mesh 0 primitive 0 TEXCOORD_0") && e.contains("element 1") && e.contains("not a finite number"), "{e}");
     // An attribute whose count disagrees with POSITION's.
     let e = error_after(&|d, b| {
-        let c = b.f32(&[1.0; 8], "VEC4", 4);
+        let c = b.f32(&[1.0; 8], "VEC4");
         d["meshes"][0]["primitives"][1]["attributes"]["COLOR_0"] = json!(c);
     });
     assert!(e.contains("mesh 0 primitive 1 COLOR_0") && e.contains("2 elements but POSITION has 3"), "{e}");
     let e = error_after(&|d, b| {
-        let n = b.f32(&[0.0, 0.0, 1.0], "VEC3", 3);
+        let n = b.f32(&[0.0, 0.0, 1.0], "VEC3");
         d["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = json!(n);
     });
     assert!(e.contains("mesh 0 primitive 0 NORMAL") && e.contains("1 elements but POSITION has 3"), "{e}");

@@ -100,7 +100,7 @@ fn the_palette_holds_skin_joints_then_rigid_nodes_and_a_singular_bind_is_named()
     assert!(skin.warnings[0].contains("skin 0 joint 1 (node 1)") && skin.warnings[0].contains("not invertible"), "{}", skin.warnings[0]);
     // Everything the skin poses is what the rig poses.
     let posed = rig.pose(None, 0.0);
-    for v in 0..6 {
-        assert!((skin.pose_vertex(0, v) - posed[v]).length() < 1e-6, "vertex {v}");
+    for (v, p) in posed.iter().enumerate().take(6) {
+        assert!((skin.pose_vertex(0, v) - *p).length() < 1e-6, "vertex {v}");
     }
 }

@@ -394,7 +394,7 @@ fn run(shared: &Shared, key: &Key, job: &Job, mesh: &mut TriMesh) -> Result<Mesh
     let mut cut = |state: &mut Decoder<AssetSource>, mesh: &mut TriMesh| -> Result<(), ContainerError> {
         if textured {
             let (m, app) = state.textured_mesh(job.req.target)?;
-            body = Some(pmcodec_container::appearance::export::textured_glb(&m, &app));
+            body = Some(pmcodec_container::appearance::export::textured_glb(&m, &app)?);
             *mesh = m;
             Ok(())
         } else {

@@ -63,17 +63,6 @@ pub fn image(a: &LoadedAsset, n: u32) -> Result<(Bytes, &'static str), ApiError>
     })?;
     let reader = Reader::open(&a.bytes[..]).map_err(|e| ApiError::Internal(format!("asset {}: {e}", a.id)))?;
     let raw = reader.read_chunk(e).map_err(|e| ApiError::Internal(format!("asset {} image {n}: {e}", a.id)))?;
-    let mime = image_mime(&raw).unwrap_or("application/octet-stream");
+    let mime = pmcodec_mesh::appearance::image_mime_type(&raw).unwrap_or("application/octet-stream");
     Ok((Bytes::from(raw), mime))
-}
-
-/// The MIME type of encoded image bytes from their signature (the two glTF allows).
-fn image_mime(bytes: &[u8]) -> Option<&'static str> {
-    if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
-        Some("image/png")
-    } else if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
-        Some("image/jpeg")
-    } else {
-        None
-    }
 }

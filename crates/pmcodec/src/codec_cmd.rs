@@ -425,7 +425,7 @@ fn write_textured(
     use pmcodec_mesh::write::write_atomic;
     let is_obj = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"));
     if !is_obj {
-        return Ok(write_atomic(path, &export::textured_glb(mesh, app))?);
+        return Ok(write_atomic(path, &export::textured_glb(mesh, app)?)?);
     }
     let dir = path.parent().unwrap_or(Path::new("."));
     let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "mesh".into());

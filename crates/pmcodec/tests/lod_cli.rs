@@ -111,22 +111,8 @@ fn lod_bad_textures_exit_3() {
     let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
     let doc: serde_json::Value = serde_json::from_slice(&bytes[20..20 + len]).unwrap();
     let chunk = &bytes[20 + len + 8..];
-    let glb = |doc: &serde_json::Value| {
-        let mut j = serde_json::to_vec(doc).unwrap();
-        while !j.len().is_multiple_of(4) {
-            j.push(b' ');
-        }
-        let mut out = b"glTF".to_vec();
-        out.extend(2u32.to_le_bytes());
-        out.extend(((12 + 8 + j.len() + 8 + chunk.len()) as u32).to_le_bytes());
-        out.extend((j.len() as u32).to_le_bytes());
-        out.extend(b"JSON");
-        out.extend(&j);
-        out.extend((chunk.len() as u32).to_le_bytes());
-        out.extend(b"BIN\0");
-        out.extend(chunk);
-        out
-    };
+    // The Fox's own binary chunk under an edited JSON chunk, by the workspace's GLB assembler.
+    let glb = |doc: &serde_json::Value| pmcodec_mesh::glb::assemble(doc, chunk.to_vec()).unwrap();
     let dir = temp("textures");
     let out = dir.join("never.glb");
     let mut missing = doc.clone();

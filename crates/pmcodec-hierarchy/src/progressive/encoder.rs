@@ -13,6 +13,7 @@ pub struct Encoder {
 }
 
 impl Encoder {
+    /// An encoder starting from the base hierarchy H_0 of `triangles` (with its fine topology).
     pub fn new(base: Hierarchy, topo: FineTopology, triangles: Vec<[u32; 3]>, opts: ReclusterOptions) -> Self {
         let mut enc =
             Encoder { recluster: Reclusterer::new(base, topo, triangles, opts), node_of: Default::default(), corners: Vec::new() };

@@ -42,8 +42,11 @@ pub const BELOW: u32 = u32::MAX - 1;
 /// New level-`level` corners of triangle `t` (two equal corners: t is no longer alive there).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct CornerUpdate {
+    /// The level whose corners change.
     pub level: u32,
+    /// The fine triangle.
     pub t: u32,
+    /// Its new level-`level` corners (level-local ids).
     pub corners: [u32; 3],
 }
 
@@ -76,13 +79,16 @@ impl FrameDelta {
 /// level-j corners (empty for band 0, whose corners are the input triangles).
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct KeyBand {
+    /// Parent (level j + 1 local id) of every level-j node; empty for the top level.
     pub parent: Vec<u32>,
+    /// The triangles alive at level j, as (fine triangle, level-j corners).
     pub faces: Vec<(u32, [u32; 3])>,
 }
 
 /// A whole hierarchy, by band (index = level).
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Keyframe {
+    /// Band j holds level j.
     pub bands: Vec<KeyBand>,
 }
 
@@ -95,14 +101,27 @@ pub fn distinct(c: [u32; 3]) -> bool {
 /// Data that does not fit the hierarchy it is applied to.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 pub enum DeltaError {
+    /// A swap names a node or a cluster the level does not have.
+    // Fields: the swap's or update's index in its delta and the ids it names, as the message says.
+    #[allow(missing_docs)]
     #[error("swap {index}: level {level} has no node {v} or no cluster {to} above it")]
     SwapOutOfRange { index: usize, level: u32, v: u32, to: u32 },
+    /// A swap moves a node from a cluster it is not in.
+    // Fields: the swap's or update's index in its delta and the ids it names, as the message says.
+    #[allow(missing_docs)]
     #[error("swap {index}: node {v} of level {level} is in cluster {actual}, not {from}")]
     SwapMismatch { index: usize, level: u32, v: u32, from: u32, actual: u32 },
+    /// A swap would leave a cluster without nodes.
+    // Fields: the swap's or update's index in its delta and the ids it names, as the message says.
+    #[allow(missing_docs)]
     #[error("swap {index}: cluster {from} of level {} would be left empty", level + 1)]
     EmptyCluster { index: usize, level: u32, from: u32 },
+    /// A corner update names a triangle or a node the level does not have.
+    // Fields: the swap's or update's index in its delta and the ids it names, as the message says.
+    #[allow(missing_docs)]
     #[error("corner update {index}: triangle {triangle} or a corner out of range at level {level}")]
     CornerOutOfRange { index: usize, level: u32, triangle: u32 },
+    /// A keyframe that does not describe a hierarchy.
     #[error("keyframe: {0}")]
     Keyframe(String),
 }

@@ -14,6 +14,7 @@ use super::*;
 /// policy open; collapsing never raises the triangle count).
 #[derive(Clone, Debug)]
 pub struct Replay {
+    /// The hierarchy H_f as of the last frame applied.
     pub h: Hierarchy,
     /// Finest level this replay tracks.
     pub min_level: usize,
@@ -250,14 +251,17 @@ impl Replay {
         self.slot_in_shown.get(t as usize).is_some_and(|&s| s != NONE)
     }
 
+    /// Whether each node (global id) is expanded in the current cut.
     pub fn expanded(&self) -> &[bool] {
         &self.expanded
     }
 
+    /// D_g in the current hierarchy.
     pub fn degenerate_set(&self, g: u32) -> &[u32] {
         &self.sets[g as usize]
     }
 
+    /// The children of node `g` in the current hierarchy.
     pub fn children_of(&self, g: u32) -> &[u32] {
         &self.children[g as usize]
     }

@@ -9,7 +9,7 @@
 use super::looks_raw::{RawImage, RawLooks, RawTextureInfo};
 use super::*;
 use crate::Appearance;
-use crate::appearance::{AlphaMode, Image, Material, Sampler, Texture, TextureRef, TextureTransform};
+use crate::appearance::{AlphaMode, Image, Material, Sampler, Texture, TextureRef, TextureTransform, image_mime_type};
 
 /// The attributes of one primitive, each `None` when the primitive does not have it.
 pub(super) struct PrimitiveLooks {
@@ -285,18 +285,6 @@ fn read_material(raw: &RawLooks, m: usize, mat: &looks_raw::RawMaterial) -> Resu
         return Err(gltf_error(format!("material {m}: a factor is not a finite number")));
     }
     Ok(out)
-}
-
-/// PNG and JPEG by their signatures (PNG: ISO/IEC 15948 §5.2; JPEG: the SOI marker and the
-/// start of the next marker), whatever the file declares.
-pub fn image_mime_type(bytes: &[u8]) -> Option<&'static str> {
-    if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
-        Some("image/png")
-    } else if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
-        Some("image/jpeg")
-    } else {
-        None
-    }
 }
 
 /// The encoded bytes of image `i`: from a bufferView, a `data:` URI, or a file beside the glTF

@@ -81,7 +81,6 @@ mod tests;
 use self::animation::*;
 use self::draco::*;
 use self::file::*;
-pub use self::looks::image_mime_type;
 use self::looks::*;
 use self::meshopt::*;
 pub use self::rigged::*;

@@ -5,7 +5,7 @@
 //! faithful metallic-roughness equivalent, so materials come out dielectric and fully rough.
 
 use crate::MeshError;
-use crate::appearance::{AlphaMode, Image, Material};
+use crate::appearance::{AlphaMode, Image, Material, image_mime_type};
 use std::path::{Path, PathBuf};
 
 /// One `newmtl` block.
@@ -96,21 +96,10 @@ pub fn parse_mtl(text: &str, path: &Path) -> Result<Vec<MtlMaterial>, MeshError>
 /// `named_at` is the library and line that named it.
 pub fn read_image(path: &Path, named_at: &str) -> Result<Image, MeshError> {
     let bytes = read_limited(path, MAX_IMAGE_BYTES, &format!("texture named at {named_at}"))?;
-    let mime_type = image_mime(&bytes)
+    let mime_type = image_mime_type(&bytes)
         .ok_or_else(|| MeshError::Invalid(format!("{}: texture named at {named_at} is neither a PNG nor a JPEG image", path.display())))?;
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
     Ok(Image { name, mime_type: mime_type.to_string(), bytes })
-}
-
-/// The MIME type of encoded image bytes, from their signature: the two formats glTF allows.
-pub fn image_mime(bytes: &[u8]) -> Option<&'static str> {
-    if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
-        Some("image/png")
-    } else if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
-        Some("image/jpeg")
-    } else {
-        None
-    }
 }
 
 fn read_limited(path: &Path, max: u64, what: &str) -> Result<Vec<u8>, MeshError> {
