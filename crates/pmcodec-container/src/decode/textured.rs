@@ -81,7 +81,7 @@ impl<S: ByteSource> Decoder<S> {
             }
         }
         let diagonal = self.diagonal();
-        let mut d = self.take_derived()?;
+        let mut d = self.take_derived(!matches!(target, CutTarget::Level(_)))?;
         let replay = self.replay.as_mut().ok_or_else(|| ContainerError::Options("seek to a frame first".into()))?;
         let size = replay.h.level_sizes[replay.min_level];
         let corners_of = |c: [u32; 3]| {
