@@ -234,14 +234,15 @@ mod tests {
         };
         // Shown triangles over nodes of both levels, some degenerate (a repeated corner: zero
         // area) and some sharing nodes many times.
-        let shown: Vec<(u32, [u32; 3])> = (0..triangles)
-            .filter(|_| rnd(5) != 0)
-            .map(|t| {
-                let a = rnd(52);
-                let b = if rnd(10) == 0 { a } else { rnd(52) };
-                (t, [a, b, rnd(52)])
-            })
-            .collect();
+        let mut shown: Vec<(u32, [u32; 3])> = Vec::new();
+        for t in 0..triangles {
+            if rnd(5) == 0 {
+                continue;
+            }
+            let a = rnd(52);
+            let b = if rnd(10) == 0 { a } else { rnd(52) };
+            shown.push((t, [a, b, rnd(52)]));
+        }
         let (mesh, app) = textured_mesh(&d, &offsets, &positions, &shown).unwrap();
         let (tris, order, normals) = reference(&d, &positions, &shown);
         assert_eq!(mesh.triangles, tris);
@@ -251,10 +252,8 @@ mod tests {
             assert_eq!(mesh.positions[v], positions[g as usize]);
             assert_eq!(app.uv0[v], [level_of(g).1 as f32, k as f32], "vertex {v}");
         }
-        assert_eq!(
-            app.triangle_material,
-            shown.iter().map(|&(t, _)| d.charts.chart_material[d.charts.triangle_chart[t as usize] as usize]).collect::<Vec<_>>()
-        );
+        // The Materials chunk is empty here: every triangle draws with the default material.
+        assert!(app.triangle_material.is_empty());
         // A cut naming a node beyond the decoded ones is an error, not a panic.
         assert!(textured_mesh(&d, &offsets, &positions, &[(0, [0, 1, 60])]).is_err());
     }
