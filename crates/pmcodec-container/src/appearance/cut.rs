@@ -154,13 +154,12 @@ mod tests {
     use crate::appearance::payload::Table;
     use std::collections::HashMap;
 
+    /// Triangles, vertices as (node, chart, group), normals.
+    type Drawn = (Vec<[u32; 3]>, Vec<(u32, u32, u32)>, Vec<[f32; 3]>);
+
     /// proto/container.md, "Drawing a cut's appearance", transcribed with hash maps: vertices
     /// (g, k, s) in order of first use, N[(g, s)] summed in triangle order.
-    fn reference(
-        d: &DecodedAppearance,
-        positions: &[Vec3],
-        shown: &[(u32, [u32; 3])],
-    ) -> (Vec<[u32; 3]>, Vec<(u32, u32, u32)>, Vec<[f32; 3]>) {
+    fn reference(d: &DecodedAppearance, positions: &[Vec3], shown: &[(u32, [u32; 3])]) -> Drawn {
         let mut ids: HashMap<(u32, u32, u32), u32> = HashMap::new();
         let mut order = Vec::new();
         let mut n_sum: HashMap<(u32, u32), [f64; 3]> = HashMap::new();
@@ -209,7 +208,7 @@ mod tests {
         let table = |nodes: u32| Table {
             first: (0..=nodes).map(|n| 4 * n).collect(),
             charts: (0..nodes).flat_map(|_| 0..4).collect(),
-            values: (0..nodes).flat_map(|n| (0..4).flat_map(move |k| [n as i32, k as i32])).collect(),
+            values: (0..nodes).flat_map(|n| (0..4).flat_map(move |k| [n as i32, k])).collect(),
         };
         let triangles = 300u32;
         let d = DecodedAppearance {
