@@ -102,6 +102,12 @@ ROWS = [
     Row("seek", "playback and random seek with an open decoder, horse, CPU time",
         f"{RELEASE} && {HORSE_PMC} && " + example("pmcodec-container", "speed", "target/benchmarks/horse-gallop.pmc {secs}"),
         r"^(playback|random seek)", secs=(30, 3)),
+    Row("decode-normals", "decode at full resolution with normals computed, horse, CPU time: bare (level-0 cut, area-weighted vertex normals) and with a generated appearance (Decoder::textured_mesh: attributes and normals split at seams); bar 1,000 frames/s",
+        example("pmcodec-container", "decode_normals", f"{DATA}/horse-gallop {{secs}}"), r"^decode with normals", secs=(20, 3)),
+    # Issue 16's size bar: appearance bytes beside Draco's for the same attributes.
+    Row("attribute-sizes", "texture coordinates, colours and material ids: pmcodec's appearance bytes beside Draco's (draco3d, Edgebreaker, default prediction) on the same mesh at the same quantization, and the textures' own bytes",
+        f"(cd tests && npm ci --no-audit --no-fund -s) && {RELEASE} && node scripts/attribute-sizes.mjs {BIN} {DATA}/gltf/Fox.glb {DATA}/gltf/RobotExpressive.glb",
+        r"^\S+\.glb:|^  (draco|pmcodec|ratio)"),
     # LODs of skinned and morph-target glTF (Mohr & Gleicher, "Deformation Sensitive Decimation",
     # 2003; Houle & Poulin, "Simplification and Real-time Smooth Transitions of Articulated
     # Meshes", 2001).

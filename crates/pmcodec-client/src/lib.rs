@@ -5,7 +5,7 @@
 #![warn(missing_docs)]
 
 use pmcodec_container::{ByteSource, ChunkEntry, ChunkKind, ContainerError, CutTarget, Decoder, Distance, Reader};
-use pmcodec_mesh::TriMesh;
+use pmcodec_mesh::{Appearance, TriMesh};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
@@ -93,7 +93,23 @@ impl Client {
 
     /// LOD on demand: frame `frame` cut by the server (compact binary format).
     pub async fn mesh(&self, id: &str, frame: u32, target: CutTarget) -> Result<TriMesh, ClientError> {
-        let q = match target {
+        let q = Self::cut_query(target)?;
+        let bytes = self.get(&format!("/v1/assets/{id}/mesh?frame={frame}&{q}&format=bin"), None).await?.bytes().await?;
+        parse_bin_mesh(&bytes)
+    }
+
+    /// LOD on demand with the appearance (`format=bin&layout=3`): the cut's normals and, for an
+    /// asset with an appearance, texture coordinates, colours and each triangle's material (an
+    /// index into [`AssetInfo::appearance`]'s materials; the textures are at their own URLs).
+    /// Triangles come grouped by material.
+    pub async fn textured_mesh(&self, id: &str, frame: u32, target: CutTarget) -> Result<(TriMesh, Appearance), ClientError> {
+        let q = Self::cut_query(target)?;
+        let bytes = self.get(&format!("/v1/assets/{id}/mesh?frame={frame}&{q}&format=bin&layout=3"), None).await?.bytes().await?;
+        parse_bin_textured(&bytes)
+    }
+
+    fn cut_query(target: CutTarget) -> Result<String, ClientError> {
+        Ok(match target {
             CutTarget::Triangles(n) => format!("triangles={n}"),
             CutTarget::Level(l) => format!("level={l}"),
             CutTarget::MaxError(Distance::DiagonalFraction(e)) => format!("max_error={e}"),
@@ -101,9 +117,7 @@ impl Client {
                 return Err(ClientError::Protocol("the server takes max_error as a fraction of the diagonal".into()));
             }
             CutTarget::Vertices(_) => return Err(ClientError::Protocol("the server cuts by triangles, level or error".into())),
-        };
-        let bytes = self.get(&format!("/v1/assets/{id}/mesh?frame={frame}&{q}&format=bin"), None).await?.bytes().await?;
-        parse_bin_mesh(&bytes)
+        })
     }
 
     /// Opens a playback session at a triangle budget.
@@ -115,6 +129,12 @@ impl Client {
 /// Parses the compact binary mesh of proto/http.md.
 pub fn parse_bin_mesh(b: &[u8]) -> Result<TriMesh, ClientError> {
     pmcodec_mesh::binmesh::decode_bin(b).map_err(|e| ClientError::Protocol(e.to_string()))
+}
+
+/// Parses the compact binary mesh of proto/http.md with its appearance (layout 3; layouts 1
+/// and 2 give an empty appearance).
+pub fn parse_bin_textured(b: &[u8]) -> Result<(TriMesh, Appearance), ClientError> {
+    pmcodec_mesh::binmesh::decode_bin_appearance(b).map_err(|e| ClientError::Protocol(e.to_string()))
 }
 
 /// The byte ranges fetched so far: a [`ByteSource`] that serves what was prefetched and

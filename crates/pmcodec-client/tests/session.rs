@@ -63,3 +63,38 @@ fn binary_meshes_are_checked() {
     b.extend_from_slice(&[0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0]);
     assert!(parse_bin_mesh(&b).unwrap_err().to_string().contains("index out of range"));
 }
+
+#[tokio::test]
+async fn textured_meshes_come_with_their_appearance() {
+    let dir = std::env::temp_dir().join(format!("pmcodec-client-textured-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let seq = pmcodec_mesh::samples::textured_cloth(14, 9, 3, 16);
+    let bytes = pmcodec_container::encode(&seq, &Default::default(), |_| {}).unwrap();
+    std::fs::write(dir.join("cloth.pmc"), &bytes).unwrap();
+    let config = pmcodec_server::Config {
+        store: pmcodec_server::config::StoreConfig::Local { path: dir.clone() },
+        listen: "127.0.0.1:0".parse().unwrap(),
+        ..Default::default()
+    };
+    let server = pmcodec_server::start(config).await.unwrap();
+    let client = Client::new(&server.url()).unwrap();
+    let info = client.asset("cloth").await.unwrap();
+    let materials = info.appearance.as_ref().unwrap().materials.len();
+    let (mesh, app) = client.textured_mesh("cloth", 1, CutTarget::Triangles(90)).await.unwrap();
+    assert!(!mesh.triangles.is_empty() && mesh.triangles.len() <= 90);
+    assert_eq!(app.uv0.len(), mesh.positions.len());
+    assert_eq!(app.colors.len(), mesh.positions.len());
+    assert_eq!(app.normals.len(), mesh.positions.len());
+    assert_eq!(app.triangle_material.len(), mesh.triangles.len());
+    assert!(app.triangle_material.iter().all(|&m| (m as usize) < materials));
+    // What the container's own decoder draws for the same cut.
+    let reader = Reader::open(bytes.as_slice()).unwrap();
+    let mut local = Decoder::new(reader.borrowed(), 0).unwrap();
+    local.seek(1).unwrap();
+    let (want_mesh, want) = local.textured_mesh(CutTarget::Triangles(90)).unwrap();
+    assert_eq!((&mesh.positions, &app.uv0, &app.normals, &app.colors), (&want_mesh.positions, &want.uv0, &want.normals, &want.colors));
+    // The plain call still gets layout 2's bare mesh.
+    let bare = client.mesh("cloth", 1, CutTarget::Triangles(90)).await.unwrap();
+    assert_eq!(bare.triangles.len(), mesh.triangles.len());
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -69,6 +69,10 @@ struct Derived {
     /// The frame these were computed for.
     frame: Option<u32>,
     positions: Vec<Vec3>,
+    /// Whether `errors` and `order` are this frame's: a level cut needs neither, so they are
+    /// computed on the first budget or error cut of the frame only (a full-resolution player
+    /// pays for positions alone).
+    ordered: bool,
     errors: Vec<f64>,
     order: SplitOrder,
 }
@@ -477,7 +481,7 @@ impl<S: ByteSource> Decoder<S> {
     /// player that cuts again and again allocates nothing for budget and error cuts once the
     /// buffers have grown.
     pub fn mesh_into(&mut self, target: CutTarget, mesh: &mut TriMesh) -> Result<(), ContainerError> {
-        let mut derived = self.take_derived()?;
+        let mut derived = self.take_derived(!matches!(target, CutTarget::Level(_)))?;
         let result = self.cut(target, &mut derived, mesh);
         self.derived = Some(derived);
         result
@@ -486,21 +490,26 @@ impl<S: ByteSource> Decoder<S> {
     /// The current frame's derived state (positions, split priorities, split order), taken
     /// out of the decoder: kept from the last cut of this frame, or recomputed in the buffers of
     /// the last frame's. The caller puts it back.
-    fn take_derived(&mut self) -> Result<Derived, ContainerError> {
+    fn take_derived(&mut self, need_order: bool) -> Result<Derived, ContainerError> {
         let Some(replay) = self.replay.as_ref() else {
             return Err(ContainerError::Options("seek to a frame first".into()));
         };
-        Ok(match self.derived.take() {
+        let mut d = match self.derived.take() {
             Some(d) if d.frame.is_some() && d.frame == self.frame => d,
             stale => {
                 let mut d = stale.unwrap_or_default();
                 self.positions_into(&mut d.positions);
-                replay.node_errors_into(&d.positions, &mut d.errors);
-                d.order.reset(replay, &d.errors);
+                d.ordered = false;
                 d.frame = self.frame;
                 d
             }
-        })
+        };
+        if need_order && !d.ordered {
+            replay.node_errors_into(&d.positions, &mut d.errors);
+            d.order.reset(replay, &d.errors);
+            d.ordered = true;
+        }
+        Ok(d)
     }
 
     /// The header's bounding-box diagonal: what a `MaxError` diagonal fraction is of.
@@ -517,7 +526,7 @@ impl<S: ByteSource> Decoder<S> {
             return Err(ContainerError::Options(format!("cut triangles of level {l}: give a budget or an error")));
         }
         let diagonal = self.diagonal();
-        let mut d = self.take_derived()?;
+        let mut d = self.take_derived(true)?;
         let result = match self.replay.as_ref() {
             Some(replay) => {
                 // Never `Err`: levels are refused above.

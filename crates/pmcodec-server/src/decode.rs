@@ -30,7 +30,7 @@
 use crate::ApiError;
 use crate::assets::LoadedAsset;
 use crate::lru::Lru;
-use crate::meshfmt::{MeshFormat, encode_mesh};
+use crate::meshfmt::{MeshFormat, encode_bin_v3, encode_mesh};
 use bytes::Bytes;
 use pmcodec_container::{ByteSource, ContainerError, CutTarget, Decoder, Reader};
 use pmcodec_mesh::TriMesh;
@@ -387,14 +387,18 @@ fn run(shared: &Shared, key: &Key, job: &Job, mesh: &mut TriMesh) -> Result<Mesh
         };
         (cached, earlier, inner.purges)
     };
-    // A GLB of an asset with an appearance carries it (UVs, normals, colours, materials,
-    // textures); everything else is the bare mesh.
-    let textured = job.req.format == MeshFormat::Glb && asset.header.appearance.is_some();
+    // A GLB or a layout 3 binary of an asset with an appearance carries it (UVs, normals,
+    // colours, materials; the GLB the textures too); everything else is the bare mesh.
+    let textured = matches!(job.req.format, MeshFormat::Glb | MeshFormat::Bin3) && asset.header.appearance.is_some();
     let mut body: Option<Vec<u8>> = None;
     let mut cut = |state: &mut Decoder<AssetSource>, mesh: &mut TriMesh| -> Result<(), ContainerError> {
         if textured {
             let (m, app) = state.textured_mesh(job.req.target)?;
-            body = Some(pmcodec_container::appearance::export::textured_glb(&m, &app)?);
+            body = Some(if job.req.format == MeshFormat::Bin3 {
+                encode_bin_v3(&m, &app).map_err(|e| ContainerError::Options(e.to_string()))?
+            } else {
+                pmcodec_container::appearance::export::textured_glb(&m, &app)?
+            });
             *mesh = m;
             Ok(())
         } else {

@@ -33,7 +33,7 @@ pub mod upload;
 pub use config::Config;
 pub use error::{ApiError, ServerError};
 pub use id::AssetId;
-pub use meshfmt::{MESH_MAGIC, MeshFormat, decode_bin, encode_bin};
+pub use meshfmt::{MESH_MAGIC, MeshFormat, decode_bin, decode_bin_appearance, encode_bin, encode_bin_v3};
 pub use routes::{mounted_routes, router};
 pub use store::{AssetStore, PutMode, StoreError};
 

@@ -386,6 +386,8 @@ struct MeshQuery {
     level: Option<usize>,
     max_error: Option<f64>,
     format: Option<String>,
+    /// The compact binary's layout version: 2 (the default) or 3 (with the appearance).
+    layout: Option<u32>,
 }
 
 impl MeshQuery {
@@ -411,6 +413,14 @@ impl MeshQuery {
         let format = match self.format.as_deref() {
             None => MeshFormat::Glb,
             Some(f) => MeshFormat::parse(f).ok_or_else(|| ApiError::BadRequest(format!("format {f:?}: use glb or bin")))?,
+        };
+        // Layout 3 is opt-in so that clients reading only layouts 1 and 2 keep working.
+        let format = match (format, self.layout) {
+            (f, None) => f,
+            (MeshFormat::Bin, Some(2)) => MeshFormat::Bin,
+            (MeshFormat::Bin, Some(3)) => MeshFormat::Bin3,
+            (MeshFormat::Bin, Some(l)) => return Err(ApiError::BadRequest(format!("layout {l}: use 2 or 3"))),
+            (_, Some(_)) => return Err(ApiError::BadRequest("layout applies to format=bin only".into())),
         };
         Ok(MeshRequest { frame, target, format })
     }

@@ -78,3 +78,58 @@ async fn textured_assets_describe_and_serve_their_appearance() {
     }
     assert!(triangles > 0 && triangles <= 120, "{triangles}");
 }
+
+#[tokio::test]
+async fn binary_layout_3_carries_the_appearance_on_request() {
+    let seq = pmcodec_mesh::samples::textured_cloth(16, 10, 4, 16);
+    let bytes = pmcodec_container::encode(&seq, &Default::default(), |_| {}).unwrap();
+    let bare = pmcodec_container::encode(&pmcodec_mesh::samples::twisting_tube(12, 10, 3), &Default::default(), |_| {}).unwrap();
+    let store: Arc<dyn AssetStore> = Arc::new(MemoryStore::default());
+    store.put(&AssetId::parse("textured").unwrap(), bytes.clone().into(), PutMode::Overwrite).await.unwrap();
+    store.put(&AssetId::parse("bare").unwrap(), bare.into(), PutMode::Overwrite).await.unwrap();
+    let state = AppState::new(Config::default(), store).unwrap();
+    state.set_ready(true);
+    let app = router(state);
+
+    // Without `layout` the answer stays layout 2, which older clients read.
+    let (status, _, body) = get(&app, "/v1/assets/textured/mesh?frame=2&triangles=120&format=bin", &[]).await;
+    assert_eq!(status, StatusCode::OK);
+    assert_eq!(&body[4..8], &2u32.to_le_bytes());
+
+    let (status, headers, body) = get(&app, "/v1/assets/textured/mesh?frame=2&triangles=120&format=bin&layout=3", &[]).await;
+    assert_eq!(status, StatusCode::OK);
+    assert_eq!(headers["content-type"], "application/vnd.pmcodec.mesh");
+    assert!(headers["etag"].to_str().unwrap().contains("-bin3-"), "{:?}", headers["etag"]);
+    let (mesh, got) = pmcodec_server::decode_bin_appearance(&body).unwrap();
+    assert!(!mesh.triangles.is_empty() && mesh.triangles.len() <= 120);
+    // The same cut the decoder draws locally: same vertices and attributes in the same order,
+    // the same triangles with the same materials (grouped by material in the body).
+    let reader = pmcodec_container::Reader::open(bytes.as_slice()).unwrap();
+    let mut d = pmcodec_container::Decoder::new(reader.borrowed(), 0).unwrap();
+    d.seek(2).unwrap();
+    let (want_mesh, want) = d.textured_mesh(pmcodec_container::CutTarget::Triangles(120)).unwrap();
+    assert_eq!(mesh.positions, want_mesh.positions);
+    assert_eq!((&got.uv0, &got.normals), (&want.uv0, &want.normals));
+    assert_eq!(got.colors.len(), want.colors.len());
+    let sorted = |m: &[u32], t: &[[u32; 3]]| {
+        let mut v: Vec<(u32, [u32; 3])> = m.iter().copied().zip(t.iter().copied()).collect();
+        v.sort();
+        v
+    };
+    assert_eq!(sorted(&got.triangle_material, &mesh.triangles), sorted(&want.triangle_material, &want_mesh.triangles));
+    assert!(got.triangle_material.windows(2).all(|w| w[0] <= w[1]), "triangles grouped by material");
+    assert_eq!(got.triangle_material.iter().max(), Some(&1), "both materials of the cloth are shown");
+
+    // A bare asset's layout 3 carries unit normals and nothing else.
+    let (status, _, body) = get(&app, "/v1/assets/bare/mesh?frame=1&level=0&format=bin&layout=3", &[]).await;
+    assert_eq!(status, StatusCode::OK);
+    let (mesh, got) = pmcodec_server::decode_bin_appearance(&body).unwrap();
+    assert_eq!(got.normals.len(), mesh.positions.len());
+    assert!(got.normals.iter().all(|n| ((n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() - 1.0).abs() < 1e-5));
+    assert!(got.uv0.is_empty() && got.triangle_material.is_empty());
+
+    for bad in ["format=bin&layout=4", "format=glb&layout=3", "layout=3", "format=bin&layout=x"] {
+        let (status, _, _) = get(&app, &format!("/v1/assets/textured/mesh?frame=0&{bad}"), &[]).await;
+        assert_eq!(status, StatusCode::BAD_REQUEST, "{bad}");
+    }
+}

@@ -81,7 +81,7 @@ impl<S: ByteSource> Decoder<S> {
             }
         }
         let diagonal = self.diagonal();
-        let mut d = self.take_derived()?;
+        let mut d = self.take_derived(!matches!(target, CutTarget::Level(_)))?;
         let replay = self.replay.as_mut().ok_or_else(|| ContainerError::Options("seek to a frame first".into()))?;
         let size = replay.h.level_sizes[replay.min_level];
         let corners_of = |c: [u32; 3]| {
@@ -97,8 +97,22 @@ impl<S: ByteSource> Decoder<S> {
             }
             Err(l) => {
                 replay.select_level(l);
-                let mut ts = replay.shown().to_vec();
-                ts.sort_unstable();
+                // Mesh order: a small cut sorts its shown triangles, a large one (a player at
+                // full resolution, every frame) marks them and passes over the triangles once.
+                let count = replay.corners().len();
+                let ts: Vec<u32> = if replay.shown().len() * 16 < count {
+                    let mut ts = replay.shown().to_vec();
+                    ts.sort_unstable();
+                    ts
+                } else {
+                    let mut mark = vec![false; count];
+                    for &t in replay.shown() {
+                        if let Some(m) = mark.get_mut(t as usize) {
+                            *m = true;
+                        }
+                    }
+                    (0..count as u32).filter(|&t| mark[t as usize]).collect()
+                };
                 for t in ts {
                     let c = corners_of(replay.corners()[t as usize])?;
                     shown.push((t, c.map(|v| replay.cut_node_of(v))));
