@@ -484,11 +484,9 @@ pub fn encode_until(
         }
         if skin.is_some() {
             // Top band first, as the bands themselves.
-            let mut at = pose_at;
-            for j in (0..levels).rev().filter(|&j| has_palette_chunk(&bands, j)) {
+            for (at, j) in (pose_at..).zip((0..levels).rev().filter(|&j| has_palette_chunk(&bands, j))) {
                 let raw = write_palette(mask, &bands[j], &palette, held.prediction(intra));
                 chunks.insert(at, ChunkKind::Palette, f as u32, j as u32, raw)?;
-                at += 1;
             }
             held.advance(std::mem::take(&mut palette), intra, mask);
         }

@@ -261,7 +261,7 @@ pub fn read_palette(
         for (k, m) in moved.iter_mut().enumerate() {
             *m = bits[k / 8] >> (k % 8) & 1 == 1;
         }
-        if entries.len() % 8 != 0 && bits[n - 1] >> (entries.len() % 8) != 0 {
+        if !entries.len().is_multiple_of(8) && bits[n - 1] >> (entries.len() % 8) != 0 {
             return Err(c.corrupt(format!("bits set beyond its {} entries", entries.len())));
         }
         c.pos += n;
