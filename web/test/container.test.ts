@@ -7,7 +7,7 @@ import { execFileSync } from "node:child_process";
 import { existsSync, mkdtempSync, readdirSync, readFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
-import { BELOW, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, dequantizeUv, texturedMesh } from "../src/container/index.js";
+import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, dequantizeUv, texturedMesh } from "../src/container/index.js";
 
 const root = repoRoot();
 const bin = pmcodecBin(root);
@@ -290,4 +290,24 @@ test("a lenient textured mesh fills in (node, chart) entries a budget cut reache
     else assert.throws(() => texturedMesh(a, looks.charts, looks.tables, r.offsets, pos, shown, cut), DecodeError);
     if (share === 1) assert.equal(absent, 0, "the whole mesh has every entry");
   }
+});
+
+test("skinned streams' palettes: the encoder writes Palette chunks, and a stream with the older Pose chunks still reads as Rust reads it", async () => {
+  const fox = join(root, "../shared/data/gltf/Fox.glb");
+  const file = join(dir, "fox-palette.pmc");
+  execFileSync(bin, ["encode", "-q", fox, "-o", file, "--keyframe-interval", "8", "--quant-bits", "12"]);
+  const c = await open(file);
+  assert.ok(c.index.some((e) => e.kind === ChunkKind.Palette) && !c.index.some((e) => e.kind === ChunkKind.Pose));
+  // Today's files leave empty Delta and Corners chunks out and store small chunks as they are
+  // (sameAsRust reads the Fox stream so in the test above); older files have neither flag.
+  assert.equal(c.flags, 3);
+  assert.ok(c.index.filter((e) => e.kind === ChunkKind.Delta).length < c.header.frameCount * c.header.levelSizes.length);
+  assert.ok(c.index.some((e) => e.storedLen === e.rawLen));
+  // The top band has one in every frame: it carries the band mask to every client.
+  const top = c.header.levelSizes.length - 1;
+  assert.equal(c.index.filter((e) => e.kind === ChunkKind.Palette && e.band === top).length, c.header.frameCount);
+  const old = join(root, "crates/pmcodec-container/tests/corpus/valid-skinned-tube-k4.pmc");
+  const o = await sameAsRust(old, "old-pose");
+  assert.ok(o.index.some((e) => e.kind === ChunkKind.Pose) && !o.index.some((e) => e.kind === ChunkKind.Palette));
+  assert.equal(o.flags, 0);
 });

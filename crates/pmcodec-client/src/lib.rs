@@ -282,7 +282,7 @@ impl Session {
             e.frame > frame
                 && e.frame <= last
                 && e.kind.read_at(e.band as usize, level)
-                && matches!(e.kind, ChunkKind::Delta | ChunkKind::Positions | ChunkKind::Corners | ChunkKind::Pose)
+                && matches!(e.kind, ChunkKind::Delta | ChunkKind::Positions | ChunkKind::Corners | ChunkKind::Pose | ChunkKind::Palette)
         }));
         let start = self.decoder.reader().data_start();
         let mut spans: Vec<(u64, u64)> = wanted

@@ -56,6 +56,30 @@ fn main() {
         let secs = t.elapsed().as_secs_f64();
         let r = Reader::open(bytes.as_slice()).expect("open");
         let s = summary(&r);
+        // Stored bytes and chunk count per kind, and what the preamble, header and index take.
+        let mut kinds: std::collections::BTreeMap<&str, (u64, u64)> = Default::default();
+        for e in &r.index().chunks {
+            let k = kinds.entry(e.kind.name()).or_default();
+            k.0 += e.stored_len as u64;
+            k.1 += 1;
+        }
+        let table: Vec<String> = kinds.iter().map(|(k, (b, c))| format!("{k} {b} B in {c}")).collect();
+        println!("    preamble, header and index {} B; {}", r.data_start(), table.join(", "));
+        // PMC_OUT=dir: the skinned file, and every frame's quantized node positions as the Rust
+        // decoder stores them at levels 0 and 1 (i32 little-endian, frame after frame), for
+        // comparing other decoders with.
+        if let (Some(dir), Some(_)) = (std::env::var_os("PMC_OUT"), skin) {
+            std::fs::write(Path::new(&dir).join("skinned.pmc"), &bytes).expect("write");
+            for level in [0, 1] {
+                let mut d = Decoder::new(r.borrowed(), level).expect("decoder");
+                let mut out = Vec::new();
+                for f in 0..r.header().frame_count {
+                    d.seek(f).expect("frame");
+                    out.extend(d.quantized().iter().flatten().flat_map(|v| v.to_le_bytes()));
+                }
+                std::fs::write(Path::new(&dir).join(format!("skinned-level{level}.q")), out).expect("write");
+            }
+        }
         let full = bytes_at(&bytes, 0) as f64;
         // The levels the default anchors put at 25% and 10% of the input.
         let sizes = &s.header.level_sizes;

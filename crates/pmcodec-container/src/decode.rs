@@ -7,7 +7,7 @@ use crate::appearance::DecodedAppearance;
 use crate::format::{ChunkKind, Motion};
 use crate::payload;
 use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, predict};
-use crate::skin::{NodeSkin, SkinState, predict_skinned, read_binds, read_pose};
+use crate::skin::{NodeSkin, SkinState, band_entries, has_palette_chunk, predict_skinned, read_binds, read_palette, read_pose};
 use crate::{ByteSource, ContainerError, Reader};
 use glam::Vec3;
 use pmcodec_hierarchy::CutTarget;
@@ -149,7 +149,7 @@ impl<S: ByteSource> Decoder<S> {
                 ChunkKind::Triangles => load_key && self.triangles.is_none(),
                 ChunkKind::Key | ChunkKind::Faces => load_key && e.frame == key,
                 ChunkKind::Delta | ChunkKind::Corners => e.frame >= first_delta && e.frame <= frame,
-                ChunkKind::Positions | ChunkKind::Pose => e.frame >= first_positions && e.frame <= frame,
+                ChunkKind::Positions | ChunkKind::Pose | ChunkKind::Palette => e.frame >= first_positions && e.frame <= frame,
                 // Read once, with the first keyframe; images are fetched on their own.
                 ChunkKind::Charts | ChunkKind::Materials | ChunkKind::Attributes => load_key && self.looks.is_none(),
                 ChunkKind::Image => false,
@@ -167,7 +167,11 @@ impl<S: ByteSource> Decoder<S> {
     }
 
     fn chunk(&self, kind: ChunkKind, frame: u32, band: usize) -> Result<Vec<u8>, ContainerError> {
-        let e = self.reader.find(kind, frame, band as u32).ok_or_else(|| ContainerError::Corrupt {
+        let found = self.reader.find(kind, frame, band as u32);
+        if found.is_none() && crate::format::sparse_kind(kind, self.reader.flags()) {
+            return Ok(vec![0]);
+        }
+        let e = found.ok_or_else(|| ContainerError::Corrupt {
             what: format!("frame {frame} band {band} {}", kind.name()),
             detail: "missing from the index".into(),
         })?;
@@ -352,6 +356,14 @@ impl<S: ByteSource> Decoder<S> {
             }
             offset += size as usize;
         }
+        // Files written since the Palette chunk have no Pose chunks.
+        if !self.reader.index().chunks.iter().any(|e| e.kind == ChunkKind::Pose) {
+            let mut offsets = vec![0u32];
+            for &n in &h.level_sizes {
+                offsets.push(offsets.last().copied().unwrap_or(0).saturating_add(n));
+            }
+            state.bands = Some(band_entries(&state.nodes, &offsets, self.min_level, palette));
+        }
         Ok(state)
     }
 
@@ -359,11 +371,26 @@ impl<S: ByteSource> Decoder<S> {
     /// mask, applied by [`Decoder::commit_pose`] once the rest of the frame is read.
     fn read_pose(&self, frame: u32, intra: bool) -> Result<Option<(Vec<i64>, u64, bool)>, ContainerError> {
         let (Some(sh), Some(state)) = (self.reader.header().skin.as_ref(), self.skin.as_ref()) else { return Ok(None) };
-        let raw = self.chunk(ChunkKind::Pose, frame, 0)?;
-        let mut palette = Vec::new();
-        let counts = (sh.palette_len, self.reader.header().levels());
-        let mask = read_pose(&raw, &format!("frame {frame} pose"), counts, state.prediction(intra), &mut palette)?;
-        Ok(Some((palette, mask, intra)))
+        let levels = self.reader.header().levels();
+        let Some(bands) = state.bands.as_ref() else {
+            let raw = self.chunk(ChunkKind::Pose, frame, 0)?;
+            let mut palette = Vec::new();
+            let mask = read_pose(&raw, &format!("frame {frame} pose"), (sh.palette_len, levels), state.prediction(intra), &mut palette)?;
+            return Ok(Some((palette, mask, intra)));
+        };
+        // Entries of bands this decoder does not read stay 0: none of its nodes uses them.
+        let mut palette = vec![0i64; sh.palette_len as usize * crate::skin::ENTRY];
+        let mut mask = None;
+        for j in (self.min_level..levels).rev().filter(|&j| has_palette_chunk(bands, j)) {
+            let raw = self.chunk(ChunkKind::Palette, frame, j)?;
+            let what = format!("frame {frame} band {j} palette");
+            let m = read_palette(&raw, &what, &bands[j], levels, state.prediction(intra), &mut palette)?;
+            if mask.is_some_and(|before| before != m) {
+                return Err(ContainerError::Corrupt { what, detail: format!("band mask {m:#x} where the band above says otherwise") });
+            }
+            mask = Some(m);
+        }
+        Ok(Some((palette, mask.unwrap_or(0), intra)))
     }
 
     fn commit_pose(&mut self, pose: Option<(Vec<i64>, u64, bool)>) {

@@ -5,7 +5,7 @@ use crate::ContainerError;
 use crate::format::*;
 use crate::payload;
 use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, coarse_shift, predict};
-use crate::skin::{NodeSkin, SkinFit, SkinState, fit_skin, predict_skinned, write_binds, write_pose};
+use crate::skin::{NodeSkin, SkinFit, SkinState, band_entries, fit_skin, has_palette_chunk, predict_skinned, write_binds, write_palette};
 use glam::Vec3;
 use pmcodec_hierarchy::base::{BaseOptions, PoseSet, VertexWeights, base_quadrics};
 use pmcodec_hierarchy::progressive::{Encoder, FrameDelta};
@@ -50,6 +50,10 @@ pub struct EncodeOptions {
     /// For a skinned sequence, where coarse nodes sit in bind space; `None` encodes it as any
     /// other sequence. Skinning then predicts every band whose frame it pays for.
     pub skin: Option<SkinPlacement>,
+    /// The preamble flags to write with (`format::FLAGS`, the default: small chunks stored as
+    /// they are, empty Delta and Corners chunks left out; 0: every chunk a zstd frame, as files
+    /// before the flags, for comparison). Unknown bits are dropped.
+    pub chunk_flags: u16,
 }
 
 /// Where a coarse node of a skinned sequence sits in bind space (input vertices keep their
@@ -78,6 +82,7 @@ impl Default for EncodeOptions {
             motion: Motion::KeyframeAffine,
             order: VertexOrder::BreadthFirst,
             skin: Some(SkinPlacement::default()),
+            chunk_flags: crate::format::FLAGS,
         }
     }
 }
@@ -212,8 +217,7 @@ fn header(seq: &Sequence, opts: &EncodeOptions, (lo, hi): (Vec3, Vec3), step: f3
 }
 
 /// The chunks written so far, compressed, in file order.
-#[derive(Default)]
-struct Chunks(Vec<(ChunkEntry, Vec<u8>)>);
+struct Chunks(Vec<(ChunkEntry, Vec<u8>)>, u16);
 
 impl Chunks {
     /// Where the next chunk goes.
@@ -222,8 +226,8 @@ impl Chunks {
     }
 
     /// Puts a chunk before the one at `at` (a frame's pose, known once its bands are coded).
-    fn insert(&mut self, at: usize, kind: ChunkKind, frame: u32, raw: Vec<u8>) -> Result<(), ContainerError> {
-        self.push(kind, frame, 0, raw)?;
+    fn insert(&mut self, at: usize, kind: ChunkKind, frame: u32, band: u32, raw: Vec<u8>) -> Result<(), ContainerError> {
+        self.push(kind, frame, band, raw)?;
         if let Some(c) = self.0.pop() {
             self.0.insert(at, c);
         }
@@ -231,7 +235,11 @@ impl Chunks {
     }
 
     fn push(&mut self, kind: ChunkKind, frame: u32, band: u32, raw: Vec<u8>) -> Result<(), ContainerError> {
-        let stored = zstd::bulk::compress(&raw, ZSTD_LEVEL).map_err(|e| ContainerError::Io(format!("zstd: {e}")))?;
+        // Nothing to say: left out (FLAG_SPARSE), and read as empty.
+        if crate::format::sparse_kind(kind, self.1) && raw == [0] {
+            return Ok(());
+        }
+        let stored = crate::format::store_chunk(&raw, ZSTD_LEVEL, self.1).map_err(|e| ContainerError::Io(format!("zstd: {e}")))?;
         let entry = ChunkEntry {
             kind,
             frame,
@@ -248,7 +256,7 @@ impl Chunks {
 
 /// The file: preamble, header, index and chunks.
 fn assemble(header: &Header, chunks: Chunks) -> Result<Vec<u8>, ContainerError> {
-    let mut chunks = chunks.0;
+    let Chunks(mut chunks, flags) = chunks;
     // Offsets are relative to the chunk area, so the index's own length does not feed back.
     let mut offset = 0u64;
     let mut index = Index::default();
@@ -261,7 +269,7 @@ fn assemble(header: &Header, chunks: Chunks) -> Result<Vec<u8>, ContainerError> 
     let ib = postcard::to_stdvec(&index).map_err(|e| ContainerError::Io(format!("index: {e}")))?;
     let pre = Preamble {
         version: VERSION,
-        flags: 0,
+        flags,
         header_len: hb.len() as u32,
         index_len: ib.len() as u32,
         header_crc: crc32fast::hash(&hb),
@@ -399,7 +407,7 @@ pub fn encode_until(
     let mut looks = seq.appearance.as_ref().map(|a| crate::appearance::builder(seq, a, levels));
     header.appearance = looks.as_ref().map(|l| l.info().clone());
 
-    let mut chunks = Chunks::default();
+    let mut chunks = Chunks(Vec::new(), opts.chunk_flags & crate::format::FLAGS);
     chunks.push(ChunkKind::Triangles, 0, 0, payload::write_triangles(&seq.triangles))?;
     let total = enc.hierarchy().offsets.last().copied().unwrap_or(0) as usize;
     let mut coder = PositionCoder {
@@ -412,6 +420,8 @@ pub fn encode_until(
     };
     let skin_input = seq.skin.as_ref().zip(opts.skin);
     let mut skin: Option<SkinFit> = None;
+    // The palette entries each band's Palette chunk carries.
+    let mut bands: Vec<Vec<u32>> = Vec::new();
     // The palettes the decoder holds (the previous frame's and the one before), and this frame's.
     let (mut held, mut palette) = (SkinState::default(), Vec::new());
     let inv = 1.0 / step as f64;
@@ -436,6 +446,7 @@ pub fn encode_until(
                 chunks.push(ChunkKind::Bind, 0, j as u32, write_binds(&fit.nodes[offsets[j] as usize..offsets[j + 1] as usize]))?;
             }
             header.skin = Some(fit.header.clone());
+            bands = band_entries(&fit.nodes, offsets, 0, fit.header.palette_len);
             skin = Some(fit);
         }
         if let Some(fit) = &skin {
@@ -472,7 +483,11 @@ pub fn encode_until(
             chunks.push(ChunkKind::Positions, f as u32, j as u32, positions)?;
         }
         if skin.is_some() {
-            chunks.insert(pose_at, ChunkKind::Pose, f as u32, write_pose(mask, &palette, held.prediction(intra)))?;
+            // Top band first, as the bands themselves.
+            for (at, j) in (pose_at..).zip((0..levels).rev().filter(|&j| has_palette_chunk(&bands, j))) {
+                let raw = write_palette(mask, &bands[j], &palette, held.prediction(intra));
+                chunks.insert(at, ChunkKind::Palette, f as u32, j as u32, raw)?;
+            }
             held.advance(std::mem::take(&mut palette), intra, mask);
         }
         coder.next_frame();

@@ -30,6 +30,32 @@ pub const MAX_LEVELS: usize = 64;
 /// zstd level for chunks: files are written once and read many times.
 pub const ZSTD_LEVEL: i32 = 19;
 
+/// Preamble flag (version 6): a chunk whose `stored_len` equals its `raw_len` is its payload
+/// as is, not a zstd frame. The encoder stores a chunk so whenever zstd would not make it
+/// shorter: a zstd frame costs 6 to 12 bytes of its own, more than most of a small mesh's
+/// per-frame chunks hold (issue 17, "overhead on small meshes").
+pub const FLAG_STORED: u16 = 1;
+/// Preamble flag (version 6): Delta and Corners chunks with nothing in them (the one-byte
+/// payload 0: no swaps, no corner updates) are left out of the file, and a reader takes a
+/// missing one as that payload. Most frames of a small mesh swap nothing in most bands, and
+/// each chunk costs an index entry (about 15 bytes) besides its own bytes.
+pub const FLAG_SPARSE: u16 = 2;
+/// The flags this encoder sets and this reader knows.
+pub const FLAGS: u16 = FLAG_STORED | FLAG_SPARSE;
+
+/// A chunk's stored bytes in a file with preamble `flags`: its zstd frame at `level`, or, with
+/// [`FLAG_STORED`], the payload itself when the frame would be no shorter (a frame exactly as
+/// long as the payload would read as a stored payload, so it is stored too).
+pub fn store_chunk(raw: &[u8], level: i32, flags: u16) -> std::io::Result<Vec<u8>> {
+    let z = zstd::bulk::compress(raw, level)?;
+    Ok(if flags & FLAG_STORED != 0 && z.len() >= raw.len() { raw.to_vec() } else { z })
+}
+
+/// Whether a chunk of `kind` left out of a file with preamble `flags` reads as empty.
+pub fn sparse_kind(kind: ChunkKind, flags: u16) -> bool {
+    flags & FLAG_SPARSE != 0 && matches!(kind, ChunkKind::Delta | ChunkKind::Corners)
+}
+
 /// The fixed 32-byte preamble.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Preamble {
@@ -328,8 +354,12 @@ pub enum ChunkKind {
     /// The skin of every node of the band: bind position and influences (version 6, frame 0).
     Bind = 10,
     /// A frame's joint palette and which bands skinning predicts (version 6, band 0; read by
-    /// every client).
+    /// every client). Files written since the Palette chunk carry Palette chunks instead.
     Pose = 11,
+    /// A frame's values of the palette entries whose coarsest user is the band, and the band
+    /// mask (version 6, skinned files; read by clients whose finest level is the band or finer,
+    /// so a coarse client reads only the joints its bands are skinned by).
+    Palette = 12,
 }
 
 impl From<ChunkKind> for u32 {
@@ -354,6 +384,7 @@ impl TryFrom<u32> for ChunkKind {
             9 => ChunkKind::Image,
             10 => ChunkKind::Bind,
             11 => ChunkKind::Pose,
+            12 => ChunkKind::Palette,
             _ => return Err(format!("unknown chunk kind {v}")),
         })
     }
@@ -366,7 +397,7 @@ impl ChunkKind {
     pub fn read_at(self, band: usize, min_level: usize) -> bool {
         match self {
             ChunkKind::Triangles => min_level == 0,
-            ChunkKind::Key | ChunkKind::Delta | ChunkKind::Positions | ChunkKind::Bind => band >= min_level,
+            ChunkKind::Key | ChunkKind::Delta | ChunkKind::Positions | ChunkKind::Bind | ChunkKind::Palette => band >= min_level,
             ChunkKind::Pose => true,
             ChunkKind::Faces | ChunkKind::Corners => band == min_level,
             ChunkKind::Charts | ChunkKind::Materials | ChunkKind::Image => true,
@@ -388,6 +419,7 @@ impl ChunkKind {
             ChunkKind::Image => "image",
             ChunkKind::Bind => "bind",
             ChunkKind::Pose => "pose",
+            ChunkKind::Palette => "palette",
         }
     }
 }

@@ -148,7 +148,7 @@ pub fn summary<S: ByteSource>(reader: &Reader<S>) -> Summary {
             ChunkKind::Materials => s.materials_bytes += e.stored_len as u64,
             ChunkKind::Image => {}
             ChunkKind::Bind => s.bind_bytes[b] += e.stored_len as u64,
-            ChunkKind::Pose => s.pose_bytes += e.stored_len as u64,
+            ChunkKind::Pose | ChunkKind::Palette => s.pose_bytes += e.stored_len as u64,
         }
     }
     let frames = s.header.frame_count.max(1) as f64;

@@ -86,6 +86,8 @@ pub struct Reader<S> {
     source: S,
     /// Format version of the file (its preamble's).
     version: u16,
+    /// The preamble's flags (`format::FLAG_STORED`, `format::FLAG_SPARSE`).
+    flags: u16,
     header: Header,
     index: Index,
     data_start: u64,
@@ -124,7 +126,16 @@ impl<S: ByteSource> Reader<S> {
         let index: Index =
             postcard::from_bytes(&ib).map_err(|e| ContainerError::Corrupt { what: "index".into(), detail: e.to_string() })?;
         check_header(&header)?;
-        let reader = Reader { source, version: pre.version, header, index, data_start, file_len, bytes_read: Cell::new(data_start) };
+        let reader = Reader {
+            source,
+            version: pre.version,
+            flags: pre.flags,
+            header,
+            index,
+            data_start,
+            file_len,
+            bytes_read: Cell::new(data_start),
+        };
         reader.check_index()?;
         Ok(reader)
     }
@@ -132,6 +143,11 @@ impl<S: ByteSource> Reader<S> {
     /// The file's format version.
     pub fn version(&self) -> u16 {
         self.version
+    }
+
+    /// The preamble's flags.
+    pub fn flags(&self) -> u16 {
+        self.flags
     }
 
     pub fn header(&self) -> &Header {
@@ -144,6 +160,7 @@ impl<S: ByteSource> Reader<S> {
         Reader {
             source: &self.source,
             version: self.version,
+            flags: self.flags,
             header: self.header.clone(),
             index: self.index.clone(),
             data_start: self.data_start,
@@ -195,6 +212,9 @@ impl<S: ByteSource> Reader<S> {
         self.bytes_read.set(self.bytes_read.get() + stored.len() as u64);
         if crc32fast::hash(&stored) != e.crc32 {
             return Err(ContainerError::Checksum { what });
+        }
+        if self.flags & crate::format::FLAG_STORED != 0 && e.stored_len == e.raw_len {
+            return Ok(stored.to_vec());
         }
         // A zstd frame states its content size: one that disagrees with the index is refused
         // before a buffer of the index's size is set aside for it.
@@ -287,7 +307,7 @@ fn raw_len_range(h: &Header, kind: ChunkKind, band: usize) -> (u64, u64) {
         }
         ChunkKind::Materials => (4, MAX_MATERIALS_LEN),
         ChunkKind::Image => (1, MAX_IMAGE_LEN),
-        ChunkKind::Bind | ChunkKind::Pose => crate::skin::raw_len_range(h, kind, n),
+        ChunkKind::Bind | ChunkKind::Pose | ChunkKind::Palette => crate::skin::raw_len_range(h, kind, n),
     }
 }
 

@@ -70,7 +70,10 @@ impl Unsealed {
                 end = end.max(r.end);
                 area.get(r)
             });
-            let raw = stored.and_then(|s| zstd::bulk::decompress(s, UNSEAL_LIMIT.min(e.raw_len as usize)).ok()).unwrap_or_default();
+            let raw = match stored {
+                Some(s) if flags & crate::format::FLAG_STORED != 0 && e.stored_len == e.raw_len => s.to_vec(),
+                _ => stored.and_then(|s| zstd::bulk::decompress(s, UNSEAL_LIMIT.min(e.raw_len as usize)).ok()).unwrap_or_default(),
+            };
             chunks.push(Chunk { entry: e, raw, lie: None });
         }
         let trailing = area.get(end..).unwrap_or_default().to_vec();
@@ -84,7 +87,7 @@ impl Unsealed {
         let mut entries = Vec::with_capacity(self.chunks.len());
         for c in &self.chunks {
             // Level 1 keeps sealing fast; the reader does not care how well a chunk compresses.
-            let stored = zstd::bulk::compress(&c.raw, 1).unwrap_or_default();
+            let stored = crate::format::store_chunk(&c.raw, 1, self.flags).unwrap_or_default();
             let mut e = c.entry;
             e.offset = area.len() as u64;
             e.stored_len = stored.len() as u32;

@@ -60,7 +60,10 @@ fn exact_skinning_round_trips_with_a_fraction_of_the_position_bytes() {
     round_trip(&seq, &plain);
     let (rs, rp) = (Reader::open(skinned.as_slice()).expect("open"), Reader::open(plain.as_slice()).expect("open"));
     assert!(rs.header().skin.is_some() && rp.header().skin.is_none());
-    assert!(rp.index().chunks.iter().all(|e| !matches!(e.kind, ChunkKind::Bind | ChunkKind::Pose)));
+    assert!(rp.index().chunks.iter().all(|e| !matches!(e.kind, ChunkKind::Bind | ChunkKind::Pose | ChunkKind::Palette)));
+    // Today's encoder writes the palette by band (Palette chunks), never the older Pose chunks.
+    assert!(rs.index().chunks.iter().any(|e| e.kind == ChunkKind::Palette));
+    assert!(rs.index().chunks.iter().all(|e| e.kind != ChunkKind::Pose));
     let (ss, sp) = (summary(&rs), summary(&rp));
     // Band 0 follows the skin to within rounding: its residuals all but vanish.
     assert!(
@@ -83,6 +86,58 @@ fn real_skinned_models_round_trip() {
     let bytes = encode(&seq, &options(), |_| {}).expect("encode");
     assert!(Reader::open(bytes.as_slice()).expect("open").header().skin.is_some());
     round_trip(&seq, &bytes);
+}
+
+/// Coarse clients read only the joints their bands are skinned by. The bending tube gets 40
+/// small "detail" joints, each a tenth of the weight of the vertices of one short stretch of
+/// the tube, moving a little on their own: coarse nodes keep only their four strongest summed
+/// influences, so most detail joints are used by fine bands only, and the palette chunks a
+/// client at the top level reads are fewer bytes than a full client's. Every level still
+/// decodes what a full client decodes.
+#[test]
+fn coarse_clients_read_only_their_bands_joints() {
+    let mut seq = bending_tube(16, 40, 8);
+    let skin = seq.skin.as_mut().expect("skin");
+    let n = skin.rest.len();
+    let details = 40u32;
+    skin.palette_len = 2 + details;
+    skin.palette_names.extend((0..details).map(|d| format!("detail {d}")));
+    for v in 0..n {
+        let d = 2 + (v as u32 * details / n as u32);
+        let w = skin.weights[v];
+        let slot = if w[1] > 0.0 { 2 } else { 1 };
+        skin.weights[v] = [w[0] * 0.9, w[1] * 0.9, 0.0, 0.0];
+        skin.weights[v][slot] = 0.1;
+        skin.joints[v][slot] = d;
+    }
+    for (f, ms) in skin.matrices.iter_mut().enumerate() {
+        let lower = ms[0];
+        for d in 0..details {
+            // The lower joint's matrix, shifted along x by a little that grows with time.
+            let mut m = lower;
+            m[3] += 0.001 * (f as f32) * (1.0 + d as f32 / details as f32);
+            ms.push(m);
+        }
+    }
+    for f in 0..seq.frames.len() {
+        for v in 0..n {
+            seq.frames[f][v] = seq.skin.as_ref().expect("skin").pose_vertex(f, v);
+        }
+    }
+    let bytes = encode(&seq, &options(), |_| {}).expect("encode");
+    round_trip(&seq, &bytes);
+    let r = Reader::open(bytes.as_slice()).expect("open");
+    let palette_bytes = |level: usize| -> u64 {
+        r.index()
+            .chunks
+            .iter()
+            .filter(|e| e.kind == ChunkKind::Palette && e.kind.read_at(e.band as usize, level))
+            .map(|e| e.stored_len as u64)
+            .sum()
+    };
+    let top = r.header().top();
+    assert!(palette_bytes(top) < palette_bytes(0), "palette bytes: {} at the top level, {} in full", palette_bytes(top), palette_bytes(0));
+    assert!(r.index().chunks.iter().any(|e| e.kind == ChunkKind::Palette && e.band as usize != top), "entries below the top band");
 }
 
 fn refused(bytes: &[u8]) -> ContainerError {
@@ -108,7 +163,7 @@ fn damaged_skin_chunks_are_refused_by_name() {
         .expect("reseal")
     };
     type Damage = fn(&mut Vec<u8>);
-    let cases: [(ChunkKind, u32, Damage, &str); 4] = [
+    let cases: [(ChunkKind, u32, Damage, &str); 5] = [
         (ChunkKind::Bind, 0, |raw| raw.push(0), "bind: 1 bytes left over"),
         (
             ChunkKind::Bind,
@@ -119,8 +174,10 @@ fn damaged_skin_chunks_are_refused_by_name() {
             },
             "node 0: 5 influences, more than 4",
         ),
-        (ChunkKind::Pose, 2, |raw| raw[0] = 0x7f, "frame 2 pose: band mask 0x7f names bands beyond"),
-        (ChunkKind::Pose, 0, |raw| raw.truncate(raw.len() / 2), "frame 0 band 0 pose: declared size"),
+        (ChunkKind::Palette, 2, |raw| raw[0] = 0x7f, "palette: band mask 0x7f names bands beyond"),
+        (ChunkKind::Palette, 0, |raw| raw.push(1), "palette: 1 bytes left over"),
+        // An inter frame's entry bits: one set beyond the band's entries.
+        (ChunkKind::Palette, 3, |raw| raw[1] |= 0x80, "palette: bits set beyond its"),
     ];
     for (kind, frame, f, expected) in cases {
         let e = refused(&damage(kind, frame, f));
@@ -138,7 +195,7 @@ fn damaged_skin_chunks_are_refused_by_name() {
 }
 
 /// What a network client prefetches for a frame holds the skin it needs: the bind chunks of
-/// its bands, once, and the pose of every frame from the keyframe on.
+/// its bands, once, and the palette chunks of its bands of every frame from the keyframe on.
 #[test]
 fn chunks_for_a_frame_include_the_skin() {
     let seq = bending_tube(8, 12, 10);
@@ -148,10 +205,40 @@ fn chunks_for_a_frame_include_the_skin() {
         let mut d = Decoder::new(r.borrowed(), level).expect("decoder");
         let want = d.chunks_for(6);
         let binds: Vec<u32> = want.iter().filter(|e| e.kind == ChunkKind::Bind).map(|e| e.band).collect();
-        let poses: Vec<u32> = want.iter().filter(|e| e.kind == ChunkKind::Pose).map(|e| e.frame).collect();
+        let top = r.header().top() as u32;
+        let poses: Vec<u32> = want.iter().filter(|e| e.kind == ChunkKind::Palette && e.band == top).map(|e| e.frame).collect();
+        assert!(want.iter().filter(|e| e.kind == ChunkKind::Palette).all(|e| e.band as usize >= level), "level {level}");
         assert_eq!(binds, (level as u32..r.header().levels() as u32).rev().collect::<Vec<_>>(), "level {level}");
         assert_eq!(poses, vec![4, 5, 6], "level {level}: keyframe 4 and the frames after it");
         d.seek(6).expect("seek");
         assert!(d.chunks_for(7).iter().all(|e| e.kind != ChunkKind::Bind), "bind chunks are read once");
+    }
+}
+
+/// Issue 17, small meshes: with the preamble flags, empty Delta and Corners chunks are left out
+/// and chunks zstd would not shrink are stored as they are; the file is smaller and decodes to
+/// the same positions at every level as one written without them.
+#[test]
+fn sparse_and_stored_chunks_shrink_small_files_and_decode_the_same() {
+    use pmcodec_container::format::FLAGS;
+    let seq = bending_tube(8, 12, 12);
+    let today = encode(&seq, &options(), |_| {}).expect("encode");
+    let before = encode(&seq, &EncodeOptions { chunk_flags: 0, ..options() }, |_| {}).expect("encode without flags");
+    round_trip(&seq, &today);
+    let (a, b) = (Reader::open(today.as_slice()).expect("open"), Reader::open(before.as_slice()).expect("open"));
+    assert_eq!((a.flags(), b.flags()), (FLAGS, 0));
+    assert!(today.len() < before.len(), "{} bytes with the flags, {} without", today.len(), before.len());
+    let count = |r: &Reader<&[u8]>, kind: ChunkKind| r.index().chunks.iter().filter(|e| e.kind == kind).count();
+    let levels = a.header().levels();
+    assert_eq!(count(&b, ChunkKind::Delta), 12 * levels, "every band of every frame without the flag");
+    assert!(count(&a, ChunkKind::Delta) < count(&b, ChunkKind::Delta) && count(&a, ChunkKind::Corners) < count(&b, ChunkKind::Corners));
+    assert!(a.index().chunks.iter().any(|e| e.stored_len == e.raw_len), "some chunk stored as it is");
+    for level in 0..levels {
+        let (mut da, mut db) = (Decoder::new(a.borrowed(), level).expect("decoder"), Decoder::new(b.borrowed(), level).expect("decoder"));
+        for f in 0..12 {
+            da.seek(f).expect("frame");
+            db.seek(f).expect("frame");
+            assert_eq!(da.quantized(), db.quantized(), "level {level} frame {f}");
+        }
     }
 }

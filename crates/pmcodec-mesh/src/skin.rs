@@ -126,7 +126,13 @@ pub fn sequence_skin(rig: &RiggedMesh, animation: Option<&Animation>, times: &[f
         return None;
     }
     let n = rig.vertex_count();
-    let mut skin = SequenceSkin { rest: rig.positions.clone(), joints: vec![[0; 4]; n], weights: vec![[0.0; 4]; n], ..Default::default() };
+    let mut skin = SequenceSkin {
+        rest: rig.positions.clone(),
+        joints: vec![[0; 4]; n],
+        weights: vec![[0.0; 4]; n],
+        warnings: rig.warnings.clone(),
+        ..Default::default()
+    };
     // Palette: the joints of every skin, then the unskinned mesh nodes.
     let mut skin_base = Vec::with_capacity(rig.skins.len());
     for (s, sk) in rig.skins.iter().enumerate() {

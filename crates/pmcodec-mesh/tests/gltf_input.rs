@@ -689,6 +689,46 @@ fn unsupported_features_are_named() {
     assert!(matches!(e, MeshError::Unsupported(_)) && e.to_string().contains("1.0"), "{e}");
 }
 
+/// A skin with more than four influences keeps the four largest and renormalises them, and
+/// weights that do not sum to one are renormalised: both are said, naming primitive and skin,
+/// in the rig's and the sequence skin's warnings (issue 17). Sums off by 8-bit rounding are not.
+#[test]
+fn extra_influences_and_unnormalised_weights_are_kept_and_reported() {
+    let mut bin = Bin::default();
+    let pos = bin.f32(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], "VEC3");
+    // Vertex 0: five joints (0.3, 0.25, 0.2, 0.15 and 0.1 on joint 4); vertex 1: one joint at 0.5;
+    // vertex 2: 8-bit weights 128 + 126 = 254/255, within rounding of one.
+    let j0 = bin.u16(&[0, 1, 2, 3, 1, 0, 0, 0, 2, 3, 0, 0], "VEC4");
+    let w0 = bin.f32(&[0.3, 0.25, 0.2, 0.15, 0.5, 0.0, 0.0, 0.0, 128.0 / 255.0, 126.0 / 255.0, 0.0, 0.0], "VEC4");
+    let j1 = bin.u16(&[4, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0], "VEC4");
+    let w1 = bin.f32(&[0.1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], "VEC4");
+    let doc = json!({
+        "scene": 0, "scenes": [{"nodes": [0, 5]}],
+        "nodes": [{"children": [1, 2, 3, 4]}, {}, {}, {}, {}, {"mesh": 0, "skin": 0}],
+        "skins": [{"joints": [0, 1, 2, 3, 4]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos, "JOINTS_0": j0, "WEIGHTS_0": w0, "JOINTS_1": j1, "WEIGHTS_1": w1}}]}]
+    });
+    let rig = RiggedMesh::from_bytes(&bin.glb(doc.clone())).unwrap();
+    assert_eq!(rig.joints[0], [0, 1, 2, 3]);
+    let w = rig.weights[0];
+    assert!((w.iter().sum::<f32>() - 1.0).abs() < 1e-6 && (w[0] - 0.3 / 0.9).abs() < 1e-6, "{w:?}");
+    assert_eq!(rig.weights[1], [1.0, 0.0, 0.0, 0.0]);
+    assert_eq!(rig.warnings.len(), 2, "{:?}", rig.warnings);
+    let four = &rig.warnings[0];
+    assert!(four.contains("skin 0") && four.contains("1 vertices have more than four influences (vertex 0 has 5)"), "{four}");
+    assert!(four.contains("kept the four largest") && four.contains("renormalised"), "{four}");
+    let sum = &rig.warnings[1];
+    assert!(sum.contains("skin 0") && sum.contains("1 vertices' weights do not sum to one (vertex 1: 0.5)"), "{sum}");
+    // The sequence's skin carries them on to `pmcodec encode`.
+    let seq = load(&bin.glb(doc), 30.0).unwrap();
+    assert_eq!(seq.skin.as_ref().map(|s| s.warnings.clone()), Some(rig.warnings.clone()));
+    // The bent strip's 8-bit weights (200 of 255 alone) are renormalised too, and said so once.
+    let (strip, strip_doc) = bent_strip();
+    let warnings = RiggedMesh::from_bytes(&strip.glb(strip_doc)).unwrap().warnings;
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].contains("8 vertices' weights do not sum to one (vertex 0: 0.78"), "{warnings:?}");
+}
+
 #[test]
 fn broken_files_give_errors_that_say_what_is_wrong() {
     let (bin, doc) = bent_strip();
@@ -716,7 +756,7 @@ fn broken_files_give_errors_that_say_what_is_wrong() {
     expect(with(&|d| d["nodes"][2]["children"] = json!([3])), &["child of both"]);
     expect(with(&|d| d["nodes"][2]["skin"] = json!(4)), &["skin 4"]);
     expect(with(&|d| d["nodes"][3]["mesh"] = json!(9)), &["mesh 9"]);
-    expect(with(&|d| d["skins"][0]["joints"] = json!([0])), &["joint 1"]);
+    expect(with(&|d| d["skins"][0]["joints"] = json!([0])), &["skin 0", "joint 1"]);
     // Finite but huge transforms overflow while posing: reported by validation, not hidden.
     let e = with(&|d| d["nodes"][1]["scale"] = json!([3e38, 3e38, 3e38])).unwrap_err();
     assert!(matches!(e, MeshError::NonFinite { .. }), "{e}");

@@ -9,7 +9,7 @@ import { readCornerUpdates, readDelta, readFaces, readKey, readPositions, readTr
 import { LowerNeighbours, affineMotion, keyedMotion, lowerNeighbours, stencilWeights } from "./predict.js";
 import type { Reader } from "./read.js";
 import { FrameDelta, KeyBand, Replay } from "./replay.js";
-import { SkinState, nodeSkins, readBinds } from "./skin.js";
+import { SkinState, bandEntries, hasPaletteChunk, nodeSkins, readBinds } from "./skin.js";
 
 /** Plays a container down to a finest level: hierarchy (Replay) and quantized node positions. */
 export class Decoder {
@@ -67,6 +67,8 @@ export class Decoder {
         offset += h.levelSizes[j];
       }
       this.skin = new SkinState(nodes);
+      // Files written since the Palette chunk have no Pose chunks.
+      if (!c.index.some((e) => e.kind === ChunkKind.Pose)) this.skin.bands = bandEntries(nodes, h.levelSizes, this.minLevel, h.skin.paletteLen);
     }
     const pose = await this.readPose(k, true);
     this.replay.loadKeyframe(bands, this.triangles ?? undefined);
@@ -80,12 +82,12 @@ export class Decoder {
     const c = this.reader, h = c.header;
     const delta: FrameDelta = { swaps: [], corners: [] };
     for (let j = h.levelSizes.length - 1; j >= this.minLevel; j--) {
-      readDelta(await c.chunk(c.find(ChunkKind.Delta, f, j)), `frame ${f} band ${j} delta`, h.levelSizes, j, delta);
+      readDelta(await c.chunkAt(ChunkKind.Delta, f, j), `frame ${f} band ${j} delta`, h.levelSizes, j, delta);
     }
     const pose = await this.readPose(f, false);
     const L = this.minLevel;
     if (L > 0) {
-      const raw = await c.chunk(c.find(ChunkKind.Corners, f, L)), what = `frame ${f} band ${L} corners`;
+      const raw = await c.chunkAt(ChunkKind.Corners, f, L), what = `frame ${f} band ${L} corners`;
       const updates = c.version >= 5
         ? readCornerUpdates(raw, what, h.levelSizes[L], this.replay.corners)
         : readFaces(raw, what, h.levelSizes[L], h.triangleCount, c.version);
@@ -102,6 +104,20 @@ export class Decoder {
   private async readPose(f: number, intra: boolean): Promise<{ palette: BigInt64Array; mask: bigint } | null> {
     const c = this.reader, h = c.header;
     if (!h.skin || !this.skin) return null;
+    const bands = this.skin.bands, levels = h.levelSizes.length;
+    if (bands !== null) {
+      // Entries of bands this decoder does not read stay 0: none of its nodes uses them.
+      const palette = new BigInt64Array(h.skin.paletteLen * 12);
+      let mask: bigint | null = null;
+      for (let j = levels - 1; j >= this.minLevel; j--) {
+        if (!hasPaletteChunk(bands, j)) continue;
+        const what = `frame ${f} band ${j} palette`;
+        const m = this.skin.readPalette(await c.chunk(c.find(ChunkKind.Palette, f, j)), what, bands[j], levels, intra, palette);
+        if (mask !== null && m !== mask) throw new DecodeError(`${what}: band mask 0x${m.toString(16)} where the band above says otherwise`);
+        mask = m;
+      }
+      return { palette, mask: mask ?? 0n };
+    }
     return this.skin.readPose(await c.chunk(c.find(ChunkKind.Pose, f, 0)), `frame ${f} pose`, h.skin.paletteLen, h.levelSizes.length, intra);
   }
 

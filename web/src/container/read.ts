@@ -6,7 +6,7 @@
 import { decompress } from "fzstd";
 import { DecodeError } from "./error.js";
 import {
-  ChunkEntry, ChunkKind, Header, MAX_TABLE_LEN, PREAMBLE_LEN, checkTables, crc32, describe, isKeyframe, keyframeBefore,
+  ChunkEntry, ChunkKind, FLAG_SPARSE, FLAG_STORED, Header, MAX_TABLE_LEN, PREAMBLE_LEN, checkTables, crc32, describe, isKeyframe, keyframeBefore,
   parseHeader, parseIndex, parsePreamble,
 } from "./format.js";
 
@@ -14,13 +14,13 @@ import {
 export type ReadAt = (offset: number, len: number) => Promise<Uint8Array>;
 
 export class Reader {
-  private constructor(readonly readAt: ReadAt, readonly version: number, readonly header: Header, readonly index: ChunkEntry[], readonly dataStart: number, readonly fileLen: number) {}
+  private constructor(readonly readAt: ReadAt, readonly version: number, readonly flags: number, readonly header: Header, readonly index: ChunkEntry[], readonly dataStart: number, readonly fileLen: number) {}
   /** Bytes fetched so far: preamble, header, index and chunks. */
   bytesRead = 0;
 
   static async open(readAt: ReadAt, fileLen: number): Promise<Reader> {
     if (fileLen < PREAMBLE_LEN) throw new DecodeError("not a .pmc file (too short)");
-    const { version, headerLen, indexLen, headerCrc, indexCrc } = parsePreamble(await readAt(0, PREAMBLE_LEN));
+    const { version, flags, headerLen, indexLen, headerCrc, indexCrc } = parsePreamble(await readAt(0, PREAMBLE_LEN));
     const dataStart = PREAMBLE_LEN + headerLen + indexLen;
     if (dataStart > fileLen || headerLen > MAX_TABLE_LEN || indexLen > MAX_TABLE_LEN) throw new DecodeError("header and index: the file ends before they do");
     const tables = await readAt(PREAMBLE_LEN, headerLen + indexLen);
@@ -30,7 +30,7 @@ export class Reader {
     const header = parseHeader(hb, version);
     const index = parseIndex(ib);
     checkTables(header, index, fileLen - dataStart);
-    const r = new Reader(readAt, version, header, index, dataStart, fileLen);
+    const r = new Reader(readAt, version, flags, header, index, dataStart, fileLen);
     r.bytesRead = dataStart;
     return r;
   }
@@ -44,11 +44,22 @@ export class Reader {
     return e;
   }
 
+  /**
+   * Frame `frame` band `band`'s chunk of `kind`: in a file with FLAG_SPARSE, a Delta or Corners
+   * chunk left out reads as the empty payload (a single 0).
+   */
+  async chunkAt(kind: ChunkKind, frame: number, band: number): Promise<Uint8Array> {
+    const sparse = (this.flags & FLAG_SPARSE) !== 0 && (kind === ChunkKind.Delta || kind === ChunkKind.Corners);
+    if (sparse && !this.index.some((x) => x.kind === kind && x.frame === frame && x.band === band)) return new Uint8Array([0]);
+    return this.chunk(this.find(kind, frame, band));
+  }
+
   /** A chunk's decompressed bytes, checked against its CRC-32 and declared size. */
   async chunk(e: ChunkEntry): Promise<Uint8Array> {
     const stored = await this.readAt(this.dataStart + e.offset, e.storedLen);
     this.bytesRead += stored.length;
     if (crc32(stored) !== e.crc32) throw new DecodeError(`${describe(e)}: checksum mismatch`);
+    if ((this.flags & FLAG_STORED) !== 0 && e.storedLen === e.rawLen) return stored;
     let raw: Uint8Array;
     try {
       raw = decompress(stored, new Uint8Array(e.rawLen));

@@ -77,11 +77,40 @@ export function readBinds(raw: Uint8Array, what: string, count: number, palette:
   c.finish();
 }
 
+/**
+ * The palette entries each band's Palette chunk carries: those some node of the band uses and
+ * no node of a coarser band does, ascending (bands below `minLevel` get none), as
+ * `skin::band_entries`.
+ */
+export function bandEntries(nodes: NodeSkins, levelSizes: number[], minLevel: number, paletteLen: number): number[][] {
+  const taken = new Uint8Array(paletteLen);
+  const out: number[][] = levelSizes.map(() => []);
+  const offsets = [0];
+  for (const n of levelSizes) offsets.push(offsets[offsets.length - 1] + n);
+  for (let j = levelSizes.length - 1; j >= minLevel; j--) {
+    for (let g = offsets[j]; g < offsets[j + 1]; g++) {
+      for (let k = 0; k < nodes.count[g]; k++) {
+        const e = nodes.joints[4 * g + k];
+        if (nodes.weights[4 * g + k] > 0n && e < paletteLen && !taken[e]) { taken[e] = 1; out[j].push(e); }
+      }
+    }
+    out[j].sort((a, b) => a - b);
+  }
+  return out;
+}
+
+/** Whether band `j` has a Palette chunk in each frame: the top band always, another when it has entries. */
+export function hasPaletteChunk(bands: number[][], j: number): boolean {
+  return j + 1 === bands.length || (bands[j]?.length ?? 0) > 0;
+}
+
 /** The palettes a decoder holds: the current frame's, and the previous frame's unless the current is a keyframe. */
 export class SkinState {
   palette: BigInt64Array | null = null;
   previous: BigInt64Array | null = null;
   mask = 0n;
+  /** Files with Palette chunks: each band's entries (`bandEntries`); null: one Pose chunk per frame. */
+  bands: number[][] | null = null;
   constructor(readonly nodes: NodeSkins) {}
 
   uses(j: number): boolean { return j < 64 && ((this.mask >> BigInt(j)) & 1n) === 1n; }
@@ -103,6 +132,43 @@ export class SkinState {
     }
     c.finish();
     return { palette: out, mask };
+  }
+
+  /**
+   * Reads a Palette chunk carrying `entries` into `out` (the frame's palette, entries it does not
+   * carry left as they are), predicted from the held palettes; returns the band mask.
+   */
+  readPalette(raw: Uint8Array, what: string, entries: number[], levels: number, intra: boolean, out: BigInt64Array): bigint {
+    const c = new Cursor64(raw, what);
+    const mask = c.get();
+    if (levels < 64 && mask >> BigInt(levels) !== 0n) throw c.corrupt(`band mask 0x${mask.toString(16)} names bands beyond the file's ${levels}`);
+    const p = intra ? null : this.palette, q = intra ? null : this.previous;
+    const moved = new Uint8Array(entries.length).fill(1);
+    if (p !== null) {
+      const n = Math.ceil(entries.length / 8);
+      if (c.pos + n > raw.length) throw c.corrupt(`ends inside the bits of its ${entries.length} entries`);
+      for (let k = 0; k < entries.length; k++) moved[k] = (raw[c.pos + (k >> 3)] >> (k & 7)) & 1;
+      if (entries.length % 8 !== 0 && raw[c.pos + n - 1] >> (entries.length % 8) !== 0) throw c.corrupt(`bits set beyond its ${entries.length} entries`);
+      c.pos += n;
+    }
+    const changed = moved.reduce((a, b) => a + b, 0);
+    if (changed * ENTRY > raw.length - c.pos) throw c.corrupt(`${changed} entries' values in ${raw.length - c.pos} bytes`);
+    for (let k = 0; k < entries.length; k++) {
+      const e = entries[k];
+      for (let i = e * ENTRY; i < (e + 1) * ENTRY; i++) {
+        let v: bigint;
+        if (p !== null && !moved[k]) v = p[i] ?? 0n;
+        else {
+          const predicted = p === null ? 0n : q === null ? (p[i] ?? 0n) : wrap(2n * (p[i] ?? 0n) - (q[i] ?? 0n));
+          v = wrap(predicted + c.signed());
+        }
+        if (abs(v) > MAX_MATRIX) throw c.corrupt(`palette entry ${e} ${i % 4 === 3 ? "translation" : "linear value"} ${v} beyond the limit of ${MAX_MATRIX}`);
+        if (i >= out.length) throw c.corrupt(`palette entry ${e} beyond the palette of ${out.length / ENTRY}`);
+        out[i] = v;
+      }
+    }
+    c.finish();
+    return mask;
   }
 
   advance(palette: BigInt64Array, intra: boolean, mask: bigint): void {

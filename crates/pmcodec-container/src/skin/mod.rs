@@ -16,7 +16,7 @@ mod fit;
 mod payload;
 
 pub(crate) use fit::{SkinFit, fit_skin};
-pub(crate) use payload::{PosePrediction, read_binds, read_pose, write_binds, write_pose};
+pub(crate) use payload::{PosePrediction, read_binds, read_palette, read_pose, write_binds, write_palette};
 
 use serde::{Deserialize, Serialize};
 
@@ -101,6 +101,40 @@ pub struct SkinState {
     pub previous: Vec<i64>,
     /// Bit j: band j is predicted by skinning in the current frame.
     pub mask: u64,
+    /// Files with Palette chunks: the palette entries each band's chunk carries (see
+    /// [`band_entries`]; empty below the decoder's level). `None`: one Pose chunk per frame.
+    pub bands: Option<Vec<Vec<u32>>>,
+}
+
+/// The palette entries each band's Palette chunk carries: those some node of the band uses
+/// (with a positive weight) and no node of a coarser band does, ascending. A client reading
+/// bands `L..=top` so gets exactly the entries its nodes use, and works them out from the Bind
+/// chunks of those bands alone. `nodes` holds every node by global id; bands below `min_level`
+/// get none.
+pub fn band_entries(nodes: &[NodeSkin], offsets: &[u32], min_level: usize, palette_len: u32) -> Vec<Vec<u32>> {
+    let levels = offsets.len().saturating_sub(1);
+    let mut taken = vec![false; palette_len as usize];
+    let mut out = vec![Vec::new(); levels];
+    for j in (min_level..levels).rev() {
+        let band = nodes.get(offsets[j] as usize..offsets[j + 1] as usize).unwrap_or_default();
+        for n in band {
+            for k in 0..4 {
+                let e = n.joints[k] as usize;
+                if n.weights[k] > 0 && e < taken.len() && !taken[e] {
+                    taken[e] = true;
+                    out[j].push(e as u32);
+                }
+            }
+        }
+        out[j].sort_unstable();
+    }
+    out
+}
+
+/// Whether band `j` of a file with Palette chunks has one in each frame: the top band always
+/// (it carries the band mask for every client), another band when it has entries.
+pub fn has_palette_chunk(bands: &[Vec<u32>], j: usize) -> bool {
+    j + 1 == bands.len() || bands.get(j).is_some_and(|b| !b.is_empty())
 }
 
 impl SkinState {
@@ -148,7 +182,7 @@ pub fn check_header(h: &crate::Header) -> Option<String> {
 pub fn check_entry(h: &crate::Header, e: &crate::ChunkEntry) -> Result<(), String> {
     use crate::ChunkKind;
     match e.kind {
-        ChunkKind::Bind | ChunkKind::Pose if h.skin.is_none() => Err("a skin chunk in a file without a skin".into()),
+        ChunkKind::Bind | ChunkKind::Pose | ChunkKind::Palette if h.skin.is_none() => Err("a skin chunk in a file without a skin".into()),
         ChunkKind::Bind if e.frame != 0 => Err(format!("frame {}, where bind chunks are frame 0", e.frame)),
         ChunkKind::Pose if e.band != 0 => Err(format!("band {}, where pose chunks are band 0", e.band)),
         _ => Ok(()),
@@ -157,11 +191,13 @@ pub fn check_entry(h: &crate::Header, e: &crate::ChunkEntry) -> Result<(), Strin
 
 /// The decompressed sizes a skin chunk may declare: a bind chunk of `n` nodes takes 4 to 101
 /// bytes per node (three coordinates, a count, four entries and three weights of up to 10
-/// bytes), a pose chunk 1 to 10 bytes per palette value and its mask.
+/// bytes), a pose chunk 1 to 10 bytes per palette value and its mask, a palette chunk its
+/// mask (1 to 10 bytes), a bit per entry and up to 10 bytes per value.
 pub fn raw_len_range(h: &crate::Header, kind: crate::ChunkKind, n: u64) -> (u64, u64) {
     let p = h.skin.as_ref().map_or(0, |s| s.palette_len as u64) * ENTRY as u64;
     match kind {
         crate::ChunkKind::Bind => (4 * n, 101 * n),
+        crate::ChunkKind::Palette => (1, 10 + p / ENTRY as u64 / 8 + 1 + 10 * p),
         _ => (1 + p, 10 + 10 * p),
     }
 }

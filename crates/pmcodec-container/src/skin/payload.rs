@@ -148,6 +148,9 @@ impl PosePrediction<'_> {
 /// POSE (one frame): the bands predicted by skinning (bit j for band j), then the palette's
 /// values, entry by entry, row by row (three linear values, then the translation), each as its
 /// difference from its prediction.
+/// Today's encoder writes Palette chunks; this writer of the older coding stays for tests of
+/// the reader of files that have Pose chunks.
+#[cfg(test)]
 pub fn write_pose(mask: u64, palette: &[i64], prediction: PosePrediction) -> Vec<u8> {
     let mut out = Vec::with_capacity(palette.len() * 2 + 2);
     put64(&mut out, mask);
@@ -189,6 +192,104 @@ pub fn read_pose(
     Ok(mask)
 }
 
+impl<'a> PosePrediction<'a> {
+    /// The previous frame's palette, unless this is a keyframe.
+    fn previous(self) -> Option<&'a [i64]> {
+        match self {
+            PosePrediction::Key => None,
+            PosePrediction::Previous(p) | PosePrediction::Linear(p, _) => Some(p),
+        }
+    }
+}
+
+/// Whether entry `e` of `palette` has the same twelve values in `previous`.
+fn unchanged(palette: &[i64], previous: &[i64], e: usize) -> bool {
+    let r = e * ENTRY..(e + 1) * ENTRY;
+    matches!((palette.get(r.clone()), previous.get(r)), (Some(a), Some(b)) if a == b)
+}
+
+/// PALETTE (one frame, one band): the band mask (bit j: band j is predicted by skinning), then
+/// the values of the band's `entries` (proto/container.md, "Palette"). On keyframes each
+/// entry's twelve values as they are; on other frames a bit per entry, least significant bit
+/// first, set when the entry changed since the previous frame (joints that hold still, and
+/// rigid parts that never move, cost a bit a frame), then each changed entry's twelve values
+/// as differences from their prediction.
+pub fn write_palette(mask: u64, entries: &[u32], palette: &[i64], prediction: PosePrediction) -> Vec<u8> {
+    let mut out = Vec::with_capacity(entries.len() * ENTRY + entries.len() / 8 + 2);
+    put64(&mut out, mask);
+    let moved: Vec<bool> = match prediction.previous() {
+        None => vec![true; entries.len()],
+        Some(p) => entries.iter().map(|&e| !unchanged(palette, p, e as usize)).collect(),
+    };
+    if prediction.previous().is_some() {
+        for bits in moved.chunks(8) {
+            out.push(bits.iter().enumerate().fold(0u8, |b, (i, &m)| b | (m as u8) << i));
+        }
+    }
+    for (&e, _) in entries.iter().zip(&moved).filter(|p| *p.1) {
+        for i in e as usize * ENTRY..(e as usize + 1) * ENTRY {
+            let v = palette.get(i).copied().unwrap_or(0);
+            put64(&mut out, zigzag64(v.wrapping_sub(prediction.at(i))));
+        }
+    }
+    out
+}
+
+/// Reads a PALETTE payload carrying `entries` (ascending, each below `palette.len() / 12`) for
+/// a file of `levels` bands into `palette`; returns the band mask. Entries it does not carry
+/// are left as they are.
+pub fn read_palette(
+    bytes: &[u8],
+    what: &str,
+    entries: &[u32],
+    levels: usize,
+    prediction: PosePrediction,
+    palette: &mut [i64],
+) -> Result<u64, ContainerError> {
+    let mut c = Cursor { bytes, pos: 0, what };
+    let mask = c.get()?;
+    if levels < 64 && mask >> levels != 0 {
+        return Err(c.corrupt(format!("band mask {mask:#x} names bands beyond the file's {levels}")));
+    }
+    let previous = prediction.previous();
+    let mut moved = vec![true; entries.len()];
+    if previous.is_some() {
+        let n = entries.len().div_ceil(8);
+        let Some(bits) = bytes.get(c.pos..c.pos + n) else {
+            return Err(c.corrupt(format!("ends inside the bits of its {} entries", entries.len())));
+        };
+        for (k, m) in moved.iter_mut().enumerate() {
+            *m = bits[k / 8] >> (k % 8) & 1 == 1;
+        }
+        if !entries.len().is_multiple_of(8) && bits[n - 1] >> (entries.len() % 8) != 0 {
+            return Err(c.corrupt(format!("bits set beyond its {} entries", entries.len())));
+        }
+        c.pos += n;
+    }
+    // Each value takes at least a byte: checked before reading on.
+    if moved.iter().filter(|&&m| m).count() * ENTRY > bytes.len() - c.pos {
+        return Err(c.corrupt(format!("{} entries' values in {} bytes", moved.iter().filter(|&&m| m).count(), bytes.len() - c.pos)));
+    }
+    for (&e, &m) in entries.iter().zip(&moved) {
+        for i in e as usize * ENTRY..(e as usize + 1) * ENTRY {
+            let v = match previous {
+                Some(p) if !m => p.get(i).copied().unwrap_or(0),
+                _ => prediction.at(i).wrapping_add(unzigzag64(c.get()?)),
+            };
+            if v.unsigned_abs() > MAX_MATRIX as u64 {
+                let name = if i % 4 == 3 { "translation" } else { "linear value" };
+                return Err(c.corrupt(format!("palette entry {e} {name} {v} beyond the limit of {MAX_MATRIX}")));
+            }
+            let Some(slot) = palette.get_mut(i) else {
+                return Err(c.corrupt(format!("palette entry {e} beyond the palette of {}", palette.len() / ENTRY)));
+            };
+            *slot = v;
+        }
+    }
+    c.finish()?;
+    Ok(mask)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -223,5 +324,43 @@ mod tests {
         let e = read_pose(&write_pose(0b1000, &palette, key), "frame 4 pose", (2, 3), key, &mut got).expect_err("mask").to_string();
         assert!(e.contains("frame 4 pose") && e.contains("beyond the file's 3"), "{e}");
         assert_eq!(got, again, "unchanged on error");
+    }
+
+    #[test]
+    fn palettes_carry_their_entries_and_send_moved_ones_only() {
+        // Ten entries; a band carries entries 1, 4 and 9 of them.
+        let entries = [1u32, 4, 9];
+        let key: Vec<i64> = (0..10 * ENTRY as i64).map(|i| i * 37 - 500).collect();
+        let bytes = write_palette(0b11, &entries, &key, PosePrediction::Key);
+        let mut got = vec![0i64; key.len()];
+        assert_eq!(read_palette(&bytes, "p", &entries, 2, PosePrediction::Key, &mut got).expect("key"), 0b11);
+        for e in 0..10 {
+            let r = e * ENTRY..(e + 1) * ENTRY;
+            let expected: &[i64] = if entries.contains(&(e as u32)) { &key[r.clone()] } else { &[0; ENTRY] };
+            assert_eq!(&got[r], expected, "entry {e}");
+        }
+        // Entry 4 moves by 3 in every value; 1 and 9 hold still: one byte of bits, 12 values.
+        let mut next = key.clone();
+        next[4 * ENTRY..5 * ENTRY].iter_mut().for_each(|v| *v += 3);
+        let one = PosePrediction::Previous(&key);
+        let bytes = write_palette(1, &entries, &next, one);
+        assert_eq!(bytes.len(), 1 + 1 + ENTRY, "{bytes:?}");
+        assert_eq!(bytes[1], 0b010);
+        let mut out = vec![0i64; key.len()];
+        assert_eq!(read_palette(&bytes, "p", &entries, 2, one, &mut out).expect("inter"), 1);
+        for &e in &entries {
+            let r = e as usize * ENTRY..(e as usize + 1) * ENTRY;
+            assert_eq!(out[r.clone()], next[r], "entry {e}");
+        }
+        // Damage: bits beyond the entries, too few values, a mask naming a band not there.
+        let mut bad = bytes.clone();
+        bad[1] |= 0x10;
+        let e = read_palette(&bad, "frame 5 band 1 palette", &entries, 2, one, &mut out).expect_err("bits").to_string();
+        assert!(e.contains("frame 5 band 1 palette") && e.contains("bits set beyond its 3 entries"), "{e}");
+        let e = read_palette(&bytes[..6], "p", &entries, 2, one, &mut out).expect_err("short").to_string();
+        assert!(e.contains("1 entries' values in 4 bytes"), "{e}");
+        let keyed = write_palette(0b11, &entries, &key, PosePrediction::Key);
+        let e = read_palette(&keyed, "p", &entries, 1, PosePrediction::Key, &mut out).expect_err("mask").to_string();
+        assert!(e.contains("band mask 0x3 names bands beyond the file's 1"), "{e}");
     }
 }

@@ -49,6 +49,9 @@ pub struct RiggedMesh {
     pub animations: Vec<Animation>,
     /// Per-corner attributes and materials, parallel to `triangles`; `None` when not read.
     pub appearance: Option<crate::Appearance>,
+    /// What reading changed or doubts in the input (influences beyond four dropped, weights
+    /// renormalised), naming the primitive and skin; copied into `SequenceSkin::warnings`.
+    pub warnings: Vec<String>,
 }
 
 /// A mesh placed in the scene by one node.
@@ -616,8 +619,8 @@ impl RiggedMesh {
             }
         };
 
-        let (joints, weights) = match inst.skin.and_then(|s| self.skins.get(s)) {
-            Some(skin) => read_influences(file, &attribute, n, skin.joints.len(), what)?,
+        let (joints, weights) = match inst.skin.and_then(|s| self.skins.get(s).map(|k| (s, k))) {
+            Some((s, skin)) => read_influences(file, &attribute, n, skin.joints.len(), &format!("{what} (skin {s})"), &mut self.warnings)?,
             None => (vec![[0; 4]; n], vec![[0.0; 4]; n]),
         };
 
@@ -653,12 +656,17 @@ pub(super) type Influences = (Vec<[u16; 4]>, Vec<[f32; 4]>);
 /// Reads every `JOINTS_n`/`WEIGHTS_n` pair of a skinned primitive and reduces each vertex to its
 /// four strongest influences, normalised to sum to 1 (§3.7.3.3 asks for normalised weights;
 /// exporters drift, so they are normalised rather than rejected).
+/// How far the (kept) weights of a vertex may sum from one before it is reported: 8-bit
+/// normalised weights round each to 1/255, so four of them may miss by 2/255.
+const WEIGHT_SUM_TOLERANCE: f32 = 0.01;
+
 pub(super) fn read_influences(
     file: &GltfFile,
     attribute: &dyn Fn(json::mesh::Semantic) -> Option<usize>,
     n: usize,
     joint_count: usize,
     what: &str,
+    warnings: &mut Vec<String>,
 ) -> Result<Influences, MeshError> {
     use json::mesh::Semantic;
     let mut sets: Vec<(Vec<u32>, Vec<f32>)> = Vec::new();
@@ -678,6 +686,9 @@ pub(super) fn read_influences(
     let mut joints_out = Vec::with_capacity(n);
     let mut weights_out = Vec::with_capacity(n);
     let mut influences: Vec<(u32, f32)> = Vec::new();
+    // Vertices changed on read, summarised into one warning each: (count, first vertex, detail).
+    let mut beyond_four: (usize, usize, usize) = (0, 0, 0);
+    let mut off_one: (usize, usize, f32) = (0, 0, 1.0);
     for v in 0..n {
         influences.clear();
         for (joints, weights) in &sets {
@@ -699,7 +710,19 @@ pub(super) fn read_influences(
                 }
             }
         }
+        // The file's weights, before any are dropped.
+        let given: f32 = influences.iter().map(|i| i.1).sum();
+        if given > 0.0 && (given - 1.0).abs() > WEIGHT_SUM_TOLERANCE {
+            if off_one.0 == 0 {
+                off_one = (0, v, given);
+            }
+            off_one.0 += 1;
+        }
         if influences.len() > 4 {
+            if beyond_four.0 == 0 {
+                beyond_four = (0, v, influences.len());
+            }
+            beyond_four.0 += 1;
             // Stable sort: equal weights keep their file order.
             influences.sort_by(|a, b| b.1.total_cmp(&a.1));
             influences.truncate(4);
@@ -713,6 +736,17 @@ pub(super) fn read_influences(
         }
         joints_out.push(joints);
         weights_out.push(weights);
+    }
+    if beyond_four.0 > 0 {
+        let (count, v, k) = beyond_four;
+        warnings.push(format!(
+            "{what}: {count} vertices have more than four influences (vertex {v} has {k}); \
+             kept the four largest of each and renormalised their weights to sum to one"
+        ));
+    }
+    if off_one.0 > 0 {
+        let (count, v, sum) = off_one;
+        warnings.push(format!("{what}: {count} vertices' weights do not sum to one (vertex {v}: {sum}); renormalised to sum to one"));
     }
     Ok((joints_out, weights_out))
 }
