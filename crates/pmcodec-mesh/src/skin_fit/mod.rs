@@ -12,6 +12,9 @@
 //! loop in a fixed order) and bounded: the bone count, the iterations and the frames the
 //! clustering compares are capped.
 
+// Per-vertex and per-bone loops index several parallel arrays at once, as the paper states them.
+#![allow(clippy::needless_range_loop)]
+
 pub mod bones;
 pub mod cluster;
 pub mod horn;

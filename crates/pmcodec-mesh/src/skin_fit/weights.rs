@@ -54,7 +54,25 @@ pub fn solve_vertex(v: usize, rest: DVec3, frames: &[Vec<Vec3>], transforms: &[R
         // Nothing fitted (a vertex that never moves away from all bones alike): its best bone.
         return vec![(bones_of[0], 1.0)];
     }
-    pairs.iter().map(|&(b, w)| (b, w / sum)).collect()
+    round_weights(pairs.iter().map(|&(b, w)| (b, w / sum)).collect())
+}
+
+/// Weights are rounded to multiples of this: a stored skin then repeats few distinct values
+/// and drops influences below half of it, which its bind chunks compress to far fewer bytes,
+/// for a prediction error that the transform step (fitted to the rounded weights) absorbs.
+pub const WEIGHT_QUANTUM: f64 = 1.0 / 32.0;
+
+/// `pairs` (summing to one, largest first) rounded to [`WEIGHT_QUANTUM`], still summing to one
+/// (the largest takes the rounding), influences that round to nothing dropped.
+fn round_weights(pairs: Vec<(u32, f64)>) -> Vec<(u32, f64)> {
+    let steps = (1.0 / WEIGHT_QUANTUM).round() as i64;
+    let mut q: Vec<(u32, i64)> = pairs.iter().map(|&(b, w)| (b, (w * steps as f64).round() as i64)).filter(|p| p.1 > 0).collect();
+    if q.is_empty() {
+        return pairs.first().map(|p| vec![(p.0, 1.0)]).unwrap_or_default();
+    }
+    let rest: i64 = q[1..].iter().map(|p| p.1).sum();
+    q[0].1 = steps - rest;
+    q.into_iter().filter(|p| p.1 > 0).map(|(b, w)| (b, w as f64 / steps as f64)).collect()
 }
 
 /// `G = A^T A` and `h = A^T x` for the columns `A_k` = bone k's transforms of `rest` stacked
