@@ -306,6 +306,21 @@ struct PositionCoder {
     /// A band's positions and residuals from the other predictor, while the two are compared.
     saved: Vec<[i32; 3]>,
     saved_residuals: Vec<[i32; 3]>,
+    report: EncodeReport,
+}
+
+/// What an encode found beside its bytes: how often skinning predicted a band and about how
+/// many bits it saved, so that a caller can tell whether a skin paid for its pose and bind
+/// chunks (a fitted skin may not).
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct EncodeReport {
+    /// Bands coded (bands times frames), and how many of them skinning predicted.
+    pub bands: u64,
+    pub skinned_bands: u64,
+    /// About the bits of every band's residuals (an Elias gamma code of each) under the default
+    /// prediction, and as stored (the smaller of the two where skinning competed).
+    pub plain_bits: u64,
+    pub stored_bits: u64,
 }
 
 /// What skinning predicts a frame's nodes from: every node's skin, and the frame's and the
@@ -329,18 +344,25 @@ impl PositionCoder {
     /// whether skinning predicted it (when `skin` is given and leaves smaller residuals).
     fn band(&mut self, j: usize, intra: bool, h: &Hierarchy, truth: impl Fn(usize) -> [f64; 3], skin: Option<Skinning>) -> (Vec<u8>, bool) {
         let plain = self.code(j, intra, h, &truth, None);
+        self.report.bands += 1;
+        self.report.plain_bits += plain;
+        let mut chosen = plain;
         let mut skinned = false;
         if let Some(s) = skin {
             let band = h.offsets[j] as usize..h.offsets[j + 1] as usize;
             self.saved.clear();
             self.saved.extend_from_slice(&self.current[band.clone()]);
             std::mem::swap(&mut self.residuals, &mut self.saved_residuals);
-            skinned = self.code(j, intra, h, &truth, Some(s)) < plain;
+            let with_skin = self.code(j, intra, h, &truth, Some(s));
+            skinned = with_skin < plain;
+            chosen = chosen.min(with_skin);
+            self.report.skinned_bands += skinned as u64;
             if !skinned {
                 self.current[band].copy_from_slice(&self.saved);
                 std::mem::swap(&mut self.residuals, &mut self.saved_residuals);
             }
         }
+        self.report.stored_bits += chosen;
         if j == 0 && intra && self.motion == Motion::KeyframeAffine {
             self.weights.compute(&self.lower, &self.current, h.level_sizes[0] as usize);
         }
@@ -391,8 +413,17 @@ impl PositionCoder {
 pub fn encode_until(
     seq: &Sequence,
     opts: &EncodeOptions,
-    mut progress: impl FnMut(usize) -> ControlFlow<()>,
+    progress: impl FnMut(usize) -> ControlFlow<()>,
 ) -> Result<Vec<u8>, ContainerError> {
+    encode_with_report(seq, opts, progress).map(|(bytes, _)| bytes)
+}
+
+/// [`encode_until`], with what the encoder found about skinning's prediction.
+pub fn encode_with_report(
+    seq: &Sequence,
+    opts: &EncodeOptions,
+    mut progress: impl FnMut(usize) -> ControlFlow<()>,
+) -> Result<(Vec<u8>, EncodeReport), ContainerError> {
     seq.validate()?;
     let (lo, hi) = seq.bounds().ok_or_else(|| ContainerError::Options("empty sequence".into()))?;
     let step = quantization_step(opts, lo, hi)?;
@@ -502,7 +533,7 @@ pub fn encode_until(
         }
         chunks.0.append(&mut after);
     }
-    assemble(&header, chunks)
+    Ok((assemble(&header, chunks)?, std::mem::take(&mut coder.report)))
 }
 
 /// Writes a file through a temporary file in the same folder and a rename, so a failed or

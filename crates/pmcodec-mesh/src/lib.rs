@@ -17,6 +17,7 @@ pub mod limits;
 pub mod obj;
 pub mod samples;
 pub mod skin;
+pub mod skin_fit;
 pub mod write;
 
 pub use appearance::Appearance;

@@ -96,6 +96,35 @@ pub fn grid_triangles(w: u32, h: u32) -> Vec<[u32; 3]> {
     triangles
 }
 
+/// `parts` small closed tubes in a row, each moving rigidly on its own (a rotation about its
+/// own axis and centre, and a bob), over `frames` frames: the piecewise-rigid motion a
+/// skinning fit should reproduce with one bone per part.
+pub fn rigid_parts(parts: u32, frames: u32) -> Sequence {
+    let part = twisting_tube(8, 6, 1);
+    let shape = &part.frames[0];
+    let count = shape.len() as u32;
+    let mut seq = Sequence { frame_rate: 30.0, ..Default::default() };
+    for p in 0..parts.max(1) {
+        seq.triangles.extend(part.triangles.iter().map(|t| t.map(|i| i + p * count)));
+    }
+    for f in 0..frames.max(1) {
+        let phase = TAU * f as f32 / frames.max(1) as f32;
+        let mut frame = Vec::with_capacity(shape.len() * parts.max(1) as usize);
+        for p in 0..parts.max(1) {
+            let k = p as f32;
+            // Each part spins about its own tilted axis through its centre, at its own rate.
+            let axis = Vec3::new(k.sin(), 1.0, (0.7 * k).cos()).normalize();
+            let spin = Quat::from_axis_angle(axis, (1.0 + 0.3 * k) * phase.sin());
+            let centre = Vec3::new(2.0 * k, 2.0, 0.0);
+            let bob = Vec3::new(0.0, 0.5 * (phase + k).sin(), 0.3 * (2.0 * phase - k).cos());
+            frame.extend(shape.iter().map(|&q| centre + bob + spin * (0.5 * q - Vec3::new(0.0, 1.0, 0.0))));
+        }
+        seq.frames.push(frame);
+        seq.frame_names.push(format!("rigid-parts@{f}"));
+    }
+    seq
+}
+
 /// A `w` x `h` cloth sheet pinned along its top edge, waving with travelling waves.
 pub fn waving_cloth(w: u32, h: u32, frames: u32) -> Sequence {
     let (w, h) = (w.max(2), h.max(2));
