@@ -22,7 +22,7 @@ pub mod skin;
 pub mod testing;
 
 pub use decode::Decoder;
-pub use encode::{EncodeOptions, QuantizationChoice, SkinPlacement, encode, encode_until, write_file};
+pub use encode::{EncodeOptions, QuantizationChoice, SkinPlacement, StreamError, encode, encode_stream, encode_until, write_file};
 pub use format::{ChunkEntry, ChunkKind, Header, Index, Motion, VertexOrder};
 pub use pmcodec_hierarchy::{CutTarget, Distance};
 pub use predict::coarse_shift;

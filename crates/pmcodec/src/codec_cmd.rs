@@ -6,11 +6,12 @@ use anyhow::{Context, anyhow};
 use clap::{Args, ValueEnum};
 use pmcodec_container::{
     ContainerError, CutTarget, Decoder, Distance, EncodeOptions, FileSource, Header, Motion, QuantizationChoice, Reader, SkinPlacement,
-    VertexOrder, encode, summary, verify, write_file,
+    StreamError, VertexOrder, encode, encode_stream, summary, verify, write_file,
 };
 use pmcodec_hierarchy::base::{PoseSet, VertexWeights};
 use pmcodec_hierarchy::recluster::ReclusterOptions;
 use serde::Serialize;
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -195,7 +196,8 @@ pub(crate) fn check_fps(args: &InputArgs) -> Result<(), Exit> {
 
 pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
     check_fps(&args.input_args)?;
-    let seq = input::load(&args.input, &args.input_args)?;
+    // OBJ frames after the first are parsed on a thread of their own while the encoder works.
+    let (seq, rest) = input::open(&args.input, &args.input_args)?;
     for w in seq.skin.iter().flat_map(|s| &s.warnings).filter(|_| !quiet) {
         eprintln!("warning: {}: {w}", args.input.display());
     }
@@ -232,9 +234,21 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
         (Some(e), None) => QuantizationChoice::MaxError(e),
         (None, None) => QuantizationChoice::MaxError(1e-4),
     };
-    let bar = progress(seq.frame_count() as u64, "encode", quiet);
+    let frames = if rest.is_some() { seq.frame_names.len() } else { seq.frame_count() };
+    let bar = progress(frames as u64, "encode", quiet);
     // What the encoder refuses is the input or an option value out of range: bad input.
-    let bytes = encode(&seq, &opts, |_| bar.inc(1)).map_err(|e| container_error(e, format!("encoding {}", args.input.display())))?;
+    let encoding = || format!("encoding {}", args.input.display());
+    let bytes = match rest {
+        Some(rest) => encode_stream(&seq, frames, rest, &opts, |_| {
+            bar.inc(1);
+            ControlFlow::Continue(())
+        })
+        .map_err(|e| match e {
+            StreamError::Input(e) => Exit(EXIT_BAD_INPUT, anyhow::Error::new(e).context(format!("reading {}", args.input.display()))),
+            StreamError::Encode(e) => container_error(e, encoding()),
+        })?,
+        None => encode(&seq, &opts, |_| bar.inc(1)).map_err(|e| container_error(e, encoding()))?,
+    };
     bar.finish_and_clear();
     write_file(&args.output, &bytes).with_context(|| format!("writing {}", args.output.display()))?;
     if !quiet {
