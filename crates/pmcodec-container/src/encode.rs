@@ -498,7 +498,7 @@ pub fn encode_stream<E: Send>(
         });
         let first = std::borrow::Cow::Borrowed(head.frames[0].as_slice());
         let all = std::iter::once(first).chain(frames.into_iter().map(std::borrow::Cow::Owned));
-        encode_frames(head, frame_count, all, move || bounds.recv().unwrap_or_else(|_| Err(ContainerError::Cancelled)), opts, progress)
+        encode_frames(head, frame_count, all, move || bounds.recv().unwrap_or(Err(ContainerError::Cancelled)), opts, progress)
     });
     match input_error.into_inner().ok().flatten() {
         Some(e) => Err(StreamError::Input(e)),
