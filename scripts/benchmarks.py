@@ -93,6 +93,11 @@ ROWS = [
           example("pmcodec-container", "coarse_bounds", f"{DATA}/{data}"), r"total") for name, data in (("horse", "horse-gallop"), ("samba", "samba-60"))],
     Row("cut-quality", "what --coarse-grid costs in cut quality, horse (mean symmetric RMS, % of bbox diagonal)",
         example("pmcodec-container", "cut_quality", f"{DATA}/horse-gallop"), r"."),
+    Row("encode-speed", "the whole `pmcodec encode` process per frame beside one meshoptimizer simplification of a frame to 800 vertices, in the same run, and the encoder's peak RSS: horse, and the 4x-subdivided horse (issue 15's encoder bar)",
+        example("pmcodec-eval", "make_meshes", "target/benchmarks/made")
+        + f" && target/release/examples/encode_speed {BIN} {DATA}/horse-gallop 5"
+        + f" && target/release/examples/encode_speed {BIN} target/benchmarks/made/horse-sub4 1",
+        r"^(encode|meshoptimizer)|ms/frame|vertices;"),
     Row("encode", "container encode, horse, 48 frames (median)",
         divan("container", "encode_horse"), r".", divan=True),
     Row("decode", "container decode, horse, 48 frames, one core, by band-0 motion; decoded and cut at 2,000 triangles every frame by a level-0 / level-1 decoder (median)",

@@ -8,7 +8,7 @@ use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, Stencil
 use crate::skin::{NodeSkin, SkinFit, SkinState, band_entries, fit_skin, has_palette_chunk, predict_skinned, write_binds, write_palette};
 use glam::Vec3;
 use pmcodec_hierarchy::base::{BaseOptions, PoseSet, VertexWeights, base_quadrics};
-use pmcodec_hierarchy::progressive::{Encoder, FrameDelta};
+use pmcodec_hierarchy::progressive::{Encoder, FrameDelta, Keyframe};
 use pmcodec_hierarchy::recluster::ReclusterOptions;
 use pmcodec_hierarchy::{BuildOptions, FineTopology, Hierarchy, build};
 use pmcodec_mesh::Sequence;
@@ -194,11 +194,11 @@ fn encoded_with(opts: &EncodeOptions) -> EncodedWith {
 
 /// The header of `seq` encoded with `opts` over the bounding box `lo..hi` at `step`, with a
 /// hierarchy of `level_sizes`.
-fn header(seq: &Sequence, opts: &EncodeOptions, (lo, hi): (Vec3, Vec3), step: f32, level_sizes: Vec<u32>) -> Header {
+fn header(seq: &Sequence, frame_count: usize, opts: &EncodeOptions, (lo, hi): (Vec3, Vec3), step: f32, level_sizes: Vec<u32>) -> Header {
     Header {
         vertex_count: seq.vertex_count() as u32,
         triangle_count: seq.triangles.len() as u32,
-        frame_count: seq.frame_count() as u32,
+        frame_count: frame_count as u32,
         frame_rate: seq.frame_rate,
         level_sizes,
         branching: opts.build.branching,
@@ -407,6 +407,45 @@ impl PositionCoder {
     }
 }
 
+/// What the coding side needs of one reclustered frame: its swaps and corner updates, its
+/// keyframe on keyframes, the hierarchy H_f and every node's position. Sent from the
+/// reclustering thread to the coding thread, and sent back to be refilled (no allocation per
+/// frame once the first few have gone round).
+struct Reclustered {
+    frame: usize,
+    delta: FrameDelta,
+    key: Option<Keyframe>,
+    h: Hierarchy,
+    positions: Vec<Vec3>,
+}
+
+impl Reclustered {
+    fn new(enc: &Encoder) -> Self {
+        Reclustered { frame: 0, delta: FrameDelta::default(), key: None, h: enc.hierarchy().clone(), positions: Vec::new() }
+    }
+
+    /// This frame's state of `enc`, into the allocations already held.
+    fn fill(&mut self, frame: usize, delta: FrameDelta, enc: &Encoder, intra: bool) {
+        let h = enc.hierarchy();
+        self.frame = frame;
+        self.delta = delta;
+        self.key = intra.then(|| enc.keyframe());
+        self.h.branching = h.branching;
+        self.h.level_sizes.clone_from(&h.level_sizes);
+        self.h.offsets.clone_from(&h.offsets);
+        self.h.parent.resize_with(h.parent.len(), Vec::new);
+        for (to, from) in self.h.parent.iter_mut().zip(&h.parent) {
+            to.clone_from(from);
+        }
+        self.positions.clear();
+        self.positions.extend_from_slice(enc.node_positions());
+    }
+}
+
+/// Frames reclustered ahead of the coding thread at most: enough to ride out a slow frame
+/// on either side, few enough that their hierarchies and positions stay small beside the input.
+const AHEAD: usize = 4;
+
 /// Encodes a sequence, asking `progress(f)` after each frame whether to go on: a
 /// [`ControlFlow::Break`] stops the work at once with [`ContainerError::Cancelled`] (a
 /// server's cancelled job), and nothing is returned.
@@ -422,17 +461,204 @@ pub fn encode_until(
 pub fn encode_with_report(
     seq: &Sequence,
     opts: &EncodeOptions,
-    mut progress: impl FnMut(usize) -> ControlFlow<()>,
+    progress: impl FnMut(usize) -> ControlFlow<()>,
 ) -> Result<(Vec<u8>, EncodeReport), ContainerError> {
     seq.validate()?;
     let (lo, hi) = seq.bounds().ok_or_else(|| ContainerError::Options("empty sequence".into()))?;
-    let step = quantization_step(opts, lo, hi)?;
-    let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
-    let q = base_quadrics(seq, &topo, &opts.base);
+    quantization_step(opts, lo, hi)?;
+    encode_frames(seq, seq.frame_count(), seq.frames.iter(), || Ok((lo, hi)), opts, progress)
+}
+
+/// Encodes a sequence whose frames after the first are still to be read: `head` holds frame 0
+/// (with the triangles, appearance, skin and every frame's name) and `rest` reads frames 1..
+/// (`frame_count` in all), each as it is asked for. `rest` runs on a thread of its own, ahead
+/// of the encoding, so reading (OBJ parsing) overlaps the hierarchy build and the
+/// reclustering, and each frame is dropped once it is reclustered. The bytes are those
+/// [`encode_until`] writes for the whole sequence.
+///
+/// What is still held: the frames read but not yet reclustered. The quantization grid is the
+/// bounding box of every frame (the header's), so no position is coded before the last frame
+/// is read; reading must finish first, and it is faster than reclustering.
+///
+/// With base poses other than the first frame, the base hierarchy needs every frame: `rest` is
+/// read whole first.
+pub fn encode_stream<E: Send>(
+    head: &Sequence,
+    frame_count: usize,
+    rest: impl Iterator<Item = Result<Vec<Vec3>, E>> + Send,
+    opts: &EncodeOptions,
+    progress: impl FnMut(usize) -> ControlFlow<()>,
+) -> Result<Vec<u8>, StreamError<E>> {
+    if opts.base.poses != PoseSet::FirstFrame || head.frames.len() != 1 {
+        let mut seq = head.clone();
+        for frame in rest {
+            seq.frames.push(frame.map_err(StreamError::Input)?);
+        }
+        return encode_until(&seq, opts, progress).map_err(StreamError::Encode);
+    }
+    head.validate().map_err(|e| StreamError::Encode(e.into()))?;
+    let (lo, hi) = head.bounds().ok_or_else(|| StreamError::Encode(ContainerError::Options("empty sequence".into())))?;
+    // An option out of range is refused before any work, as the whole sequence's would be.
+    quantization_step(opts, lo, hi).map_err(StreamError::Encode)?;
+    let n = head.vertex_count();
+    let (to_encoder, frames) = std::sync::mpsc::channel::<Vec<Vec3>>();
+    let (to_coder, bounds) = std::sync::mpsc::sync_channel::<Result<(Vec3, Vec3), ContainerError>>(1);
+    let input_error = std::sync::Mutex::new(None);
+    let out = std::thread::scope(|scope| {
+        let input_error = &input_error;
+        scope.spawn(move || {
+            let mut bb = (lo, hi);
+            for (f, frame) in (1..).zip(rest) {
+                let bad = match frame {
+                    Ok(p) => match check_frame(head, f, n, &p) {
+                        Ok(()) => {
+                            if let Some((a, b)) = pmcodec_mesh::bounds_of(&p) {
+                                bb = (bb.0.min(a), bb.1.max(b));
+                            }
+                            // The encoder stops taking frames only once it failed: its error wins.
+                            if to_encoder.send(p).is_err() {
+                                return;
+                            }
+                            continue;
+                        }
+                        Err(e) => e,
+                    },
+                    Err(input) => {
+                        if let Ok(mut slot) = input_error.lock() {
+                            *slot = Some(input);
+                        }
+                        ContainerError::Options("the input stopped".into())
+                    }
+                };
+                let _ = to_coder.send(Err(bad));
+                return;
+            }
+            let _ = to_coder.send(Ok(bb));
+        });
+        let first = std::borrow::Cow::Borrowed(head.frames[0].as_slice());
+        let all = std::iter::once(first).chain(frames.into_iter().map(std::borrow::Cow::Owned));
+        encode_frames(head, frame_count, all, move || bounds.recv().unwrap_or(Err(ContainerError::Cancelled)), opts, progress)
+            .map(|(bytes, _)| bytes)
+    });
+    match input_error.into_inner().ok().flatten() {
+        Some(e) => Err(StreamError::Input(e)),
+        None => out.map_err(StreamError::Encode),
+    }
+}
+
+/// Frame `f` of a streamed sequence checked as [`Sequence::validate`] checks every frame.
+fn check_frame(head: &Sequence, f: usize, n: usize, p: &[Vec3]) -> Result<(), ContainerError> {
+    let label = || match head.frame_names.get(f) {
+        Some(name) => format!("{f} ({name})"),
+        None => f.to_string(),
+    };
+    if p.len() != n {
+        return Err(pmcodec_mesh::MeshError::FrameMismatch {
+            frame: label(),
+            detail: format!("{} vertices where frame 0 has {n}", p.len()),
+        }
+        .into());
+    }
+    if let Some(v) = p.iter().position(|x| !x.is_finite()) {
+        return Err(pmcodec_mesh::MeshError::NonFinite { frame: label(), vertex: v as u32 }.into());
+    }
+    Ok(())
+}
+
+/// What [`encode_stream`] can fail on: reading the input, or encoding it.
+#[derive(Debug, thiserror::Error)]
+pub enum StreamError<E> {
+    #[error("reading the input: {0}")]
+    Input(E),
+    #[error(transparent)]
+    Encode(ContainerError),
+}
+
+/// The work of [`encode_until`] and [`encode_stream`]: `head` gives frame 0 and what is not
+/// per frame, `frames` every frame in order (`frame_count` of them; fewer when the input
+/// stopped, which `bounds` then reports), `bounds` the bounding box of them all, asked for by
+/// the coding side before it codes anything.
+///
+/// Two threads: this one reclusters frame after frame (each frame's hierarchy depends on the
+/// one before, so this is the sequential spine of the work), and a second one codes each
+/// reclustered frame into chunks (positions, swaps, corners, keyframes) and compresses them,
+/// a few frames behind. The bytes are the same as coding each frame right after its
+/// reclustering: the coding side reads only what the frame's [`Reclustered`] carries.
+fn encode_frames<F: AsRef<[Vec3]>>(
+    head: &Sequence,
+    frame_count: usize,
+    frames: impl Iterator<Item = F>,
+    bounds: impl FnOnce() -> Result<(Vec3, Vec3), ContainerError> + Send,
+    opts: &EncodeOptions,
+    mut progress: impl FnMut(usize) -> ControlFlow<()>,
+) -> Result<(Vec<u8>, EncodeReport), ContainerError> {
+    let topo = FineTopology::new(head.vertex_count() as u32, &head.triangles);
+    let q = base_quadrics(head, &topo, &opts.base);
     let base = build(&topo, &q, &opts.build)?;
-    let mut enc = Encoder::new(base, topo, seq.triangles.clone(), opts.recluster.clone());
-    let levels = enc.hierarchy().levels();
-    let mut header = header(seq, opts, (lo, hi), step, enc.hierarchy().level_sizes.clone());
+    let mut enc = Encoder::new(base, topo, head.triangles.clone(), opts.recluster.clone());
+    let level_sizes = enc.hierarchy().level_sizes.clone();
+    // Each level's corners before the frame: what a reader stopping there holds, against which
+    // corner updates are coded. The coding side keeps them by applying each frame's updates,
+    // as a reader does (every corner that changes on a live triangle is in the updates).
+    let held_corners: Vec<Vec<[u32; 3]>> = (0..enc.hierarchy().levels()).map(|j| enc.corners_at(j).to_vec()).collect();
+    let first = Reclustered::new(&enc);
+    std::thread::scope(|scope| {
+        let (to_coder, reclustered) = std::sync::mpsc::sync_channel::<Reclustered>(AHEAD);
+        let (recycle, recycled) = std::sync::mpsc::channel::<Reclustered>();
+        let coder = scope.spawn(move || -> Result<(Vec<u8>, EncodeReport), ContainerError> {
+            let (lo, hi) = bounds()?;
+            let step = quantization_step(opts, lo, hi)?;
+            let header = header(head, frame_count, opts, (lo, hi), step, level_sizes);
+            code_frames(head, opts, header, held_corners, (lo, step), reclustered, recycle)
+        });
+        let mut spare = Some(first);
+        let mut cancelled = false;
+        for (f, frame) in frames.enumerate() {
+            let (delta, _) = enc.encode_frame(frame.as_ref());
+            drop(frame);
+            let mut r = match spare.take().or_else(|| recycled.try_recv().ok()) {
+                Some(r) => r,
+                None => Reclustered::new(&enc),
+            };
+            r.fill(f, delta, &enc, is_keyframe(opts, f));
+            // A closed channel means the coding side stopped on an error, which join reports.
+            if to_coder.send(r).is_err() {
+                break;
+            }
+            if progress(f).is_break() {
+                cancelled = true;
+                break;
+            }
+        }
+        drop(to_coder);
+        let coded = match coder.join() {
+            Ok(r) => r,
+            Err(panic) => std::panic::resume_unwind(panic),
+        };
+        if cancelled {
+            return Err(ContainerError::Cancelled);
+        }
+        coded
+    })
+}
+
+/// Whether frame `f` is a keyframe under `opts` (as [`Header::is_keyframe`] says it).
+fn is_keyframe(opts: &EncodeOptions, f: usize) -> bool {
+    f == 0 || (opts.keyframe_interval > 0 && (f as u64).is_multiple_of(opts.keyframe_interval as u64))
+}
+
+/// The coding side of [`encode_until`]: every reclustered frame, in order, into chunks, then
+/// the file. Returns early (dropping `frames`, which stops the reclustering) on an error.
+fn code_frames(
+    seq: &Sequence,
+    opts: &EncodeOptions,
+    mut header: Header,
+    mut held_corners: Vec<Vec<[u32; 3]>>,
+    (lo, step): (Vec3, f32),
+    frames: std::sync::mpsc::Receiver<Reclustered>,
+    recycle: std::sync::mpsc::Sender<Reclustered>,
+) -> Result<(Vec<u8>, EncodeReport), ContainerError> {
+    let levels = header.levels();
     // Appearance is the same in every frame: its tables cover the pairs every frame's
     // hierarchy shows, so they are written once all frames are seen, after the triangles.
     let mut looks = seq.appearance.as_ref().map(|a| crate::appearance::builder(seq, a, levels));
@@ -440,7 +666,7 @@ pub fn encode_with_report(
 
     let mut chunks = Chunks(Vec::new(), opts.chunk_flags & crate::format::FLAGS);
     chunks.push(ChunkKind::Triangles, 0, 0, payload::write_triangles(&seq.triangles))?;
-    let total = enc.hierarchy().offsets.last().copied().unwrap_or(0) as usize;
+    let total = header.level_sizes.iter().map(|&n| n as usize).sum();
     let mut coder = PositionCoder {
         motion: opts.motion,
         lower: LowerNeighbours::new(seq.vertex_count(), &seq.triangles, opts.order),
@@ -456,23 +682,16 @@ pub fn encode_with_report(
     // The palettes the decoder holds (the previous frame's and the one before), and this frame's.
     let (mut held, mut palette) = (SkinState::default(), Vec::new());
     let inv = 1.0 / step as f64;
-    // Each level's corners before the frame: what a reader stopping there holds, against which
-    // corner updates are coded.
-    let mut held_corners: Vec<Vec<[u32; 3]>> = vec![Vec::new(); levels];
-    for (f, frame) in seq.frames.iter().enumerate() {
-        for (j, b) in held_corners.iter_mut().enumerate().skip(1) {
-            b.clear();
-            b.extend_from_slice(enc.corners_at(j));
-        }
-        let (delta, _) = enc.encode_frame(frame);
+    let mut corners: Vec<(u32, [u32; 3])> = Vec::new();
+    for r in frames {
+        let (f, delta, h, positions) = (r.frame, &r.delta, &r.h, &r.positions);
         if let Some(l) = looks.as_mut() {
-            l.observe(&enc.hierarchy().parent);
+            l.observe(&h.parent);
         }
-        let positions = enc.node_positions();
         if let (0, Some((input, placement))) = (f, skin_input) {
             // The skeleton once, before the first frame, top band first.
-            let fit = fit_skin(input, enc.hierarchy(), positions, (lo, step), placement)?;
-            let offsets = &enc.hierarchy().offsets;
+            let fit = fit_skin(input, h, positions, (lo, step), placement)?;
+            let offsets = &h.offsets;
             for j in (0..levels).rev() {
                 chunks.push(ChunkKind::Bind, 0, j as u32, write_binds(&fit.nodes[offsets[j] as usize..offsets[j + 1] as usize]))?;
             }
@@ -488,28 +707,31 @@ pub fn encode_with_report(
             [p.x as f64 * inv, p.y as f64 * inv, p.z as f64 * inv]
         };
         let intra = header.is_keyframe(f as u32);
-        let key = intra.then(|| enc.keyframe());
         // First what only a client stopping at band j reads (faces on keyframes, corner
         // updates), finest band first; then the bands every client from there down reads, top
         // first. So a full-resolution client's part of a frame is one contiguous span, and a
         // level-j client's span holds only the (smaller) faces and corners of coarser bands.
-        for (j, held) in held_corners.iter().enumerate().skip(1) {
-            if let Some(k) = &key {
+        for (j, held) in held_corners.iter_mut().enumerate().skip(1) {
+            if let Some(k) = &r.key {
                 chunks.push(ChunkKind::Faces, f as u32, j as u32, payload::write_faces(&k.bands[j].faces))?;
             }
-            let corners: Vec<(u32, [u32; 3])> = delta.corners.iter().filter(|c| c.level as usize == j).map(|c| (c.t, c.corners)).collect();
+            corners.clear();
+            corners.extend(delta.corners.iter().filter(|c| c.level as usize == j).map(|c| (c.t, c.corners)));
             chunks.push(ChunkKind::Corners, f as u32, j as u32, payload::write_corner_updates(&corners, held))?;
+            for &(t, c) in &corners {
+                held[t as usize] = c;
+            }
         }
         // The frame's pose goes before its bands, once they say which bands skinning predicts.
         let pose_at = chunks.len();
         let skinning = skin.as_ref().map(|s| Skinning { nodes: &s.nodes, palette: &palette, previous: &held.palette });
         let mut mask = 0u64;
         for j in (0..levels).rev() {
-            if let Some(k) = &key {
+            if let Some(k) = &r.key {
                 chunks.push(ChunkKind::Key, f as u32, j as u32, payload::write_key(&k.bands[j].parent))?;
             }
-            chunks.push(ChunkKind::Delta, f as u32, j as u32, payload::write_delta(&net_moves(&delta, j)))?;
-            let (positions, skinned) = coder.band(j, intra, enc.hierarchy(), truth, skinning);
+            chunks.push(ChunkKind::Delta, f as u32, j as u32, payload::write_delta(&net_moves(delta, j)))?;
+            let (positions, skinned) = coder.band(j, intra, h, truth, skinning);
             mask |= (skinned as u64) << j;
             chunks.push(ChunkKind::Positions, f as u32, j as u32, positions)?;
         }
@@ -522,9 +744,8 @@ pub fn encode_with_report(
             held.advance(std::mem::take(&mut palette), intra, mask);
         }
         coder.next_frame();
-        if progress(f).is_break() {
-            return Err(ContainerError::Cancelled);
-        }
+        // The reclustering side may have finished: then there is nothing to refill.
+        let _ = recycle.send(r);
     }
     if let Some(l) = looks {
         let mut after = chunks.0.split_off(1);

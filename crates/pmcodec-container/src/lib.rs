@@ -22,7 +22,10 @@ pub mod skin;
 pub mod testing;
 
 pub use decode::Decoder;
-pub use encode::{EncodeOptions, EncodeReport, QuantizationChoice, SkinPlacement, encode, encode_until, encode_with_report, write_file};
+pub use encode::{
+    EncodeOptions, EncodeReport, QuantizationChoice, SkinPlacement, StreamError, encode, encode_stream, encode_until, encode_with_report,
+    write_file,
+};
 pub use format::{ChunkEntry, ChunkKind, Header, Index, Motion, VertexOrder};
 pub use pmcodec_hierarchy::{CutTarget, Distance};
 pub use predict::coarse_shift;

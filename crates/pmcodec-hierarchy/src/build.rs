@@ -188,12 +188,16 @@ struct Run<'a> {
     keys: Vec<(u64, u32)>,
     /// Per live vertex: its position (the optimum of its quadric), whether its cluster holds a
     /// boundary vertex, and the fine triangles around it that may still be live (see
-    /// [`Run::valid`]).
+    /// [`Run::valid`]): every live triangle with a corner in the cluster is listed (a contraction
+    /// joins the two lists and drops the triangles it kills), and dead ones may linger.
     pos: Vec<DVec3>,
     border: Vec<bool>,
     around: Vec<Vec<u32>>,
     /// Each fine triangle's normal (unnormalised): a level's triangle must face the same way.
     fine_normal: Vec<DVec3>,
+    /// Fine triangles whose corners lie in three different live clusters (the current level's
+    /// mesh), kept as contractions remove them rather than counted over the mesh each pass.
+    live_triangles: u32,
 }
 
 impl<'a> Run<'a> {
@@ -222,7 +226,9 @@ impl<'a> Run<'a> {
                 (b - a).cross(c - a)
             })
             .collect();
+        let live_triangles = topo.triangles.iter().filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]).count() as u32;
         Run {
+            live_triangles,
             fine_normal,
             pos,
             border,
@@ -242,21 +248,15 @@ impl<'a> Run<'a> {
         }
     }
 
-    /// Fine triangles whose corners lie in three different live clusters: the level's mesh.
-    fn live_triangles(&mut self) -> u32 {
-        let mut n = 0;
-        for t in &self.topo.triangles {
-            let [a, b, c] = t.map(|v| crate::hierarchy::find(&mut self.merged_into, v));
-            n += u32::from(a != b && b != c && a != c);
-        }
-        n
-    }
-
-    /// Live triangles that contracting live vertices `u` and `v` would remove.
+    /// Live triangles that contracting live vertices `u` and `v` would remove: those around
+    /// `u` whose corners lie in three clusters, two of them `u` and `v`. Every live triangle
+    /// touching `u`'s cluster is in `around[u]` (see [`Run::around`]), so this is the count a
+    /// scan of every fine triangle gives, in the time of one neighbourhood.
     fn removed_by(&mut self, u: u32, v: u32) -> u32 {
         let mut n = 0;
-        for t in &self.topo.triangles {
-            let r = t.map(|x| crate::hierarchy::find(&mut self.merged_into, x));
+        for i in 0..self.around[u as usize].len() {
+            let t = self.around[u as usize][i];
+            let r = self.topo.triangles[t as usize].map(|x| crate::hierarchy::find(&mut self.merged_into, x));
             let live = r[0] != r[1] && r[1] != r[2] && r[0] != r[2];
             n += u32::from(live && r.contains(&u) && r.contains(&v));
         }
@@ -274,8 +274,7 @@ impl<'a> Run<'a> {
                 self.checked_pass((self.live - target).min(fraction), None)
             }
             Stop::Triangles(target) => {
-                let tris = self.live_triangles();
-                let gap = tris.saturating_sub(target);
+                let gap = self.live_triangles.saturating_sub(target);
                 if gap == 0 {
                     0
                 } else if gap < EXACT_GAP {
@@ -360,7 +359,8 @@ impl<'a> Run<'a> {
             if self.touched[u as usize] || self.touched[v as usize] {
                 continue;
             }
-            if max_removed.is_some_and(|m| self.removed_by(u, v) > m) {
+            let removed = self.removed_by(u, v);
+            if max_removed.is_some_and(|m| removed > m) {
                 continue;
             }
             let mut merged = self.q[u as usize];
@@ -371,6 +371,7 @@ impl<'a> Run<'a> {
                 self.cost[self.order[j] as usize] = f32::MAX;
                 continue;
             }
+            self.live_triangles -= removed;
             self.q[u as usize] = merged;
             self.pos[u as usize] = p;
             self.border[u as usize] |= self.border[v as usize];

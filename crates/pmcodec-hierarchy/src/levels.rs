@@ -3,7 +3,7 @@
 //! k-1 through the parent map, as the paper constructs each level's connectivity.
 
 use crate::Hierarchy;
-use crate::rows::compressed_rows;
+use crate::rows::compressed_rows_into;
 use crate::topology::FineTopology;
 
 /// Vertex adjacency of one level in compressed rows (rows sorted ascending).
@@ -30,11 +30,19 @@ impl LevelAdjacency {
 
     /// Rows from unique undirected pairs `(a, b)`, a < b.
     pub fn from_pairs(n: usize, pairs: &[[u32; 2]]) -> Self {
-        let (offsets, mut adjacency) = compressed_rows(n, || pairs.iter().flat_map(|p| [(p[0], p[1]), (p[1], p[0])]));
+        let mut out = LevelAdjacency::default();
+        out.fill_from_pairs(n, pairs, &mut Vec::new());
+        out
+    }
+
+    /// [`LevelAdjacency::from_pairs`] into this adjacency's allocations (`fill` is scratch):
+    /// reclustering rebuilds every level's rows each frame.
+    pub fn fill_from_pairs(&mut self, n: usize, pairs: &[[u32; 2]], fill: &mut Vec<u32>) {
+        let (offsets, adjacency) = (&mut self.offsets, &mut self.adjacency);
+        compressed_rows_into(n, || pairs.iter().flat_map(|p| [(p[0], p[1]), (p[1], p[0])]), offsets, adjacency, fill);
         for v in 0..n {
             adjacency[offsets[v] as usize..offsets[v + 1] as usize].sort_unstable();
         }
-        LevelAdjacency { offsets, adjacency }
     }
 
     /// Unique pairs `(a, b)`, a < b, of this adjacency.
@@ -44,26 +52,38 @@ impl LevelAdjacency {
     }
 }
 
-/// Adjacency of every level of `h`, built bottom-up.
+/// Adjacency of every level of `h`, built bottom-up, into `out`'s allocations.
 pub fn level_adjacency(h: &Hierarchy, topo: &FineTopology, out: &mut Vec<LevelAdjacency>) {
-    out.clear();
-    out.push(LevelAdjacency { offsets: topo.adj_offsets.clone(), adjacency: topo.adjacency.clone() });
-    let mut keys: Vec<u64> = Vec::new();
-    let mut pairs: Vec<[u32; 2]> = Vec::new();
+    level_adjacency_with(h, topo, out, &mut LevelScratch::default());
+}
+
+/// What [`level_adjacency_with`] sorts and fills through, kept between frames.
+#[derive(Debug, Default)]
+pub struct LevelScratch {
+    keys: Vec<u64>,
+    pairs: Vec<[u32; 2]>,
+    fill: Vec<u32>,
+}
+
+/// [`level_adjacency`] with its scratch kept by the caller: no allocation once every level has
+/// been as large as it gets (reclustering calls this every frame).
+pub fn level_adjacency_with(h: &Hierarchy, topo: &FineTopology, out: &mut Vec<LevelAdjacency>, s: &mut LevelScratch) {
+    out.resize_with(h.levels(), LevelAdjacency::default);
+    out[0].offsets.clone_from(&topo.adj_offsets);
+    out[0].adjacency.clone_from(&topo.adjacency);
     for k in 0..h.levels() - 1 {
         let parent = &h.parent[k];
-        keys.clear();
+        s.keys.clear();
         for [a, b] in out[k].pairs() {
             let (pa, pb) = (parent[a as usize], parent[b as usize]);
             if pa != pb {
-                keys.push(((pa.min(pb) as u64) << 32) | pa.max(pb) as u64);
+                s.keys.push(((pa.min(pb) as u64) << 32) | pa.max(pb) as u64);
             }
         }
-        keys.sort_unstable();
-        keys.dedup();
-        pairs.clear();
-        pairs.extend(keys.iter().map(|&k| [(k >> 32) as u32, k as u32]));
-        let next = LevelAdjacency::from_pairs(h.level_sizes[k + 1] as usize, &pairs);
-        out.push(next);
+        s.keys.sort_unstable();
+        s.keys.dedup();
+        s.pairs.clear();
+        s.pairs.extend(s.keys.iter().map(|&k| [(k >> 32) as u32, k as u32]));
+        out[k + 1].fill_from_pairs(h.level_sizes[k + 1] as usize, &s.pairs, &mut s.fill);
     }
 }

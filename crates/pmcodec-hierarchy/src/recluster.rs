@@ -7,7 +7,7 @@
 //! independent set per pass, until none is left or a cap is reached.
 
 use crate::Hierarchy;
-use crate::levels::{LevelAdjacency, level_adjacency};
+use crate::levels::{LevelAdjacency, LevelScratch, level_adjacency_with};
 use crate::nodes::NodeState;
 use crate::quadric::{Quadric, QuadricOptions, vertex_quadrics};
 use crate::topology::FineTopology;
@@ -94,6 +94,7 @@ pub struct Reclusterer {
     weight_step: Vec<f64>,
     fine_q: Vec<Quadric>,
     adjacency: Vec<LevelAdjacency>,
+    level_scratch: LevelScratch,
     // Scratch, kept to avoid allocation per frame.
     locked: Vec<bool>,
     dirty: Vec<bool>,
@@ -120,6 +121,7 @@ impl Reclusterer {
             weight_step,
             fine_q: Vec::new(),
             adjacency: Vec::new(),
+            level_scratch: LevelScratch::default(),
             locked: Vec::new(),
             dirty: Vec::new(),
             dirty_list: Vec::new(),
@@ -169,7 +171,7 @@ impl Reclusterer {
         self.fit(positions);
         let mut stats = FrameStats::default();
         let mut adjacency = std::mem::take(&mut self.adjacency);
-        level_adjacency(&self.h, &self.topo, &mut adjacency);
+        level_adjacency_with(&self.h, &self.topo, &mut adjacency, &mut self.level_scratch);
         let mut budget = self.opts.max_swaps_per_frame;
         for k in (0..self.h.levels() - 1).rev() {
             if budget == 0 {

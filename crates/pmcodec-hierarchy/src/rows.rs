@@ -12,7 +12,19 @@ pub fn compressed_rows<I>(rows: usize, entries: impl Fn() -> I) -> (Vec<u32>, Ve
 where
     I: Iterator<Item = (u32, u32)>,
 {
-    let mut offsets = vec![0u32; rows + 1];
+    let (mut offsets, mut items, mut fill) = (Vec::new(), Vec::new(), Vec::new());
+    compressed_rows_into(rows, entries, &mut offsets, &mut items, &mut fill);
+    (offsets, items)
+}
+
+/// [`compressed_rows`] into existing vectors (`fill` is scratch), so that a structure rebuilt
+/// every frame keeps its allocations.
+pub fn compressed_rows_into<I>(rows: usize, entries: impl Fn() -> I, offsets: &mut Vec<u32>, items: &mut Vec<u32>, fill: &mut Vec<u32>)
+where
+    I: Iterator<Item = (u32, u32)>,
+{
+    offsets.clear();
+    offsets.resize(rows + 1, 0);
     for (r, _) in entries() {
         if (r as usize) < rows {
             offsets[r as usize + 1] += 1;
@@ -21,8 +33,9 @@ where
     for i in 0..rows {
         offsets[i + 1] += offsets[i];
     }
-    let mut fill = offsets.clone();
-    let mut items = vec![0u32; offsets[rows] as usize];
+    fill.clone_from(offsets);
+    items.clear();
+    items.resize(offsets[rows] as usize, 0);
     for (r, item) in entries() {
         if (r as usize) < rows {
             let at = &mut fill[r as usize];
@@ -30,7 +43,6 @@ where
             *at += 1;
         }
     }
-    (offsets, items)
 }
 
 #[cfg(test)]

@@ -429,45 +429,95 @@ pub fn load_obj_files(paths: &[PathBuf], frame_rate: f32) -> Result<Sequence, Me
 /// [`load_obj_files`] under the given limits: the frame count is checked before any file is
 /// read, and each file's vertices and triangles while it is read.
 pub fn load_obj_files_with(paths: &[PathBuf], frame_rate: f32, limits: &InputLimits) -> Result<Sequence, MeshError> {
-    if let Some(first) = paths.first() {
-        limits.check_frames(paths.len(), &format!("{} and the {} files after it", first.display(), paths.len() - 1))?;
-    }
-    let mut seq = Sequence { frame_rate, ..Default::default() };
-    for path in paths {
-        let first = seq.frames.is_empty();
-        let frame = read_file(path, limits, paths.len(), first)?;
-        let label = || path.display().to_string();
-        if first {
-            seq.appearance = appearance::build(&frame, path)?;
-            seq.triangles = frame.triangles;
-        } else {
-            if frame.positions.len() != seq.frames[0].len() {
-                return Err(MeshError::FrameMismatch {
-                    frame: label(),
-                    detail: format!("{} vertices where frame 0 has {}", frame.positions.len(), seq.frames[0].len()),
-                });
-            }
-            if frame.triangles.len() != seq.triangles.len() {
-                return Err(MeshError::FrameMismatch {
-                    frame: label(),
-                    detail: format!("{} triangles where frame 0 has {}", frame.triangles.len(), seq.triangles.len()),
-                });
-            }
-            if let Some(t) = frame.triangles.iter().zip(&seq.triangles).position(|(a, b)| a != b) {
-                return Err(MeshError::FrameMismatch {
-                    frame: label(),
-                    detail: format!(
-                        "face {t} is {:?} where frame 0 has {:?} (0-based vertex indices)",
-                        frame.triangles[t], seq.triangles[t]
-                    ),
-                });
-            }
-        }
-        seq.frames.push(frame.positions);
-        seq.frame_names.push(path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default());
+    let (mut seq, rest) = open_obj_files(paths, frame_rate, limits)?;
+    for frame in rest {
+        seq.frames.push(frame?);
     }
     seq.validate()?;
     Ok(seq)
+}
+
+/// The first of the given files as a one-frame [`Sequence`] (its triangles, appearance, and
+/// every file's name in `frame_names`), and a reader of the frames after it, each checked to
+/// have frame 0's vertex count and faces: so that a sequence can be encoded while its later
+/// frames are still being read. Nothing past the first file is read until asked for.
+pub fn open_obj_files(paths: &[PathBuf], frame_rate: f32, limits: &InputLimits) -> Result<(Sequence, ObjFrames), MeshError> {
+    let mut seq = Sequence { frame_rate, ..Default::default() };
+    let Some(first) = paths.first() else {
+        return Ok((seq, ObjFrames { paths: Vec::new(), limits: *limits, frames: 0, triangles: Vec::new(), vertex_count: 0 }));
+    };
+    limits.check_frames(paths.len(), &format!("{} and the {} files after it", first.display(), paths.len() - 1))?;
+    let frame = read_file(first, limits, paths.len(), true)?;
+    seq.appearance = appearance::build(&frame, first)?;
+    seq.triangles = frame.triangles;
+    let vertex_count = frame.positions.len();
+    seq.frames.push(frame.positions);
+    seq.frame_names = paths.iter().map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()).collect();
+    let rest = ObjFrames {
+        paths: paths[1..].iter().rev().cloned().collect(),
+        limits: *limits,
+        frames: paths.len(),
+        triangles: seq.triangles.clone(),
+        vertex_count,
+    };
+    Ok((seq, rest))
+}
+
+/// The frames after the first of an OBJ sequence (see [`open_obj_files`]), read one file per
+/// `next`.
+#[derive(Debug)]
+pub struct ObjFrames {
+    /// Files still to read, last first.
+    paths: Vec<PathBuf>,
+    limits: InputLimits,
+    /// Frames in the whole sequence (what the limits are checked against).
+    frames: usize,
+    triangles: Vec<[u32; 3]>,
+    vertex_count: usize,
+}
+
+impl ObjFrames {
+    fn read(&self, path: &Path) -> Result<Vec<Vec3>, MeshError> {
+        let frame = read_file(path, &self.limits, self.frames, false)?;
+        let label = || path.display().to_string();
+        if frame.positions.len() != self.vertex_count {
+            return Err(MeshError::FrameMismatch {
+                frame: label(),
+                detail: format!("{} vertices where frame 0 has {}", frame.positions.len(), self.vertex_count),
+            });
+        }
+        if frame.triangles.len() != self.triangles.len() {
+            return Err(MeshError::FrameMismatch {
+                frame: label(),
+                detail: format!("{} triangles where frame 0 has {}", frame.triangles.len(), self.triangles.len()),
+            });
+        }
+        if let Some(t) = frame.triangles.iter().zip(&self.triangles).position(|(a, b)| a != b) {
+            return Err(MeshError::FrameMismatch {
+                frame: label(),
+                detail: format!("face {t} is {:?} where frame 0 has {:?} (0-based vertex indices)", frame.triangles[t], self.triangles[t]),
+            });
+        }
+        Ok(frame.positions)
+    }
+}
+
+impl Iterator for ObjFrames {
+    type Item = Result<Vec<Vec3>, MeshError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let path = self.paths.pop()?;
+        let frame = self.read(&path);
+        if frame.is_err() {
+            // Nothing after a bad file is read.
+            self.paths.clear();
+        }
+        Some(frame)
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        (self.paths.len(), Some(self.paths.len()))
+    }
 }
 
 #[cfg(test)]

@@ -6,12 +6,13 @@ use anyhow::{Context, anyhow};
 use clap::{Args, ValueEnum};
 use pmcodec_container::{
     ContainerError, CutTarget, Decoder, Distance, EncodeOptions, FileSource, Header, Motion, QuantizationChoice, Reader, SkinPlacement,
-    VertexOrder, encode, encode_with_report, summary, verify, write_file,
+    StreamError, VertexOrder, encode, encode_stream, encode_with_report, summary, verify, write_file,
 };
 use pmcodec_hierarchy::base::{PoseSet, VertexWeights};
 use pmcodec_hierarchy::recluster::ReclusterOptions;
 use pmcodec_mesh::skin_fit::{FitOptions, MAX_BONES, fit_skin};
 use serde::Serialize;
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -260,7 +261,10 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
     if fit_bones.is_some() && args.skin == SkinArg::None {
         return Err(Exit(2, anyhow!("--fit-skin with --skin none: a fitted skin is only used for prediction by skinning")));
     }
-    let mut seq = input::load(&args.input, &args.input_args)?;
+    // OBJ frames after the first are parsed on a thread of their own while the encoder works;
+    // a skin fit needs every frame first.
+    let (mut seq, rest) =
+        if fit_bones.is_some() { (input::load(&args.input, &args.input_args)?, None) } else { input::open(&args.input, &args.input_args)? };
     let mut fitted = None;
     if let Some(bones) = fit_bones {
         if seq.skin.is_some() && !quiet {
@@ -310,15 +314,16 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
     };
     let encoding = Instant::now();
     let what = || format!("encoding {}", args.input.display());
-    let bar = progress(seq.frame_count() as u64 * (1 + fitted.is_some() as u64), "encode", quiet || args.json);
-    // What the encoder refuses is the input or an option value out of range: bad input.
-    let (mut bytes, report) = encode_with_report(&seq, &opts, |_| {
-        bar.inc(1);
-        std::ops::ControlFlow::Continue(())
-    })
-    .map_err(|e| container_error(e, what()))?;
+    let frames = if rest.is_some() { seq.frame_names.len() } else { seq.frame_count() };
+    let bar = progress(frames as u64 * (1 + fitted.is_some() as u64), "encode", quiet || args.json);
     let mut fitted_out = None;
-    if let Some((fit, fit_seconds)) = fitted {
+    // What the encoder refuses is the input or an option value out of range: bad input.
+    let bytes = if let Some((fit, fit_seconds)) = fitted {
+        let (mut bytes, report) = encode_with_report(&seq, &opts, |_| {
+            bar.inc(1);
+            ControlFlow::Continue(())
+        })
+        .map_err(|e| container_error(e, what()))?;
         // Whether the fitted skin paid for its pose and bind chunks: the position bytes it
         // saved against what those chunks cost. The encoder estimates both predictions' bits
         // (an Elias gamma code of the residuals); their ratio scales the stored position bytes
@@ -362,7 +367,20 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
             positions_bytes_with_skin: positions,
             encoder: report,
         });
-    }
+        bytes
+    } else {
+        match rest {
+            Some(rest) => encode_stream(&seq, frames, rest, &opts, |_| {
+                bar.inc(1);
+                ControlFlow::Continue(())
+            })
+            .map_err(|e| match e {
+                StreamError::Input(e) => Exit(EXIT_BAD_INPUT, anyhow::Error::new(e).context(format!("reading {}", args.input.display()))),
+                StreamError::Encode(e) => container_error(e, what()),
+            })?,
+            None => encode(&seq, &opts, |_| bar.inc(1)).map_err(|e| container_error(e, what()))?,
+        }
+    };
     bar.finish_and_clear();
     let encode_seconds = encoding.elapsed().as_secs_f64();
     write_file(&args.output, &bytes).with_context(|| format!("writing {}", args.output.display()))?;

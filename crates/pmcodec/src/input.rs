@@ -19,6 +19,23 @@ pub struct InputArgs {
     pub animation: Option<String>,
 }
 
+/// The input as [`load`] reads it, except that an OBJ sequence's frames after the first are
+/// left to the returned reader (each read and checked as it is asked for): so that `encode`
+/// parses them while it encodes. glTF input is read whole (`None`).
+pub fn open(path: &Path, args: &InputArgs) -> Result<(Sequence, Option<pmcodec_mesh::obj::ObjFrames>), Exit> {
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    if ext == "glb" || ext == "gltf" {
+        return Ok((load(path, args)?, None));
+    }
+    let limits = InputLimits::default();
+    let opened = pmcodec_mesh::obj::frame_paths(path).and_then(|paths| {
+        limits.check_frames(paths.len(), &path.display().to_string())?;
+        pmcodec_mesh::obj::open_obj_files(&paths, args.fps, &limits)
+    });
+    let (head, rest) = opened.with_context(|| format!("reading {}", path.display())).map_err(|e| Exit(EXIT_BAD_INPUT, e))?;
+    Ok((head, Some(rest)))
+}
+
 /// Reads and validates the input sequence, under the default [`InputLimits`] (checked while
 /// parsing; the error names the limit, the file and the line).
 pub fn load(path: &Path, args: &InputArgs) -> Result<Sequence, Exit> {

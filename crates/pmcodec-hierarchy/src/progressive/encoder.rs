@@ -10,14 +10,23 @@ pub struct Encoder {
     node_of: std::sync::OnceLock<Vec<u32>>,
     /// Level-j ancestors of every triangle's corners, for j >= 1 (alive at j iff distinct).
     corners: Vec<Vec<[u32; 3]>>,
+    /// The next frame's corners while they are compared with `corners` (kept, not reallocated:
+    /// on the horse they are 1.2 MB a frame).
+    next_corners: Vec<Vec<[u32; 3]>>,
 }
 
 impl Encoder {
     /// An encoder starting from the base hierarchy H_0 of `triangles` (with its fine topology).
     pub fn new(base: Hierarchy, topo: FineTopology, triangles: Vec<[u32; 3]>, opts: ReclusterOptions) -> Self {
-        let mut enc =
-            Encoder { recluster: Reclusterer::new(base, topo, triangles, opts), node_of: Default::default(), corners: Vec::new() };
-        enc.corners = enc.current_corners();
+        let mut enc = Encoder {
+            recluster: Reclusterer::new(base, topo, triangles, opts),
+            node_of: Default::default(),
+            corners: Vec::new(),
+            next_corners: Vec::new(),
+        };
+        let mut corners = Vec::new();
+        enc.fill_corners(&mut corners);
+        enc.corners = corners;
         enc
     }
 
@@ -51,15 +60,24 @@ impl Encoder {
         &self.corners[j]
     }
 
-    fn current_corners(&self) -> Vec<Vec<[u32; 3]>> {
+    /// Every level's corners of H_f into `out` (level 0 left empty): level j + 1's are level
+    /// j's through the parent map, as [`Hierarchy::all_ancestors`] composes them.
+    fn fill_corners(&self, out: &mut Vec<Vec<[u32; 3]>>) {
         let h = self.recluster.hierarchy();
-        let anc = h.all_ancestors();
         let tris = self.recluster.triangles();
-        let mut out = vec![Vec::new()];
-        for anc_j in anc.iter().skip(1) {
-            out.push(tris.iter().map(|t| t.map(|v| anc_j[v as usize])).collect());
+        out.resize_with(h.levels(), Vec::new);
+        out[0].clear();
+        for j in 1..h.levels() {
+            let (below, above) = out.split_at_mut(j);
+            let (prev, next) = (&below[j - 1], &mut above[0]);
+            let parent = &h.parent[j - 1];
+            next.clear();
+            if j == 1 {
+                next.extend(tris.iter().map(|t| t.map(|v| parent[v as usize])));
+            } else {
+                next.extend(prev.iter().map(|c| c.map(|v| parent[v as usize])));
+            }
         }
-        out
     }
 
     /// Reclusters for the next frame and returns its delta.
@@ -67,7 +85,8 @@ impl Encoder {
         let mut delta = FrameDelta::default();
         let stats = self.recluster.frame(positions, &mut delta.swaps);
         self.node_of = Default::default();
-        let corners = self.current_corners();
+        let mut corners = std::mem::take(&mut self.next_corners);
+        self.fill_corners(&mut corners);
         for (j, (now, before)) in corners.iter().zip(&self.corners).enumerate().skip(1) {
             for (t, (c, b)) in now.iter().zip(before).enumerate() {
                 if c != b && (distinct(*c) || distinct(*b)) {
@@ -75,7 +94,7 @@ impl Encoder {
                 }
             }
         }
-        self.corners = corners;
+        self.next_corners = std::mem::replace(&mut self.corners, corners);
         (delta, stats)
     }
 
