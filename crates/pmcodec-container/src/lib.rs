@@ -82,8 +82,12 @@ pub struct Summary {
     pub delta_raw_bytes: Vec<u64>,
     /// Per band: stored bytes of its nodes' skins (bind positions and influences).
     pub bind_bytes: Vec<u64>,
-    /// Stored bytes of the joint palettes of every frame (read by every client).
+    /// Stored bytes of the joint palettes of every frame, all bands (Pose and Palette chunks).
     pub pose_bytes: u64,
+    /// Stored bytes of the Palette chunks per band: a client stopping at level L reads bands
+    /// L.. only (a file's older Pose chunks are read by every client, and counted in
+    /// `pose_bytes` alone).
+    pub palette_bytes: Vec<u64>,
     /// Positions, all bands, in bits per input vertex per frame.
     pub positions_bits_per_vertex_frame: f64,
     /// Topology deltas (swaps), all bands, per frame (compressed and raw): what a
@@ -117,6 +121,7 @@ pub fn summary<S: ByteSource>(reader: &Reader<S>) -> Summary {
         delta_raw_bytes: vec![0; levels],
         bind_bytes: vec![0; levels],
         pose_bytes: 0,
+        palette_bytes: vec![0; levels],
         positions_bits_per_vertex_frame: 0.0,
         delta_bytes_per_frame: 0.0,
         delta_raw_bytes_per_frame: 0.0,
@@ -151,7 +156,11 @@ pub fn summary<S: ByteSource>(reader: &Reader<S>) -> Summary {
             ChunkKind::Materials => s.materials_bytes += e.stored_len as u64,
             ChunkKind::Image => {}
             ChunkKind::Bind => s.bind_bytes[b] += e.stored_len as u64,
-            ChunkKind::Pose | ChunkKind::Palette => s.pose_bytes += e.stored_len as u64,
+            ChunkKind::Pose => s.pose_bytes += e.stored_len as u64,
+            ChunkKind::Palette => {
+                s.pose_bytes += e.stored_len as u64;
+                s.palette_bytes[b] += e.stored_len as u64;
+            }
         }
     }
     let frames = s.header.frame_count.max(1) as f64;
@@ -159,11 +168,17 @@ pub fn summary<S: ByteSource>(reader: &Reader<S>) -> Summary {
     s.positions_bits_per_vertex_frame = pos as f64 * 8.0 / (s.header.vertex_count.max(1) as f64 * frames);
     s.delta_bytes_per_frame = s.delta_bytes.iter().sum::<u64>() as f64 / frames;
     s.delta_raw_bytes_per_frame = s.delta_raw_bytes.iter().sum::<u64>() as f64 / frames;
+    // Pose chunks (older files) go to every client; Palette chunks to the clients of their
+    // band and finer.
+    let read_by_all = s.pose_bytes - s.palette_bytes.iter().sum::<u64>();
     for l in 0..levels {
-        s.bytes_per_frame_to_level[l] =
-            (s.delta_bytes[l..].iter().sum::<u64>() + s.positions_bytes[l..].iter().sum::<u64>() + s.corners_bytes[l] + s.pose_bytes)
-                as f64
-                / frames;
+        let palettes: u64 = s.palette_bytes[l..].iter().sum();
+        s.bytes_per_frame_to_level[l] = (s.delta_bytes[l..].iter().sum::<u64>()
+            + s.positions_bytes[l..].iter().sum::<u64>()
+            + s.corners_bytes[l]
+            + read_by_all
+            + palettes) as f64
+            / frames;
     }
     s
 }

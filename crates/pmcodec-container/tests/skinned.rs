@@ -138,6 +138,17 @@ fn coarse_clients_read_only_their_bands_joints() {
     let top = r.header().top();
     assert!(palette_bytes(top) < palette_bytes(0), "palette bytes: {} at the top level, {} in full", palette_bytes(top), palette_bytes(0));
     assert!(r.index().chunks.iter().any(|e| e.kind == ChunkKind::Palette && e.band as usize != top), "entries below the top band");
+    // `summary` (what `pmcodec info` and the server's asset metadata report) counts for each
+    // level the palettes its clients read, not every band's.
+    let s = summary(&r);
+    assert_eq!(s.palette_bytes.iter().sum::<u64>(), s.pose_bytes);
+    let frames = r.header().frame_count as f64;
+    for level in 0..=top {
+        let others: u64 =
+            s.delta_bytes[level..].iter().sum::<u64>() + s.positions_bytes[level..].iter().sum::<u64>() + s.corners_bytes[level];
+        let want = (others + palette_bytes(level)) as f64 / frames;
+        assert!((s.bytes_per_frame_to_level[level] - want).abs() < 1e-9, "level {level}: {} vs {want}", s.bytes_per_frame_to_level[level]);
+    }
 }
 
 fn refused(bytes: &[u8]) -> ContainerError {
