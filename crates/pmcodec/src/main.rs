@@ -2,7 +2,9 @@
 //! module and only parses arguments, calls a library, and reports.
 
 mod codec_cmd;
+mod decode_cmd;
 mod eval_cmd;
+mod info_cmd;
 mod input;
 mod lod_cmd;
 mod play_cmd;
@@ -26,11 +28,11 @@ enum Command {
     /// Encode an OBJ sequence or an animated glTF/GLB into a .pmc container.
     Encode(codec_cmd::EncodeArgs),
     /// Decode a frame (or every frame) of a .pmc at a triangle budget, level or error bound.
-    Decode(codec_cmd::DecodeArgs),
+    Decode(decode_cmd::DecodeArgs),
     /// Describe a .pmc: counts, levels, sizes per band, bits per vertex per frame.
-    Info(codec_cmd::InfoArgs),
+    Info(info_cmd::InfoArgs),
     /// Check every checksum and replay every frame of a .pmc.
-    Verify(codec_cmd::VerifyArgs),
+    Verify(info_cmd::VerifyArgs),
     /// Per-frame surface distance of approximations to the original frames.
     Eval(eval_cmd::EvalArgs),
     /// Serve assets (or the built-in samples) and the viewer over HTTP.
@@ -107,9 +109,9 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Encode(args) => codec_cmd::encode_cmd(args, cli.quiet),
         Command::Play(args) => play_cmd::run(args, cli.quiet),
-        Command::Decode(args) => codec_cmd::decode_cmd(args, cli.quiet),
-        Command::Info(args) => codec_cmd::info_cmd(args),
-        Command::Verify(args) => codec_cmd::verify_cmd(args, cli.quiet),
+        Command::Decode(args) => decode_cmd::decode_cmd(args, cli.quiet),
+        Command::Info(args) => info_cmd::info_cmd(args),
+        Command::Verify(args) => info_cmd::verify_cmd(args, cli.quiet),
         Command::Eval(args) => eval_cmd::run(args, cli.quiet),
         Command::Serve(args) => serve_cmd::run(args, cli.quiet),
         Command::Sample(args) => sample(args),
