@@ -319,67 +319,11 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
     let mut fitted_out = None;
     // What the encoder refuses is the input or an option value out of range: bad input.
     let bytes = if let Some((fit, fit_seconds)) = fitted {
-        let (mut bytes, report) = encode_with_report(&seq, &opts, |_| {
-            bar.inc(1);
-            ControlFlow::Continue(())
-        })
-        .map_err(|e| container_error(e, what()))?;
-        // Whether the fitted skin paid for its pose and bind chunks: the position bytes it
-        // saved against what those chunks cost. The encoder estimates both predictions' bits
-        // (an Elias gamma code of the residuals); their ratio scales the stored position bytes
-        // to what the plain prediction would have stored. A fitted skin that does not pay is
-        // dropped and the file encoded again without it.
-        let s = summary(&Reader::open(bytes.as_slice()).context("re-reading what was encoded")?);
-        let skin_bytes = s.pose_bytes + s.bind_bytes.iter().sum::<u64>();
-        let positions: u64 = s.positions_bytes.iter().sum();
-        let ratio = report.plain_bits as f64 / report.stored_bits.max(1) as f64;
-        let saved = (positions as f64 * (ratio - 1.0)).max(0.0).round() as u64;
-        let mut reason = format!(
-            "skinning predicted {} of {} bands and saved about {saved} bytes of residuals for {skin_bytes} bytes of bones and weights",
-            report.skinned_bands, report.bands
-        );
-        let bytes_with_skin = bytes.len() as u64;
-        // The estimate is about: within a quarter of the skin's cost either way (the horse at
-        // 12 bits estimated 121,212 saved for 119,550 and was 0.4% larger), the plain file is
-        // encoded too and the smaller kept.
-        let mut used = saved as f64 > 1.25 * skin_bytes as f64;
-        if !used {
-            seq.skin = None;
-            let plain = encode(&seq, &opts, |_| bar.inc(1)).map_err(|e| container_error(e, what()))?;
-            if saved as f64 > 0.75 * skin_bytes as f64 && plain.len() >= bytes.len() {
-                used = true;
-            } else {
-                reason.push_str(&format!("; {} bytes without the skin, {bytes_with_skin} with it", plain.len()));
-                bytes = plain;
-            }
-        }
-        fitted_out = Some(FittedSkinOutput {
-            bones: fit.bones,
-            rms_error: fit.rms_error,
-            max_error: fit.max_error,
-            fit_seconds,
-            fit_share: 0.0,
-            used,
-            reason,
-            bytes_with_skin,
-            pose_bytes: s.pose_bytes,
-            bind_bytes: s.bind_bytes.iter().sum(),
-            positions_bytes_with_skin: positions,
-            encoder: report,
-        });
+        let (bytes, out) = encode_fitted(&mut seq, &opts, fit, fit_seconds, &bar, &what())?;
+        fitted_out = Some(out);
         bytes
     } else {
-        match rest {
-            Some(rest) => encode_stream(&seq, frames, rest, &opts, |_| {
-                bar.inc(1);
-                ControlFlow::Continue(())
-            })
-            .map_err(|e| match e {
-                StreamError::Input(e) => Exit(EXIT_BAD_INPUT, anyhow::Error::new(e).context(format!("reading {}", args.input.display()))),
-                StreamError::Encode(e) => container_error(e, what()),
-            })?,
-            None => encode(&seq, &opts, |_| bar.inc(1)).map_err(|e| container_error(e, what()))?,
-        }
+        encode_read(&seq, rest, frames, &opts, &bar, &args.input)?
     };
     bar.finish_and_clear();
     let encode_seconds = encoding.elapsed().as_secs_f64();
@@ -427,6 +371,91 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
         );
     }
     Ok(())
+}
+
+/// Encodes `seq`, whose frames after the first `rest` reads while the encoder works (OBJ
+/// input), or which holds every frame.
+fn encode_read(
+    seq: &pmcodec_mesh::Sequence,
+    rest: Option<pmcodec_mesh::obj::ObjFrames>,
+    frames: usize,
+    opts: &EncodeOptions,
+    bar: &indicatif::ProgressBar,
+    input: &Path,
+) -> Result<Vec<u8>, Exit> {
+    let what = || format!("encoding {}", input.display());
+    Ok(match rest {
+        Some(rest) => encode_stream(seq, frames, rest, opts, |_| {
+            bar.inc(1);
+            ControlFlow::Continue(())
+        })
+        .map_err(|e| match e {
+            StreamError::Input(e) => Exit(EXIT_BAD_INPUT, anyhow::Error::new(e).context(format!("reading {}", input.display()))),
+            StreamError::Encode(e) => container_error(e, what()),
+        })?,
+        None => encode(seq, opts, |_| bar.inc(1)).map_err(|e| container_error(e, what()))?,
+    })
+}
+
+/// Encodes `seq` with its fitted skin, and without it when the skin does not pay for its
+/// bytes; returns the file kept and what `--json` says of the fit.
+fn encode_fitted(
+    seq: &mut pmcodec_mesh::Sequence,
+    opts: &EncodeOptions,
+    fit: pmcodec_mesh::skin_fit::FitReport,
+    fit_seconds: f64,
+    bar: &indicatif::ProgressBar,
+    what: &str,
+) -> Result<(Vec<u8>, FittedSkinOutput), Exit> {
+    let (mut bytes, report) = encode_with_report(seq, opts, |_| {
+        bar.inc(1);
+        ControlFlow::Continue(())
+    })
+    .map_err(|e| container_error(e, what))?;
+    // Whether the fitted skin paid for its pose and bind chunks: the position bytes it
+    // saved against what those chunks cost. The encoder estimates both predictions' bits
+    // (an Elias gamma code of the residuals); their ratio scales the stored position bytes
+    // to what the plain prediction would have stored. A fitted skin that does not pay is
+    // dropped and the file encoded again without it.
+    let s = summary(&Reader::open(bytes.as_slice()).context("re-reading what was encoded")?);
+    let skin_bytes = s.pose_bytes + s.bind_bytes.iter().sum::<u64>();
+    let positions: u64 = s.positions_bytes.iter().sum();
+    let ratio = report.plain_bits as f64 / report.stored_bits.max(1) as f64;
+    let saved = (positions as f64 * (ratio - 1.0)).max(0.0).round() as u64;
+    let mut reason = format!(
+        "skinning predicted {} of {} bands and saved about {saved} bytes of residuals for {skin_bytes} bytes of bones and weights",
+        report.skinned_bands, report.bands
+    );
+    let bytes_with_skin = bytes.len() as u64;
+    // The estimate is about: within a quarter of the skin's cost either way (the horse at
+    // 12 bits estimated 121,212 saved for 119,550 and was 0.4% larger), the plain file is
+    // encoded too and the smaller kept.
+    let mut used = saved as f64 > 1.25 * skin_bytes as f64;
+    if !used {
+        seq.skin = None;
+        let plain = encode(seq, opts, |_| bar.inc(1)).map_err(|e| container_error(e, what))?;
+        if saved as f64 > 0.75 * skin_bytes as f64 && plain.len() >= bytes.len() {
+            used = true;
+        } else {
+            reason.push_str(&format!("; {} bytes without the skin, {bytes_with_skin} with it", plain.len()));
+            bytes = plain;
+        }
+    }
+    let out = FittedSkinOutput {
+        bones: fit.bones,
+        rms_error: fit.rms_error,
+        max_error: fit.max_error,
+        fit_seconds,
+        fit_share: 0.0,
+        used,
+        reason,
+        bytes_with_skin,
+        pose_bytes: s.pose_bytes,
+        bind_bytes: s.bind_bytes.iter().sum(),
+        positions_bytes_with_skin: positions,
+        encoder: report,
+    };
+    Ok((bytes, out))
 }
 
 /// The exit code of a container error: what the file holds is bad input; a failing disk is a
