@@ -15,6 +15,7 @@ pub mod glb;
 pub mod gltf_input;
 pub mod limits;
 pub mod obj;
+pub mod rig_glb;
 pub mod samples;
 pub mod skin;
 pub mod skin_fit;

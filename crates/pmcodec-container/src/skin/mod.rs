@@ -14,9 +14,11 @@
 
 mod fit;
 mod payload;
+mod rig;
 
 pub(crate) use fit::{SkinFit, fit_skin};
 pub(crate) use payload::{PosePrediction, read_binds, read_palette, read_pose, write_binds, write_palette};
+pub use rig::{bind_position, influences, palette_transforms};
 
 use serde::{Deserialize, Serialize};
 
