@@ -308,15 +308,20 @@ async function simplified(pmc: string, glb: string, animation: number, count: nu
   const theirs = stage(env);
   theirs.add(reference.scene);
   const clip = reference.animations[animation];
+  // Played once and held at the end: the encoder samples the clip's last instant too, which a
+  // repeating action would wrap back to its start.
+  const once = (m: THREE.AnimationMixer, c: THREE.AnimationClip | undefined): void => {
+    if (c) m.clipAction(c).setLoop(THREE.LoopOnce, 1).play().clampWhenFinished = true;
+  };
   const mixer = new THREE.AnimationMixer(reference.scene);
-  if (clip) mixer.clipAction(clip).play();
+  once(mixer, clip);
   const simple = await Promise.all(shares.map(async (share) => {
     const g = await loadGlb(glb);
     const [before, after] = simplifyMeshes(g.scene, share);
     const scene = stage(env);
     scene.add(g.scene);
     const m = new THREE.AnimationMixer(g.scene);
-    if (g.animations[animation]) m.clipAction(g.animations[animation]).play();
+    once(m, g.animations[animation]);
     return { scene, root: g.scene, mixer: m, before, after };
   }));
   const ours = stage(env);
