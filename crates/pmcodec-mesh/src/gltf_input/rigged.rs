@@ -77,7 +77,9 @@ pub struct MeshInstance {
 /// Which node, mesh and primitive of the file a primitive number stands for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PrimitiveRef {
+    /// Index into the file's `nodes`: the node that instantiates the mesh.
     pub node: usize,
+    /// Index into the file's `meshes`.
     pub mesh: usize,
     /// Index into the mesh's `primitives`.
     pub primitive: usize,
@@ -86,8 +88,11 @@ pub struct PrimitiveRef {
 /// A node's rest transform.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NodeTransform {
+    /// Local translation.
     pub translation: Vec3,
+    /// Local rotation, a unit quaternion.
     pub rotation: Quat,
+    /// Local non-uniform scale.
     pub scale: Vec3,
     /// Set when the node was given as a matrix. It is used as is unless an animation targets
     /// the node (which glTF forbids, §5.25), in which case its decomposition above is animated.
@@ -103,7 +108,9 @@ impl Default for NodeTransform {
 /// A skin: joint nodes and their inverse bind matrices (identity when the file has none).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Skin {
+    /// Joint nodes (indices into the file's `nodes`); a vertex's joint index `j` names `joints[j]`.
     pub joints: Vec<usize>,
+    /// One matrix per joint, from the mesh's space into the joint's space at bind time.
     pub inverse_bind_matrices: Vec<Mat4>,
 }
 
@@ -112,9 +119,11 @@ pub struct Skin {
 pub struct Animation {
     /// Position in the file's `animations` array.
     pub index: usize,
+    /// The animation's name in the file, if any.
     pub name: Option<String>,
     /// Largest keyframe time over the channels, in seconds (0 without keys).
     pub duration: f32,
+    /// The channels, in file order; samplers are resolved into them.
     pub channels: Vec<Channel>,
 }
 
@@ -128,8 +137,11 @@ impl Animation {
 /// What an animation channel drives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum AnimatedProperty {
+    /// `translation`, 3 floats per key.
     Translation,
+    /// `rotation`, a quaternion (x, y, z, w) per key.
     Rotation,
+    /// `scale`, 3 floats per key.
     Scale,
     /// The morph weights of the mesh the node instantiates.
     MorphWeights,
@@ -138,16 +150,22 @@ pub enum AnimatedProperty {
 /// Keyframe interpolation (glTF 2.0 §3.11, Appendix C).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Interpolation {
+    /// The value of the previous key, held until the next one.
     Step,
+    /// Component-wise linear, spherical linear for rotations.
     Linear,
+    /// Cubic Hermite with per-key in- and out-tangents.
     CubicSpline,
 }
 
 /// One animation channel: keyframes of one property of one node.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Channel {
+    /// Target node, an index into the file's `nodes`.
     pub node: usize,
+    /// Which of the node's properties the keys drive.
     pub property: AnimatedProperty,
+    /// How values between keys are found.
     pub interpolation: Interpolation,
     /// Keyframe times in seconds, non-decreasing.
     pub times: Vec<f32>,
