@@ -41,8 +41,11 @@ pub struct LodLevel {
 /// The input (welded), the levels, and how they were made.
 #[derive(Clone, Debug)]
 pub struct LodChain {
+    /// The input rig, welded (one vertex per distinct rest position and skin), which level vertex ids index.
     pub input: RiggedMesh,
+    /// The welded vertices' records (rest position, influences, morph deltas) and their classes.
     pub attrs: VertexAttrs,
+    /// The levels, finest first, each nested in the one before.
     pub levels: Vec<LodLevel>,
     /// Number of example poses the costs were summed over.
     pub pose_count: usize,
