@@ -41,9 +41,10 @@ pub struct LodLevel {
 /// The input (welded), the levels, and how they were made.
 #[derive(Clone, Debug)]
 pub struct LodChain {
-    /// The input rig, welded (one vertex per distinct rest position and skin), which level vertex ids index.
+    /// The rig the chain was built from, as given; every level keeps its nodes, skins and animations.
     pub input: RiggedMesh,
-    /// The welded vertices' records (rest position, influences, morph deltas) and their classes.
+    /// The input's vertices welded across seams (rest position, influences, morph deltas) with
+    /// their classes; a level vertex's id indexes these.
     pub attrs: VertexAttrs,
     /// The levels, finest first, each nested in the one before.
     pub levels: Vec<LodLevel>,

@@ -39,7 +39,8 @@ pub enum LodError {
     /// Every pose got weight 0, so the multi-pose quadrics would all be zero.
     #[error("every pose has weight 0: there is nothing to measure the collapse cost in")]
     NoPoses,
-    /// The welded rig has too many vertices for the simplifier's 32-bit ids (with room for its two id spaces).
+    /// The welded rig has half the u32 range of vertices or more: the simplifier's 32-bit vertex
+    /// ids would run out.
     #[error("the mesh has {0} vertices, more than this tool handles")]
     TooLarge(usize),
     /// An invariant of the simplifier or the chain broke; a bug to report, not bad input.

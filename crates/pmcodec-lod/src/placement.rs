@@ -42,7 +42,7 @@ pub enum Placement {
 }
 
 impl Placement {
-    /// Every policy, in the order the CLI lists them.
+    /// Every policy: endpoint, blended, Houle & Poulin (examples and tests compare all three).
     pub const ALL: [Placement; 3] = [Placement::Endpoint, Placement::Blended, Placement::HoulePoulin];
 
     /// The policy's name on the command line and in the GLB's `extras` (`endpoint`, `blended`, `houle-poulin`).

@@ -8,7 +8,8 @@ pub use pmcodec_mesh::binmesh::{MAGIC as MESH_MAGIC, decode_bin, decode_bin_appe
 /// The body format of a mesh response (`format=glb|bin`, `layout=3`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MeshFormat {
-    /// Binary glTF: one scene, positions, normals and the asset's appearance when it has one.
+    /// Binary glTF (`model/gltf-binary`), one mesh in one scene; textured when the asset has an
+    /// appearance.
     Glb,
     /// The compact binary, layout version 2 (positions and triangles).
     Bin,
