@@ -115,10 +115,12 @@ impl<S: ByteSource> Decoder<S> {
         self.kept.drain(..excess);
     }
 
+    /// The frame the decoder holds (the last one decoded), `None` before the first.
     pub fn frame(&self) -> Option<u32> {
         self.frame
     }
 
+    /// The reader the decoder fetches chunks through.
     pub fn reader(&self) -> &Reader<S> {
         &self.reader
     }
@@ -162,6 +164,7 @@ impl<S: ByteSource> Decoder<S> {
         out
     }
 
+    /// The replayed hierarchy of the current frame (cut, degenerate sets, swaps applied), `None` before the first frame.
     pub fn replay(&self) -> Option<&Replay> {
         self.replay.as_ref()
     }

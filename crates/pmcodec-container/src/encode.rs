@@ -28,11 +28,15 @@ pub enum QuantizationChoice {
 /// Everything `encode` can be told.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EncodeOptions {
+    /// Hierarchy construction: branching and the QEM options (Kircher & Garland section 3).
     pub build: BuildOptions,
+    /// The base poses and weights the quadrics are summed over.
     pub base: BaseOptions,
+    /// Per-frame reclustering: swap budget, passes, benefit threshold (section 4).
     pub recluster: ReclusterOptions,
     /// A keyframe every this many frames (0: only frame 0).
     pub keyframe_interval: u32,
+    /// How finely positions are quantized: an error bound or a bit count.
     pub quantization: QuantizationChoice,
     /// Coarser nodes on a grid of `2^(level + k)` quanta (see [`crate::coarse_shift`]): fewer
     /// bits, coarser cuts. The default, `Some(0)`, stores level j on a grid of about 2^j quanta,
@@ -316,10 +320,12 @@ struct PositionCoder {
 pub struct EncodeReport {
     /// Bands coded (bands times frames), and how many of them skinning predicted.
     pub bands: u64,
+    /// Of `bands`, those whose nodes skinning predicted.
     pub skinned_bands: u64,
     /// About the bits of every band's residuals (an Elias gamma code of each) under the default
     /// prediction, and as stored (the smaller of the two where skinning competed).
     pub plain_bits: u64,
+    /// The same estimate as stored; `plain_bits - stored_bits` is about what skinning saved.
     pub stored_bits: u64,
 }
 
@@ -568,8 +574,10 @@ fn check_frame(head: &Sequence, f: usize, n: usize, p: &[Vec3]) -> Result<(), Co
 /// What [`encode_stream`] can fail on: reading the input, or encoding it.
 #[derive(Debug, thiserror::Error)]
 pub enum StreamError<E> {
+    /// The frame source failed; the encode stopped and wrote nothing.
     #[error("reading the input: {0}")]
     Input(E),
+    /// The encoder failed (invalid input, options, or cancellation).
     #[error(transparent)]
     Encode(ContainerError),
 }

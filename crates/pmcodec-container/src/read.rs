@@ -58,6 +58,7 @@ pub struct FileSource {
 }
 
 impl FileSource {
+    /// Opens the file at `path` for positioned reads; [`ContainerError::Io`] names the path.
     pub fn open(path: &Path) -> Result<Self, ContainerError> {
         let file = std::fs::File::open(path).map_err(|e| ContainerError::Io(format!("{}: {e}", path.display())))?;
         let len = file.metadata().map_err(|e| ContainerError::Io(format!("{}: {e}", path.display())))?.len();
@@ -150,6 +151,7 @@ impl<S: ByteSource> Reader<S> {
         self.flags
     }
 
+    /// The file's header, migrated to today's version.
     pub fn header(&self) -> &Header {
         &self.header
     }
@@ -169,10 +171,12 @@ impl<S: ByteSource> Reader<S> {
         }
     }
 
+    /// The chunk index, in file order.
     pub fn index(&self) -> &Index {
         &self.index
     }
 
+    /// Length of the source in bytes.
     pub fn file_len(&self) -> u64 {
         self.file_len
     }
@@ -187,6 +191,7 @@ impl<S: ByteSource> Reader<S> {
         self.bytes_read.get()
     }
 
+    /// The byte source.
     pub fn source(&self) -> &S {
         &self.source
     }
