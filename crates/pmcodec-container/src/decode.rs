@@ -476,7 +476,7 @@ impl<S: ByteSource> Decoder<S> {
     /// The skin of a skinned file at the current frame: every node's bind position and
     /// influences (by global id; nodes of bands below the decoder's level are default) and the
     /// frame's palette (`ENTRY` fixed-point values per entry, proto/container.md "Skinning";
-    /// [`crate::skin::palette_transforms`] turns it into transforms). `None` in files without a
+    /// [`crate::palette_transforms`] turns it into transforms). `None` in files without a
     /// skin and before the first frame.
     pub fn skin(&self) -> Option<(&[NodeSkin], &[i64])> {
         self.skin.as_ref().map(|s| (s.nodes.as_slice(), s.palette.as_slice()))

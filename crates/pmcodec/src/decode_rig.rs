@@ -9,8 +9,7 @@ use crate::codec_cmd::container_error;
 use crate::{EXIT_BAD_INPUT, Exit, progress};
 use anyhow::{Context, anyhow};
 use glam::Vec3;
-use pmcodec_container::skin::{bind_position, influences, palette_transforms};
-use pmcodec_container::{CutTarget, Decoder, FileSource};
+use pmcodec_container::{CutTarget, Decoder, FileSource, bind_position, influences, palette_transforms};
 use pmcodec_mesh::rig_glb::{MAX_BONES, Rig, rig_glb};
 use serde::Serialize;
 use std::path::Path;
@@ -43,8 +42,8 @@ pub fn decode_rig(dec: &mut Decoder<&FileSource>, input: &Path, out: &Path, quie
     dec.seek(0).map_err(|e| container_error(e, where_(0)))?;
     let first = dec.positions();
     let triangles = dec.mesh(CutTarget::Level(0)).map_err(|e| container_error(e, where_(0)))?.triangles;
-    let Some((nodes, palette)) = dec.skin() else { return Err(bad("frame 0 has no skin".into())) };
-    let bones = palette.len() / pmcodec_container::skin::ENTRY;
+    let Some((nodes, _)) = dec.skin() else { return Err(bad("frame 0 has no skin".into())) };
+    let bones = h.skin.as_ref().map_or(0, |s| s.palette_len as usize);
     if bones > MAX_BONES {
         return Err(bad(format!("{bones} palette entries; a GLB skin holds at most {MAX_BONES} bones")));
     }

@@ -49,8 +49,11 @@ pub const ENTRY: usize = 12;
 /// One node's skin: bind position and influences (palette entry, weight; weight 0 unused).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct NodeSkin {
+    /// Bind position in quanta of the header's `bind_step`.
     pub bind: [i64; 3],
+    /// Palette entries of the influences, in stored order.
     pub joints: [u32; 4],
+    /// Their weights in units of 2^-16, summing to 65536; 0 marks an unused slot.
     pub weights: [i64; 4],
 }
 
