@@ -69,6 +69,7 @@ fn main() {
         }
         let table: Vec<String> = kinds.iter().map(|(k, (b, c))| format!("{k} {b} B in {c}")).collect();
         println!("    preamble, header and index {} B; {}", r.data_start(), table.join(", "));
+        println!("    positions per band (band 0 first): {:?} B", s.positions_bytes);
         // PMC_OUT=dir: the skinned file, and every frame's quantized node positions as the Rust
         // decoder stores them at levels 0 and 1 (i32 little-endian, frame after frame), for
         // comparing other decoders with.

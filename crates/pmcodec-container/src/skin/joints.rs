@@ -393,16 +393,24 @@ pub fn fit_rig(m: &[f64], radius: f64, predicted: Rig, tolerance: f64) -> Option
     let dot: f64 = q.iter().zip(&predicted[..4]).map(|(a, &b)| a * b as f64).sum();
     let sign = if dot < 0.0 || (dot == 0.0 && q[0] < 0.0) { -1.0 } else { 1.0 };
     let qi = q.map(|v| (v / norm * rho * sign).round() as i64);
+    // The largest move of a bind point within `radius` (per row, the L1 norm of the error times
+    // the radius), in position quanta, of the matrix `rig` rebuilds.
+    let worst = |rig: &Rig| -> Option<f64> {
+        let rebuilt = rig_matrix(rig)?;
+        let row = (0..3).map(|a| (0..3).map(|c| (rebuilt[3 * a + c] as f64 - l(a, c)).abs()).sum::<f64>()).fold(0.0, f64::max);
+        Some(row * radius / (1u64 << LINEAR_BITS) as f64)
+    };
+    // The predicted scale where it does (a constant scale then costs nothing: the input's own
+    // scale varies in its last bits from frame to frame), else the scale rounded.
+    let held = [qi[0], qi[1], qi[2], qi[3], predicted[4]];
+    if predicted[4] != 0 && worst(&held).is_some_and(|w| w <= tolerance) {
+        return Some(held);
+    }
     let rig = [qi[0], qi[1], qi[2], qi[3], (s * (1u64 << SCALE_BITS) as f64).round() as i64];
     if rig[4].unsigned_abs() > MAX_SCALE as u64 {
         return None;
     }
-    let rebuilt = rig_matrix(&rig)?;
-    // The largest move of a bind point within `radius` (per row, the L1 norm of the error times
-    // the radius), in position quanta.
-    let worst = (0..3).map(|a| (0..3).map(|c| (rebuilt[3 * a + c] as f64 - l(a, c)).abs()).sum::<f64>()).fold(0.0, f64::max) * radius
-        / (1u64 << LINEAR_BITS) as f64;
-    (worst <= tolerance).then_some(rig)
+    worst(&rig).filter(|&w| w <= tolerance).map(|_| rig)
 }
 
 #[cfg(test)]
@@ -458,7 +466,12 @@ mod tests {
                 let rig = if e == 3 {
                     None
                 } else {
-                    fit_rig(&m, 30000.0, frames.last().map_or([0; 5], |p: &JointsFrame| p.rig[e].unwrap_or([0; 5])), 0.5)
+                    fit_rig(
+                        &m,
+                        30000.0,
+                        frames.last().map_or([0; 5], |p: &JointsFrame| p.rig[e].unwrap_or([0; 5])),
+                        0.25 + 1.5 * 30000.0 / 32768.0,
+                    )
                 };
                 let values: Vec<i64> = match rig {
                     Some(r) => {
@@ -479,6 +492,11 @@ mod tests {
             }
             frames.push(frame);
         }
+        // Entries 0 and 2 are rigid in every frame (3 is sent as twelve values); a constant
+        // scale is held from frame to frame, so it costs nothing after the first.
+        assert!(frames.iter().all(|f| f.rig[0].is_some() && f.rig[2].is_some() && f.rig[3].is_none()));
+        let scale = |f: usize| frames[f].rig[0].map(|r: Rig| r[4]);
+        assert!(scale(0).is_some() && (1..4).all(|f| scale(f) == scale(0)), "{:?}", (0..4).map(scale).collect::<Vec<_>>());
         let (mut palette, mut rig) = (vec![0i64; 4 * ENTRY], vec![None; 4]);
         let (mut held, mut before): (Vec<i64>, Vec<i64>) = (Vec::new(), Vec::new());
         let (mut held_rig, mut before_rig): (Vec<Option<Rig>>, Vec<Option<Rig>>) = (Vec::new(), Vec::new());
