@@ -189,7 +189,7 @@ impl BitReader<'_> {
         if end != self.bytes.len() {
             return Err(self.corrupt(format!("{} bytes left over", self.bytes.len() - end)));
         }
-        if self.bit % 8 != 0 && self.bytes[end - 1] >> (self.bit % 8) != 0 {
+        if !self.bit.is_multiple_of(8) && self.bytes[end - 1] >> (self.bit % 8) != 0 {
             return Err(self.corrupt("bits set after its last number"));
         }
         Ok(())
