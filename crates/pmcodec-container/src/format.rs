@@ -416,6 +416,10 @@ pub enum ChunkKind {
     /// mask (version 6, skinned files; read by clients whose finest level is the band or finer,
     /// so a coarse client reads only the joints its bands are skinned by).
     Palette = 12,
+    /// The Palette chunk's entries coded as rigid transforms where they are: quaternion, scale
+    /// and translation (version 6, skinned files; files written since this chunk carry Joints
+    /// chunks instead of Palette chunks; read as Palette chunks are).
+    Joints = 13,
 }
 
 impl From<ChunkKind> for u32 {
@@ -441,6 +445,7 @@ impl TryFrom<u32> for ChunkKind {
             10 => ChunkKind::Bind,
             11 => ChunkKind::Pose,
             12 => ChunkKind::Palette,
+            13 => ChunkKind::Joints,
             _ => return Err(format!("unknown chunk kind {v}")),
         })
     }
@@ -453,7 +458,9 @@ impl ChunkKind {
     pub fn read_at(self, band: usize, min_level: usize) -> bool {
         match self {
             ChunkKind::Triangles => min_level == 0,
-            ChunkKind::Key | ChunkKind::Delta | ChunkKind::Positions | ChunkKind::Bind | ChunkKind::Palette => band >= min_level,
+            ChunkKind::Key | ChunkKind::Delta | ChunkKind::Positions | ChunkKind::Bind | ChunkKind::Palette | ChunkKind::Joints => {
+                band >= min_level
+            }
             ChunkKind::Pose => true,
             ChunkKind::Faces | ChunkKind::Corners => band == min_level,
             ChunkKind::Charts | ChunkKind::Materials | ChunkKind::Image => true,
@@ -477,6 +484,7 @@ impl ChunkKind {
             ChunkKind::Bind => "bind",
             ChunkKind::Pose => "pose",
             ChunkKind::Palette => "palette",
+            ChunkKind::Joints => "joints",
         }
     }
 }

@@ -24,8 +24,8 @@ pub mod testing;
 
 pub use decode::Decoder;
 pub use encode::{
-    EncodeOptions, EncodeReport, QuantizationChoice, SkinPlacement, StreamError, encode, encode_stream, encode_until, encode_with_report,
-    write_file,
+    EncodeOptions, EncodeReport, PaletteCoding, QuantizationChoice, SkinPlacement, StreamError, encode, encode_stream, encode_until,
+    encode_with_report, write_file,
 };
 pub use format::{ChunkEntry, ChunkKind, Header, Index, Motion, VertexOrder};
 pub use pmcodec_hierarchy::{CutTarget, Distance};
@@ -212,7 +212,7 @@ pub fn summary<S: ByteSource>(reader: &Reader<S>) -> Summary {
             ChunkKind::Image => {}
             ChunkKind::Bind => s.bind_bytes[b] += e.stored_len as u64,
             ChunkKind::Pose => s.pose_bytes += e.stored_len as u64,
-            ChunkKind::Palette => {
+            ChunkKind::Palette | ChunkKind::Joints => {
                 s.pose_bytes += e.stored_len as u64;
                 s.palette_bytes[b] += e.stored_len as u64;
             }

@@ -312,7 +312,7 @@ fn raw_len_range(h: &Header, kind: ChunkKind, band: usize) -> (u64, u64) {
         }
         ChunkKind::Materials => (4, MAX_MATERIALS_LEN),
         ChunkKind::Image => (1, MAX_IMAGE_LEN),
-        ChunkKind::Bind | ChunkKind::Pose | ChunkKind::Palette => crate::skin::raw_len_range(h, kind, n),
+        ChunkKind::Bind | ChunkKind::Pose | ChunkKind::Palette | ChunkKind::Joints => crate::skin::raw_len_range(h, kind, n),
     }
 }
 
