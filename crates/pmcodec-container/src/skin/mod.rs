@@ -18,8 +18,8 @@ mod payload;
 mod rig;
 
 pub(crate) use fit::{SkinFit, fit_skin};
+pub use joints::Rig;
 pub(crate) use joints::{JointPrediction, JointsFrame, read_joints, write_joints};
-pub use joints::{MAX_QUATERNION, Rig, rig_matrix};
 pub(crate) use payload::{PosePrediction, read_binds, read_palette, read_pose, write_binds, write_palette};
 pub use rig::{bind_position, influences, palette_transforms};
 
