@@ -66,6 +66,15 @@ pub fn parse_obj_appearance(text: &str, path: &Path, limits: &InputLimits, frame
     parse_text(text, path, limits, frames, true)
 }
 
+/// The appearance of a frame parsed with [`parse_obj_appearance`], as if the file were at `path`:
+/// its `mtllib` libraries and their `map_Kd` images are read relative to `path`'s folder (a
+/// server unpacks an upload's materials and images there), and only below `root`: a library
+/// or image named outside it is refused unread. `None` when the frame has neither texture
+/// coordinates, normals nor materials.
+pub fn frame_appearance(frame: &ObjFrame, path: &Path, root: &Path) -> Result<Option<crate::Appearance>, MeshError> {
+    appearance::build_within(frame, path, Some(root))
+}
+
 fn parse_text(text: &str, path: &Path, limits: &InputLimits, frames: usize, attributes: bool) -> Result<ObjFrame, MeshError> {
     let mut parser = ObjParser::new(path, limits, frames, attributes);
     for (i, line) in text.lines().enumerate() {

@@ -11,7 +11,7 @@ use axum::body::Body;
 use axum::http::{HeaderMap, header};
 use bytes::Bytes;
 use pmcodec_mesh::gltf_input::{AnimationSelector, GltfOptions, list_animations_bytes, load_gltf_bytes};
-use pmcodec_mesh::obj::{natural_cmp, parse_obj_with};
+use pmcodec_mesh::obj::{frame_appearance, natural_cmp, parse_obj_appearance, parse_obj_with};
 use pmcodec_mesh::{InputLimits, Sequence};
 use std::ops::Range;
 use std::path::Path;
@@ -122,16 +122,12 @@ impl UploadBody {
             }
             Kind::Objs => {
                 let files: Vec<_> = self.parts.iter().map(|(n, r)| (n.clone(), slice(r))).collect();
-                sequence_from_objs(files, opts.frame_rate, opts.max_frames, &opts.input_limits)?
+                sequence_from_objs(files, &[], opts.frame_rate, opts.max_frames, &opts.input_limits)?
             }
             Kind::Zip => {
                 let b = self.parts.first().map(|(_, r)| slice(r)).unwrap_or_default();
-                sequence_from_objs(
-                    unzip_objs(b, opts.unpacked_limit, opts.max_frames)?,
-                    opts.frame_rate,
-                    opts.max_frames,
-                    &opts.input_limits,
-                )?
+                let (objs, resources) = unzip_objs(b, opts.unpacked_limit, opts.max_frames)?;
+                sequence_from_objs(objs, &resources, opts.frame_rate, opts.max_frames, &opts.input_limits)?
             }
         };
         // Whatever the path above, the cap holds for what is encoded.
@@ -380,21 +376,33 @@ pub async fn drain(body: Body) {
     let _ = tokio::time::timeout(DRAIN_TIME, async move { while let Some(Ok(_)) = body.frame().await {} }).await;
 }
 
-/// The `.obj` members of a zip, with a bound on what they unpack to (zip bombs).
-fn unzip_objs(bytes: Bytes, limit: u64, max_frames: u32) -> Result<Vec<(String, Bytes)>, String> {
+/// Members of an OBJ upload that are not frames but what the first frame's materials name:
+/// material libraries and the images they map.
+const RESOURCE_SUFFIXES: [&str; 4] = [".mtl", ".png", ".jpg", ".jpeg"];
+
+/// The `.obj` members of a zip, and its material libraries and images (the first frame's
+/// `mtllib` and `map_Kd` files), with a bound on what they all unpack to (zip bombs).
+type Members = Vec<(String, Bytes)>;
+fn unzip_objs(bytes: Bytes, limit: u64, max_frames: u32) -> Result<(Members, Members), String> {
     use std::io::Read;
     let mut zip = zip::ZipArchive::new(std::io::Cursor::new(bytes)).map_err(|e| format!("zip: {e}"))?;
     let mut out = Vec::new();
+    let mut resources = Vec::new();
     let mut total: u64 = 0;
     for i in 0..zip.len() {
         let mut f = zip.by_index(i).map_err(|e| format!("zip member {i}: {e}"))?;
         let name = f.name().map_err(|e| format!("zip member {i}: {e}"))?.to_string();
         let base = name.rsplit('/').next().unwrap_or("");
-        // Folders, resource forks and hidden files are not frames.
-        if f.is_dir() || name.contains("__MACOSX/") || base.starts_with('.') || !base.to_ascii_lowercase().ends_with(".obj") {
+        let lower = base.to_ascii_lowercase();
+        // Folders, resource forks and hidden files are neither frames nor their materials.
+        if f.is_dir() || name.contains("__MACOSX/") || base.starts_with('.') {
             continue;
         }
-        if out.len() >= max_frames as usize {
+        let resource = RESOURCE_SUFFIXES.iter().any(|s| lower.ends_with(s));
+        if !resource && !lower.ends_with(".obj") {
+            continue;
+        }
+        if !resource && out.len() >= max_frames as usize {
             return Err(format!(
                 "the zip holds more than {max_frames} .obj files: more frames than this server's limit per asset (limits.max_frames)"
             ));
@@ -407,13 +415,55 @@ fn unzip_objs(bytes: Bytes, limit: u64, max_frames: u32) -> Result<Vec<(String, 
             return Err(format!("the zip unpacks to more than {limit} bytes"));
         }
         total += buf.len() as u64;
-        out.push((name, Bytes::from(buf)));
+        if resource {
+            resources.push((name, Bytes::from(buf)));
+        } else {
+            out.push((name, Bytes::from(buf)));
+        }
     }
-    Ok(out)
+    Ok((out, resources))
 }
 
-/// Frames in natural name order, each the same mesh with other positions.
-fn sequence_from_objs(mut files: Vec<(String, Bytes)>, frame_rate: f32, max_frames: u32, limits: &InputLimits) -> Result<Sequence, String> {
+/// A zip member's name as a relative path below a folder: `None` for a name that could reach
+/// out of it (absolute, `..`, a drive or a backslash), which is then not unpacked.
+fn member_path(name: &str) -> Option<std::path::PathBuf> {
+    let path = Path::new(name);
+    let plain = path.components().all(|c| matches!(c, std::path::Component::Normal(_)));
+    (plain && !name.contains('\\') && !name.contains(':')).then(|| path.to_path_buf())
+}
+
+/// The first frame's appearance (texture coordinates, normals, materials and their images):
+/// its material libraries and images are unpacked into a folder of their own beside where the
+/// frame's name puts it, and read from there as the CLI reads them beside an OBJ file. Errors
+/// name the member and line, not the folder.
+fn upload_appearance(
+    first: &pmcodec_mesh::obj::ObjFrame,
+    name: &str,
+    resources: &[(String, Bytes)],
+) -> Result<Option<pmcodec_mesh::Appearance>, String> {
+    let dir = tempfile::tempdir().map_err(|e| format!("unpacking the upload's materials: {e}"))?;
+    for (member, bytes) in resources {
+        let Some(rel) = member_path(member) else { continue };
+        let path = dir.path().join(rel);
+        if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent).map_err(|e| format!("unpacking {member}: {e}"))?;
+        }
+        std::fs::write(&path, bytes).map_err(|e| format!("unpacking {member}: {e}"))?;
+    }
+    let frame_path = member_path(name).map_or_else(|| dir.path().join("frame.obj"), |p| dir.path().join(p));
+    let prefix = format!("{}/", dir.path().display());
+    frame_appearance(first, &frame_path, dir.path()).map_err(|e| e.to_string().replace(&prefix, ""))
+}
+
+/// Frames in natural name order, each the same mesh with other positions; the first frame's
+/// appearance (`vt`, `vn`, `usemtl` with the libraries and images in `resources`).
+fn sequence_from_objs(
+    mut files: Vec<(String, Bytes)>,
+    resources: &[(String, Bytes)],
+    frame_rate: f32,
+    max_frames: u32,
+    limits: &InputLimits,
+) -> Result<Sequence, String> {
     if files.is_empty() {
         return Err("the upload holds no .obj files".into());
     }
@@ -426,8 +476,11 @@ fn sequence_from_objs(mut files: Vec<(String, Bytes)>, frame_rate: f32, max_fram
     let mut seq = Sequence { frame_rate, ..Default::default() };
     for (name, data) in files {
         let text = std::str::from_utf8(&data).map_err(|e| format!("{name}: not UTF-8 text ({e})"))?;
-        let frame = parse_obj_with(text, Path::new(&name), limits, frames).map_err(|e| e.to_string())?;
-        if seq.frames.is_empty() {
+        let first = seq.frames.is_empty();
+        let parse = if first { parse_obj_appearance } else { parse_obj_with };
+        let frame = parse(text, Path::new(&name), limits, frames).map_err(|e| e.to_string())?;
+        if first {
+            seq.appearance = upload_appearance(&frame, &name, resources)?;
             seq.triangles = frame.triangles;
         } else {
             if frame.positions.len() != seq.frames[0].len() {
@@ -461,14 +514,14 @@ mod tests {
     #[test]
     fn frames_sort_naturally_and_must_match() {
         let files = vec![("f10.obj".into(), obj(0.3)), ("f2.obj".into(), obj(0.2)), ("f1.obj".into(), obj(0.1))];
-        let seq = sequence_from_objs(files.clone(), 24.0, 3, &InputLimits::default()).unwrap();
+        let seq = sequence_from_objs(files.clone(), &[], 24.0, 3, &InputLimits::default()).unwrap();
         assert_eq!(seq.frame_names, ["f1.obj", "f2.obj", "f10.obj"]);
         assert_eq!(seq.frames[2][0].x, 0.3);
-        assert!(sequence_from_objs(files, 24.0, 2, &InputLimits::default()).unwrap_err().contains("limit of 2 frames"));
+        assert!(sequence_from_objs(files, &[], 24.0, 2, &InputLimits::default()).unwrap_err().contains("limit of 2 frames"));
         let bad = vec![("a.obj".into(), obj(0.0)), ("b.obj".into(), Bytes::from_static(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"))];
-        assert!(sequence_from_objs(bad, 24.0, 10, &InputLimits::default()).unwrap_err().contains("b.obj"));
+        assert!(sequence_from_objs(bad, &[], 24.0, 10, &InputLimits::default()).unwrap_err().contains("b.obj"));
         let broken = vec![("a.obj".into(), Bytes::from_static(b"v 0 0 zero\n"))];
-        assert!(sequence_from_objs(broken, 24.0, 10, &InputLimits::default()).unwrap_err().contains("a.obj:1"));
+        assert!(sequence_from_objs(broken, &[], 24.0, 10, &InputLimits::default()).unwrap_err().contains("a.obj:1"));
     }
 
     #[test]
@@ -485,8 +538,76 @@ mod tests {
         let bytes = Bytes::from(buf.into_inner());
         assert!(bytes.len() < 10_000);
         assert!(unzip_objs(bytes.clone(), 50_000, 10).unwrap_err().contains("more than 50000"));
-        assert_eq!(unzip_objs(bytes.clone(), 200_000, 10).unwrap()[0].1.len(), 100_000);
+        assert_eq!(unzip_objs(bytes.clone(), 200_000, 10).unwrap().0[0].1.len(), 100_000);
         assert!(unzip_objs(bytes, 200_000, 0).unwrap_err().contains("more than 0"));
+    }
+
+    /// A zip of `members` (name, bytes), stored.
+    fn zip_of(members: &[(&str, &[u8])]) -> Bytes {
+        use std::io::Write;
+        let mut buf = std::io::Cursor::new(Vec::new());
+        {
+            let mut z = zip::ZipWriter::new(&mut buf);
+            for (name, bytes) in members {
+                z.start_file(*name, zip::write::SimpleFileOptions::default()).unwrap();
+                z.write_all(bytes).unwrap();
+            }
+            z.finish().unwrap();
+        }
+        Bytes::from(buf.into_inner())
+    }
+
+    const TEXTURED: &str = "mtllib looks/quad.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nvt 1 1\nusemtl skin\nf 1/1 2/2 3/3\nusemtl plain\nf 2/2 4/4 3/3\n";
+
+    #[test]
+    fn zipped_frames_keep_the_first_frames_materials_and_images() {
+        let png = pmcodec_mesh::samples::textured_cloth(4, 4, 1, 8).appearance.unwrap().images[0].bytes.clone();
+        let mtl = b"newmtl skin\nKd 1 0.5 0.2\nmap_Kd ../maps/skin.png\nnewmtl plain\nKd 0.2 0.2 0.9\n";
+        let second = TEXTURED.replace("v 1 1 0", "v 1 1 0.5");
+        let bytes = zip_of(&[
+            ("seq/f1.obj", TEXTURED.as_bytes()),
+            ("seq/f2.obj", second.as_bytes()),
+            ("seq/looks/quad.mtl", mtl),
+            ("seq/maps/skin.png", &png),
+            ("../evil.png", &png),
+        ]);
+        let (objs, resources) = unzip_objs(bytes, 1 << 20, 10).unwrap();
+        assert_eq!(objs.len(), 2);
+        assert_eq!(resources.len(), 3, "the library and both images (the one reaching out is not unpacked)");
+        let seq = sequence_from_objs(objs, &resources, 24.0, 10, &InputLimits::default()).unwrap();
+        let app = seq.appearance.expect("an appearance");
+        assert_eq!(app.materials.len(), 2);
+        assert_eq!(app.images.len(), 1);
+        assert_eq!(app.images[0].bytes, png);
+        assert_eq!(app.triangle_material, [0, 1]);
+        assert!(app.materials[0].base_color_texture.is_some() && app.materials[1].base_color_texture.is_none());
+        assert_eq!(seq.frames.len(), 2);
+    }
+
+    #[test]
+    fn a_missing_library_or_image_is_named_without_the_unpacking_folder() {
+        let mtl = b"newmtl skin\nmap_Kd skin.png\nnewmtl plain\n";
+        let bytes = zip_of(&[("f1.obj", TEXTURED.as_bytes()), ("looks/quad.mtl", mtl)]);
+        let (objs, resources) = unzip_objs(bytes, 1 << 20, 10).unwrap();
+        let e = sequence_from_objs(objs, &resources, 24.0, 10, &InputLimits::default()).unwrap_err();
+        assert!(e.contains("looks/quad.mtl") && e.contains("skin.png"), "{e}");
+        assert!(!e.contains("/tmp"), "{e}");
+        let bytes = zip_of(&[("f1.obj", TEXTURED.as_bytes())]);
+        let (objs, resources) = unzip_objs(bytes, 1 << 20, 10).unwrap();
+        let e = sequence_from_objs(objs, &resources, 24.0, 10, &InputLimits::default()).unwrap_err();
+        assert!(e.contains("quad.mtl"), "{e}");
+        // A library naming a file outside the upload is refused, not read.
+        for (lib, map) in
+            [("../../../../../etc/hostname", "x.png"), ("quad.mtl", "/etc/hostname"), ("quad.mtl", "../../../../etc/hostname")]
+        {
+            let obj = TEXTURED.replace("looks/quad.mtl", lib);
+            let mtl = format!("newmtl skin\nmap_Kd {map}\nnewmtl plain\n");
+            let bytes = zip_of(&[("f1.obj", obj.as_bytes()), ("quad.mtl", mtl.as_bytes())]);
+            let (objs, resources) = unzip_objs(bytes, 1 << 20, 10).unwrap();
+            let e = sequence_from_objs(objs, &resources, 24.0, 10, &InputLimits::default()).unwrap_err();
+            assert!(e.contains("outside the upload"), "{lib} {map}: {e}");
+        }
+        assert!(member_path("../x.png").is_none() && member_path("/etc/x.png").is_none() && member_path("a/b.png").is_some());
     }
 
     #[test]

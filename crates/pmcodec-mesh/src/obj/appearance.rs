@@ -14,6 +14,13 @@ use std::path::{Path, PathBuf};
 /// The appearance of the OBJ file at `path` (its first frame), or `None` when it has neither
 /// texture coordinates, normals nor materials.
 pub fn build(frame: &ObjFrame, path: &Path) -> Result<Option<Appearance>, MeshError> {
+    build_within(frame, path, None)
+}
+
+/// [`build`], reading libraries and images only below `root` when given: a file the OBJ or a
+/// library names outside it (`../../etc/passwd`, an absolute path) is refused, not read, so an
+/// uploaded library cannot make a server read its own files.
+pub fn build_within(frame: &ObjFrame, path: &Path, root: Option<&Path>) -> Result<Option<Appearance>, MeshError> {
     let attrs = &frame.attributes;
     let has_uv = attrs.corners.iter().flatten().any(|c| c[0] != NONE);
     let has_normals = attrs.corners.iter().flatten().any(|c| c[1] != NONE);
@@ -23,7 +30,7 @@ pub fn build(frame: &ObjFrame, path: &Path) -> Result<Option<Appearance>, MeshEr
     }
     let mut out = Appearance::default();
     if has_materials {
-        materials(frame, path, &mut out)?;
+        materials(frame, path, root, &mut out)?;
     }
     wedges(frame, has_uv, has_normals, &mut out);
     Ok(Some(out))
@@ -74,13 +81,44 @@ fn wedges(frame: &ObjFrame, has_uv: bool, has_normals: bool, out: &mut Appearanc
 
 /// Materials in order of first `usemtl`, then glTF's default material if some face comes
 /// before any `usemtl`; their `map_Kd` images, each read once.
-fn materials(frame: &ObjFrame, path: &Path, out: &mut Appearance) -> Result<(), MeshError> {
+/// `path` with `.` and `..` resolved by its components alone (the files checked here are ones a
+/// server unpacked itself: no links), and whether that stays below `root`.
+fn below(path: &Path, root: &Path) -> bool {
+    use std::path::Component;
+    let mut parts: Vec<Component> = Vec::new();
+    for c in path.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => {
+                if !matches!(parts.pop(), Some(Component::Normal(_))) {
+                    return false;
+                }
+            }
+            c => parts.push(c),
+        }
+    }
+    parts.iter().collect::<PathBuf>().starts_with(root)
+}
+
+/// Refuses a file outside `root` (when given), naming where the OBJ or library names it.
+fn confine(file: &Path, root: Option<&Path>, path: &Path, line: usize) -> Result<(), MeshError> {
+    match root {
+        Some(r) if !below(file, r) => {
+            Err(MeshError::Parse { path: path.to_path_buf(), line, message: format!("{} is outside the upload", file.display()) })
+        }
+        _ => Ok(()),
+    }
+}
+
+fn materials(frame: &ObjFrame, path: &Path, root: Option<&Path>, out: &mut Appearance) -> Result<(), MeshError> {
     let attrs = &frame.attributes;
     let dir = path.parent().unwrap_or(Path::new("."));
     let at = |line: usize| format!("{}:{line}", path.display());
     let mut library: Vec<MtlMaterial> = Vec::new();
     for (name, line) in &attrs.libraries {
-        library.extend(mtl::read_mtl(&dir.join(name), &at(*line))?);
+        let file = dir.join(name);
+        confine(&file, root, path, *line)?;
+        library.extend(mtl::read_mtl(&file, &at(*line))?);
     }
     let mut images: HashMap<PathBuf, u32> = HashMap::new();
     for (name, line) in &attrs.material_names {
@@ -98,6 +136,7 @@ fn materials(frame: &ObjFrame, path: &Path, out: &mut Appearance) -> Result<(), 
             let texture = match images.get(image_path) {
                 Some(&t) => t,
                 None => {
+                    confine(image_path, root, &found.library, *map_line)?;
                     let named_at = format!("{}:{map_line} (material {name:?})", found.library.display());
                     out.images.push(mtl::read_image(image_path, &named_at)?);
                     let t = out.textures.len() as u32;
