@@ -41,6 +41,8 @@ if (!pmcodec || inputs.length === 0) {
 }
 
 const encoderModule = await draco3d.createEncoderModule({});
+// Parrot.glb is itself Draco-compressed: gltf-transform needs the decoder to read it.
+const decoderModule = await draco3d.createDecoderModule({});
 
 // Every primitive of every mesh, concatenated: per vertex its position, TEXCOORD_0 and COLOR_0
 // (when any primitive has them; zeros for one that has not) and its primitive's material.
@@ -132,7 +134,7 @@ function ours(file) {
 
 let over = false;
 for (const file of inputs) {
-  const io = new NodeIO().registerExtensions(ALL_EXTENSIONS);
+  const io = new NodeIO().registerExtensions(ALL_EXTENSIONS).registerDependencies({ 'draco3d.decoder': decoderModule });
   const doc = await io.read(file);
   const g = gather(doc);
   const bare = dracoBytes(g, false);

@@ -238,6 +238,39 @@ test("version 6 appearance: the same texture coordinates, colours, normals and m
   }
 });
 
+test("version 6 appearance without texture coordinates or colours (RobotExpressive): no Attributes chunks, the same normals and materials as the Rust decoder", async () => {
+  const robot = join(root, "../shared/data/gltf/RobotExpressive.glb");
+  if (!existsSync(robot)) throw new Error(`${robot} is absent: this test reads the real models in ../shared/data beside the repository`);
+  const file = join(dir, "robot.pmc");
+  execFileSync(bin, ["encode", "-q", robot, "-o", file, "--keyframe-interval", "8"]);
+  const c = await open(file);
+  const a = c.header.appearance!;
+  assert.deepEqual([a.uvSets, a.colors, a.materials, a.charts], [0, false, 3, 3]);
+  assert.ok(!c.index.some((e) => e.kind === ChunkKind.Attributes), "value-less attribute tables were written");
+  const player = new Decoder(c, 0);
+  await player.loadAppearance();
+  for (const [frame, budget] of [[0, 200], [9, 1500], [20, 100000]]) {
+    const out = join(dir, `robot-${frame}-${budget}.glb`);
+    execFileSync(bin, ["decode", "-q", file, "--frame", String(frame), "--triangles", String(budget), "-o", out]);
+    const glb = readGlb(out);
+    await player.seek(frame);
+    const pos = player.positions();
+    player.replay.selectTriangles(budget, player.replay.nodeErrors(pos));
+    const mesh = player.texturedMesh(pos);
+    const prims = glb.json.meshes[0].primitives;
+    const what = `frame ${frame} budget ${budget}`;
+    assert.deepEqual(Array.from(mesh.positions), Array.from(accessor(glb, prims[0].attributes.POSITION)), `${what}: positions`);
+    assert.deepEqual(Array.from(mesh.normals), Array.from(accessor(glb, prims[0].attributes.NORMAL)), `${what}: normals`);
+    assert.equal(mesh.uv0, null);
+    assert.deepEqual(prims.map((p: any) => p.material), [...new Set(mesh.triangleMaterial)].sort(), `${what}: materials`);
+    for (const p of prims) {
+      const want: number[] = [];
+      mesh.triangleMaterial.forEach((m, t) => { if (m === p.material) want.push(...mesh.indices.subarray(3 * t, 3 * t + 3)); });
+      assert.deepEqual(Array.from(accessor(glb, p.indices)), want, `${what}: material ${p.material} triangles`);
+    }
+  }
+});
+
 test("a skinned glTF's stream (version 6): every frame's input vertices equal the Rust decoder's, and coarse clients agree", async () => {
   const fox = join(root, "../shared/data/gltf/Fox.glb");
   if (!existsSync(fox)) throw new Error(`${fox} is absent: this test reads the real models in ../shared/data beside the repository`);

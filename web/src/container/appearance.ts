@@ -164,6 +164,25 @@ export function texturedMesh(
   const sums = new Map<string, number[]>();
   const indices = new Uint32Array(3 * nt), triangleMaterial = new Uint32Array(nt);
   const levelOf = (g: number): number => levelOfNode(offsets, g);
+  // Pushes the `ch` values of (g, chart) for corner g of shown triangle i.
+  const lookUp = (g: number, i: number, chart: number): void => {
+    const level = levelOf(g), local = g - offsets[level], tb = tables[level];
+    let e = -1;
+    if (tb) for (let x = tb.first[local]; x < tb.first[local + 1]; x++) if (tb.charts[x] === chart) { e = x; break; }
+    if (tb && e >= 0) for (let q = 0; q < ch; q++) values.push(tb.values[e * ch + q]);
+    else if (options.lenient && tb) {
+      // A viewer's choice, not the format's (the specification makes a missing entry a
+      // corrupt file): the mean of the triangle's other corners' entries in the chart,
+      // else the node's first entry, else zeros, so one bad entry does not blank a frame.
+      missing++;
+      const others = [cut[3 * i], cut[3 * i + 1], cut[3 * i + 2]].filter((x) => x !== g)
+        .map((x) => attributeEntry(a, tables, offsets, x, chart)).filter((x): x is Int32Array => x !== null);
+      for (let q = 0; q < ch; q++) {
+        if (others.length > 0) values.push(Math.round(others.reduce((acc, x) => acc + x[q], 0) / others.length));
+        else values.push(tb.first[local] < tb.first[local + 1] ? tb.values[tb.first[local] * ch + q] : 0);
+      }
+    } else throw new DecodeError(`band ${level} attributes: no entry for node ${local}, chart ${chart}`);
+  };
   for (let i = 0; i < nt; i++) {
     const t = shown[i], chart = charts.triangleChart[t], group = charts.triangleGroup[t];
     const g0 = cut[3 * i], g1 = cut[3 * i + 1], g2 = cut[3 * i + 2];
@@ -176,22 +195,8 @@ export function texturedMesh(
       if (v === undefined) {
         v = nodeOfVertex.length;
         vertexOf.set(k, v);
-        const level = levelOf(g), local = g - offsets[level], tb = tables[level];
-        let e = -1;
-        if (tb) for (let x = tb.first[local]; x < tb.first[local + 1]; x++) if (tb.charts[x] === chart) { e = x; break; }
-        if (tb && e >= 0) for (let q = 0; q < ch; q++) values.push(tb.values[e * ch + q]);
-        else if (options.lenient && tb) {
-          // A viewer's choice, not the format's (the specification makes a missing entry a
-          // corrupt file): the mean of the triangle's other corners' entries in the chart,
-          // else the node's first entry, else zeros, so one bad entry does not blank a frame.
-          missing++;
-          const others = [cut[3 * i], cut[3 * i + 1], cut[3 * i + 2]].filter((x) => x !== g)
-            .map((x) => attributeEntry(a, tables, offsets, x, chart)).filter((x): x is Int32Array => x !== null);
-          for (let q = 0; q < ch; q++) {
-            if (others.length > 0) values.push(Math.round(others.reduce((acc, x) => acc + x[q], 0) / others.length));
-            else values.push(tb.first[local] < tb.first[local + 1] ? tb.values[tb.first[local] * ch + q] : 0);
-          }
-        } else throw new DecodeError(`band ${level} attributes: no entry for node ${local}, chart ${chart}`);
+        // Without channels there are no tables and nothing to look up.
+        if (ch > 0) lookUp(g, i, chart);
         nodeOfVertex.push(g);
         chartOfVertex.push(chart);
         key.push(group);
@@ -199,7 +204,7 @@ export function texturedMesh(
       indices[3 * i + c] = v;
       const sk = `${g}/${group}`;
       const s = sums.get(sk);
-      if (s) { s[0] += n[0]; s[1] += n[1]; s[2] += n[2]; } else sums.set(sk, [n[0], n[1], n[2]]);
+      if (s) { s[0] += n[0]; s[1] += n[1]; s[2] += n[2]; } else sums.set(sk, [0 + n[0], 0 + n[1], 0 + n[2]]); // from (0, 0, 0), as specified: 0 + -0 is 0
     }
     triangleMaterial[i] = charts.chartMaterial[chart];
   }

@@ -4,7 +4,7 @@
 
 import { Charts, Materials, Table, TexturedMesh, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
 import { DecodeError } from "./error.js";
-import { ChunkKind, Motion } from "./format.js";
+import { ChunkKind, Motion, channels } from "./format.js";
 import { readCornerUpdates, readDelta, readFaces, readKey, readPositions, readTriangles } from "./payload.js";
 import { LowerNeighbours, affineMotion, keyedMotion, lowerNeighbours, stencilWeights } from "./predict.js";
 import type { Reader } from "./read.js";
@@ -191,7 +191,10 @@ export class Decoder {
     const charts = readCharts(await c.chunk(c.find(ChunkKind.Charts, 0, 0)), a, h.triangleCount);
     const materials = readMaterials(await c.chunk(c.find(ChunkKind.Materials, 0, 0)), a);
     const tables: (Table | null)[] = h.levelSizes.map(() => null);
-    for (let j = h.levelSizes.length - 1; j >= this.minLevel; j--) {
+    // Without channels there is nothing to look up: no Attributes chunks in files since
+    // 2026-11-26, and older files' value-less tables are not read.
+    const lowest = channels(a) === 0 ? h.levelSizes.length : this.minLevel;
+    for (let j = h.levelSizes.length - 1; j >= lowest; j--) {
       tables[j] = readTable(await c.chunk(c.find(ChunkKind.Attributes, 0, j)), `band ${j} attributes`, h.levelSizes[j], a, h.triangleCount);
     }
     this.looks = { charts, tables, materials };

@@ -69,7 +69,7 @@ pub fn builder<'a>(seq: &'a pmcodec_mesh::Sequence, app: &'a Appearance, levels:
 }
 
 /// The appearance chunks, in file order: Charts, Materials, the Attributes of every band top
-/// first, then each Image. (kind, band, raw payload).
+/// first (none when the entries carry no channels), then each Image. (kind, band, raw payload).
 pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::ChunkKind, u32, Vec<u8>)>, crate::ContainerError> {
     use crate::ChunkKind;
     let tables = builder.finish();
@@ -78,8 +78,12 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
     let materials = postcard::to_stdvec(&MaterialsChunk::from_appearance(app))
         .map_err(|e| crate::ContainerError::Io(format!("materials chunk: {e}")))?;
     let mut out = vec![(ChunkKind::Charts, 0, payload::write_charts(builder.charts())), (ChunkKind::Materials, 0, materials)];
-    for (j, t) in tables.iter().enumerate().rev() {
-        out.push((ChunkKind::Attributes, j as u32, payload::write_table(t, channels)));
+    // Entries without values name nothing a decoder draws: a file whose entries carry no
+    // channels has no Attributes chunks (proto/container.md, "Attributes, band j").
+    if channels > 0 {
+        for (j, t) in tables.iter().enumerate().rev() {
+            out.push((ChunkKind::Attributes, j as u32, payload::write_table(t, channels)));
+        }
     }
     for (i, image) in app.images.iter().enumerate() {
         out.push((ChunkKind::Image, i as u32, image.bytes.clone()));

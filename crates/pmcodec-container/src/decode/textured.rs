@@ -32,7 +32,10 @@ impl<S: ByteSource> Decoder<S> {
             return Err(ContainerError::Corrupt { what: "charts chunk".into(), detail: format!("chart {c} uses a material out of range") });
         }
         let mut tables = vec![None; h.levels()];
-        for (j, slot) in tables.iter_mut().enumerate().skip(self.min_level).rev() {
+        // Without channels there is nothing to look up: files since 2026-11-26 have no
+        // Attributes chunks then, and older ones' value-less tables are not read.
+        let bands = if info.channels() == 0 { h.levels() } else { self.min_level };
+        for (j, slot) in tables.iter_mut().enumerate().skip(bands).rev() {
             let raw = self.chunk(ChunkKind::Attributes, 0, j)?;
             *slot = Some(read_table(&raw, &format!("band {j} attributes"), h.level_sizes[j], &info, h.triangle_count)?);
         }
