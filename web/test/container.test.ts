@@ -271,6 +271,46 @@ test("version 6 appearance without texture coordinates or colours (RobotExpressi
   }
 });
 
+test("version 6 appearance with band 0's entries derived from the triangles (Fox, Horse): the same texture coordinates, colours and normals as the Rust decoder", async () => {
+  for (const name of ["Fox", "Horse"]) {
+    const glbIn = join(root, `../shared/data/gltf/${name}.glb`);
+    if (!existsSync(glbIn)) throw new Error(`${glbIn} is absent: this test reads the real models in ../shared/data beside the repository`);
+    const file = join(dir, `${name}-derived.pmc`);
+    execFileSync(bin, ["encode", "-q", glbIn, "-o", file, "--keyframe-interval", "8"]);
+    const c = await open(file);
+    const a = c.header.appearance!;
+    const band0 = await c.chunk(c.find(ChunkKind.Attributes, 0, 0));
+    assert.ok(band0.length > 1 && band0[0] === 0 && band0[1] === 1, `${name}: band 0 is not coded with derived entries`);
+    const player = new Decoder(c, 0);
+    await player.loadAppearance();
+    for (const [frame, budget] of [[0, 100000], [5, 300], [11, 50]]) {
+      const out = join(dir, `${name}-derived-${frame}-${budget}.glb`);
+      execFileSync(bin, ["decode", "-q", file, "--frame", String(frame), "--triangles", String(budget), "-o", out]);
+      const glb = readGlb(out);
+      await player.seek(frame);
+      const pos = player.positions();
+      player.replay.selectTriangles(budget, player.replay.nodeErrors(pos));
+      const mesh = player.texturedMesh(pos);
+      const attr = glb.json.meshes[0].primitives[0].attributes;
+      const what = `${name} frame ${frame} budget ${budget}`;
+      assert.deepEqual(Array.from(mesh.positions), Array.from(accessor(glb, attr.POSITION)), `${what}: positions`);
+      assert.deepEqual(Array.from(mesh.normals), Array.from(accessor(glb, attr.NORMAL)), `${what}: normals`);
+      assert.deepEqual(Array.from(mesh.uv0!), Array.from(accessor(glb, attr.TEXCOORD_0)), `${what}: texture coordinates`);
+      if (a.colors) assert.deepEqual(Array.from(mesh.colors!), Array.from(accessor(glb, attr.COLOR_0)), `${what}: colours`);
+    }
+    // A damaged residual stream is an error, not a crash: the payload cut short.
+    const { readBand0Table } = await import("../src/container/index.js");
+    const tris = (player as unknown as { triangles: Uint32Array }).triangles, chartOf = player.looks!.charts.triangleChart;
+    const whole = readBand0Table(band0, "band 0", c.header.levelSizes[0], a, tris, chartOf);
+    assert.deepEqual(Array.from(whole.values), Array.from(player.looks!.tables[0]!.values));
+    assert.throws(() => readBand0Table(band0.subarray(0, band0.length - 1), "band 0", c.header.levelSizes[0], a, tris, chartOf), DecodeError);
+    // An unknown coding mode is an error too.
+    const odd = band0.slice();
+    odd[1] = 7;
+    assert.throws(() => readBand0Table(odd, "band 0", c.header.levelSizes[0], a, tris, chartOf), /coding 7 unknown/);
+  }
+});
+
 test("a skinned glTF's stream (version 6): every frame's input vertices equal the Rust decoder's, and coarse clients agree", async () => {
   const fox = join(root, "../shared/data/gltf/Fox.glb");
   if (!existsSync(fox)) throw new Error(`${fox} is absent: this test reads the real models in ../shared/data beside the repository`);

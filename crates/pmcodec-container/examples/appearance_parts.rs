@@ -6,7 +6,8 @@
 //! `cargo build --release -p pmcodec && target/release/pmcodec encode -q IN.glb -o /tmp/a.pmc &&
 //!  cargo run --release -p pmcodec-container --example appearance_parts -- /tmp/a.pmc`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
-use pmcodec_container::appearance::payload::{read_charts, read_table};
+use pmcodec_container::appearance::payload::{read_charts, read_table, read_table_with};
+use pmcodec_container::payload::read_triangles;
 use pmcodec_container::payload::{put, zigzag};
 use pmcodec_container::{ChunkKind, FileSource, Reader};
 
@@ -86,6 +87,21 @@ fn main() {
             };
             total += s;
             let raw = reader.read_chunk(e).unwrap();
+            if raw.len() > 1 && raw[0] == 0 {
+                // Band 0 with derived entries: only predicted values are stored.
+                let te = reader.index().chunks.iter().find(|e| e.kind == ChunkKind::Triangles).unwrap();
+                let tris = read_triangles(&reader.read_chunk(te).unwrap(), "t", h.triangle_count, h.vertex_count).unwrap();
+                let t =
+                    read_table_with(&raw, "t", h.level_sizes[j as usize], &info, h.triangle_count, Some((&tris, &charts.triangle_chart)))
+                        .unwrap();
+                println!(
+                    "  band {j}: {s} B stored ({} raw), {} entries of {} nodes derived from the triangles: predicted values only",
+                    raw.len(),
+                    t.len(),
+                    h.level_sizes[j as usize]
+                );
+                continue;
+            }
             let t = read_table(&raw, "t", h.level_sizes[j as usize], &info, h.triangle_count).unwrap();
             let ch = info.channels();
             let (mut ent, mut val) = (Vec::new(), Vec::new());

@@ -76,6 +76,10 @@ fn every_level_reads_back_inside_its_charts() {
             }
         }
     }
+    // Band 0's entries are derived from the triangles (its chunk starts 0, 1): the level-0
+    // checks above read that coding.
+    let band0 = reader.read_chunk(reader.find(ChunkKind::Attributes, 0, 0).expect("band 0 attributes")).expect("read");
+    assert_eq!(&band0[..2], &[0, 1]);
     let images = Decoder::new(reader.borrowed(), 0).unwrap().images().expect("images");
     assert_eq!(images.len(), 1);
     assert_eq!(images[0].bytes, input.images[0].bytes);

@@ -81,6 +81,89 @@ export function readTable(raw: Uint8Array, what: string, nodes: number, a: Appea
   return { first, charts, values };
 }
 
+/** Band 0's entries: every triangle corner's (vertex, chart), ascending, as [vertex, chart] pairs. */
+export function band0Entries(triangles: Uint32Array, triangleChart: Uint32Array): [number, number][] {
+  const seen = new Set<number>(), out: [number, number][] = [];
+  // Exact keys (below 2^53 for any mesh a browser holds): vertex * charts + chart.
+  let nc = 1;
+  for (let t = 0; t < triangleChart.length; t++) nc = Math.max(nc, triangleChart[t] + 1);
+  for (let t = 0; t < triangleChart.length; t++) {
+    for (let i = 0; i < 3; i++) {
+      const v = triangles[3 * t + i], k = triangleChart[t], key = v * nc + k;
+      if (!seen.has(key)) { seen.add(key); out.push([v, k]); }
+    }
+  }
+  return out.sort((a, b) => a[0] - b[0] || a[1] - b[1]);
+}
+
+/**
+ * The Attributes chunk of band 0, whichever its coding: entries listed (`readTable`) or, after a
+ * first byte 0 and the mode 1, derived from the triangles and charts, with values predicted
+ * across the triangles (proto/container.md, "Attributes, band 0 with derived entries"; the
+ * Rust `read_table_with`).
+ */
+export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: Uint32Array, triangleChart: Uint32Array): Table {
+  if (raw.length <= 1 || raw[0] !== 0) return readTable(raw, what, nodes, a, triangleChart.length);
+  const ch = channels(a), c = new Cursor(raw, what);
+  c.get();
+  const mode = c.get();
+  if (mode !== 1) throw new DecodeError(`${what}: table coding ${mode} unknown`);
+  if (triangles.length !== 3 * triangleChart.length) throw new DecodeError(`${what}: triangles and charts disagree`);
+  const entries = band0Entries(triangles, triangleChart), m = entries.length;
+  for (const [n, k] of entries) if (n >= nodes || k >= a.charts) throw new DecodeError(`${what}: entry (node ${n}, chart ${k}) out of range`);
+  if (m * ch > raw.length) throw new DecodeError(`${what}: ${m} entries in ${raw.length} bytes`);
+  const first = new Uint32Array(nodes + 1), charts = new Uint32Array(m);
+  entries.forEach(([n, k], e) => { first[n + 1]++; charts[e] = k; });
+  for (let n = 0; n < nodes; n++) first[n + 1] += first[n];
+  const residuals = new Int32Array(m * ch);
+  for (let i = 0; i < m * ch; i++) residuals[i] = c.zigzag();
+  c.finish();
+  const values = new Int32Array(m * ch);
+  const find = (v: number, k: number): number => {
+    if (v >= nodes) return -1;
+    for (let x = first[v]; x < first[v + 1]; x++) if (charts[x] === k) return x;
+    return -1;
+  };
+  // The traversal of the Rust `traverse`: triangles in input order, corners in order; an
+  // unknown corner is predicted by the parallelogram across an earlier triangle's edge, else
+  // the mean of two known corners, else one known corner, else the last entry made known.
+  const known = new Uint8Array(m), last = new Int32Array(ch), e = [0, 0, 0];
+  const opposite = new Map<number, number>();
+  const key = (x: number, y: number): number => Math.min(x, y) * m + Math.max(x, y);
+  let visited = 0;
+  for (let t = 0; t < triangleChart.length; t++) {
+    const chart = triangleChart[t];
+    for (let i = 0; i < 3; i++) {
+      e[i] = find(triangles[3 * t + i], chart);
+      if (e[i] < 0) throw new DecodeError(`${what}: no entry for vertex ${triangles[3 * t + i]}, chart ${chart} of triangle ${t}`);
+    }
+    for (let i = 0; i < 3; i++) {
+      const x = e[i];
+      if (known[x]) continue;
+      const p = e[(i + 1) % 3], q = e[(i + 2) % 3], kp = known[p] === 1, kq = known[q] === 1, o = opposite.get(key(p, q));
+      for (let s = 0; s < ch; s++) {
+        const vp = values[p * ch + s], vq = values[q * ch + s];
+        let pred: number;
+        if (kp && kq) pred = o !== undefined ? (vp + vq - values[o * ch + s]) | 0 : ((vp + vq) | 0) >> 1;
+        else if (kp) pred = vp;
+        else if (kq) pred = vq;
+        else pred = last[s];
+        values[x * ch + s] = (pred + residuals[s * m + visited]) | 0;
+      }
+      visited++;
+      known[x] = 1;
+      for (let s = 0; s < ch; s++) last[s] = values[x * ch + s];
+    }
+    if (e[0] !== e[1] && e[1] !== e[2] && e[2] !== e[0]) {
+      for (let i = 0; i < 3; i++) {
+        const k = key(e[i], e[(i + 1) % 3]);
+        if (!opposite.has(k)) opposite.set(k, e[(i + 2) % 3]);
+      }
+    }
+  }
+  return { first, charts, values };
+}
+
 /** The Materials chunk (postcard). */
 export function readMaterials(raw: Uint8Array, a: AppearanceInfo): Materials {
   const p = new Postcard(raw, "materials chunk");

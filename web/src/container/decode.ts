@@ -2,7 +2,7 @@
 // a finest level (Replay), node positions predicted and corrected band by band, and the cut a
 // triangle budget selects, ordered as the Rust decoder orders it.
 
-import { Charts, Materials, Table, TexturedMesh, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
+import { Charts, Materials, Table, TexturedMesh, readBand0Table, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
 import { DecodeError } from "./error.js";
 import { ChunkKind, Motion, channels } from "./format.js";
 import { readCornerUpdates, readDelta, readFaces, readKey, readPositions, readTriangles } from "./payload.js";
@@ -195,7 +195,11 @@ export class Decoder {
     // 2026-11-26, and older files' value-less tables are not read.
     const lowest = channels(a) === 0 ? h.levelSizes.length : this.minLevel;
     for (let j = h.levelSizes.length - 1; j >= lowest; j--) {
-      tables[j] = readTable(await c.chunk(c.find(ChunkKind.Attributes, 0, j)), `band ${j} attributes`, h.levelSizes[j], a, h.triangleCount);
+      const raw = await c.chunk(c.find(ChunkKind.Attributes, 0, j)), what = `band ${j} attributes`;
+      if (j > 0) { tables[j] = readTable(raw, what, h.levelSizes[j], a, h.triangleCount); continue; }
+      // Band 0's entries may be derived from the triangles (a level-0 client's own).
+      const triangles = this.triangles ?? readTriangles(await c.chunk(c.find(ChunkKind.Triangles, 0, 0)), "triangles chunk", h.triangleCount, h.vertexCount);
+      tables[j] = readBand0Table(raw, what, h.levelSizes[j], a, triangles, charts.triangleChart);
     }
     this.looks = { charts, tables, materials };
   }

@@ -82,7 +82,18 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
     // channels has no Attributes chunks (proto/container.md, "Attributes, band j").
     if channels > 0 {
         for (j, t) in tables.iter().enumerate().rev() {
-            out.push((ChunkKind::Attributes, j as u32, payload::write_table(t, channels)));
+            let listed = payload::write_table(t, channels);
+            // Band 0's entries follow from the Triangles and Charts chunks a level-0 client
+            // reads anyway; its values are then predicted across the triangles. Whichever
+            // coding zstd makes shorter is written (both read the same table).
+            let raw = if j == 0 {
+                let derived = payload::write_table_derived(t, channels, builder.triangles(), &builder.charts().triangle_chart);
+                let size = |b: &[u8]| zstd::bulk::compress(b, crate::format::ZSTD_LEVEL).map_or(usize::MAX, |z| z.len());
+                if size(&derived) < size(&listed) { derived } else { listed }
+            } else {
+                listed
+            };
+            out.push((ChunkKind::Attributes, j as u32, raw));
         }
     }
     for (i, image) in app.images.iter().enumerate() {

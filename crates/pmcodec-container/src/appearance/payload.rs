@@ -147,10 +147,27 @@ pub struct Table {
 impl Table {
     /// The quantized values of (node, chart), if the table has that entry.
     pub fn get(&self, node: u32, chart: u32, channels: usize) -> Option<&[i32]> {
+        let e = self.find(node, chart)?;
+        Some(&self.values[e * channels..(e + 1) * channels])
+    }
+
+    /// The index of entry (node, chart), if the table has it.
+    pub fn find(&self, node: u32, chart: u32) -> Option<usize> {
         let lo = *self.first.get(node as usize)? as usize;
         let hi = *self.first.get(node as usize + 1)? as usize;
-        let e = lo + self.charts[lo..hi].iter().position(|&c| c == chart)?;
-        Some(&self.values[e * channels..(e + 1) * channels])
+        Some(lo + self.charts.get(lo..hi)?.iter().position(|&c| c == chart)?)
+    }
+
+    /// The index of entries ascending by (node, chart), without values.
+    fn index(entries: &[(u32, u32)], nodes: u32) -> Table {
+        let mut first = vec![0u32; nodes as usize + 1];
+        for &(n, _) in entries {
+            first[n as usize + 1] += 1;
+        }
+        for n in 0..nodes as usize {
+            first[n + 1] += first[n];
+        }
+        Table { first, charts: entries.iter().map(|e| e.1).collect(), values: Vec::new() }
     }
 
     pub fn len(&self) -> usize {
@@ -160,6 +177,165 @@ impl Table {
     pub fn is_empty(&self) -> bool {
         self.charts.is_empty()
     }
+}
+
+/// Band 0's entries: the (vertex, chart) pair of every triangle corner, ascending (what a
+/// client of level 0 derives from the Triangles and Charts chunks).
+pub fn band0_entries(triangles: &[[u32; 3]], triangle_chart: &[u32]) -> Vec<(u32, u32)> {
+    let mut pairs: Vec<(u32, u32)> =
+        triangles.iter().zip(triangle_chart).flat_map(|(tri, &chart)| tri.iter().map(move |&v| (v, chart))).collect();
+    pairs.sort_unstable();
+    pairs.dedup();
+    pairs
+}
+
+/// The coding of a band-0 table with *derived entries*: after a first byte 0 (no entries
+/// listed), this mode (proto/container.md, "Attributes, band j").
+const DERIVED_ENTRIES: u32 = 1;
+
+/// Band 0's traversal (proto/container.md, "Attributes, band 0 with derived entries"): the
+/// triangles in input order, each one's corners in order; a corner whose entry is not yet
+/// known is predicted, then `visit(prediction, its values)` makes it known (the encoder
+/// records the residual, the decoder adds it). The prediction is the parallelogram rule
+/// (Touma & Gotsman, "Triangle mesh compression", 1998, as Draco predicts texture coordinates
+/// across an edge) when the triangle's two other corners are known and an earlier triangle
+/// of the chart shares their edge: `a + b - o`, o that triangle's third corner; else the mean
+/// of the two known corners, the one known corner, or the last entry made known (zeros at
+/// first). Arithmetic wraps in 32 bits, the mean is `(a + b) >> 1` (arithmetic shift).
+fn traverse(
+    table: &Table,
+    triangles: &[[u32; 3]],
+    triangle_chart: &[u32],
+    channels: usize,
+    values: &mut [i32],
+    mut visit: impl FnMut(&[i32], &mut [i32]) -> Result<(), ContainerError>,
+    what: &str,
+) -> Result<(), ContainerError> {
+    let c = channels;
+    let mut known = vec![false; table.len()];
+    // Edge (entry a, entry b), a < b, of an earlier triangle -> that triangle's third entry.
+    let mut opposite: std::collections::HashMap<u64, u32> = std::collections::HashMap::new();
+    let key = |a: usize, b: usize| ((a.min(b) as u64) << 32) | a.max(b) as u64;
+    let mut last = vec![0i32; c];
+    let mut pred = vec![0i32; c];
+    for (t, tri) in triangles.iter().enumerate() {
+        let chart = triangle_chart.get(t).copied().unwrap_or(u32::MAX);
+        let mut e = [0usize; 3];
+        for i in 0..3 {
+            e[i] = table.find(tri[i], chart).ok_or_else(|| ContainerError::Corrupt {
+                what: what.into(),
+                detail: format!("no entry for vertex {}, chart {chart} of triangle {t}", tri[i]),
+            })?;
+        }
+        for i in 0..3 {
+            let x = e[i];
+            if known[x] {
+                continue;
+            }
+            let (a, b) = (e[(i + 1) % 3], e[(i + 2) % 3]);
+            let (ka, kb) = (known[a], known[b]);
+            for q in 0..c {
+                let (va, vb) = (values[a * c + q], values[b * c + q]);
+                pred[q] = match (ka, kb, opposite.get(&key(a, b))) {
+                    (true, true, Some(&o)) => va.wrapping_add(vb).wrapping_sub(values[o as usize * c + q]),
+                    (true, true, None) => va.wrapping_add(vb) >> 1,
+                    (true, false, _) => va,
+                    (false, true, _) => vb,
+                    (false, false, _) => last[q],
+                };
+            }
+            visit(&pred, &mut values[x * c..(x + 1) * c])?;
+            known[x] = true;
+            last.copy_from_slice(&values[x * c..(x + 1) * c]);
+        }
+        if e[0] != e[1] && e[1] != e[2] && e[2] != e[0] {
+            for i in 0..3 {
+                opposite.entry(key(e[i], e[(i + 1) % 3])).or_insert(e[(i + 2) % 3] as u32);
+            }
+        }
+    }
+    Ok(())
+}
+
+/// ATTRIBUTES, band 0 with derived entries: `0`, `1`, then, channel by channel, the zigzag-coded
+/// residuals of the values against [`traverse`]'s predictions, in the order it visits the
+/// entries. `t`'s entries must be [`band0_entries`] of the same triangles and charts.
+pub fn write_table_derived(t: &QuantizedTable, channels: usize, triangles: &[[u32; 3]], triangle_chart: &[u32]) -> Vec<u8> {
+    let nodes = t.entries.last().map_or(0, |e| e.0 + 1);
+    let table = Table::index(&t.entries, nodes);
+    let mut values = t.values.clone();
+    let mut residuals: Vec<Vec<u32>> = vec![Vec::with_capacity(t.entries.len()); channels];
+    let visit = |pred: &[i32], v: &mut [i32]| {
+        for q in 0..channels {
+            residuals[q].push(zigzag(v[q].wrapping_sub(pred[q])));
+        }
+        Ok(())
+    };
+    let mut out = Vec::new();
+    put(&mut out, 0);
+    put(&mut out, DERIVED_ENTRIES);
+    // The entries are the triangles' own: the traversal cannot miss one.
+    if traverse(&table, triangles, triangle_chart, channels, &mut values, visit, "band 0 attributes").is_err() {
+        return write_table(t, channels);
+    }
+    for r in &residuals {
+        for &x in r {
+            put(&mut out, x);
+        }
+    }
+    out
+}
+
+/// Reads band j's table: `nodes` = `level_sizes[j]`; at most three entries per triangle.
+/// `band0` gives band 0's triangles and their charts, which a table with derived entries needs.
+pub fn read_table_with(
+    bytes: &[u8],
+    what: &str,
+    nodes: u32,
+    info: &AppearanceInfo,
+    triangles: u32,
+    band0: Option<(&[[u32; 3]], &[u32])>,
+) -> Result<Table, ContainerError> {
+    if bytes.first() != Some(&0) || bytes.len() == 1 {
+        return read_table(bytes, what, nodes, info, triangles);
+    }
+    let channels = info.channels();
+    let mut c = Cursor::new(bytes, what);
+    c.get()?;
+    let mode = c.get()?;
+    let corrupt = |detail: String| ContainerError::Corrupt { what: what.into(), detail };
+    if mode != DERIVED_ENTRIES {
+        return Err(corrupt(format!("table coding {mode} unknown")));
+    }
+    let Some((tris, chart_of)) = band0 else {
+        return Err(corrupt("derived entries outside band 0".into()));
+    };
+    if tris.len() != triangles as usize || chart_of.len() != tris.len() {
+        return Err(corrupt(format!("{} triangles and {} charts where the header says {triangles}", tris.len(), chart_of.len())));
+    }
+    let entries = band0_entries(tris, chart_of);
+    if let Some(&(n, k)) = entries.iter().find(|&&(n, k)| n >= nodes || k >= info.charts) {
+        return Err(corrupt(format!("entry (node {n}, chart {k}) out of range (< {nodes}, < {})", info.charts)));
+    }
+    let m = entries.len();
+    let mut table = Table::index(&entries, nodes);
+    let mut residuals = Vec::with_capacity(m * channels);
+    for _ in 0..m * channels {
+        residuals.push(unzigzag(c.get()?));
+    }
+    c.finish()?;
+    let mut values = vec![0i32; m * channels];
+    let mut k = 0;
+    let visit = |pred: &[i32], v: &mut [i32]| {
+        for q in 0..channels {
+            v[q] = pred[q].wrapping_add(residuals[q * m + k]);
+        }
+        k += 1;
+        Ok(())
+    };
+    traverse(&table, tris, chart_of, channels, &mut values, visit, what)?;
+    table.values = values;
+    Ok(table)
 }
 
 /// Reads band j's table: `nodes` = `level_sizes[j]`; at most three entries per triangle.
@@ -234,5 +410,41 @@ mod tests {
             Charts { triangle_chart: vec![0, 0, 1, 2, 2, 0], chart_material: vec![0, 1, 1], triangle_group: vec![0, 0, 0, 0, 1, 2] };
         assert_eq!(read_charts(&write_charts(&charts), &info(), 6).unwrap(), charts);
         assert!(read_charts(&write_charts(&charts), &info(), 7).is_err(), "runs cover 6 of 7");
+    }
+
+    #[test]
+    fn derived_band0_tables_round_trip_and_fail_cleanly() {
+        // Random triangles over 40 vertices in 3 charts, some degenerate, values anywhere in
+        // 32 bits (the predictions wrap).
+        let mut seed = 0x2545_F491u32;
+        let mut rnd = |m: u32| {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed % m
+        };
+        let triangles: Vec<[u32; 3]> = (0..90).map(|_| [rnd(40), rnd(40), rnd(40)]).collect();
+        let chart_of: Vec<u32> = (0..90).map(|_| rnd(3)).collect();
+        let entries = band0_entries(&triangles, &chart_of);
+        let t = QuantizedTable {
+            values: (0..entries.len() * 2).map(|k| if k % 7 == 0 { i32::MIN + rnd(9) as i32 } else { rnd(4096) as i32 }).collect(),
+            entries,
+        };
+        let raw = write_table_derived(&t, 2, &triangles, &chart_of);
+        assert_eq!(&raw[..2], &[0, 1]);
+        let table = read_table_with(&raw, "t", 40, &info(), 90, Some((&triangles, &chart_of))).unwrap();
+        for (e, &(n, k)) in t.entries.iter().enumerate() {
+            assert_eq!(table.get(n, k, 2), Some(&t.values[2 * e..2 * e + 2]), "entry ({n}, {k})");
+        }
+        // Listed tables still read through the same function.
+        let listed = read_table_with(&write_table(&t, 2), "t", 40, &info(), 90, None).unwrap();
+        assert_eq!(listed.values, table.values);
+        // Without band 0's triangles, cut short, or a vertex beyond the nodes: errors.
+        assert!(read_table_with(&raw, "t", 40, &info(), 90, None).is_err());
+        assert!(read_table_with(&raw[..raw.len() - 1], "t", 40, &info(), 90, Some((&triangles, &chart_of))).is_err());
+        assert!(read_table_with(&raw, "t", 39, &info(), 90, Some((&triangles, &chart_of))).is_err());
+        let mut odd = raw.clone();
+        odd[1] = 2;
+        assert!(read_table_with(&odd, "t", 40, &info(), 90, Some((&triangles, &chart_of))).is_err());
     }
 }

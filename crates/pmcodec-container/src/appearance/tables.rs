@@ -110,6 +110,10 @@ impl<'a> TableBuilder<'a> {
         self.app
     }
 
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        self.triangles
+    }
+
     /// Adds one frame's hierarchy (`parent[k][v]`, k below the top).
     pub fn observe(&mut self, parent: &[Vec<u32>]) {
         let channels = self.info.channels();

@@ -4,8 +4,9 @@
 use super::Decoder;
 use crate::appearance::cut::{DecodedAppearance, textured_mesh};
 use crate::appearance::format::{AppearanceInfo, MaterialsChunk};
-use crate::appearance::payload::{read_charts, read_table};
+use crate::appearance::payload::{read_charts, read_table, read_table_with};
 use crate::format::ChunkKind;
+use crate::payload::read_triangles;
 use crate::{ByteSource, ContainerError};
 use pmcodec_hierarchy::CutTarget;
 use pmcodec_mesh::appearance::Image;
@@ -37,7 +38,25 @@ impl<S: ByteSource> Decoder<S> {
         let bands = if info.channels() == 0 { h.levels() } else { self.min_level };
         for (j, slot) in tables.iter_mut().enumerate().skip(bands).rev() {
             let raw = self.chunk(ChunkKind::Attributes, 0, j)?;
-            *slot = Some(read_table(&raw, &format!("band {j} attributes"), h.level_sizes[j], &info, h.triangle_count)?);
+            let what = format!("band {j} attributes");
+            *slot =
+                Some(if j == 0 {
+                    // Band 0's entries may be derived from the triangles (a level-0 client's own).
+                    let triangles =
+                        match &self.triangles {
+                            Some(t) => t.clone(),
+                            None => {
+                                let e =
+                                    self.reader.index().chunks.iter().find(|e| e.kind == ChunkKind::Triangles).ok_or_else(|| {
+                                        ContainerError::Corrupt { what: "index".into(), detail: "no triangles chunk".into() }
+                                    })?;
+                                read_triangles(&self.reader.read_chunk(e)?, "triangles chunk", h.triangle_count, h.vertex_count)?
+                            }
+                        };
+                    read_table_with(&raw, &what, h.level_sizes[j], &info, h.triangle_count, Some((&triangles, &charts.triangle_chart)))?
+                } else {
+                    read_table(&raw, &what, h.level_sizes[j], &info, h.triangle_count)?
+                });
         }
         self.looks = Some(DecodedAppearance { info: Some(info), charts, tables, materials, images: None });
         Ok(())
