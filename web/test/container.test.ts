@@ -271,7 +271,7 @@ test("version 6 appearance without texture coordinates or colours (RobotExpressi
   }
 });
 
-test("version 6 appearance with band 0's entries derived from the triangles (Fox, Horse): the same texture coordinates, colours and normals as the Rust decoder", async () => {
+test("version 6 appearance with band 0's entries derived from the triangles and chart-wise values above (Fox, Horse): the same texture coordinates, colours and normals as the Rust decoder", async () => {
   for (const name of ["Fox", "Horse"]) {
     const glbIn = join(root, `../shared/data/gltf/${name}.glb`);
     if (!existsSync(glbIn)) throw new Error(`${glbIn} is absent: this test reads the real models in ../shared/data beside the repository`);
@@ -281,6 +281,9 @@ test("version 6 appearance with band 0's entries derived from the triangles (Fox
     const a = c.header.appearance!;
     const band0 = await c.chunk(c.find(ChunkKind.Attributes, 0, 0));
     assert.ok(band0.length > 1 && band0[0] === 0 && band0[1] === 1, `${name}: band 0 is not coded with derived entries`);
+    // Band 1's values are chart-wise differences (mode 2): the cuts below read that coding too.
+    const band1 = await c.chunk(c.find(ChunkKind.Attributes, 0, 1));
+    assert.ok(band1[0] === 0 && band1[1] === 2, `${name}: band 1 is not coded chart-wise`);
     const player = new Decoder(c, 0);
     await player.loadAppearance();
     for (const [frame, budget] of [[0, 100000], [5, 300], [11, 50]]) {

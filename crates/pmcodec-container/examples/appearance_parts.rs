@@ -67,6 +67,28 @@ fn main() {
             put(&mut group_runs, n);
             last = g;
         }
+        if std::env::var("EXPERIMENT").is_ok() {
+            // Alternative chart-run codings: 0 = the next new chart, else chart + 1.
+            let mut alt = Vec::new();
+            let mut next = 0u32;
+            for &(c, n) in &cr {
+                if c == next {
+                    put(&mut alt, 0);
+                    next += 1;
+                } else {
+                    put(&mut alt, c + 1);
+                }
+                put(&mut alt, n);
+            }
+            let mut alt2 = Vec::new();
+            let mut lastc = 0u32;
+            for &(c, n) in &cr {
+                put(&mut alt2, zigzag(c.wrapping_sub(lastc) as i32));
+                put(&mut alt2, n);
+                lastc = c;
+            }
+            println!("  EXP chart runs: new-or-id {} B, delta {} B", z(&alt), z(&alt2));
+        }
         println!(
             "  charts chunk: {cs} B stored ({} raw); chart materials {} B ({} raw), chart runs {} B ({} runs, {} raw), group runs {} B ({} runs, {} raw) (parts zstd alone)",
             raw.len(),
@@ -87,7 +109,7 @@ fn main() {
             };
             total += s;
             let raw = reader.read_chunk(e).unwrap();
-            if raw.len() > 1 && raw[0] == 0 {
+            if raw.len() > 1 && raw[0] == 0 && raw[1] == 1 {
                 // Band 0 with derived entries: only predicted values are stored.
                 let te = reader.index().chunks.iter().find(|e| e.kind == ChunkKind::Triangles).unwrap();
                 let tris = read_triangles(&reader.read_chunk(te).unwrap(), "t", h.triangle_count, h.vertex_count).unwrap();
@@ -134,9 +156,24 @@ fn main() {
                     last = q;
                 }
             }
+            if std::env::var("EXPERIMENT").is_ok() {
+                // Values as differences from the previous entry of the same chart.
+                let mut alt = Vec::new();
+                for k in 0..ch {
+                    let mut last = vec![0i32; info.charts as usize];
+                    for e in 0..t.len() {
+                        let c = t.charts[e] as usize;
+                        let q = t.values[e * ch + k];
+                        put(&mut alt, zigzag(q.wrapping_sub(last[c])));
+                        last[c] = q;
+                    }
+                }
+                println!("  EXP band {j}: values same-chart delta {} B", z(&alt));
+            }
             println!(
-                "  band {j}: {s} B stored ({} raw), {} entries of {} nodes: entries {} B, values {} B (parts zstd alone)",
+                "  band {j}: {s} B stored ({} raw, {}), {} entries of {} nodes: entries {} B, values {} B (parts zstd alone, as listed)",
                 raw.len(),
+                if raw.len() > 1 && raw[0] == 0 { "chart-wise values" } else { "listed" },
                 t.len(),
                 h.level_sizes[j as usize],
                 z(&ent),

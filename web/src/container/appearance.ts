@@ -59,6 +59,15 @@ export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number
 /** The Attributes chunk of a band of `nodes` nodes. */
 export function readTable(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: number): Table {
   const ch = channels(a), c = new Cursor(raw, what);
+  // A first byte 0 with more after it: a coding mode (2: values chart-wise; 1 is band 0's).
+  let chartwise = false;
+  if (raw.length > 1 && raw[0] === 0) {
+    c.get();
+    const mode = c.get();
+    if (mode === 1) throw new DecodeError(`${what}: derived entries outside band 0`);
+    if (mode !== 2) throw new DecodeError(`${what}: table coding ${mode} unknown`);
+    chartwise = true;
+  }
   const m = c.count(Math.min(nodes * a.charts, 3 * triangles), "entries");
   if (m * (2 + ch) > raw.length) throw new DecodeError(`${what}: ${m} entries in ${raw.length} bytes`);
   const first = new Uint32Array(nodes + 1), charts = new Uint32Array(m), nodeOf = new Uint32Array(m);
@@ -74,8 +83,13 @@ export function readTable(raw: Uint8Array, what: string, nodes: number, a: Appea
   for (let n = 0; n < nodes; n++) first[n + 1] += first[n];
   const values = new Int32Array(m * ch);
   for (let k = 0; k < ch; k++) {
-    let last = 0;
-    for (let e = 0; e < m; e++) { last = (last + c.zigzag()) | 0; values[e * ch + k] = last; }
+    // The previous value of the entry's chart (chart-wise) or of any entry (slot 0).
+    const last = new Int32Array(chartwise ? a.charts : 1);
+    for (let e = 0; e < m; e++) {
+      const slot = chartwise ? charts[e] : 0;
+      last[slot] = (last[slot] + c.zigzag()) | 0;
+      values[e * ch + k] = last[slot];
+    }
   }
   c.finish();
   return { first, charts, values };
@@ -103,11 +117,10 @@ export function band0Entries(triangles: Uint32Array, triangleChart: Uint32Array)
  * Rust `read_table_with`).
  */
 export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: Uint32Array, triangleChart: Uint32Array): Table {
-  if (raw.length <= 1 || raw[0] !== 0) return readTable(raw, what, nodes, a, triangleChart.length);
+  if (raw.length <= 1 || raw[0] !== 0 || raw[1] !== 1) return readTable(raw, what, nodes, a, triangleChart.length);
   const ch = channels(a), c = new Cursor(raw, what);
   c.get();
-  const mode = c.get();
-  if (mode !== 1) throw new DecodeError(`${what}: table coding ${mode} unknown`);
+  c.get();
   if (triangles.length !== 3 * triangleChart.length) throw new DecodeError(`${what}: triangles and charts disagree`);
   const entries = band0Entries(triangles, triangleChart), m = entries.length;
   for (const [n, k] of entries) if (n >= nodes || k >= a.charts) throw new DecodeError(`${what}: entry (node ${n}, chart ${k}) out of range`);

@@ -82,17 +82,17 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
     // channels has no Attributes chunks (proto/container.md, "Attributes, band j").
     if channels > 0 {
         for (j, t) in tables.iter().enumerate().rev() {
-            let listed = payload::write_table(t, channels);
-            // Band 0's entries follow from the Triangles and Charts chunks a level-0 client
-            // reads anyway; its values are then predicted across the triangles. Whichever
-            // coding zstd makes shorter is written (both read the same table).
-            let raw = if j == 0 {
-                let derived = payload::write_table_derived(t, channels, builder.triangles(), &builder.charts().triangle_chart);
-                let size = |b: &[u8]| zstd::bulk::compress(b, crate::format::ZSTD_LEVEL).map_or(usize::MAX, |z| z.len());
-                if size(&derived) < size(&listed) { derived } else { listed }
-            } else {
-                listed
-            };
+            // Entries listed, values as differences from the previous entry's or from the
+            // previous one of the same chart; band 0's entries may instead follow from the
+            // Triangles and Charts chunks a level-0 client reads anyway, its values predicted
+            // across the triangles. Whichever zstd makes shortest is written (all read the
+            // same table).
+            let mut codings = vec![payload::write_table(t, channels), payload::write_table_chartwise(t, channels)];
+            if j == 0 {
+                codings.push(payload::write_table_derived(t, channels, builder.triangles(), &builder.charts().triangle_chart));
+            }
+            let size = |b: &Vec<u8>| zstd::bulk::compress(b, crate::format::ZSTD_LEVEL).map_or(usize::MAX, |z| z.len());
+            let raw = codings.into_iter().min_by_key(size).unwrap_or_default();
             out.push((ChunkKind::Attributes, j as u32, raw));
         }
     }

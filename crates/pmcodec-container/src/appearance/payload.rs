@@ -106,34 +106,53 @@ pub struct QuantizedTable {
 /// zigzag-coded differences from the previous entry's value of that channel (from 0).
 pub fn write_table(t: &QuantizedTable, channels: usize) -> Vec<u8> {
     let mut out = Vec::new();
-    put(&mut out, t.entries.len() as u32);
+    write_listed(&mut out, t, channels, false);
+    out
+}
+
+/// ATTRIBUTES with *chart-wise differences*: `0`, `2`, then the layout of [`write_table`] but
+/// each value the difference from the previous entry's of the same chart (from 0): charts sit
+/// in separate regions of the texture, and the previous entry in node order is often in
+/// another (10% to 25% fewer value bytes in the bands above 0 of issue 16's inputs).
+pub fn write_table_chartwise(t: &QuantizedTable, channels: usize) -> Vec<u8> {
+    let mut out = Vec::new();
+    put(&mut out, 0);
+    put(&mut out, CHARTWISE);
+    write_listed(&mut out, t, channels, true);
+    out
+}
+
+fn write_listed(out: &mut Vec<u8>, t: &QuantizedTable, channels: usize, chartwise: bool) {
+    put(out, t.entries.len() as u32);
     let mut prev: Option<(u32, u32)> = None;
     for &(node, chart) in &t.entries {
         match prev {
             Some((pn, pc)) if pn == node => {
-                put(&mut out, 0);
-                put(&mut out, chart - pc - 1);
+                put(out, 0);
+                put(out, chart - pc - 1);
             }
             Some((pn, _)) => {
-                put(&mut out, node - pn);
-                put(&mut out, chart);
+                put(out, node - pn);
+                put(out, chart);
             }
             None => {
-                put(&mut out, node);
-                put(&mut out, chart);
+                put(out, node);
+                put(out, chart);
             }
         }
         prev = Some((node, chart));
     }
+    let charts = t.entries.iter().map(|e| e.1 as usize + 1).max().unwrap_or(0);
     for k in 0..channels {
-        let mut last = 0i32;
-        for e in 0..t.entries.len() {
+        // The previous value of the chart (chart-wise) or of any entry (slot 0).
+        let mut last = vec![0i32; if chartwise { charts } else { 1 }];
+        for (e, &(_, chart)) in t.entries.iter().enumerate() {
+            let slot = if chartwise { chart as usize } else { 0 };
             let q = t.values[e * channels + k];
-            put(&mut out, zigzag(q.wrapping_sub(last)));
-            last = q;
+            put(out, zigzag(q.wrapping_sub(last[slot])));
+            last[slot] = q;
         }
     }
-    out
 }
 
 /// A decoded attribute table, indexed by node: entries of node n are `first[n]..first[n+1]`.
@@ -192,6 +211,8 @@ pub fn band0_entries(triangles: &[[u32; 3]], triangle_chart: &[u32]) -> Vec<(u32
 /// The coding of a band-0 table with *derived entries*: after a first byte 0 (no entries
 /// listed), this mode (proto/container.md, "Attributes, band j").
 const DERIVED_ENTRIES: u32 = 1;
+/// The coding of a listed table with chart-wise value differences ([`write_table_chartwise`]).
+const CHARTWISE: u32 = 2;
 
 /// Band 0's traversal (proto/container.md, "Attributes, band 0 with derived entries"): the
 /// triangles in input order, each one's corners in order; a corner whose entry is not yet
@@ -296,17 +317,14 @@ pub fn read_table_with(
     triangles: u32,
     band0: Option<(&[[u32; 3]], &[u32])>,
 ) -> Result<Table, ContainerError> {
-    if bytes.first() != Some(&0) || bytes.len() == 1 {
+    if bytes.first() != Some(&0) || bytes.len() < 2 || bytes[1] != DERIVED_ENTRIES as u8 {
         return read_table(bytes, what, nodes, info, triangles);
     }
     let channels = info.channels();
     let mut c = Cursor::new(bytes, what);
     c.get()?;
-    let mode = c.get()?;
+    c.get()?;
     let corrupt = |detail: String| ContainerError::Corrupt { what: what.into(), detail };
-    if mode != DERIVED_ENTRIES {
-        return Err(corrupt(format!("table coding {mode} unknown")));
-    }
     let Some((tris, chart_of)) = band0 else {
         return Err(corrupt("derived entries outside band 0".into()));
     };
@@ -340,8 +358,17 @@ pub fn read_table_with(
 
 /// Reads band j's table: `nodes` = `level_sizes[j]`; at most three entries per triangle.
 pub fn read_table(bytes: &[u8], what: &str, nodes: u32, info: &AppearanceInfo, triangles: u32) -> Result<Table, ContainerError> {
-    let channels = info.channels();
     let mut c = Cursor::new(bytes, what);
+    let mut chartwise = false;
+    if bytes.first() == Some(&0) && bytes.len() > 1 {
+        c.get()?;
+        match c.get()? {
+            CHARTWISE => chartwise = true,
+            DERIVED_ENTRIES => return Err(ContainerError::Corrupt { what: what.into(), detail: "derived entries outside band 0".into() }),
+            mode => return Err(ContainerError::Corrupt { what: what.into(), detail: format!("table coding {mode} unknown") }),
+        }
+    }
+    let channels = info.channels();
     let m = c.count_within((nodes as u64 * info.charts as u64).min(3 * triangles as u64), 2 + channels, "entries")?;
     let mut table = Table { first: vec![0; nodes as usize + 1], charts: Vec::with_capacity(m), values: Vec::with_capacity(m * channels) };
     let mut prev: Option<(u32, u32)> = None;
@@ -370,10 +397,11 @@ pub fn read_table(bytes: &[u8], what: &str, nodes: u32, info: &AppearanceInfo, t
     }
     table.values.resize(m * channels, 0);
     for k in 0..channels {
-        let mut last = 0i32;
+        let mut last = vec![0i32; if chartwise { info.charts as usize } else { 1 }];
         for e in 0..m {
-            last = last.wrapping_add(unzigzag(c.get()?));
-            table.values[e * channels + k] = last;
+            let slot = if chartwise { table.charts[e] as usize } else { 0 };
+            last[slot] = last[slot].wrapping_add(unzigzag(c.get()?));
+            table.values[e * channels + k] = last[slot];
         }
     }
     c.finish()?;
@@ -406,6 +434,15 @@ mod tests {
         assert_eq!(table.get(7, 0, 2), Some(&[12, 0][..]));
         assert_eq!(table.get(3, 0, 2), None);
         assert!(read_table(&write_table(&t, 2), "t", 7, &info(), 100).is_err(), "node 7 of 7");
+        // Chart-wise differences read back the same values; a derived coding is band 0's only.
+        let chartwise = write_table_chartwise(&t, 2);
+        assert_eq!(&chartwise[..2], &[0, 2]);
+        let back = read_table(&chartwise, "t", 8, &info(), 100).unwrap();
+        assert_eq!((back.values, back.charts), (table.values.clone(), table.charts.clone()));
+        assert!(read_table(&chartwise[..chartwise.len() - 1], "t", 8, &info(), 100).is_err());
+        let mut derived = chartwise.clone();
+        derived[1] = 1;
+        assert!(read_table(&derived, "t", 8, &info(), 100).is_err());
         let charts =
             Charts { triangle_chart: vec![0, 0, 1, 2, 2, 0], chart_material: vec![0, 1, 1], triangle_group: vec![0, 0, 0, 0, 1, 2] };
         assert_eq!(read_charts(&write_charts(&charts), &info(), 6).unwrap(), charts);
