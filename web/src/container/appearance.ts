@@ -139,8 +139,13 @@ export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: 
   };
   // The traversal of the Rust `traverse`: triangles in input order, corners in order; an
   // unknown corner is predicted by the parallelogram across an earlier triangle's edge, else
-  // the mean of two known corners, else one known corner, else the last entry made known.
+  // the mean of two known corners, else one known corner, else the last entry made known in
+  // the triangle's chart, else the last entry made known.
   const known = new Uint8Array(m), last = new Int32Array(ch), e = [0, 0, 0];
+  // The last entry made known in each chart, if any.
+  let nc = 0;
+  for (let t = 0; t < triangleChart.length; t++) nc = Math.max(nc, triangleChart[t] + 1);
+  const chartLast = new Int32Array(nc * ch), chartSeen = new Uint8Array(nc);
   const opposite = new Map<number, number>();
   const key = (x: number, y: number): number => Math.min(x, y) * m + Math.max(x, y);
   let visited = 0;
@@ -160,12 +165,13 @@ export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: 
         if (kp && kq) pred = o !== undefined ? (vp + vq - values[o * ch + s]) | 0 : ((vp + vq) | 0) >> 1;
         else if (kp) pred = vp;
         else if (kq) pred = vq;
-        else pred = last[s];
+        else pred = chartSeen[chart] ? chartLast[chart * ch + s] : last[s];
         values[x * ch + s] = (pred + residuals[s * m + visited]) | 0;
       }
       visited++;
       known[x] = 1;
-      for (let s = 0; s < ch; s++) last[s] = values[x * ch + s];
+      for (let s = 0; s < ch; s++) last[s] = chartLast[chart * ch + s] = values[x * ch + s];
+      chartSeen[chart] = 1;
     }
     if (e[0] !== e[1] && e[1] !== e[2] && e[2] !== e[0]) {
       for (let i = 0; i < 3; i++) {

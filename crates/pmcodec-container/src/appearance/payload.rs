@@ -221,8 +221,8 @@ const CHARTWISE: u32 = 2;
 /// (Touma & Gotsman, "Triangle mesh compression", 1998, as Draco predicts texture coordinates
 /// across an edge) when the triangle's two other corners are known and an earlier triangle
 /// of the chart shares their edge: `a + b - o`, o that triangle's third corner; else the mean
-/// of the two known corners, the one known corner, or the last entry made known (zeros at
-/// first). Arithmetic wraps in 32 bits, the mean is `(a + b) >> 1` (arithmetic shift).
+/// of the two known corners, the one known corner, the last entry made known in the
+/// triangle's chart, or the last entry made known (zeros at first). Arithmetic wraps in 32 bits, the mean is `(a + b) >> 1` (arithmetic shift).
 fn traverse(
     table: &Table,
     triangles: &[[u32; 3]],
@@ -238,6 +238,10 @@ fn traverse(
     let mut opposite: std::collections::HashMap<u64, u32> = std::collections::HashMap::new();
     let key = |a: usize, b: usize| ((a.min(b) as u64) << 32) | a.max(b) as u64;
     let mut last = vec![0i32; c];
+    // The last entry made known in each chart, if any.
+    let charts = triangle_chart.iter().map(|&k| k as usize + 1).max().unwrap_or(0);
+    let mut chart_last = vec![0i32; charts * c];
+    let mut chart_seen = vec![false; charts];
     let mut pred = vec![0i32; c];
     for (t, tri) in triangles.iter().enumerate() {
         let chart = triangle_chart.get(t).copied().unwrap_or(u32::MAX);
@@ -262,12 +266,15 @@ fn traverse(
                     (true, true, None) => va.wrapping_add(vb) >> 1,
                     (true, false, _) => va,
                     (false, true, _) => vb,
+                    (false, false, _) if chart_seen[chart as usize] => chart_last[chart as usize * c + q],
                     (false, false, _) => last[q],
                 };
             }
             visit(&pred, &mut values[x * c..(x + 1) * c])?;
             known[x] = true;
             last.copy_from_slice(&values[x * c..(x + 1) * c]);
+            chart_seen[chart as usize] = true;
+            chart_last[chart as usize * c..(chart as usize + 1) * c].copy_from_slice(&values[x * c..(x + 1) * c]);
         }
         if e[0] != e[1] && e[1] != e[2] && e[2] != e[0] {
             for i in 0..3 {
