@@ -271,7 +271,7 @@ test("version 6 appearance without texture coordinates or colours (RobotExpressi
   }
 });
 
-test("version 6 appearance with band 0's entries derived from the triangles and chart-wise values above (Fox, Horse): the same texture coordinates, colours and normals as the Rust decoder", async () => {
+test("version 6 appearance with band 0's entries derived from the triangles, chart-wise values above and new-chart runs (Fox, Horse): the same texture coordinates, colours and normals as the Rust decoder", async () => {
   for (const name of ["Fox", "Horse"]) {
     const glbIn = join(root, `../shared/data/gltf/${name}.glb`);
     if (!existsSync(glbIn)) throw new Error(`${glbIn} is absent: this test reads the real models in ../shared/data beside the repository`);
@@ -282,6 +282,8 @@ test("version 6 appearance with band 0's entries derived from the triangles and 
     const band0 = await c.chunk(c.find(ChunkKind.Attributes, 0, 0));
     assert.ok(band0.length > 1 && band0[0] === 0 && band0[1] === 1, `${name}: band 0 is not coded with derived entries`);
     // Band 1's values are chart-wise differences (mode 2): the cuts below read that coding too.
+    const chartsRaw = await c.chunk(c.find(ChunkKind.Charts, 0, 0));
+    assert.ok(chartsRaw[0] === 0 && chartsRaw[1] === 1, `${name}: the charts are not new-chart runs`);
     const band1 = await c.chunk(c.find(ChunkKind.Attributes, 0, 1));
     assert.ok(band1[0] === 0 && band1[1] === 2, `${name}: band 1 is not coded chart-wise`);
     const player = new Decoder(c, 0);

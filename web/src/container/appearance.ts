@@ -40,12 +40,25 @@ function runs(c: Cursor, triangles: number, out: Uint32Array, value: () => numbe
 /** The Charts chunk. */
 export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number): Charts {
   const what = "charts chunk", c = new Cursor(raw, what);
+  // A first byte 0 (a count of charts is at least 1): a coding mode, 1 = new-chart runs.
+  const newRuns = raw.length > 0 && raw[0] === 0;
+  if (newRuns) {
+    c.get();
+    const mode = c.get();
+    if (mode !== 1) throw new DecodeError(`${what}: charts coding ${mode} unknown`);
+  }
   const n = c.count(a.charts, "charts");
   if (n !== a.charts || n > raw.length) throw new DecodeError(`${what}: ${n} charts where the header says ${a.charts}`);
   const chartMaterial = new Uint32Array(n);
   for (let i = 0; i < n; i++) chartMaterial[i] = c.id(Math.max(a.materials, 1), "material");
   const triangleChart = new Uint32Array(triangles), triangleGroup = new Uint32Array(triangles);
-  runs(c, triangles, triangleChart, () => c.id(a.charts, "chart"), what);
+  let next = 0;
+  runs(c, triangles, triangleChart, () => {
+    if (!newRuns) return c.id(a.charts, "chart");
+    const x = c.get(), chart = x === 0 ? next++ : x - 1;
+    if (chart >= a.charts) throw new DecodeError(`${what}: chart ${chart} out of range`);
+    return chart;
+  }, what);
   let last = 0;
   runs(c, triangles, triangleGroup, () => {
     const g = (last + c.zigzag()) >>> 0;

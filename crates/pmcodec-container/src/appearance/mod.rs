@@ -77,7 +77,13 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
     let app = builder.appearance();
     let materials = postcard::to_stdvec(&MaterialsChunk::from_appearance(app))
         .map_err(|e| crate::ContainerError::Io(format!("materials chunk: {e}")))?;
-    let mut out = vec![(ChunkKind::Charts, 0, payload::write_charts(builder.charts())), (ChunkKind::Materials, 0, materials)];
+    let size = |b: &Vec<u8>| zstd::bulk::compress(b, crate::format::ZSTD_LEVEL).map_or(usize::MAX, |z| z.len());
+    // The charts as plain or new-chart runs, whichever zstd makes shorter.
+    let charts = [payload::write_charts(builder.charts()), payload::write_charts_new_runs(builder.charts())]
+        .into_iter()
+        .min_by_key(size)
+        .unwrap_or_default();
+    let mut out = vec![(ChunkKind::Charts, 0, charts), (ChunkKind::Materials, 0, materials)];
     // Entries without values name nothing a decoder draws: a file whose entries carry no
     // channels has no Attributes chunks (proto/container.md, "Attributes, band j").
     if channels > 0 {
@@ -91,7 +97,6 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
             if j == 0 {
                 codings.push(payload::write_table_derived(t, channels, builder.triangles(), &builder.charts().triangle_chart));
             }
-            let size = |b: &Vec<u8>| zstd::bulk::compress(b, crate::format::ZSTD_LEVEL).map_or(usize::MAX, |z| z.len());
             let raw = codings.into_iter().min_by_key(size).unwrap_or_default();
             out.push((ChunkKind::Attributes, j as u32, raw));
         }
