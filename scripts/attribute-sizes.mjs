@@ -8,6 +8,11 @@
 //     node scripts/attribute-sizes.mjs target/release/pmcodec ../shared/data/gltf/Fox.glb \
 //       ../shared/data/gltf/RobotExpressive.glb
 //
+// (A debug build writes the same bytes.) Generated inputs, not tuned to the files in
+// ../shared/data: `node scripts/many-materials-glb.mjs /tmp/mm.glb 12 1 uv none` (see its
+// header). Where the bytes go, part by part: the example `appearance_parts` of
+// pmcodec-container.
+//
 // Draco's attribute bytes are measured as a difference: the mesh encoded with positions only,
 // then with positions and the attributes, same settings; what the second costs more is the
 // attributes, their seams (Draco's attribute connectivity) included. Our side is what
@@ -63,12 +68,13 @@ function gather(doc) {
     const col = p.getAttribute('COLOR_0');
     const n = pos.getCount();
     const m = Math.max(0, materials.indexOf(p.getMaterial()));
-    const el = [];
+    // A fresh array per element: getElement writes into its target without shortening it, so
+    // one shared array would carry a VEC4 colour's fourth value into the next position.
     for (let i = 0; i < n; i++) {
-      positions.push(...pos.getElement(i, el));
-      if (hasUv) uvs.push(...(uv ? uv.getElement(i, el) : [0, 0]));
+      positions.push(...pos.getElement(i, []));
+      if (hasUv) uvs.push(...(uv ? uv.getElement(i, []) : [0, 0]));
       if (hasColor) {
-        const c = col ? col.getElement(i, el) : [1, 1, 1, 1];
+        const c = col ? col.getElement(i, []) : [1, 1, 1, 1];
         colors.push(c[0], c[1], c[2], c.length > 3 ? c[3] : 1);
       }
       material.push(m);
