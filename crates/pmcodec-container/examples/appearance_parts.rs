@@ -6,7 +6,7 @@
 //! `cargo build --release -p pmcodec && target/release/pmcodec encode -q IN.glb -o /tmp/a.pmc &&
 //!  cargo run --release -p pmcodec-container --example appearance_parts -- /tmp/a.pmc`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
-use pmcodec_container::appearance::payload::{read_charts, read_table, read_table_with};
+use pmcodec_container::appearance::payload::{needs_above, read_charts, read_table, read_table_with};
 use pmcodec_container::payload::read_triangles;
 use pmcodec_container::payload::{put, zigzag};
 use pmcodec_container::{ChunkKind, FileSource, Reader};
@@ -122,6 +122,10 @@ fn main() {
                     t.len(),
                     h.level_sizes[j as usize]
                 );
+                continue;
+            }
+            if needs_above(&raw) {
+                println!("  band {j}: {s} B stored ({} raw, values from the band above)", raw.len());
                 continue;
             }
             let t = read_table(&raw, "t", h.level_sizes[j as usize], &info, h.triangle_count).unwrap();

@@ -160,6 +160,15 @@ fn budget_cuts_mixing_levels_find_every_chart_entry() {
     let opts = EncodeOptions { keyframe_interval: 3, quantization: QuantizationChoice::Bits(12), ..Default::default() };
     let bytes = encode(&seq, &opts, |_| {}).expect("encode");
     let reader = Reader::open(bytes.as_slice()).expect("open");
+    // Which coding each band's table took (0 listed, else the mode after a first byte 0).
+    let modes: Vec<u8> = (0..reader.header().levels() as u32)
+        .map(|j| {
+            let raw = reader.read_chunk(reader.find(ChunkKind::Attributes, 0, j).expect("attributes")).expect("read");
+            if raw.len() > 1 && raw[0] == 0 { raw[1] } else { 0 }
+        })
+        .collect();
+    // The cuts below read band 0 with derived entries and bands predicted from the band above.
+    assert!(modes[0] == 1 && modes.contains(&3), "table codings by band: {modes:?}");
     let mut d = Decoder::new(reader.borrowed(), 0).expect("decoder");
     let n = seq.triangles.len() as u32;
     let mut mixed = 0;

@@ -70,16 +70,28 @@ export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number
 }
 
 /** The Attributes chunk of a band of `nodes` nodes. */
-export function readTable(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: number): Table {
+/** Whether a table's payload predicts its values from the band above (mode 3). */
+export function needsAbove(raw: Uint8Array): boolean {
+  return raw.length > 1 && raw[0] === 0 && raw[1] === 3;
+}
+
+/**
+ * `above`: frame 0's parents of the band's nodes (its Key chunk) and the band above's table,
+ * which a table predicting its values from the band above needs (mode 3).
+ */
+export function readTable(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: number, above: { parent: Uint32Array; table: Table } | null = null): Table {
   const ch = channels(a), c = new Cursor(raw, what);
-  // A first byte 0 with more after it: a coding mode (2: values chart-wise; 1 is band 0's).
-  let chartwise = false;
+  // A first byte 0 with more after it: a coding mode (2: values chart-wise; 3: from the band
+  // above, else chart-wise; 1 is band 0's).
+  let chartwise = false, fromAbove: { parent: Uint32Array; table: Table } | null = null;
   if (raw.length > 1 && raw[0] === 0) {
     c.get();
     const mode = c.get();
     if (mode === 1) throw new DecodeError(`${what}: derived entries outside band 0`);
-    if (mode !== 2) throw new DecodeError(`${what}: table coding ${mode} unknown`);
+    if (mode !== 2 && mode !== 3) throw new DecodeError(`${what}: table coding ${mode} unknown`);
+    if (mode === 3 && !above) throw new DecodeError(`${what}: values from the band above, at the top or without it`);
     chartwise = true;
+    if (mode === 3) fromAbove = above;
   }
   const m = c.count(Math.min(nodes * a.charts, 3 * triangles), "entries");
   if (m * (2 + ch) > raw.length) throw new DecodeError(`${what}: ${m} entries in ${raw.length} bytes`);
@@ -100,8 +112,13 @@ export function readTable(raw: Uint8Array, what: string, nodes: number, a: Appea
     const last = new Int32Array(chartwise ? a.charts : 1);
     for (let e = 0; e < m; e++) {
       const slot = chartwise ? charts[e] : 0;
-      last[slot] = (last[slot] + c.zigzag()) | 0;
-      values[e * ch + k] = last[slot];
+      let pred = last[slot];
+      if (fromAbove && nodeOf[e] < fromAbove.parent.length) {
+        // The entry (parent, chart) of the band above, when it has one.
+        const t = fromAbove.table, p = fromAbove.parent[nodeOf[e]];
+        if (p + 1 < t.first.length) for (let x = t.first[p]; x < t.first[p + 1]; x++) if (t.charts[x] === charts[e]) { pred = t.values[x * ch + k]; break; }
+      }
+      last[slot] = values[e * ch + k] = (pred + c.zigzag()) | 0;
     }
   }
   c.finish();

@@ -2,7 +2,7 @@
 // a finest level (Replay), node positions predicted and corrected band by band, and the cut a
 // triangle budget selects, ordered as the Rust decoder orders it.
 
-import { Charts, Materials, Table, TexturedMesh, readBand0Table, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
+import { Charts, Materials, Table, TexturedMesh, needsAbove, readBand0Table, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
 import { DecodeError } from "./error.js";
 import { ChunkKind, Motion, channels } from "./format.js";
 import { readCornerUpdates, readDelta, readFaces, readKey, readPositions, readTriangles } from "./payload.js";
@@ -196,6 +196,13 @@ export class Decoder {
     const lowest = channels(a) === 0 ? h.levelSizes.length : this.minLevel;
     for (let j = h.levelSizes.length - 1; j >= lowest; j--) {
       const raw = await c.chunk(c.find(ChunkKind.Attributes, 0, j)), what = `band ${j} attributes`;
+      if (needsAbove(raw)) {
+        // Bands go top down: the band above is read; frame 0's parents from its Key chunk.
+        const parent = readKey(await c.chunk(c.find(ChunkKind.Key, 0, j)), `frame 0 band ${j} keyframe`, h.levelSizes, j);
+        const table = tables[j + 1];
+        tables[j] = readTable(raw, what, h.levelSizes[j], a, h.triangleCount, table ? { parent, table } : null);
+        continue;
+      }
       if (j > 0) { tables[j] = readTable(raw, what, h.levelSizes[j], a, h.triangleCount); continue; }
       // Band 0's entries may be derived from the triangles (a level-0 client's own).
       const triangles = this.triangles ?? readTriangles(await c.chunk(c.find(ChunkKind.Triangles, 0, 0)), "triangles chunk", h.triangleCount, h.vertexCount);

@@ -88,14 +88,18 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
     // channels has no Attributes chunks (proto/container.md, "Attributes, band j").
     if channels > 0 {
         for (j, t) in tables.iter().enumerate().rev() {
-            // Entries listed, values as differences from the previous entry's or from the
-            // previous one of the same chart; band 0's entries may instead follow from the
+            // Entries listed, values as differences from the previous entry's, from the
+            // previous one of the same chart or from the band above's value of the node's
+            // parent in frame 0 (bands below the top); band 0's entries may instead follow from the
             // Triangles and Charts chunks a level-0 client reads anyway, its values predicted
             // across the triangles. Whichever zstd makes shortest is written (all read the
             // same table).
             let mut codings = vec![payload::write_table(t, channels), payload::write_table_chartwise(t, channels)];
             if j == 0 {
                 codings.push(payload::write_table_derived(t, channels, builder.triangles(), &builder.charts().triangle_chart));
+            }
+            if let (Some(parent), Some(above)) = (builder.first_parent(j), tables.get(j + 1)) {
+                codings.push(payload::write_table_from_above(t, channels, parent, &above.to_table()));
             }
             let raw = codings.into_iter().min_by_key(size).unwrap_or_default();
             out.push((ChunkKind::Attributes, j as u32, raw));

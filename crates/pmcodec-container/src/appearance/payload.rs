@@ -155,7 +155,7 @@ pub struct QuantizedTable {
 /// zigzag-coded differences from the previous entry's value of that channel (from 0).
 pub fn write_table(t: &QuantizedTable, channels: usize) -> Vec<u8> {
     let mut out = Vec::new();
-    write_listed(&mut out, t, channels, false);
+    write_listed(&mut out, t, channels, false, None);
     out
 }
 
@@ -167,11 +167,44 @@ pub fn write_table_chartwise(t: &QuantizedTable, channels: usize) -> Vec<u8> {
     let mut out = Vec::new();
     put(&mut out, 0);
     put(&mut out, CHARTWISE);
-    write_listed(&mut out, t, channels, true);
+    write_listed(&mut out, t, channels, true, None);
     out
 }
 
-fn write_listed(out: &mut Vec<u8>, t: &QuantizedTable, channels: usize, chartwise: bool) {
+/// ATTRIBUTES of a band j below the top with *values from the band above*: `0`, `3`, then the
+/// layout of [`write_table`] but each value the difference from the prediction: the value of
+/// (parent of the node in frame 0's hierarchy (the Key chunk of frame 0, band j), the same
+/// chart) in band j+1's table when it has that entry, else the previous value of the same chart
+/// in this table (from 0). A coarse value is the area-weighted mean of its children's, so a
+/// child sits near it; the previous entry in node order may be anywhere in the chart.
+/// `parent` maps this band's nodes to band j+1's, `above` is band j+1's table.
+pub fn write_table_from_above(t: &QuantizedTable, channels: usize, parent: &[u32], above: &Table) -> Vec<u8> {
+    let mut out = Vec::new();
+    put(&mut out, 0);
+    put(&mut out, FROM_ABOVE);
+    write_listed(&mut out, t, channels, true, Some((parent, above)));
+    out
+}
+
+impl QuantizedTable {
+    /// As a decoded [`Table`] (for predicting the band below it).
+    pub fn to_table(&self) -> Table {
+        let nodes = self.entries.last().map_or(0, |e| e.0 + 1);
+        let mut t = Table::index(&self.entries, nodes);
+        t.values = self.values.clone();
+        t
+    }
+}
+
+/// The prediction of entry (node, chart)'s channel k from the band above, if it has the entry.
+fn from_above(above: Option<(&[u32], &Table)>, node: u32, chart: u32, channels: usize, k: usize) -> Option<i32> {
+    let (parent, table) = above?;
+    let p = *parent.get(node as usize)?;
+    let e = table.find(p, chart)?;
+    table.values.get(e * channels + k).copied()
+}
+
+fn write_listed(out: &mut Vec<u8>, t: &QuantizedTable, channels: usize, chartwise: bool, above: Option<(&[u32], &Table)>) {
     put(out, t.entries.len() as u32);
     let mut prev: Option<(u32, u32)> = None;
     for &(node, chart) in &t.entries {
@@ -195,10 +228,11 @@ fn write_listed(out: &mut Vec<u8>, t: &QuantizedTable, channels: usize, chartwis
     for k in 0..channels {
         // The previous value of the chart (chart-wise) or of any entry (slot 0).
         let mut last = vec![0i32; if chartwise { charts } else { 1 }];
-        for (e, &(_, chart)) in t.entries.iter().enumerate() {
+        for (e, &(node, chart)) in t.entries.iter().enumerate() {
             let slot = if chartwise { chart as usize } else { 0 };
             let q = t.values[e * channels + k];
-            put(out, zigzag(q.wrapping_sub(last[slot])));
+            let pred = from_above(above, node, chart, channels, k).unwrap_or(last[slot]);
+            put(out, zigzag(q.wrapping_sub(pred)));
             last[slot] = q;
         }
     }
@@ -262,6 +296,9 @@ pub fn band0_entries(triangles: &[[u32; 3]], triangle_chart: &[u32]) -> Vec<(u32
 const DERIVED_ENTRIES: u32 = 1;
 /// The coding of a listed table with chart-wise value differences ([`write_table_chartwise`]).
 const CHARTWISE: u32 = 2;
+/// The coding of a listed table with values predicted from the band above
+/// ([`write_table_from_above`]).
+const FROM_ABOVE: u32 = 3;
 
 /// Band 0's traversal (proto/container.md, "Attributes, band 0 with derived entries"): the
 /// triangles in input order, each one's corners in order; a corner whose entry is not yet
@@ -414,12 +451,39 @@ pub fn read_table_with(
 
 /// Reads band j's table: `nodes` = `level_sizes[j]`; at most three entries per triangle.
 pub fn read_table(bytes: &[u8], what: &str, nodes: u32, info: &AppearanceInfo, triangles: u32) -> Result<Table, ContainerError> {
+    read_table_above(bytes, what, nodes, info, triangles, None)
+}
+
+/// Whether a table's payload predicts its values from the band above (it then needs the
+/// parents of frame 0's hierarchy and that band's table).
+pub fn needs_above(bytes: &[u8]) -> bool {
+    bytes.len() > 1 && bytes[0] == 0 && bytes[1] == FROM_ABOVE as u8
+}
+
+/// [`read_table`] with `above`: frame 0's parents of this band's nodes and the band above's
+/// table, which a table predicted from the band above needs.
+pub fn read_table_above(
+    bytes: &[u8],
+    what: &str,
+    nodes: u32,
+    info: &AppearanceInfo,
+    triangles: u32,
+    above: Option<(&[u32], &Table)>,
+) -> Result<Table, ContainerError> {
     let mut c = Cursor::new(bytes, what);
     let mut chartwise = false;
+    let mut predicted = None;
     if bytes.first() == Some(&0) && bytes.len() > 1 {
         c.get()?;
         match c.get()? {
             CHARTWISE => chartwise = true,
+            FROM_ABOVE => {
+                chartwise = true;
+                predicted = Some(above.ok_or_else(|| ContainerError::Corrupt {
+                    what: what.into(),
+                    detail: "values from the band above, at the top or without it".into(),
+                })?);
+            }
             DERIVED_ENTRIES => return Err(ContainerError::Corrupt { what: what.into(), detail: "derived entries outside band 0".into() }),
             mode => return Err(ContainerError::Corrupt { what: what.into(), detail: format!("table coding {mode} unknown") }),
         }
@@ -454,10 +518,13 @@ pub fn read_table(bytes: &[u8], what: &str, nodes: u32, info: &AppearanceInfo, t
     table.values.resize(m * channels, 0);
     for k in 0..channels {
         let mut last = vec![0i32; if chartwise { info.charts as usize } else { 1 }];
-        for e in 0..m {
-            let slot = if chartwise { table.charts[e] as usize } else { 0 };
-            last[slot] = last[slot].wrapping_add(unzigzag(c.get()?));
-            table.values[e * channels + k] = last[slot];
+        for (e, &node) in node_of.iter().enumerate() {
+            let chart = table.charts[e];
+            let slot = if chartwise { chart as usize } else { 0 };
+            let pred = from_above(predicted, node, chart, channels, k).unwrap_or(last[slot]);
+            let q = pred.wrapping_add(unzigzag(c.get()?));
+            table.values[e * channels + k] = q;
+            last[slot] = q;
         }
     }
     c.finish()?;
@@ -499,6 +566,20 @@ mod tests {
         let mut derived = chartwise.clone();
         derived[1] = 1;
         assert!(read_table(&derived, "t", 8, &info(), 100).is_err());
+        // From the band above: nodes 0, 3, 7 under parents 1, 0, 1 of a table with entries
+        // (0, 1) and (1, 0), (1, 2): some predicted from above, the rest chart-wise.
+        let above = QuantizedTable { entries: vec![(0, 1), (1, 0), (1, 2)], values: vec![100, 200, 7, 9, 30, 31] }.to_table();
+        let parent = [1, 1, 1, 0, 1, 1, 1, 1];
+        let coded = write_table_from_above(&t, 2, &parent, &above);
+        assert_eq!(&coded[..2], &[0, 3]);
+        let back = read_table_above(&coded, "t", 8, &info(), 100, Some((&parent, &above))).unwrap();
+        assert_eq!(back.values, table.values);
+        assert!(needs_above(&coded) && !needs_above(&chartwise));
+        // Without the band above (at the top, say), or cut short: errors, not panics.
+        assert!(read_table(&coded, "t", 8, &info(), 100).is_err());
+        assert!(read_table_above(&coded[..coded.len() - 1], "t", 8, &info(), 100, Some((&parent, &above))).is_err());
+        // A parent list too short for the nodes falls back on chart-wise prediction, no panic.
+        assert!(read_table_above(&coded, "t", 8, &info(), 100, Some((&parent[..2], &above))).is_ok());
         let charts =
             Charts { triangle_chart: vec![0, 0, 1, 2, 2, 0], chart_material: vec![0, 1, 1], triangle_group: vec![0, 0, 0, 0, 1, 2] };
         assert_eq!(read_charts(&write_charts(&charts), &info(), 6).unwrap(), charts);
