@@ -238,6 +238,87 @@ test("version 6 appearance: the same texture coordinates, colours, normals and m
   }
 });
 
+test("version 6 appearance without texture coordinates or colours (RobotExpressive): no Attributes chunks, the same normals and materials as the Rust decoder", async () => {
+  const robot = join(root, "../shared/data/gltf/RobotExpressive.glb");
+  if (!existsSync(robot)) throw new Error(`${robot} is absent: this test reads the real models in ../shared/data beside the repository`);
+  const file = join(dir, "robot.pmc");
+  execFileSync(bin, ["encode", "-q", robot, "-o", file, "--keyframe-interval", "8"]);
+  const c = await open(file);
+  const a = c.header.appearance!;
+  assert.deepEqual([a.uvSets, a.colors, a.materials, a.charts], [0, false, 3, 3]);
+  assert.ok(!c.index.some((e) => e.kind === ChunkKind.Attributes), "value-less attribute tables were written");
+  const player = new Decoder(c, 0);
+  await player.loadAppearance();
+  for (const [frame, budget] of [[0, 200], [9, 1500], [20, 100000]]) {
+    const out = join(dir, `robot-${frame}-${budget}.glb`);
+    execFileSync(bin, ["decode", "-q", file, "--frame", String(frame), "--triangles", String(budget), "-o", out]);
+    const glb = readGlb(out);
+    await player.seek(frame);
+    const pos = player.positions();
+    player.replay.selectTriangles(budget, player.replay.nodeErrors(pos));
+    const mesh = player.texturedMesh(pos);
+    const prims = glb.json.meshes[0].primitives;
+    const what = `frame ${frame} budget ${budget}`;
+    assert.deepEqual(Array.from(mesh.positions), Array.from(accessor(glb, prims[0].attributes.POSITION)), `${what}: positions`);
+    assert.deepEqual(Array.from(mesh.normals), Array.from(accessor(glb, prims[0].attributes.NORMAL)), `${what}: normals`);
+    assert.equal(mesh.uv0, null);
+    assert.deepEqual(prims.map((p: any) => p.material), [...new Set(mesh.triangleMaterial)].sort(), `${what}: materials`);
+    for (const p of prims) {
+      const want: number[] = [];
+      mesh.triangleMaterial.forEach((m, t) => { if (m === p.material) want.push(...mesh.indices.subarray(3 * t, 3 * t + 3)); });
+      assert.deepEqual(Array.from(accessor(glb, p.indices)), want, `${what}: material ${p.material} triangles`);
+    }
+  }
+});
+
+test("version 6 appearance with band 0's entries derived from the triangles, values from the band above and new-chart runs (Fox, Horse): the same texture coordinates, colours and normals as the Rust decoder", async () => {
+  for (const name of ["Fox", "Horse"]) {
+    const glbIn = join(root, `../shared/data/gltf/${name}.glb`);
+    if (!existsSync(glbIn)) throw new Error(`${glbIn} is absent: this test reads the real models in ../shared/data beside the repository`);
+    const file = join(dir, `${name}-derived.pmc`);
+    execFileSync(bin, ["encode", "-q", glbIn, "-o", file, "--keyframe-interval", "8"]);
+    const c = await open(file);
+    const a = c.header.appearance!;
+    const band0 = await c.chunk(c.find(ChunkKind.Attributes, 0, 0));
+    assert.ok(band0.length > 1 && band0[0] === 0 && band0[1] === 1, `${name}: band 0 is not coded with derived entries`);
+    // Band 1's values are chart-wise differences (mode 2): the cuts below read that coding too.
+    const chartsRaw = await c.chunk(c.find(ChunkKind.Charts, 0, 0));
+    assert.ok(chartsRaw[0] === 0 && chartsRaw[1] === 1, `${name}: the charts are not new-chart runs`);
+    // Bands above 0 predict their values from the band above (mode 3) or chart-wise (mode 2):
+    // the cuts below read those codings too.
+    const modes: number[] = [];
+    for (let j = 1; j < c.header.levelSizes.length; j++) { const b = await c.chunk(c.find(ChunkKind.Attributes, 0, j)); modes.push(b[0] === 0 ? b[1] : 0); }
+    assert.ok(modes.includes(3), `${name}: no band predicted from the band above (${modes})`);
+    const player = new Decoder(c, 0);
+    await player.loadAppearance();
+    for (const [frame, budget] of [[0, 100000], [5, 300], [11, 50]]) {
+      const out = join(dir, `${name}-derived-${frame}-${budget}.glb`);
+      execFileSync(bin, ["decode", "-q", file, "--frame", String(frame), "--triangles", String(budget), "-o", out]);
+      const glb = readGlb(out);
+      await player.seek(frame);
+      const pos = player.positions();
+      player.replay.selectTriangles(budget, player.replay.nodeErrors(pos));
+      const mesh = player.texturedMesh(pos);
+      const attr = glb.json.meshes[0].primitives[0].attributes;
+      const what = `${name} frame ${frame} budget ${budget}`;
+      assert.deepEqual(Array.from(mesh.positions), Array.from(accessor(glb, attr.POSITION)), `${what}: positions`);
+      assert.deepEqual(Array.from(mesh.normals), Array.from(accessor(glb, attr.NORMAL)), `${what}: normals`);
+      assert.deepEqual(Array.from(mesh.uv0!), Array.from(accessor(glb, attr.TEXCOORD_0)), `${what}: texture coordinates`);
+      if (a.colors) assert.deepEqual(Array.from(mesh.colors!), Array.from(accessor(glb, attr.COLOR_0)), `${what}: colours`);
+    }
+    // A damaged residual stream is an error, not a crash: the payload cut short.
+    const { readBand0Table } = await import("../src/container/index.js");
+    const tris = (player as unknown as { triangles: Uint32Array }).triangles, chartOf = player.looks!.charts.triangleChart;
+    const whole = readBand0Table(band0, "band 0", c.header.levelSizes[0], a, tris, chartOf);
+    assert.deepEqual(Array.from(whole.values), Array.from(player.looks!.tables[0]!.values));
+    assert.throws(() => readBand0Table(band0.subarray(0, band0.length - 1), "band 0", c.header.levelSizes[0], a, tris, chartOf), DecodeError);
+    // An unknown coding mode is an error too.
+    const odd = band0.slice();
+    odd[1] = 7;
+    assert.throws(() => readBand0Table(odd, "band 0", c.header.levelSizes[0], a, tris, chartOf), /coding 7 unknown/);
+  }
+});
+
 test("a skinned glTF's stream (version 6): every frame's input vertices equal the Rust decoder's, and coarse clients agree", async () => {
   const fox = join(root, "../shared/data/gltf/Fox.glb");
   if (!existsSync(fox)) throw new Error(`${fox} is absent: this test reads the real models in ../shared/data beside the repository`);

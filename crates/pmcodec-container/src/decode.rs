@@ -153,10 +153,13 @@ impl<S: ByteSource> Decoder<S> {
         let first_delta = start + if load_key { 1 } else { 0 };
         let first_positions = if load_key { key } else { start };
         let mut out = Vec::new();
+        // Attribute tables may predict values through frame 0's hierarchy (its Key chunks).
+        let looks_keys = load_key && self.looks.is_none() && h.appearance.as_ref().is_some_and(|a| a.channels() > 0);
         for e in self.reader.index().chunks.iter().filter(|e| e.kind.read_at(e.band as usize, self.min_level)) {
             let take = match e.kind {
                 ChunkKind::Triangles => load_key && self.triangles.is_none(),
-                ChunkKind::Key | ChunkKind::Faces => load_key && e.frame == key,
+                ChunkKind::Key => load_key && (e.frame == key || (looks_keys && e.frame == 0)),
+                ChunkKind::Faces => load_key && e.frame == key,
                 ChunkKind::Delta | ChunkKind::Corners => e.frame >= first_delta && e.frame <= frame,
                 ChunkKind::Positions | ChunkKind::Pose | ChunkKind::Palette | ChunkKind::Joints => {
                     e.frame >= first_positions && e.frame <= frame

@@ -76,6 +76,10 @@ fn every_level_reads_back_inside_its_charts() {
             }
         }
     }
+    // Band 0's entries are derived from the triangles (its chunk starts 0, 1): the level-0
+    // checks above read that coding.
+    let band0 = reader.read_chunk(reader.find(ChunkKind::Attributes, 0, 0).expect("band 0 attributes")).expect("read");
+    assert_eq!(&band0[..2], &[0, 1]);
     let images = Decoder::new(reader.borrowed(), 0).unwrap().images().expect("images");
     assert_eq!(images.len(), 1);
     assert_eq!(images[0].bytes, input.images[0].bytes);
@@ -156,6 +160,15 @@ fn budget_cuts_mixing_levels_find_every_chart_entry() {
     let opts = EncodeOptions { keyframe_interval: 3, quantization: QuantizationChoice::Bits(12), ..Default::default() };
     let bytes = encode(&seq, &opts, |_| {}).expect("encode");
     let reader = Reader::open(bytes.as_slice()).expect("open");
+    // Which coding each band's table took (0 listed, else the mode after a first byte 0).
+    let modes: Vec<u8> = (0..reader.header().levels() as u32)
+        .map(|j| {
+            let raw = reader.read_chunk(reader.find(ChunkKind::Attributes, 0, j).expect("attributes")).expect("read");
+            if raw.len() > 1 && raw[0] == 0 { raw[1] } else { 0 }
+        })
+        .collect();
+    // The cuts below read band 0 with derived entries and bands predicted from the band above.
+    assert!(modes[0] == 1 && modes.contains(&3), "table codings by band: {modes:?}");
     let mut d = Decoder::new(reader.borrowed(), 0).expect("decoder");
     let n = seq.triangles.len() as u32;
     let mut mixed = 0;
@@ -172,4 +185,56 @@ fn budget_cuts_mixing_levels_find_every_chart_entry() {
         }
     }
     assert!(mixed > 100);
+}
+
+/// Materials without texture coordinates or colours (a RobotExpressive-like input: several
+/// materials in scattered, disconnected patches): one chart per material, no Attributes chunks
+/// at all, and every level and budget cut still draws, each triangle in its input material.
+#[test]
+fn materials_without_values_need_no_tables() {
+    let mut seq = pmcodec_mesh::samples::twisting_tube(24, 20, 6);
+    let n = seq.triangles.len();
+    let mut app = pmcodec_mesh::Appearance {
+        wedge_vertex: (0..seq.frames[0].len() as u32).collect(),
+        corner_wedges: seq.triangles.clone(),
+        // Five materials in scattered runs of triangles: each is many disconnected patches.
+        triangle_material: (0..n as u32).map(|t| (t.wrapping_mul(2_654_435_761) >> 9) % 5).collect(),
+        ..Default::default()
+    };
+    app.materials = (0..5).map(|m| pmcodec_mesh::appearance::Material { name: Some(format!("m{m}")), ..Default::default() }).collect();
+    app.validate(seq.frames[0].len(), &seq.triangles).expect("a valid appearance");
+    let input_materials = app.triangle_material.clone();
+    seq.appearance = Some(app);
+    let opts = EncodeOptions { keyframe_interval: 3, quantization: QuantizationChoice::Bits(12), ..Default::default() };
+    let bytes = encode(&seq, &opts, |_| {}).expect("encode");
+    let reader = Reader::open(bytes.as_slice()).expect("open");
+    verify(&reader).expect("verify");
+    let info = reader.header().appearance.clone().expect("appearance");
+    assert_eq!((info.channels(), info.charts, info.materials), (0, 5, 5));
+    assert!(!reader.index().chunks.iter().any(|e| e.kind == ChunkKind::Attributes), "value-less tables were written");
+    let s = summary(&reader);
+    // A chart per material: the charts chunk is the material runs, a byte or two per run.
+    assert!(s.charts_bytes < 3 * n as u64, "{} bytes of charts for {n} triangles", s.charts_bytes);
+    let levels = reader.header().levels();
+    for level in 0..levels {
+        let mut d = Decoder::new(reader.borrowed(), level).expect("decoder");
+        for f in [0, 4] {
+            d.seek(f).expect("seek");
+            let (mesh, app) = d.textured_mesh(CutTarget::Level(level)).expect("textured");
+            assert_eq!(mesh.triangles.len(), d.mesh(CutTarget::Level(level)).expect("mesh").triangles.len());
+            assert!(app.uv0.is_empty() && app.colors.is_empty());
+            assert_eq!(app.normals.len(), mesh.positions.len());
+            if level == 0 {
+                assert_eq!(app.triangle_material, input_materials, "frame {f}");
+            }
+            if level == 0 {
+                for budget in (1..=n as u32).step_by(41) {
+                    let (mesh, app) =
+                        d.textured_mesh(CutTarget::Triangles(budget)).unwrap_or_else(|e| panic!("frame {f} budget {budget}: {e}"));
+                    assert_eq!(mesh.triangles.len(), app.triangle_material.len());
+                    assert!(app.triangle_material.iter().all(|&m| m < 5));
+                }
+            }
+        }
+    }
 }

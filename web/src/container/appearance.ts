@@ -40,12 +40,25 @@ function runs(c: Cursor, triangles: number, out: Uint32Array, value: () => numbe
 /** The Charts chunk. */
 export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number): Charts {
   const what = "charts chunk", c = new Cursor(raw, what);
+  // A first byte 0 (a count of charts is at least 1): a coding mode, 1 = new-chart runs.
+  const newRuns = raw.length > 0 && raw[0] === 0;
+  if (newRuns) {
+    c.get();
+    const mode = c.get();
+    if (mode !== 1) throw new DecodeError(`${what}: charts coding ${mode} unknown`);
+  }
   const n = c.count(a.charts, "charts");
   if (n !== a.charts || n > raw.length) throw new DecodeError(`${what}: ${n} charts where the header says ${a.charts}`);
   const chartMaterial = new Uint32Array(n);
   for (let i = 0; i < n; i++) chartMaterial[i] = c.id(Math.max(a.materials, 1), "material");
   const triangleChart = new Uint32Array(triangles), triangleGroup = new Uint32Array(triangles);
-  runs(c, triangles, triangleChart, () => c.id(a.charts, "chart"), what);
+  let next = 0;
+  runs(c, triangles, triangleChart, () => {
+    if (!newRuns) return c.id(a.charts, "chart");
+    const x = c.get(), chart = x === 0 ? next++ : x - 1;
+    if (chart >= a.charts) throw new DecodeError(`${what}: chart ${chart} out of range`);
+    return chart;
+  }, what);
   let last = 0;
   runs(c, triangles, triangleGroup, () => {
     const g = (last + c.zigzag()) >>> 0;
@@ -57,8 +70,29 @@ export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number
 }
 
 /** The Attributes chunk of a band of `nodes` nodes. */
-export function readTable(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: number): Table {
+/** Whether a table's payload predicts its values from the band above (mode 3). */
+export function needsAbove(raw: Uint8Array): boolean {
+  return raw.length > 1 && raw[0] === 0 && raw[1] === 3;
+}
+
+/**
+ * `above`: frame 0's parents of the band's nodes (its Key chunk) and the band above's table,
+ * which a table predicting its values from the band above needs (mode 3).
+ */
+export function readTable(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: number, above: { parent: Uint32Array; table: Table } | null = null): Table {
   const ch = channels(a), c = new Cursor(raw, what);
+  // A first byte 0 with more after it: a coding mode (2: values chart-wise; 3: from the band
+  // above, else chart-wise; 1 is band 0's).
+  let chartwise = false, fromAbove: { parent: Uint32Array; table: Table } | null = null;
+  if (raw.length > 1 && raw[0] === 0) {
+    c.get();
+    const mode = c.get();
+    if (mode === 1) throw new DecodeError(`${what}: derived entries outside band 0`);
+    if (mode !== 2 && mode !== 3) throw new DecodeError(`${what}: table coding ${mode} unknown`);
+    if (mode === 3 && !above) throw new DecodeError(`${what}: values from the band above, at the top or without it`);
+    chartwise = true;
+    if (mode === 3) fromAbove = above;
+  }
   const m = c.count(Math.min(nodes * a.charts, 3 * triangles), "entries");
   if (m * (2 + ch) > raw.length) throw new DecodeError(`${what}: ${m} entries in ${raw.length} bytes`);
   const first = new Uint32Array(nodes + 1), charts = new Uint32Array(m), nodeOf = new Uint32Array(m);
@@ -74,10 +108,108 @@ export function readTable(raw: Uint8Array, what: string, nodes: number, a: Appea
   for (let n = 0; n < nodes; n++) first[n + 1] += first[n];
   const values = new Int32Array(m * ch);
   for (let k = 0; k < ch; k++) {
-    let last = 0;
-    for (let e = 0; e < m; e++) { last = (last + c.zigzag()) | 0; values[e * ch + k] = last; }
+    // The previous value of the entry's chart (chart-wise) or of any entry (slot 0).
+    const last = new Int32Array(chartwise ? a.charts : 1);
+    for (let e = 0; e < m; e++) {
+      const slot = chartwise ? charts[e] : 0;
+      let pred = last[slot];
+      if (fromAbove && nodeOf[e] < fromAbove.parent.length) {
+        // The entry (parent, chart) of the band above, when it has one.
+        const t = fromAbove.table, p = fromAbove.parent[nodeOf[e]];
+        if (p + 1 < t.first.length) for (let x = t.first[p]; x < t.first[p + 1]; x++) if (t.charts[x] === charts[e]) { pred = t.values[x * ch + k]; break; }
+      }
+      last[slot] = values[e * ch + k] = (pred + c.zigzag()) | 0;
+    }
   }
   c.finish();
+  return { first, charts, values };
+}
+
+/** Band 0's entries: every triangle corner's (vertex, chart), ascending, as [vertex, chart] pairs. */
+export function band0Entries(triangles: Uint32Array, triangleChart: Uint32Array): [number, number][] {
+  const seen = new Set<number>(), out: [number, number][] = [];
+  // Exact keys (below 2^53 for any mesh a browser holds): vertex * charts + chart.
+  let nc = 1;
+  for (let t = 0; t < triangleChart.length; t++) nc = Math.max(nc, triangleChart[t] + 1);
+  for (let t = 0; t < triangleChart.length; t++) {
+    for (let i = 0; i < 3; i++) {
+      const v = triangles[3 * t + i], k = triangleChart[t], key = v * nc + k;
+      if (!seen.has(key)) { seen.add(key); out.push([v, k]); }
+    }
+  }
+  return out.sort((a, b) => a[0] - b[0] || a[1] - b[1]);
+}
+
+/**
+ * The Attributes chunk of band 0, whichever its coding: entries listed (`readTable`) or, after a
+ * first byte 0 and the mode 1, derived from the triangles and charts, with values predicted
+ * across the triangles (proto/container.md, "Attributes, band 0 with derived entries"; the
+ * Rust `read_table_with`).
+ */
+export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: Uint32Array, triangleChart: Uint32Array): Table {
+  if (raw.length <= 1 || raw[0] !== 0 || raw[1] !== 1) return readTable(raw, what, nodes, a, triangleChart.length);
+  const ch = channels(a), c = new Cursor(raw, what);
+  c.get();
+  c.get();
+  if (triangles.length !== 3 * triangleChart.length) throw new DecodeError(`${what}: triangles and charts disagree`);
+  const entries = band0Entries(triangles, triangleChart), m = entries.length;
+  for (const [n, k] of entries) if (n >= nodes || k >= a.charts) throw new DecodeError(`${what}: entry (node ${n}, chart ${k}) out of range`);
+  if (m * ch > raw.length) throw new DecodeError(`${what}: ${m} entries in ${raw.length} bytes`);
+  const first = new Uint32Array(nodes + 1), charts = new Uint32Array(m);
+  entries.forEach(([n, k], e) => { first[n + 1]++; charts[e] = k; });
+  for (let n = 0; n < nodes; n++) first[n + 1] += first[n];
+  const residuals = new Int32Array(m * ch);
+  for (let i = 0; i < m * ch; i++) residuals[i] = c.zigzag();
+  c.finish();
+  const values = new Int32Array(m * ch);
+  const find = (v: number, k: number): number => {
+    if (v >= nodes) return -1;
+    for (let x = first[v]; x < first[v + 1]; x++) if (charts[x] === k) return x;
+    return -1;
+  };
+  // The traversal of the Rust `traverse`: triangles in input order, corners in order; an
+  // unknown corner is predicted by the parallelogram across an earlier triangle's edge, else
+  // the mean of two known corners, else one known corner, else the last entry made known in
+  // the triangle's chart, else the last entry made known.
+  const known = new Uint8Array(m), last = new Int32Array(ch), e = [0, 0, 0];
+  // The last entry made known in each chart, if any.
+  let nc = 0;
+  for (let t = 0; t < triangleChart.length; t++) nc = Math.max(nc, triangleChart[t] + 1);
+  const chartLast = new Int32Array(nc * ch), chartSeen = new Uint8Array(nc);
+  const opposite = new Map<number, number>();
+  const key = (x: number, y: number): number => Math.min(x, y) * m + Math.max(x, y);
+  let visited = 0;
+  for (let t = 0; t < triangleChart.length; t++) {
+    const chart = triangleChart[t];
+    for (let i = 0; i < 3; i++) {
+      e[i] = find(triangles[3 * t + i], chart);
+      if (e[i] < 0) throw new DecodeError(`${what}: no entry for vertex ${triangles[3 * t + i]}, chart ${chart} of triangle ${t}`);
+    }
+    for (let i = 0; i < 3; i++) {
+      const x = e[i];
+      if (known[x]) continue;
+      const p = e[(i + 1) % 3], q = e[(i + 2) % 3], kp = known[p] === 1, kq = known[q] === 1, o = opposite.get(key(p, q));
+      for (let s = 0; s < ch; s++) {
+        const vp = values[p * ch + s], vq = values[q * ch + s];
+        let pred: number;
+        if (kp && kq) pred = o !== undefined ? (vp + vq - values[o * ch + s]) | 0 : ((vp + vq) | 0) >> 1;
+        else if (kp) pred = vp;
+        else if (kq) pred = vq;
+        else pred = chartSeen[chart] ? chartLast[chart * ch + s] : last[s];
+        values[x * ch + s] = (pred + residuals[s * m + visited]) | 0;
+      }
+      visited++;
+      known[x] = 1;
+      for (let s = 0; s < ch; s++) last[s] = chartLast[chart * ch + s] = values[x * ch + s];
+      chartSeen[chart] = 1;
+    }
+    if (e[0] !== e[1] && e[1] !== e[2] && e[2] !== e[0]) {
+      for (let i = 0; i < 3; i++) {
+        const k = key(e[i], e[(i + 1) % 3]);
+        if (!opposite.has(k)) opposite.set(k, e[(i + 2) % 3]);
+      }
+    }
+  }
   return { first, charts, values };
 }
 
@@ -164,6 +296,25 @@ export function texturedMesh(
   const sums = new Map<string, number[]>();
   const indices = new Uint32Array(3 * nt), triangleMaterial = new Uint32Array(nt);
   const levelOf = (g: number): number => levelOfNode(offsets, g);
+  // Pushes the `ch` values of (g, chart) for corner g of shown triangle i.
+  const lookUp = (g: number, i: number, chart: number): void => {
+    const level = levelOf(g), local = g - offsets[level], tb = tables[level];
+    let e = -1;
+    if (tb) for (let x = tb.first[local]; x < tb.first[local + 1]; x++) if (tb.charts[x] === chart) { e = x; break; }
+    if (tb && e >= 0) for (let q = 0; q < ch; q++) values.push(tb.values[e * ch + q]);
+    else if (options.lenient && tb) {
+      // A viewer's choice, not the format's (the specification makes a missing entry a
+      // corrupt file): the mean of the triangle's other corners' entries in the chart,
+      // else the node's first entry, else zeros, so one bad entry does not blank a frame.
+      missing++;
+      const others = [cut[3 * i], cut[3 * i + 1], cut[3 * i + 2]].filter((x) => x !== g)
+        .map((x) => attributeEntry(a, tables, offsets, x, chart)).filter((x): x is Int32Array => x !== null);
+      for (let q = 0; q < ch; q++) {
+        if (others.length > 0) values.push(Math.round(others.reduce((acc, x) => acc + x[q], 0) / others.length));
+        else values.push(tb.first[local] < tb.first[local + 1] ? tb.values[tb.first[local] * ch + q] : 0);
+      }
+    } else throw new DecodeError(`band ${level} attributes: no entry for node ${local}, chart ${chart}`);
+  };
   for (let i = 0; i < nt; i++) {
     const t = shown[i], chart = charts.triangleChart[t], group = charts.triangleGroup[t];
     const g0 = cut[3 * i], g1 = cut[3 * i + 1], g2 = cut[3 * i + 2];
@@ -176,22 +327,8 @@ export function texturedMesh(
       if (v === undefined) {
         v = nodeOfVertex.length;
         vertexOf.set(k, v);
-        const level = levelOf(g), local = g - offsets[level], tb = tables[level];
-        let e = -1;
-        if (tb) for (let x = tb.first[local]; x < tb.first[local + 1]; x++) if (tb.charts[x] === chart) { e = x; break; }
-        if (tb && e >= 0) for (let q = 0; q < ch; q++) values.push(tb.values[e * ch + q]);
-        else if (options.lenient && tb) {
-          // A viewer's choice, not the format's (the specification makes a missing entry a
-          // corrupt file): the mean of the triangle's other corners' entries in the chart,
-          // else the node's first entry, else zeros, so one bad entry does not blank a frame.
-          missing++;
-          const others = [cut[3 * i], cut[3 * i + 1], cut[3 * i + 2]].filter((x) => x !== g)
-            .map((x) => attributeEntry(a, tables, offsets, x, chart)).filter((x): x is Int32Array => x !== null);
-          for (let q = 0; q < ch; q++) {
-            if (others.length > 0) values.push(Math.round(others.reduce((acc, x) => acc + x[q], 0) / others.length));
-            else values.push(tb.first[local] < tb.first[local + 1] ? tb.values[tb.first[local] * ch + q] : 0);
-          }
-        } else throw new DecodeError(`band ${level} attributes: no entry for node ${local}, chart ${chart}`);
+        // Without channels there are no tables and nothing to look up.
+        if (ch > 0) lookUp(g, i, chart);
         nodeOfVertex.push(g);
         chartOfVertex.push(chart);
         key.push(group);
@@ -199,7 +336,7 @@ export function texturedMesh(
       indices[3 * i + c] = v;
       const sk = `${g}/${group}`;
       const s = sums.get(sk);
-      if (s) { s[0] += n[0]; s[1] += n[1]; s[2] += n[2]; } else sums.set(sk, [n[0], n[1], n[2]]);
+      if (s) { s[0] += n[0]; s[1] += n[1]; s[2] += n[2]; } else sums.set(sk, [0 + n[0], 0 + n[1], 0 + n[2]]); // from (0, 0, 0), as specified: 0 + -0 is 0
     }
     triangleMaterial[i] = charts.chartMaterial[chart];
   }

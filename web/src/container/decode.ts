@@ -2,9 +2,9 @@
 // a finest level (Replay), node positions predicted and corrected band by band, and the cut a
 // triangle budget selects, ordered as the Rust decoder orders it.
 
-import { Charts, Materials, Table, TexturedMesh, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
+import { Charts, Materials, Table, TexturedMesh, needsAbove, readBand0Table, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
 import { DecodeError } from "./error.js";
-import { ChunkKind, Motion } from "./format.js";
+import { ChunkKind, Motion, channels } from "./format.js";
 import { readCornerUpdates, readDelta, readFaces, readKey, readPositions, readTriangles } from "./payload.js";
 import { LowerNeighbours, affineMotion, keyedMotion, lowerNeighbours, stencilWeights } from "./predict.js";
 import type { Reader } from "./read.js";
@@ -196,8 +196,22 @@ export class Decoder {
     const charts = readCharts(await c.chunk(c.find(ChunkKind.Charts, 0, 0)), a, h.triangleCount);
     const materials = readMaterials(await c.chunk(c.find(ChunkKind.Materials, 0, 0)), a);
     const tables: (Table | null)[] = h.levelSizes.map(() => null);
-    for (let j = h.levelSizes.length - 1; j >= this.minLevel; j--) {
-      tables[j] = readTable(await c.chunk(c.find(ChunkKind.Attributes, 0, j)), `band ${j} attributes`, h.levelSizes[j], a, h.triangleCount);
+    // Without channels there is nothing to look up: no Attributes chunks in files since
+    // 2026-11-26, and older files' value-less tables are not read.
+    const lowest = channels(a) === 0 ? h.levelSizes.length : this.minLevel;
+    for (let j = h.levelSizes.length - 1; j >= lowest; j--) {
+      const raw = await c.chunk(c.find(ChunkKind.Attributes, 0, j)), what = `band ${j} attributes`;
+      if (needsAbove(raw)) {
+        // Bands go top down: the band above is read; frame 0's parents from its Key chunk.
+        const parent = readKey(await c.chunk(c.find(ChunkKind.Key, 0, j)), `frame 0 band ${j} keyframe`, h.levelSizes, j);
+        const table = tables[j + 1];
+        tables[j] = readTable(raw, what, h.levelSizes[j], a, h.triangleCount, table ? { parent, table } : null);
+        continue;
+      }
+      if (j > 0) { tables[j] = readTable(raw, what, h.levelSizes[j], a, h.triangleCount); continue; }
+      // Band 0's entries may be derived from the triangles (a level-0 client's own).
+      const triangles = this.triangles ?? readTriangles(await c.chunk(c.find(ChunkKind.Triangles, 0, 0)), "triangles chunk", h.triangleCount, h.vertexCount);
+      tables[j] = readBand0Table(raw, what, h.levelSizes[j], a, triangles, charts.triangleChart);
     }
     this.looks = { charts, tables, materials };
   }

@@ -99,13 +99,17 @@ pub fn textured_mesh(
                 v = mesh.positions.len() as u32;
                 let level = level_of(g);
                 let local = g - offsets[level];
-                let values =
+                // Without channels there are no tables (nothing to draw from them).
+                let values: &[i32] = if channels == 0 {
+                    &[]
+                } else {
                     d.tables.get(level).and_then(Option::as_ref).and_then(|tb| tb.get(local, chart, channels)).ok_or_else(|| {
                         ContainerError::Corrupt {
                             what: format!("band {level} attributes"),
                             detail: format!("no entry for node {local}, chart {chart}"),
                         }
-                    })?;
+                    })?
+                };
                 vertex_tag.push((chart, group));
                 vertex_next.push(vertex_head[gi]);
                 vertex_head[gi] = v;

@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 pub struct AppearanceInfo {
     /// Charts (proto/container.md, "Charts"); at least 1, at most the triangles.
     pub charts: u32,
-    /// Smoothing groups; at least 1, at most the charts.
+    /// Smoothing groups; at least 1, at most the triangles.
     pub groups: u32,
     /// Materials (0: every chart uses glTF's default material).
     pub materials: u32,

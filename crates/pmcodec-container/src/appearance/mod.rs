@@ -69,7 +69,7 @@ pub fn builder<'a>(seq: &'a pmcodec_mesh::Sequence, app: &'a Appearance, levels:
 }
 
 /// The appearance chunks, in file order: Charts, Materials, the Attributes of every band top
-/// first, then each Image. (kind, band, raw payload).
+/// first (none when the entries carry no channels), then each Image. (kind, band, raw payload).
 pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::ChunkKind, u32, Vec<u8>)>, crate::ContainerError> {
     use crate::ChunkKind;
     let tables = builder.finish();
@@ -77,9 +77,33 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
     let app = builder.appearance();
     let materials = postcard::to_stdvec(&MaterialsChunk::from_appearance(app))
         .map_err(|e| crate::ContainerError::Io(format!("materials chunk: {e}")))?;
-    let mut out = vec![(ChunkKind::Charts, 0, payload::write_charts(builder.charts())), (ChunkKind::Materials, 0, materials)];
-    for (j, t) in tables.iter().enumerate().rev() {
-        out.push((ChunkKind::Attributes, j as u32, payload::write_table(t, channels)));
+    let size = |b: &Vec<u8>| zstd::bulk::compress(b, crate::format::ZSTD_LEVEL).map_or(usize::MAX, |z| z.len());
+    // The charts as plain or new-chart runs, whichever zstd makes shorter.
+    let charts = [payload::write_charts(builder.charts()), payload::write_charts_new_runs(builder.charts())]
+        .into_iter()
+        .min_by_key(size)
+        .unwrap_or_default();
+    let mut out = vec![(ChunkKind::Charts, 0, charts), (ChunkKind::Materials, 0, materials)];
+    // Entries without values name nothing a decoder draws: a file whose entries carry no
+    // channels has no Attributes chunks (proto/container.md, "Attributes, band j").
+    if channels > 0 {
+        for (j, t) in tables.iter().enumerate().rev() {
+            // Entries listed, values as differences from the previous entry's, from the
+            // previous one of the same chart or from the band above's value of the node's
+            // parent in frame 0 (bands below the top); band 0's entries may instead follow from the
+            // Triangles and Charts chunks a level-0 client reads anyway, its values predicted
+            // across the triangles. Whichever zstd makes shortest is written (all read the
+            // same table).
+            let mut codings = vec![payload::write_table(t, channels), payload::write_table_chartwise(t, channels)];
+            if j == 0 {
+                codings.push(payload::write_table_derived(t, channels, builder.triangles(), &builder.charts().triangle_chart));
+            }
+            if let (Some(parent), Some(above)) = (builder.first_parent(j), tables.get(j + 1)) {
+                codings.push(payload::write_table_from_above(t, channels, parent, &above.to_table()));
+            }
+            let raw = codings.into_iter().min_by_key(size).unwrap_or_default();
+            out.push((ChunkKind::Attributes, j as u32, raw));
+        }
     }
     for (i, image) in app.images.iter().enumerate() {
         out.push((ChunkKind::Image, i as u32, image.bytes.clone()));

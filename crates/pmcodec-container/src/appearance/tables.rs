@@ -68,6 +68,8 @@ pub struct TableBuilder<'a> {
     levels: Vec<LevelSums>,
     ancestor: Vec<u32>,
     scratch: Vec<f64>,
+    /// The first frame's hierarchy (`parent[k][v]`), which the Key chunks of frame 0 carry.
+    first_parent: Option<Vec<Vec<u32>>>,
 }
 
 impl<'a> TableBuilder<'a> {
@@ -95,6 +97,7 @@ impl<'a> TableBuilder<'a> {
             levels: (0..levels).map(|_| LevelSums::default()).collect(),
             ancestor: Vec::new(),
             scratch: Vec::new(),
+            first_parent: None,
         }
     }
 
@@ -110,8 +113,20 @@ impl<'a> TableBuilder<'a> {
         self.app
     }
 
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        self.triangles
+    }
+
+    /// The parents of level `j`'s nodes in the first frame observed, if any.
+    pub fn first_parent(&self, j: usize) -> Option<&[u32]> {
+        self.first_parent.as_ref()?.get(j).map(Vec::as_slice)
+    }
+
     /// Adds one frame's hierarchy (`parent[k][v]`, k below the top).
     pub fn observe(&mut self, parent: &[Vec<u32>]) {
+        if self.first_parent.is_none() {
+            self.first_parent = Some(parent.to_vec());
+        }
         let channels = self.info.channels();
         self.ancestor.clear();
         self.ancestor.extend(0..parent.first().map_or(0, |p| p.len() as u32));

@@ -4,8 +4,9 @@
 use super::Decoder;
 use crate::appearance::cut::{DecodedAppearance, textured_mesh};
 use crate::appearance::format::{AppearanceInfo, MaterialsChunk};
-use crate::appearance::payload::{read_charts, read_table};
+use crate::appearance::payload::{Table, needs_above, read_charts, read_table, read_table_above, read_table_with};
 use crate::format::ChunkKind;
+use crate::payload::{read_key, read_triangles};
 use crate::{ByteSource, ContainerError};
 use pmcodec_hierarchy::CutTarget;
 use pmcodec_mesh::appearance::Image;
@@ -32,9 +33,35 @@ impl<S: ByteSource> Decoder<S> {
             return Err(ContainerError::Corrupt { what: "charts chunk".into(), detail: format!("chart {c} uses a material out of range") });
         }
         let mut tables = vec![None; h.levels()];
-        for (j, slot) in tables.iter_mut().enumerate().skip(self.min_level).rev() {
+        // Without channels there is nothing to look up: files since 2026-11-26 have no
+        // Attributes chunks then, and older ones' value-less tables are not read.
+        let bands = if info.channels() == 0 { h.levels() } else { self.min_level };
+        // Bands top down: a band's values may be predicted from the band above's.
+        let mut above: Option<Table> = None;
+        for (j, slot) in tables.iter_mut().enumerate().skip(bands).rev() {
             let raw = self.chunk(ChunkKind::Attributes, 0, j)?;
-            *slot = Some(read_table(&raw, &format!("band {j} attributes"), h.level_sizes[j], &info, h.triangle_count)?);
+            let what = format!("band {j} attributes");
+            let table = if needs_above(&raw) {
+                // Through the parents of frame 0's hierarchy (its Key chunk of band j).
+                let key = self.chunk(ChunkKind::Key, 0, j)?;
+                let parent = read_key(&key, &format!("frame 0 band {j} keyframe"), &h.level_sizes, j)?;
+                read_table_above(&raw, &what, h.level_sizes[j], &info, h.triangle_count, above.as_ref().map(|t| (&parent[..], t)))?
+            } else if j == 0 {
+                // Band 0's entries may be derived from the triangles (a level-0 client's own).
+                let triangles = match &self.triangles {
+                    Some(t) => t.clone(),
+                    None => {
+                        let e = self.reader.index().chunks.iter().find(|e| e.kind == ChunkKind::Triangles);
+                        let e = e.ok_or_else(|| ContainerError::Corrupt { what: "index".into(), detail: "no triangles chunk".into() })?;
+                        read_triangles(&self.reader.read_chunk(e)?, "triangles chunk", h.triangle_count, h.vertex_count)?
+                    }
+                };
+                read_table_with(&raw, &what, h.level_sizes[j], &info, h.triangle_count, Some((&triangles, &charts.triangle_chart)))?
+            } else {
+                read_table(&raw, &what, h.level_sizes[j], &info, h.triangle_count)?
+            };
+            above = Some(table.clone());
+            *slot = Some(table);
         }
         self.looks = Some(DecodedAppearance { info: Some(info), charts, tables, materials, images: None });
         Ok(())
