@@ -12,7 +12,7 @@ pub(crate) mod charts;
 pub(crate) mod cut;
 pub mod export;
 pub mod format;
-pub(crate) mod payload;
+pub mod payload;
 pub(crate) mod tables;
 
 pub use charts::Charts;

@@ -72,6 +72,8 @@ fn write_charts_coded(c: &Charts, new_runs: bool) -> Vec<u8> {
     out
 }
 
+/// Reads a Charts chunk of `triangles` triangles (proto/container.md, "Charts"): each
+/// triangle's chart and smoothing group, either coding; errors name the chunk and what is wrong.
 pub fn read_charts(bytes: &[u8], info: &AppearanceInfo, triangles: u32) -> Result<Charts, ContainerError> {
     let what = "charts chunk";
     let bad = |detail: String| ContainerError::Corrupt { what: what.into(), detail };
@@ -144,6 +146,7 @@ pub fn read_charts(bytes: &[u8], info: &AppearanceInfo, triangles: u32) -> Resul
 /// quantized values (texture coordinates in `uv_step` units from `uv_min`, colours 0..=255).
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct QuantizedTable {
+    /// The (node, chart) pairs, ascending.
     pub entries: Vec<(u32, u32)>,
     /// `entries.len() * channels` values, entry after entry.
     pub values: Vec<i32>,
@@ -241,8 +244,11 @@ fn write_listed(out: &mut Vec<u8>, t: &QuantizedTable, channels: usize, chartwis
 /// A decoded attribute table, indexed by node: entries of node n are `first[n]..first[n+1]`.
 #[derive(Clone, Debug, Default)]
 pub struct Table {
+    /// Per node and one past the last: where its entries start.
     pub first: Vec<u32>,
+    /// Each entry's chart.
     pub charts: Vec<u32>,
+    /// Each entry's quantized values, `channels` per entry.
     pub values: Vec<i32>,
 }
 
@@ -272,10 +278,12 @@ impl Table {
         Table { first, charts: entries.iter().map(|e| e.1).collect(), values: Vec::new() }
     }
 
+    /// Entries in the table.
     pub fn len(&self) -> usize {
         self.charts.len()
     }
 
+    /// Whether the table has no entry.
     pub fn is_empty(&self) -> bool {
         self.charts.is_empty()
     }
