@@ -102,11 +102,20 @@ impl LoadedAsset {
 
     /// The chunks a client that draws down to `level` needs, in file order (which is playback
     /// order): the chunks of the bands `level..=top` of the frames from `from` on (faces and
-    /// corners of band `level` only), the input triangles when `level` is 0, and the skin's
-    /// bind chunks of those bands (frame 0) whatever `from` is.
+    /// corners of band `level` only), and whatever `from` is, the frame-0 chunks every frame
+    /// reads: the input triangles when `level` is 0, the skin's bind chunks of those bands, the
+    /// appearance's charts, materials and attribute tables, and (when the tables carry values,
+    /// which may be predicted through frame 0's hierarchy) frame 0's Key chunks. Images are
+    /// served at their own URLs.
     pub fn chunks_for(&self, level: usize, from: u32) -> impl Iterator<Item = (usize, &ChunkEntry)> {
+        let looks_keys = self.header.appearance.as_ref().is_some_and(|a| a.channels() > 0);
         self.chunks.iter().enumerate().filter(move |(_, e)| {
-            e.kind.read_at(e.band as usize, level) && (matches!(e.kind, ChunkKind::Triangles | ChunkKind::Bind) || e.frame >= from)
+            let every_frame = match e.kind {
+                ChunkKind::Triangles | ChunkKind::Bind | ChunkKind::Charts | ChunkKind::Materials | ChunkKind::Attributes => true,
+                ChunkKind::Key => looks_keys && e.frame == 0,
+                _ => false,
+            };
+            e.kind.read_at(e.band as usize, level) && (every_frame || e.frame >= from)
         })
     }
 }

@@ -80,6 +80,41 @@ async fn textured_assets_describe_and_serve_their_appearance() {
 }
 
 #[tokio::test]
+async fn a_stream_from_a_later_frame_carries_the_appearance_of_frame_0() {
+    let seq = pmcodec_mesh::samples::textured_cloth(16, 10, 8, 16);
+    let opts = pmcodec_container::EncodeOptions { keyframe_interval: 4, ..Default::default() };
+    let bytes = pmcodec_container::encode(&seq, &opts, |_| {}).unwrap();
+    let reader = pmcodec_container::Reader::open(bytes.as_slice()).unwrap();
+    let head = reader.data_start() as usize;
+    let piece = |kind: pmcodec_container::ChunkKind, frame: u32| -> Vec<Vec<u8>> {
+        reader
+            .index()
+            .chunks
+            .iter()
+            .filter(|e| e.kind == kind && e.frame == frame)
+            .map(|e| bytes[head + e.offset as usize..head + e.offset as usize + e.stored_len as usize].to_vec())
+            .collect()
+    };
+    let store: Arc<dyn AssetStore> = Arc::new(MemoryStore::default());
+    store.put(&AssetId::parse("textured").unwrap(), bytes.clone().into(), PutMode::Overwrite).await.unwrap();
+    let state = AppState::new(Config::default(), store).unwrap();
+    state.set_ready(true);
+    let app = router(state);
+    let (status, headers, body) = get(&app, "/v1/assets/textured/stream?from=7", &[]).await;
+    assert_eq!(status, StatusCode::OK);
+    assert_ne!(headers["x-pmc-from"], "0", "the stream starts at a later keyframe");
+    let has = |p: &[u8]| body.windows(p.len()).any(|w| w == p);
+    use pmcodec_container::ChunkKind;
+    for kind in [ChunkKind::Charts, ChunkKind::Materials, ChunkKind::Attributes, ChunkKind::Key] {
+        let pieces = piece(kind, 0);
+        assert!(!pieces.is_empty(), "{kind:?}: the file has frame-0 chunks of this kind");
+        for p in pieces {
+            assert!(has(&p), "{kind:?} of frame 0 is missing from the stream");
+        }
+    }
+}
+
+#[tokio::test]
 async fn binary_layout_3_carries_the_appearance_on_request() {
     let seq = pmcodec_mesh::samples::textured_cloth(16, 10, 4, 16);
     let bytes = pmcodec_container::encode(&seq, &Default::default(), |_| {}).unwrap();
