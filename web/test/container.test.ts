@@ -105,11 +105,13 @@ test("every band-0 motion and order: every frame's input vertices equal the Rust
   }
 });
 
-test("version 3, 4 and 5 files still decode, as the Rust decoder decodes them", async () => {
+test("version 3, 4, 5 and 6 files still decode, as the Rust decoder decodes them", async () => {
   const files = [
     ["v3-cloth-k1.pmc", 3, Motion.Mean, VertexOrder.Input],
     ["v4-cloth-affine-k4.pmc", 4, Motion.Affine, VertexOrder.Input],
     ["v5-cloth-k4.pmc", 5, Motion.KeyframeAffine, VertexOrder.BreadthFirst],
+    // Version 6's postcard index, with stored and left-out chunks (version 7 codes the index compactly).
+    ["v6-cloth-k4.pmc", 6, Motion.KeyframeAffine, VertexOrder.BreadthFirst],
   ] as const;
   for (const [file, version, motion, order] of files) {
     const path = join(root, "crates/pmcodec-container/tests/compat", file);
@@ -238,13 +240,13 @@ test("version 6 appearance: the same texture coordinates, colours, normals and m
   }
 });
 
-test("a skinned glTF's stream (version 6): every frame's input vertices equal the Rust decoder's, and coarse clients agree", async () => {
+test("a skinned glTF's stream (version 7): every frame's input vertices equal the Rust decoder's, and coarse clients agree", async () => {
   const fox = join(root, "../shared/data/gltf/Fox.glb");
   if (!existsSync(fox)) throw new Error(`${fox} is absent: this test reads the real models in ../shared/data beside the repository`);
   const file = join(dir, "fox.pmc");
   execFileSync(bin, ["encode", "-q", fox, "-o", file, "--keyframe-interval", "8", "--quant-bits", "12"]);
   const c = await sameAsRust(file, "fox");
-  assert.equal(c.version, 6);
+  assert.equal(c.version, 7);
   assert.ok(c.header.skin !== null && c.header.skin.paletteLen > 0, "the stream carries a skin");
   // A client stopping at level 1 decodes the same positions for bands 1.. as a full one.
   const full = new Decoder(c, 0), coarse = new Decoder(c, 1);

@@ -1,7 +1,8 @@
 //! Issue 17, "overhead on small meshes": a file's bits per vertex per frame beyond its position
 //! bits (tables, chunk framing, index), written as files were before the preamble flags (every
 //! chunk a zstd frame, empty ones too) and as today's encoder writes them (`format::FLAGS`),
-//! with the bytes of each chunk kind and of the preamble, header and index.
+//! with the bytes of each chunk kind and of the preamble, header and index (and what the index
+//! took in version 6).
 //! Without arguments: a generated waving cloth of 54 x 54 = 2,916 vertices and 200 frames; with
 //! a glTF path, its animations played back to back (as the `skinned` example); with a folder,
 //! its OBJ frames (the horse, the cat).
@@ -73,6 +74,9 @@ fn main() {
             per(index_len),
             index_len as f64 / r.index().chunks.len().max(1) as f64
         );
+        // The same entries as version 6 wrote them (postcard, every entry whole), for comparison.
+        let v6 = r.index().to_bytes(6, r.header().frame_count).expect("index").len() as u64;
+        println!("    {:<12} {:>6}        {:>9} B {:>7.3} bits/v/f (as version 6 wrote it)", "index v6", "", v6, per(v6));
         // Bytes, chunks and items (the count each payload starts with: moves, corner updates,
         // faces) per kind and band.
         let mut kinds: BTreeMap<(u32, u32), (usize, u64, u64)> = BTreeMap::new();
@@ -96,7 +100,10 @@ fn main() {
             println!("    {name:<12} {count:>6} chunks {b:>9} B {:>7.3} bits/v/f", per(b));
             for (&(_, band), &(c, bb, items)) in kinds.range((k, 0)..(k + 1, 0)) {
                 if matches!(k, 2 | 4 | 5) {
-                    println!("      band {band}: {c:>5} chunks {bb:>8} B, {items:>7} items, {:.2} B per item", bb as f64 / items.max(1) as f64);
+                    println!(
+                        "      band {band}: {c:>5} chunks {bb:>8} B, {items:>7} items, {:.2} B per item",
+                        bb as f64 / items.max(1) as f64
+                    );
                 }
             }
         }

@@ -266,7 +266,7 @@ fn assemble(header: &Header, chunks: Chunks) -> Result<Vec<u8>, ContainerError> 
         index.chunks.push(*e);
     }
     let hb = postcard::to_stdvec(header).map_err(|e| ContainerError::Io(format!("header: {e}")))?;
-    let ib = postcard::to_stdvec(&index).map_err(|e| ContainerError::Io(format!("index: {e}")))?;
+    let ib = index.to_bytes(VERSION, header.frame_count).map_err(|e| ContainerError::Io(format!("index: {e}")))?;
     let pre = Preamble {
         version: VERSION,
         flags,

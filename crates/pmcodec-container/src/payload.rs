@@ -53,6 +53,15 @@ impl<'a> Cursor<'a> {
         Err(self.corrupt("number longer than 5 bytes"))
     }
 
+    /// A 4-byte little-endian value (a CRC-32 in the version 7 index).
+    pub fn u32_le(&mut self) -> Result<u32, ContainerError> {
+        let Some(b) = self.bytes.get(self.pos..self.pos + 4) else {
+            return Err(self.corrupt(format!("ends inside a 4-byte value at byte {}", self.pos)));
+        };
+        self.pos += 4;
+        Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    }
+
     /// A value that must be below `limit` (an id).
     pub fn id(&mut self, limit: u32, name: &str) -> Result<u32, ContainerError> {
         let v = self.get()?;

@@ -60,7 +60,9 @@ impl Unsealed {
             return Err("header and index beyond the file".into());
         }
         let header = bytes[PREAMBLE_LEN..PREAMBLE_LEN + header_len].to_vec();
-        let index: Index = postcard::from_bytes(&bytes[PREAMBLE_LEN + header_len..data_start]).map_err(|e| e.to_string())?;
+        // Version 7's index is laid out by the header's frames.
+        let frames = Header::from_bytes(&bytes[PREAMBLE_LEN..PREAMBLE_LEN + header_len], version).map_or(0, |h| h.frame_count);
+        let index = Index::from_bytes(&bytes[PREAMBLE_LEN + header_len..data_start], version, frames).map_err(|e| e.to_string())?;
         let area = &bytes[data_start..];
         let mut end = 0usize;
         let mut chunks = Vec::with_capacity(index.chunks.len());
@@ -105,7 +107,10 @@ impl Unsealed {
             let covered = usize::try_from(e.offset).ok().and_then(|o| area.get(o..o.checked_add(e.stored_len as usize)?));
             e.crc32 = covered.map_or(0, crc32fast::hash);
         }
-        let index = postcard::to_allocvec(&Index { chunks: entries }).unwrap_or_default();
+        // A version 7 index cannot state an offset (chunks follow one another): an offset lie
+        // is lost there, while a stored length lie moves every chunk after it.
+        let frames = self.parsed_header().map_or(0, |h| h.frame_count);
+        let index = Index { chunks: entries }.to_bytes(self.version, frames).unwrap_or_default();
         let pre = Preamble {
             version: self.version,
             flags: self.flags,

@@ -61,6 +61,13 @@ export class Cursor {
     return v;
   }
   zigzag(): number { const v = this.get(); return (v >>> 1) ^ -(v & 1); }
+  /** A 4-byte little-endian value (a CRC-32 in the version 7 index). */
+  u32le(): number {
+    if (this.pos + 4 > this.b.length) throw new DecodeError(`${this.what}: ends inside a 4-byte value`);
+    const v = (this.b[this.pos] | (this.b[this.pos + 1] << 8) | (this.b[this.pos + 2] << 16) | (this.b[this.pos + 3] << 24)) >>> 0;
+    this.pos += 4;
+    return v;
+  }
   finish(): void { if (this.pos !== this.b.length) throw new DecodeError(`${this.what}: ${this.b.length - this.pos} bytes left over`); }
 }
 
