@@ -272,7 +272,7 @@ impl<S: ByteSource> Decoder<S> {
                 .find(|e| e.kind == ChunkKind::Triangles)
                 .ok_or_else(|| ContainerError::Corrupt { what: "index".into(), detail: "no triangles chunk".into() })?;
             let raw = self.reader.read_chunk(e)?;
-            let triangles = payload::read_triangles(&raw, "triangles chunk", h.triangle_count, h.vertex_count)?;
+            let triangles = payload::read_triangles(&raw, "triangles chunk", h.triangle_count, h.vertex_count, self.reader.version())?;
             self.lower = LowerNeighbours::new(h.vertex_count as usize, &triangles, h.order);
             self.triangles = Some(triangles);
         }

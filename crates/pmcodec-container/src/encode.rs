@@ -665,7 +665,7 @@ fn code_frames(
     header.appearance = looks.as_ref().map(|l| l.info().clone());
 
     let mut chunks = Chunks(Vec::new(), opts.chunk_flags & crate::format::FLAGS);
-    chunks.push(ChunkKind::Triangles, 0, 0, payload::write_triangles(&seq.triangles))?;
+    chunks.push(ChunkKind::Triangles, 0, 0, payload::write_triangles(&seq.triangles, VERSION))?;
     let total = header.level_sizes.iter().map(|&n| n as usize).sum();
     let mut coder = PositionCoder {
         motion: opts.motion,

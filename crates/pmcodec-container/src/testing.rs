@@ -375,7 +375,7 @@ pub fn mutate_semantic(u: &mut Unsealed, rng: &mut Rng) -> bool {
     let above = sizes.get(j + 1).copied().unwrap_or(0);
     let out = match e.kind {
         ChunkKind::Triangles => {
-            let Ok(mut t) = payload::read_triangles(raw, "t", h.triangle_count, h.vertex_count) else { return false };
+            let Ok(mut t) = payload::read_triangles(raw, "t", h.triangle_count, h.vertex_count, u.version) else { return false };
             if t.is_empty() {
                 return false;
             }
@@ -383,7 +383,7 @@ pub fn mutate_semantic(u: &mut Unsealed, rng: &mut Rng) -> bool {
             let c = rng.below(3);
             // Another vertex, or a corner repeated (a degenerate input triangle).
             t[k][c] = if rng.chance(2) { rng.below(h.vertex_count as usize) as u32 } else { t[k][(c + 1) % 3] };
-            payload::write_triangles(&t)
+            payload::write_triangles(&t, u.version)
         }
         ChunkKind::Key if !top => {
             let Ok(mut p) = payload::read_key(raw, "t", sizes, j) else { return false };

@@ -109,22 +109,43 @@ fn version_6_textured_files_decode_as_they_did() {
     }
 }
 
-/// Today's file with its index written as version 6 wrote it (postcard, every entry whole): the
-/// header and chunks of versions 6 and 7 are the same.
+/// Today's file as version 6 wrote it: the header and the chunks are the same but for the
+/// Triangles chunk (plain ids) and the index (postcard, every entry whole).
 fn as_version_6(v7: &[u8]) -> Vec<u8> {
-    use pmcodec_container::format::{PREAMBLE_LEN, Preamble};
+    use pmcodec_container::format::{FLAGS, Index, PREAMBLE_LEN, Preamble, ZSTD_LEVEL, store_chunk};
+    use pmcodec_container::{ChunkKind, payload};
     let r = Reader::open(v7).expect("open");
+    let h = r.header();
     let pre = Preamble::parse(v7).expect("preamble");
     let header = &v7[PREAMBLE_LEN..PREAMBLE_LEN + pre.header_len as usize];
-    let index = r.index().to_bytes(6, r.header().frame_count).expect("index");
+    let (mut area, mut entries) = (Vec::new(), Vec::new());
+    for e in &r.index().chunks {
+        let mut raw = r.read_chunk(e).expect("chunk");
+        if e.kind == ChunkKind::Triangles {
+            let t = payload::read_triangles(&raw, "t", h.triangle_count, h.vertex_count, 7).expect("triangles");
+            raw = payload::write_triangles(&t, 6);
+        }
+        let stored = store_chunk(&raw, ZSTD_LEVEL, FLAGS).expect("zstd");
+        let offset = area.len() as u64;
+        entries.push(pmcodec_container::ChunkEntry {
+            offset,
+            stored_len: stored.len() as u32,
+            raw_len: raw.len() as u32,
+            crc32: crc32fast::hash(&stored),
+            ..*e
+        });
+        area.extend_from_slice(&stored);
+    }
+    let index = Index { chunks: entries }.to_bytes(6, h.frame_count).expect("index");
     let pre = Preamble { version: 6, index_len: index.len() as u32, index_crc: crc32fast::hash(&index), ..pre };
-    [&pre.to_bytes()[..], header, &index, &v7[r.data_start() as usize..]].concat()
+    [&pre.to_bytes()[..], header, &index, &area].concat()
 }
 
 /// `tests/compat/v6-cloth-k4.pmc`: the version 6 encoder's cloth with its defaults and both
 /// preamble flags (small chunks stored as they are, empty Delta and Corners chunks left out),
-/// its index postcard (version 7 codes the index compactly, issue 17). It must read as it did;
-/// and a version 7 index reads back the entries a version 6 index holds.
+/// its index postcard and its triangles plain ids (version 7 codes both compactly, issue 17). It
+/// must read as it did; and today's file rewritten as version 6 reads as the same entries,
+/// chunks and meshes.
 /// (`PMCODEC_WRITE_V6_FIXTURE=1` writes it anew from today's encoding, its index as version 6's.)
 #[test]
 fn version_6_files_decode_as_they_did() {
@@ -145,7 +166,19 @@ fn version_6_files_decode_as_they_did() {
     let v6 = as_version_6(&new);
     let c = Reader::open(v6.as_slice()).expect("open as version 6");
     assert_eq!(c.version(), 6);
-    assert_eq!(c.index(), b.index());
+    assert_eq!(c.index().chunks.len(), b.index().chunks.len());
+    for (x, y) in c.index().chunks.iter().zip(&b.index().chunks) {
+        assert_eq!((x.kind, x.frame, x.band), (y.kind, y.frame, y.band));
+        if x.kind != pmcodec_container::ChunkKind::Triangles {
+            assert_eq!(c.read_chunk(x).expect("old chunk"), b.read_chunk(y).expect("new chunk"));
+        }
+    }
     verify(&c).expect("verify as version 6");
+    let (mut dc, mut db) = (Decoder::new(c.borrowed(), 0).expect("decoder"), Decoder::new(b.borrowed(), 0).expect("decoder"));
+    dc.seek(5).expect("old frame");
+    db.seek(5).expect("new frame");
+    assert_eq!(dc.mesh(CutTarget::Level(0)).expect("old"), db.mesh(CutTarget::Level(0)).expect("new"));
     assert!(v6.len() > new.len() + 4 * b.index().chunks.len(), "{} against {} bytes", v6.len(), new.len());
+    let v6_triangles = c.index().chunks[0].stored_len;
+    assert!(v6_triangles > b.index().chunks[0].stored_len, "triangles: {v6_triangles} against {}", b.index().chunks[0].stored_len);
 }

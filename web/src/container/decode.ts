@@ -56,7 +56,7 @@ export class Decoder {
     if (L > 0) bands[L].faces = readFaces(await c.chunk(c.find(ChunkKind.Faces, k, L)), `frame ${k} band ${L} faces`, h.levelSizes[L], h.triangleCount, c.version);
     if (this.minLevel === 0 && !this.triangles) {
       const raw = await c.chunk(c.find(ChunkKind.Triangles, 0, 0));
-      this.triangles = readTriangles(raw, "triangles chunk", h.triangleCount, h.vertexCount);
+      this.triangles = readTriangles(raw, "triangles chunk", h.triangleCount, h.vertexCount, c.version);
       this.lower = lowerNeighbours(h.vertexCount, this.triangles, h.order);
     }
     if (h.skin && !this.skin) {

@@ -71,13 +71,22 @@ export class Cursor {
   finish(): void { if (this.pos !== this.b.length) throw new DecodeError(`${this.what}: ${this.b.length - this.pos} bytes left over`); }
 }
 
-/** The triangles chunk: `triangles` input triangles, 3 vertex ids each. */
-export function readTriangles(raw: Uint8Array, what: string, triangles: number, vertices: number): Uint32Array {
+/**
+ * The triangles chunk: `triangles` input triangles, 3 vertex ids each; from version 7 each as
+ * the zigzag-coded difference from the same corner of the triangle before (32-bit wrapping).
+ */
+export function readTriangles(raw: Uint8Array, what: string, triangles: number, vertices: number, version: number): Uint32Array {
   const p = new Cursor(raw, what);
   const n = p.count(triangles, "triangles");
   if (n !== triangles) throw new DecodeError(`${what}: ${n} triangles`);
+  if (3 * n > raw.length - p.pos) throw new DecodeError(`${what}: ${n} triangles in ${raw.length - p.pos} bytes`);
   const tris = new Uint32Array(3 * n);
-  for (let i = 0; i < 3 * n; i++) tris[i] = p.id(vertices, "vertex");
+  for (let i = 0; i < 3 * n; i++) {
+    if (version < 7) { tris[i] = p.id(vertices, "vertex"); continue; }
+    const v = ((i < 3 ? 0 : tris[i - 3]) + p.zigzag()) >>> 0;
+    if (v >= vertices) throw new DecodeError(`${what}: vertex ${v} out of range`);
+    tris[i] = v;
+  }
   p.finish();
   return tris;
 }
