@@ -89,23 +89,6 @@ fn main() {
                 k.2 += pmcodec_container::payload::Cursor::new(&raw, "count").get().expect("count") as u64;
             }
         }
-        // Probe: Key chunks with each parent as the zigzag difference from the node before's.
-        let mut key_diff = 0u64;
-        for e in r.index().chunks.iter().filter(|e| e.kind == ChunkKind::Key) {
-            let parents =
-                pmcodec_container::payload::read_key(&r.read_chunk(e).expect("key"), "key", &r.header().level_sizes, e.band as usize)
-                    .expect("key");
-            let mut raw = Vec::new();
-            pmcodec_container::payload::put(&mut raw, parents.len() as u32);
-            let mut last = 0u32;
-            for &p in &parents {
-                pmcodec_container::payload::put(&mut raw, pmcodec_container::payload::zigzag(p.wrapping_sub(last) as i32));
-                last = p;
-            }
-            key_diff +=
-                pmcodec_container::format::store_chunk(&raw, pmcodec_container::format::ZSTD_LEVEL, flags).expect("zstd").len() as u64;
-        }
-        println!("    probe: keyframe parents as differences {key_diff} B {:.3} bits/v/f", per(key_diff));
         let mut by_kind: BTreeMap<u32, (usize, u64)> = BTreeMap::new();
         for (&(k, _), &(count, b, _)) in &kinds {
             let t = by_kind.entry(k).or_default();

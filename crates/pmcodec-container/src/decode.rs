@@ -242,7 +242,7 @@ impl<S: ByteSource> Decoder<S> {
         for j in (self.min_level..h.levels()).rev() {
             let what = format!("frame {frame} band {j} keyframe");
             let raw = self.chunk(ChunkKind::Key, frame, j)?;
-            key.bands[j].parent = payload::read_key(&raw, &what, sizes, j)?;
+            key.bands[j].parent = payload::read_key(&raw, &what, sizes, j, self.reader.version())?;
             // Clusters are never empty (proto/container.md, "The model the file encodes"): a
             // parent map that leaves one empty is not a hierarchy the encoder wrote.
             if let Some(&above) = sizes.get(j + 1) {

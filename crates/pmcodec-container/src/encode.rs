@@ -728,7 +728,7 @@ fn code_frames(
         let mut mask = 0u64;
         for j in (0..levels).rev() {
             if let Some(k) = &r.key {
-                chunks.push(ChunkKind::Key, f as u32, j as u32, payload::write_key(&k.bands[j].parent))?;
+                chunks.push(ChunkKind::Key, f as u32, j as u32, payload::write_key(&k.bands[j].parent, VERSION))?;
             }
             chunks.push(ChunkKind::Delta, f as u32, j as u32, payload::write_delta(&net_moves(delta, j)))?;
             let (positions, skinned) = coder.band(j, intra, h, truth, skinning);

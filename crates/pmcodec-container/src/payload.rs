@@ -164,17 +164,25 @@ pub fn read_triangles(bytes: &[u8], what: &str, triangles: u32, vertices: u32, v
     Ok(out)
 }
 
-/// KEY band j: the parent map (|M_j| entries; none for the top band).
-pub fn write_key(parent: &[u32]) -> Vec<u8> {
+/// KEY band j: the parent map (|M_j| entries; none for the top band); from version 7 each
+/// parent as the zigzag-coded difference from the node before's (from 0 for the first; 32-bit
+/// wrapping): nodes near in id order are near on the surface and often share their cluster, so
+/// the differences are small and often 0 (cloth of 2,916 vertices, 200 frames, 13 keyframes:
+/// 43,886 B to 35,380 B; `cargo run --release -p pmcodec-container --example overhead`).
+/// Versions up to 6 store plain ids.
+pub fn write_key(parent: &[u32], version: u16) -> Vec<u8> {
     let mut out = Vec::with_capacity(parent.len() * 2 + 4);
     put(&mut out, parent.len() as u32);
+    let mut last = 0u32;
     for &p in parent {
-        put(&mut out, p);
+        put(&mut out, if version >= 7 { zigzag(p.wrapping_sub(last) as i32) } else { p });
+        last = p;
     }
     out
 }
 
-pub fn read_key(bytes: &[u8], what: &str, sizes: &[u32], band: usize) -> Result<Vec<u32>, ContainerError> {
+/// Reads a KEY chunk of a file of format `version` (see [`write_key`]).
+pub fn read_key(bytes: &[u8], what: &str, sizes: &[u32], band: usize, version: u16) -> Result<Vec<u32>, ContainerError> {
     let mut c = Cursor::new(bytes, what);
     let top = sizes.len() - 1;
     let n = c.count_within(sizes[band] as u64, 1, "parents")?;
@@ -184,8 +192,14 @@ pub fn read_key(bytes: &[u8], what: &str, sizes: &[u32], band: usize) -> Result<
     }
     let limit = if band < top { sizes[band + 1] } else { 0 };
     let mut parent = Vec::with_capacity(n);
+    let mut last = 0u32;
     for _ in 0..n {
-        parent.push(c.id(limit, "parent")?);
+        let p = if version >= 7 { last.wrapping_add(unzigzag(c.get()?) as u32) } else { c.get()? };
+        if p >= limit {
+            return Err(c.corrupt(format!("parent {p} out of range (< {limit})")));
+        }
+        parent.push(p);
+        last = p;
     }
     c.finish()?;
     Ok(parent)
@@ -551,7 +565,12 @@ mod tests {
         let e = read_corner_updates(&[1, 1, 0], "t", 5, &before).unwrap_err().to_string();
         assert!(e.contains("corner mask 0"), "{e}");
         let parent = vec![0, 1, 1, 0];
-        assert_eq!(read_key(&write_key(&parent), "t", &[4, 2, 1], 0).unwrap(), parent);
-        assert!(read_key(&write_key(&parent), "t", &[4, 1], 0).is_err());
+        for version in [6, 7] {
+            assert_eq!(read_key(&write_key(&parent, version), "t", &[4, 2, 1], 0, version).unwrap(), parent);
+            let e = read_key(&write_key(&parent, version), "t", &[4, 1], 0, version).unwrap_err().to_string();
+            assert!(e.contains("parent 1 out of range"), "{e}");
+        }
+        // Differences from the node before's: 0, +1, 0, -1.
+        assert_eq!(write_key(&parent, 7), [4, 0, 2, 0, 1]);
     }
 }

@@ -386,7 +386,7 @@ pub fn mutate_semantic(u: &mut Unsealed, rng: &mut Rng) -> bool {
             payload::write_triangles(&t, u.version)
         }
         ChunkKind::Key if !top => {
-            let Ok(mut p) = payload::read_key(raw, "t", sizes, j) else { return false };
+            let Ok(mut p) = payload::read_key(raw, "t", sizes, j, u.version) else { return false };
             if p.is_empty() || above == 0 {
                 return false;
             }
@@ -397,7 +397,7 @@ pub fn mutate_semantic(u: &mut Unsealed, rng: &mut Rng) -> bool {
                 let to = p[k];
                 p.iter_mut().for_each(|x| *x = to);
             }
-            payload::write_key(&p)
+            payload::write_key(&p, u.version)
         }
         ChunkKind::Delta if !top && above > 0 => {
             let Ok(mut m) = payload::read_delta(raw, "t", sizes, j) else { return false };

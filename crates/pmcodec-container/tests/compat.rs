@@ -110,7 +110,7 @@ fn version_6_textured_files_decode_as_they_did() {
 }
 
 /// Today's file as version 6 wrote it: the header and the chunks are the same but for the
-/// Triangles chunk (plain ids) and the index (postcard, every entry whole).
+/// Triangles and Key chunks (plain ids) and the index (postcard, every entry whole).
 fn as_version_6(v7: &[u8]) -> Vec<u8> {
     use pmcodec_container::format::{FLAGS, Index, PREAMBLE_LEN, Preamble, ZSTD_LEVEL, store_chunk};
     use pmcodec_container::{ChunkKind, payload};
@@ -124,6 +124,9 @@ fn as_version_6(v7: &[u8]) -> Vec<u8> {
         if e.kind == ChunkKind::Triangles {
             let t = payload::read_triangles(&raw, "t", h.triangle_count, h.vertex_count, 7).expect("triangles");
             raw = payload::write_triangles(&t, 6);
+        }
+        if e.kind == ChunkKind::Key {
+            raw = payload::write_key(&payload::read_key(&raw, "t", &h.level_sizes, e.band as usize, 7).expect("key"), 6);
         }
         let stored = store_chunk(&raw, ZSTD_LEVEL, FLAGS).expect("zstd");
         let offset = area.len() as u64;
@@ -143,7 +146,7 @@ fn as_version_6(v7: &[u8]) -> Vec<u8> {
 
 /// `tests/compat/v6-cloth-k4.pmc`: the version 6 encoder's cloth with its defaults and both
 /// preamble flags (small chunks stored as they are, empty Delta and Corners chunks left out),
-/// its index postcard and its triangles plain ids (version 7 codes both compactly, issue 17). It
+/// its index postcard, its triangles and parents plain ids (version 7 codes them compactly, issue 17). It
 /// must read as it did; and today's file rewritten as version 6 reads as the same entries,
 /// chunks and meshes.
 /// (`PMCODEC_WRITE_V6_FIXTURE=1` writes it anew from today's encoding, its index as version 6's.)
@@ -169,7 +172,7 @@ fn version_6_files_decode_as_they_did() {
     assert_eq!(c.index().chunks.len(), b.index().chunks.len());
     for (x, y) in c.index().chunks.iter().zip(&b.index().chunks) {
         assert_eq!((x.kind, x.frame, x.band), (y.kind, y.frame, y.band));
-        if x.kind != pmcodec_container::ChunkKind::Triangles {
+        if !matches!(x.kind, pmcodec_container::ChunkKind::Triangles | pmcodec_container::ChunkKind::Key) {
             assert_eq!(c.read_chunk(x).expect("old chunk"), b.read_chunk(y).expect("new chunk"));
         }
     }
@@ -177,7 +180,10 @@ fn version_6_files_decode_as_they_did() {
     let (mut dc, mut db) = (Decoder::new(c.borrowed(), 0).expect("decoder"), Decoder::new(b.borrowed(), 0).expect("decoder"));
     dc.seek(5).expect("old frame");
     db.seek(5).expect("new frame");
-    assert_eq!(dc.mesh(CutTarget::Level(0)).expect("old"), db.mesh(CutTarget::Level(0)).expect("new"));
+    // The keyframe's parent maps too: a cut through the hierarchy is the same.
+    for target in [CutTarget::Level(0), CutTarget::Triangles(60)] {
+        assert_eq!(dc.mesh(target).expect("old"), db.mesh(target).expect("new"), "{target:?}");
+    }
     assert!(v6.len() > new.len() + 4 * b.index().chunks.len(), "{} against {} bytes", v6.len(), new.len());
     let v6_triangles = c.index().chunks[0].stored_len;
     assert!(v6_triangles > b.index().chunks[0].stored_len, "triangles: {v6_triangles} against {}", b.index().chunks[0].stored_len);

@@ -91,14 +91,22 @@ export function readTriangles(raw: Uint8Array, what: string, triangles: number, 
   return tris;
 }
 
-/** A keyframe's parent map of `band` (empty for the top band). */
-export function readKey(raw: Uint8Array, what: string, sizes: number[], band: number): Uint32Array {
+/**
+ * A keyframe's parent map of `band` (empty for the top band); from version 7 each parent as the
+ * zigzag-coded difference from the node before's (32-bit wrapping).
+ */
+export function readKey(raw: Uint8Array, what: string, sizes: number[], band: number, version: number): Uint32Array {
   const c = new Cursor(raw, what);
   const top = sizes.length - 1;
   const n = c.count(sizes[band], "parents");
   if (n !== (band < top ? sizes[band] : 0)) throw new DecodeError(`${what}: ${n} parents`);
   const parent = new Uint32Array(n);
-  for (let i = 0; i < n; i++) parent[i] = c.id(sizes[band + 1], "parent");
+  for (let i = 0; i < n; i++) {
+    if (version < 7) { parent[i] = c.id(sizes[band + 1], "parent"); continue; }
+    const p = ((i === 0 ? 0 : parent[i - 1]) + c.zigzag()) >>> 0;
+    if (p >= sizes[band + 1]) throw new DecodeError(`${what}: parent ${p} out of range`);
+    parent[i] = p;
+  }
   c.finish();
   return parent;
 }
