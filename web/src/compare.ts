@@ -5,6 +5,7 @@
 import * as THREE from "three";
 import { GLTFLoader } from "three/examples/jsm/loaders/GLTFLoader.js";
 import { DRACOLoader } from "three/examples/jsm/loaders/DRACOLoader.js";
+import { MeshoptSimplifier } from "meshoptimizer";
 import { PmcPlayer, roomEnvironment } from "pmcodec-three";
 
 const q = new URLSearchParams(location.search);
@@ -182,6 +183,202 @@ function until(player: PmcPlayer, done: () => boolean): Promise<void> {
     tick();
   });
 }
+
+// ---- image error under simplification (issue 16) ------------------------------------------
+// A stream cut to a share of its triangles beside what a user gets today without pmcodec:
+// meshoptimizer's simplifyWithAttributes (Kapoulkine, meshoptimizer 1.1) applied once to the
+// GLB's bind pose, each primitive to the same share, then skinned and morphed by three.js as
+// authored; both against the full GLB at the same time of the same animation.
+
+/** Loads `glb` with three.js's GLTFLoader (and its DRACOLoader). */
+async function loadGlb(glb: string): Promise<{ scene: THREE.Group; animations: THREE.AnimationClip[] }> {
+  const loader = new GLTFLoader();
+  const draco = new DRACOLoader().setDecoderPath(q.get("draco") ?? "/draco/");
+  loader.setDRACOLoader(draco);
+  try {
+    const gltf = await loader.loadAsync(glb);
+    gltf.scene.traverse((o) => { o.frustumCulled = false; });
+    return gltf;
+  } finally {
+    draco.dispose();
+  }
+}
+
+/**
+ * Every mesh of `root` simplified to `share` of its triangles in its bind pose by
+ * simplifyWithAttributes, weighing normals 0.5 and texture coordinates and colours 1 (the
+ * attributes a textured, lit mesh shows) and with no error limit, so the share decides; each
+ * material group on its own. Returns the triangles before and after.
+ */
+function simplifyMeshes(root: THREE.Object3D, share: number): [number, number] {
+  let before = 0, after = 0;
+  root.traverse((o) => {
+    const mesh = o as THREE.Mesh;
+    if (!mesh.isMesh) return;
+    const g = mesh.geometry;
+    const pos = g.getAttribute("position");
+    const n = pos.count;
+    const positions = new Float32Array(3 * n);
+    for (let i = 0; i < n; i++) { positions[3 * i] = pos.getX(i); positions[3 * i + 1] = pos.getY(i); positions[3 * i + 2] = pos.getZ(i); }
+    const parts: [THREE.BufferAttribute | THREE.InterleavedBufferAttribute, number, number][] = [];
+    for (const [name, weight] of [["normal", 0.5], ["uv", 1], ["color", 1]] as const) {
+      const a = g.getAttribute(name);
+      if (a) parts.push([a, Math.min(a.itemSize, name === "color" ? 3 : a.itemSize), weight]);
+    }
+    const stride = Math.max(1, parts.reduce((s, [, w]) => s + w, 0));
+    const attributes = new Float32Array(stride * n);
+    const weights: number[] = [];
+    let off = 0;
+    for (const [a, width, weight] of parts) {
+      for (let i = 0; i < n; i++) for (let k = 0; k < width; k++) attributes[stride * i + off + k] = a.getComponent(i, k);
+      for (let k = 0; k < width; k++) weights.push(weight);
+      off += width;
+    }
+    if (weights.length === 0) weights.push(0);
+    const index = g.getIndex();
+    const all = index ? Uint32Array.from(index.array as ArrayLike<number>) : Uint32Array.from({ length: n }, (_, i) => i);
+    const groups = g.groups.length ? g.groups.map((x) => ({ ...x })) : [{ start: 0, count: all.length, materialIndex: 0 }];
+    const out: number[] = [];
+    const kept: { start: number; count: number; materialIndex?: number }[] = [];
+    for (const gr of groups) {
+      const src = all.subarray(gr.start, Math.min(all.length, gr.start + gr.count));
+      const target = Math.max(3, Math.floor((src.length / 3) * share) * 3);
+      let [simple] = MeshoptSimplifier.simplifyWithAttributes(src, positions, 3, attributes, stride, weights, null, target, 1);
+      // Where attribute seams lock most vertices (faceted meshes split every vertex by its
+      // face's normal), the default keeps seams whole and stops far above the target: then
+      // seams may collapse too, as meshoptimizer's Permissive mode allows.
+      if (simple.length > 1.2 * target) {
+        [simple] = MeshoptSimplifier.simplifyWithAttributes(src, positions, 3, attributes, stride, weights, null, target, 1, ["Permissive"]);
+      }
+      kept.push({ start: out.length, count: simple.length, materialIndex: gr.materialIndex });
+      for (const v of simple) out.push(v);
+      before += src.length / 3;
+      after += simple.length / 3;
+    }
+    g.setIndex(out);
+    g.clearGroups();
+    if (g.groups.length === 0 && kept.length > 1) for (const k of kept) g.addGroup(k.start, k.count, k.materialIndex);
+  });
+  return [before, after];
+}
+
+/** A camera framing what `root` draws now (skinning and morphs applied), cropped to it. */
+function frameCamera(root: THREE.Object3D, scene: THREE.Scene): THREE.PerspectiveCamera {
+  const box = new THREE.Box3().setFromObject(root, true);
+  const sphere = box.getBoundingSphere(new THREE.Sphere());
+  const camera = new THREE.PerspectiveCamera(40, 1, sphere.radius / 100, sphere.radius * 100);
+  const fit = sphere.radius / Math.sin(THREE.MathUtils.degToRad(camera.fov / 2));
+  camera.position.copy(sphere.center).add(new THREE.Vector3(0.6, 0.4, 1).normalize().multiplyScalar(fit));
+  camera.lookAt(sphere.center);
+  camera.updateMatrixWorld();
+  const first = pixels(renderer, scene, camera);
+  let x0 = size, y0 = size, x1 = -1, y1 = -1;
+  for (let y = 0; y < size; y++) for (let x = 0; x < size; x++) {
+    const o = 4 * (y * size + x);
+    if (Math.abs(first[o] - 0x1d) + Math.abs(first[o + 1] - 0x20) + Math.abs(first[o + 2] - 0x26) <= 6) continue;
+    const top = size - 1 - y;
+    x0 = Math.min(x0, x); x1 = Math.max(x1, x); y0 = Math.min(y0, top); y1 = Math.max(y1, top);
+  }
+  if (x1 >= 0) {
+    const side = Math.min(size, Math.max(x1 - x0, y1 - y0) * 1.1 + 4);
+    camera.setViewOffset(size, size, (x0 + x1) / 2 - side / 2, (y0 + y1) / 2 - side / 2, side, side);
+    camera.updateProjectionMatrix();
+  }
+  return camera;
+}
+
+/** RGBA rows, top row first, base64 (what the harness decodes). */
+function shot(renderer: THREE.WebGLRenderer, scene: THREE.Scene, camera: THREE.Camera): string {
+  const px = pixels(renderer, scene, camera), out = new Uint8Array(px.length), row = 4 * size;
+  for (let y = 0; y < size; y++) out.set(px.subarray((size - 1 - y) * row, (size - y) * row), y * row);
+  let s = "";
+  for (let i = 0; i < out.length; i += 0x8000) s += String.fromCharCode(...out.subarray(i, i + 0x8000));
+  return btoa(s);
+}
+
+/**
+ * Stream `pmc` (animation `animation` of `glb`, as `pmcodec encode --animation` samples it) at
+ * each of `shares` of its triangles, and the GLB simplified by meshoptimizer to the same shares,
+ * beside the full GLB, at `count` frames spread evenly over the stream (the first and the last
+ * among them): one image of each per (frame, share).
+ */
+async function simplified(pmc: string, glb: string, animation: number, count: number, shares: number[]): Promise<Record<string, unknown>> {
+  await MeshoptSimplifier.ready;
+  const reference = await loadGlb(glb);
+  const theirs = stage(env);
+  theirs.add(reference.scene);
+  const clip = reference.animations[animation];
+  // Played once and held at the end: the encoder samples the clip's last instant too, which a
+  // repeating action would wrap back to its start.
+  const once = (m: THREE.AnimationMixer, c: THREE.AnimationClip | undefined): void => {
+    if (c) m.clipAction(c).setLoop(THREE.LoopOnce, 1).play().clampWhenFinished = true;
+  };
+  const mixer = new THREE.AnimationMixer(reference.scene);
+  once(mixer, clip);
+  const simple = await Promise.all(shares.map(async (share) => {
+    const g = await loadGlb(glb);
+    const [before, after] = simplifyMeshes(g.scene, share);
+    const scene = stage(env);
+    scene.add(g.scene);
+    const m = new THREE.AnimationMixer(g.scene);
+    once(m, g.animations[animation]);
+    return { scene, root: g.scene, mixer: m, before, after };
+  }));
+  const ours = stage(env);
+  const player = PmcPlayer.fromUrl(pmc, { autoplay: false, morphMs: 0 });
+  let failure: Error | null = null;
+  player.addEventListener("error", (e) => { failure = e.error; });
+  player.frustumCulled = false;
+  ours.add(player);
+  const images: { frame: number; share: number; reference: string; ours: string; meshopt: string; triangles: number; meshoptTriangles: number }[] = [];
+  try {
+    const info = await player.ready;
+    const n = Math.max(1, Math.min(count, info.frames));
+    const frames = [...new Set(Array.from({ length: n }, (_, i) => (n === 1 ? 0 : Math.round((i * (info.frames - 1)) / (n - 1)))))];
+    for (const frame of frames) {
+      const t = frame / info.frameRate;
+      mixer.setTime(t);
+      reference.scene.updateMatrixWorld(true);
+      const camera = frameCamera(reference.scene, theirs);
+      const ref = shot(renderer, theirs, camera);
+      for (const [k, share] of shares.entries()) {
+        player.budget = Math.max(1, Math.floor(share * info.triangles));
+        player.seek(frame);
+        const end = performance.now() + 20_000;
+        await new Promise<void>((res, rej) => {
+          const tick = (): void => {
+            if (failure) { rej(failure); return; }
+            player.update(performance.now());
+            // A budget change may show a coarser cut first: wait for the budget's own (a prefix
+            // of the split order stops within a few triangles of it).
+            const drawn = player.stats.frame === frame && player.stats.triangles >= 0.9 * player.budget && player.stats.triangles <= player.budget;
+            if (drawn && (!info.appearance || Array.isArray(player.mesh.material))) res();
+            else if (performance.now() > end) rej(new Error(`frame ${frame} at ${share}: not drawn (${player.stats.frame}, ${player.stats.triangles} triangles)`));
+            else requestAnimationFrame(tick);
+          };
+          tick();
+        });
+        const s = simple[k];
+        s.mixer.setTime(t);
+        s.root.updateMatrixWorld(true);
+        images.push({ frame, share, reference: ref, ours: shot(renderer, ours, camera), meshopt: shot(renderer, s.scene, camera), triangles: player.stats.triangles, meshoptTriangles: s.after });
+      }
+    }
+    return { done: 1, size, frames: info.frames, totalTriangles: info.triangles, meshoptBefore: simple.map((s) => s.before), images };
+  } finally {
+    player.dispose();
+    for (const root of [reference.scene, ...simple.map((s) => s.root)]) root.traverse((o) => {
+      const m = o as THREE.Mesh;
+      if (!m.isMesh) return;
+      m.geometry.dispose();
+      for (const mat of Array.isArray(m.material) ? m.material : [m.material]) mat.dispose();
+    });
+  }
+}
+Object.defineProperty(window, "pmcodecSimplified", {
+  value: (pmc: string, glb: string, animation: number, count: number, shares: number[]) =>
+    simplified(pmc, glb, animation, count, shares).catch((e) => ({ error: String(e?.message ?? e) })),
+});
 
 async function run(pmc: string, glb: string): Promise<Record<string, string | number>> {
   report({ running: pmc });

@@ -296,12 +296,12 @@ test("a lenient textured mesh fills in (node, chart) entries a budget cut reache
   }
 });
 
-test("skinned streams' palettes: the encoder writes Palette chunks, and a stream with the older Pose chunks still reads as Rust reads it", async () => {
+test("skinned streams' palettes: the encoder writes Joints chunks, and streams with the older Palette or Pose chunks still read as Rust reads them", async () => {
   const fox = join(root, "../shared/data/gltf/Fox.glb");
   const file = join(dir, "fox-palette.pmc");
   execFileSync(bin, ["encode", "-q", fox, "-o", file, "--keyframe-interval", "8", "--quant-bits", "12"]);
   const c = await open(file);
-  assert.ok(c.index.some((e) => e.kind === ChunkKind.Palette) && !c.index.some((e) => e.kind === ChunkKind.Pose));
+  assert.ok(c.index.some((e) => e.kind === ChunkKind.Joints) && !c.index.some((e) => e.kind === ChunkKind.Pose || e.kind === ChunkKind.Palette));
   // Today's files leave empty Delta and Corners chunks out and store small chunks as they are
   // (sameAsRust reads the Fox stream so in the test above); older files have neither flag.
   assert.equal(c.flags, 3);
@@ -309,9 +309,32 @@ test("skinned streams' palettes: the encoder writes Palette chunks, and a stream
   assert.ok(c.index.some((e) => e.storedLen === e.rawLen));
   // The top band has one in every frame: it carries the band mask to every client.
   const top = c.header.levelSizes.length - 1;
-  assert.equal(c.index.filter((e) => e.kind === ChunkKind.Palette && e.band === top).length, c.header.frameCount);
+  assert.equal(c.index.filter((e) => e.kind === ChunkKind.Joints && e.band === top).length, c.header.frameCount);
+  const palette = join(root, "crates/pmcodec-container/tests/compat/v6-skinned-palette-tube-k4.pmc");
+  const p = await sameAsRust(palette, "old-palette");
+  assert.ok(p.index.some((e) => e.kind === ChunkKind.Palette) && !p.index.some((e) => e.kind === ChunkKind.Joints));
   const old = join(root, "crates/pmcodec-container/tests/corpus/valid-skinned-tube-k4.pmc");
   const o = await sameAsRust(old, "old-pose");
   assert.ok(o.index.some((e) => e.kind === ChunkKind.Pose) && !o.index.some((e) => e.kind === ChunkKind.Palette));
   assert.equal(o.flags, 0);
+});
+
+test("a damaged Joints chunk is refused with a DecodeError naming it", async () => {
+  const fox = join(root, "../shared/data/gltf/Fox.glb");
+  const file = join(dir, "fox-joints.pmc");
+  execFileSync(bin, ["encode", "-q", fox, "-o", file, "--keyframe-interval", "8", "--quant-bits", "12"]);
+  const c = await open(file);
+  // Frame 1's Joints chunk of the top band, read past its checksum and cut short or lengthened.
+  const e = c.index.find((x) => x.kind === ChunkKind.Joints && x.frame === 1)!;
+  assert.ok(e, "frame 1 has Joints chunks");
+  const raw = await c.chunk(e);
+  const d = new Decoder(c, 0);
+  await d.seek(0);
+  const skin = (d as unknown as { skin: { readJoints: (...a: unknown[]) => bigint; bands: number[][] } }).skin;
+  const out = new BigInt64Array(c.header.skin!.paletteLen * 12), rig = new Array(c.header.skin!.paletteLen).fill(null);
+  assert.throws(() => skin.readJoints(raw.subarray(0, raw.length - 1), "frame 1 band x joints", skin.bands[e.band], c.header.levelSizes.length, false, out, rig), (err: unknown) => err instanceof DecodeError && /frame 1 band x joints: ends inside its bits/.test(String(err)));
+  const longer = new Uint8Array(raw.length + 1);
+  longer.set(raw);
+  assert.throws(() => skin.readJoints(longer, "j", skin.bands[e.band], c.header.levelSizes.length, false, out, rig), /1 bytes left over/);
+  assert.equal(skin.readJoints(raw, "j", skin.bands[e.band], c.header.levelSizes.length, false, out, rig) >= 0n, true);
 });

@@ -282,7 +282,10 @@ impl Session {
             e.frame > frame
                 && e.frame <= last
                 && e.kind.read_at(e.band as usize, level)
-                && matches!(e.kind, ChunkKind::Delta | ChunkKind::Positions | ChunkKind::Corners | ChunkKind::Pose | ChunkKind::Palette)
+                && matches!(
+                    e.kind,
+                    ChunkKind::Delta | ChunkKind::Positions | ChunkKind::Corners | ChunkKind::Pose | ChunkKind::Palette | ChunkKind::Joints
+                )
         }));
         let start = self.decoder.reader().data_start();
         let mut spans: Vec<(u64, u64)> = wanted

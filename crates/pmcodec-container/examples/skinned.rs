@@ -4,7 +4,7 @@
 //! and the encode time. With `all`, every animation of the file is played back to back.
 //! `cargo run --release -p pmcodec-container --example skinned -- ../shared/data/gltf/Fox.glb [all] [centroid]`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
-use pmcodec_container::{Decoder, EncodeOptions, QuantizationChoice, Reader, SkinPlacement, encode, summary};
+use pmcodec_container::{Decoder, EncodeOptions, PaletteCoding, QuantizationChoice, Reader, SkinPlacement, encode, summary};
 use pmcodec_mesh::gltf_input::{GltfOptions, RiggedMesh, load_gltf};
 use std::path::Path;
 
@@ -49,8 +49,12 @@ fn main() {
         seq.triangles.len(),
         seq.skin.as_ref().map_or(0, |s| s.palette_len)
     );
-    for skin in [None, Some(placement)] {
-        let opts = EncodeOptions { quantization: QuantizationChoice::Bits(12), skin, ..Default::default() };
+    // Without skin; skinned with the palettes in Palette chunks (as before the Joints chunk);
+    // skinned as today's encoder writes it (Joints chunks).
+    for (skin, palette_coding) in
+        [(None, PaletteCoding::Joints), (Some(placement), PaletteCoding::Palette), (Some(placement), PaletteCoding::Joints)]
+    {
+        let opts = EncodeOptions { quantization: QuantizationChoice::Bits(12), skin, palette_coding, ..Default::default() };
         let t = std::time::Instant::now();
         let bytes = encode(&seq, &opts, |_| {}).expect("encode");
         let secs = t.elapsed().as_secs_f64();
@@ -65,10 +69,11 @@ fn main() {
         }
         let table: Vec<String> = kinds.iter().map(|(k, (b, c))| format!("{k} {b} B in {c}")).collect();
         println!("    preamble, header and index {} B; {}", r.data_start(), table.join(", "));
+        println!("    positions per band (band 0 first): {:?} B", s.positions_bytes);
         // PMC_OUT=dir: the skinned file, and every frame's quantized node positions as the Rust
         // decoder stores them at levels 0 and 1 (i32 little-endian, frame after frame), for
         // comparing other decoders with.
-        if let (Some(dir), Some(_)) = (std::env::var_os("PMC_OUT"), skin) {
+        if let (Some(dir), Some(_), PaletteCoding::Joints) = (std::env::var_os("PMC_OUT"), skin, palette_coding) {
             std::fs::write(Path::new(&dir).join("skinned.pmc"), &bytes).expect("write");
             for level in [0, 1] {
                 let mut d = Decoder::new(r.borrowed(), level).expect("decoder");
@@ -91,11 +96,11 @@ fn main() {
         let level_of = |share: f64| (0..sizes.len()).rev().find(|&l| tris(l) >= share * 0.999).unwrap_or(0);
         let (l25, l10) = (level_of(0.25), level_of(0.10));
         println!(
-            "  {:<16} {:>9} bytes ({:.2}x the GLB), {:.3} bits/vertex/frame (positions {:.3}, pose {:.0} B/frame, bind {} B); \
+            "  {:<24} {:>9} bytes ({:.2}x the GLB), {:.3} bits/vertex/frame (positions {:.3}, pose {:.0} B/frame, bind {} B); \
              a client at 25% (level {l25}, {:.1}% of triangles) reads {:.1}%, at 10% (level {l10}, {:.1}%) {:.1}%; encoded in {secs:.1} s",
             match skin {
                 None => "without skin".to_string(),
-                Some(p) => format!("skinned {p:?}"),
+                Some(p) => format!("skinned {p:?} {palette_coding:?}"),
             },
             bytes.len(),
             bytes.len() as f64 / glb.max(1) as f64,

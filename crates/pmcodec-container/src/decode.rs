@@ -7,7 +7,14 @@ use crate::appearance::DecodedAppearance;
 use crate::format::{ChunkKind, Motion};
 use crate::payload;
 use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, predict};
-use crate::skin::{NodeSkin, SkinState, band_entries, has_palette_chunk, predict_skinned, read_binds, read_palette, read_pose};
+use crate::skin::{
+    NodeSkin, Rig, SkinState, band_entries, has_palette_chunk, predict_skinned, read_binds, read_joints, read_palette, read_pose,
+};
+
+/// A frame's pose as read, applied once the rest of the frame is: its palette, its entries'
+/// rigid parameters (files with Joints chunks; empty else), its band mask, and whether it is a
+/// keyframe's.
+type ReadPose = (Vec<i64>, Vec<Option<Rig>>, u64, bool);
 use crate::{ByteSource, ContainerError, Reader};
 use glam::Vec3;
 use pmcodec_hierarchy::CutTarget;
@@ -59,8 +66,8 @@ struct KeptKeyframe {
     current: Vec<[i32; 3]>,
     /// Band 0's stencil weights from it (keyframe affine motion; empty otherwise).
     weights: StencilWeights,
-    /// Its joint palette and skinned bands (skinned files).
-    pose: (Vec<i64>, u64),
+    /// Its joint palette, rigid parameters and skinned bands (skinned files).
+    pose: (Vec<i64>, Vec<Option<Rig>>, u64),
 }
 
 /// What meshes of one decoded frame are cut from.
@@ -115,10 +122,12 @@ impl<S: ByteSource> Decoder<S> {
         self.kept.drain(..excess);
     }
 
+    /// The frame the decoder holds (the last one decoded), `None` before the first.
     pub fn frame(&self) -> Option<u32> {
         self.frame
     }
 
+    /// The reader the decoder fetches chunks through.
     pub fn reader(&self) -> &Reader<S> {
         &self.reader
     }
@@ -149,7 +158,9 @@ impl<S: ByteSource> Decoder<S> {
                 ChunkKind::Triangles => load_key && self.triangles.is_none(),
                 ChunkKind::Key | ChunkKind::Faces => load_key && e.frame == key,
                 ChunkKind::Delta | ChunkKind::Corners => e.frame >= first_delta && e.frame <= frame,
-                ChunkKind::Positions | ChunkKind::Pose | ChunkKind::Palette => e.frame >= first_positions && e.frame <= frame,
+                ChunkKind::Positions | ChunkKind::Pose | ChunkKind::Palette | ChunkKind::Joints => {
+                    e.frame >= first_positions && e.frame <= frame
+                }
                 // Read once, with the first keyframe; images are fetched on their own.
                 ChunkKind::Charts | ChunkKind::Materials | ChunkKind::Attributes => load_key && self.looks.is_none(),
                 ChunkKind::Image => false,
@@ -162,6 +173,7 @@ impl<S: ByteSource> Decoder<S> {
         out
     }
 
+    /// The replayed hierarchy of the current frame (cut, degenerate sets, swaps applied), `None` before the first frame.
     pub fn replay(&self) -> Option<&Replay> {
         self.replay.as_ref()
     }
@@ -212,7 +224,7 @@ impl<S: ByteSource> Decoder<S> {
             self.current.copy_from_slice(&k.current);
             self.weights.clone_from(&k.weights);
             if let Some(s) = self.skin.as_mut() {
-                s.advance(k.pose.0.clone(), true, k.pose.1);
+                s.advance_rig(k.pose.0.clone(), k.pose.1.clone(), true, k.pose.2);
             }
             self.frame = Some(key);
             self.kept.push(k);
@@ -228,7 +240,7 @@ impl<S: ByteSource> Decoder<S> {
                 replay: replay.clone(),
                 current: self.current.clone(),
                 weights: self.weights.clone(),
-                pose: self.skin.as_ref().map(|s| (s.palette.clone(), s.mask)).unwrap_or_default(),
+                pose: self.skin.as_ref().map(|s| (s.palette.clone(), s.rig.clone(), s.mask)).unwrap_or_default(),
             });
         }
         Ok(())
@@ -356,8 +368,11 @@ impl<S: ByteSource> Decoder<S> {
             }
             offset += size as usize;
         }
-        // Files written since the Palette chunk have no Pose chunks.
-        if !self.reader.index().chunks.iter().any(|e| e.kind == ChunkKind::Pose) {
+        // Files written since the Palette chunk have no Pose chunks; since the Joints chunk,
+        // Joints chunks where they had Palette chunks.
+        let chunks = &self.reader.index().chunks;
+        state.joints = chunks.iter().any(|e| e.kind == ChunkKind::Joints);
+        if !chunks.iter().any(|e| e.kind == ChunkKind::Pose) {
             let mut offsets = vec![0u32];
             for &n in &h.level_sizes {
                 offsets.push(offsets.last().copied().unwrap_or(0).saturating_add(n));
@@ -369,33 +384,40 @@ impl<S: ByteSource> Decoder<S> {
 
     /// Reads frame `frame`'s pose chunk (skinned files): the palette it gives and its band
     /// mask, applied by [`Decoder::commit_pose`] once the rest of the frame is read.
-    fn read_pose(&self, frame: u32, intra: bool) -> Result<Option<(Vec<i64>, u64, bool)>, ContainerError> {
+    fn read_pose(&self, frame: u32, intra: bool) -> Result<Option<ReadPose>, ContainerError> {
         let (Some(sh), Some(state)) = (self.reader.header().skin.as_ref(), self.skin.as_ref()) else { return Ok(None) };
         let levels = self.reader.header().levels();
         let Some(bands) = state.bands.as_ref() else {
             let raw = self.chunk(ChunkKind::Pose, frame, 0)?;
             let mut palette = Vec::new();
             let mask = read_pose(&raw, &format!("frame {frame} pose"), (sh.palette_len, levels), state.prediction(intra), &mut palette)?;
-            return Ok(Some((palette, mask, intra)));
+            return Ok(Some((palette, Vec::new(), mask, intra)));
         };
         // Entries of bands this decoder does not read stay 0: none of its nodes uses them.
         let mut palette = vec![0i64; sh.palette_len as usize * crate::skin::ENTRY];
+        let mut rig = if state.joints { vec![None; sh.palette_len as usize] } else { Vec::new() };
         let mut mask = None;
         for j in (self.min_level..levels).rev().filter(|&j| has_palette_chunk(bands, j)) {
-            let raw = self.chunk(ChunkKind::Palette, frame, j)?;
-            let what = format!("frame {frame} band {j} palette");
-            let m = read_palette(&raw, &what, &bands[j], levels, state.prediction(intra), &mut palette)?;
+            let (m, what) = if state.joints {
+                let raw = self.chunk(ChunkKind::Joints, frame, j)?;
+                let what = format!("frame {frame} band {j} joints");
+                (read_joints(&raw, &what, &bands[j], levels, &state.joint_prediction(intra), (&mut palette, &mut rig))?, what)
+            } else {
+                let raw = self.chunk(ChunkKind::Palette, frame, j)?;
+                let what = format!("frame {frame} band {j} palette");
+                (read_palette(&raw, &what, &bands[j], levels, state.prediction(intra), &mut palette)?, what)
+            };
             if mask.is_some_and(|before| before != m) {
                 return Err(ContainerError::Corrupt { what, detail: format!("band mask {m:#x} where the band above says otherwise") });
             }
             mask = Some(m);
         }
-        Ok(Some((palette, mask.unwrap_or(0), intra)))
+        Ok(Some((palette, rig, mask.unwrap_or(0), intra)))
     }
 
-    fn commit_pose(&mut self, pose: Option<(Vec<i64>, u64, bool)>) {
-        if let (Some(s), Some((palette, mask, intra))) = (self.skin.as_mut(), pose) {
-            s.advance(palette, intra, mask);
+    fn commit_pose(&mut self, pose: Option<ReadPose>) {
+        if let (Some(s), Some((palette, rig, mask, intra))) = (self.skin.as_mut(), pose) {
+            s.advance_rig(palette, rig, intra, mask);
         }
     }
 
@@ -468,6 +490,15 @@ impl<S: ByteSource> Decoder<S> {
     /// Quantized positions of every node (global ids; zero below the finest level).
     pub fn quantized(&self) -> &[[i32; 3]] {
         &self.current
+    }
+
+    /// The skin of a skinned file at the current frame: every node's bind position and
+    /// influences (by global id; nodes of bands below the decoder's level are default) and the
+    /// frame's palette (`ENTRY` fixed-point values per entry, proto/container.md "Skinning";
+    /// [`crate::palette_transforms`] turns it into transforms). `None` in files without a
+    /// skin and before the first frame.
+    pub fn skin(&self) -> Option<(&[NodeSkin], &[i64])> {
+        self.skin.as_ref().map(|s| (s.nodes.as_slice(), s.palette.as_slice()))
     }
 
     /// Dequantized positions of every node (global ids).

@@ -5,7 +5,10 @@ use crate::ContainerError;
 use crate::format::*;
 use crate::payload;
 use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, coarse_shift, predict};
-use crate::skin::{NodeSkin, SkinFit, SkinState, band_entries, fit_skin, has_palette_chunk, predict_skinned, write_binds, write_palette};
+use crate::skin::{
+    JointsFrame, NodeSkin, SkinFit, SkinState, band_entries, fit_skin, has_palette_chunk, predict_skinned, write_binds, write_joints,
+    write_palette,
+};
 use glam::Vec3;
 use pmcodec_hierarchy::base::{BaseOptions, PoseSet, VertexWeights, base_quadrics};
 use pmcodec_hierarchy::progressive::{Encoder, FrameDelta, Keyframe};
@@ -28,11 +31,15 @@ pub enum QuantizationChoice {
 /// Everything `encode` can be told.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EncodeOptions {
+    /// Hierarchy construction: branching and the QEM options (Kircher & Garland section 3).
     pub build: BuildOptions,
+    /// The base poses and weights the quadrics are summed over.
     pub base: BaseOptions,
+    /// Per-frame reclustering: swap budget, passes, benefit threshold (section 4).
     pub recluster: ReclusterOptions,
     /// A keyframe every this many frames (0: only frame 0).
     pub keyframe_interval: u32,
+    /// How finely positions are quantized: an error bound or a bit count.
     pub quantization: QuantizationChoice,
     /// Coarser nodes on a grid of `2^(level + k)` quanta (see [`crate::coarse_shift`]): fewer
     /// bits, coarser cuts. The default, `Some(0)`, stores level j on a grid of about 2^j quanta,
@@ -54,6 +61,20 @@ pub struct EncodeOptions {
     /// they are, empty Delta and Corners chunks left out; 0: every chunk a zstd frame, as files
     /// before the flags, for comparison). Unknown bits are dropped.
     pub chunk_flags: u16,
+    /// How a skinned file codes each frame's palette: Joints chunks (the default) or the
+    /// Palette chunks files had before them (kept for comparison and for tests of readers).
+    pub palette_coding: PaletteCoding,
+}
+
+/// The chunk kind a skinned file's palettes are written in (proto/container.md, "Palette" and
+/// "Joints").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PaletteCoding {
+    /// Rigid entries as quaternion, scale and translation, Exp-Golomb coded.
+    #[default]
+    Joints,
+    /// Twelve varints per moved entry (files written before the Joints chunk).
+    Palette,
 }
 
 /// Where a coarse node of a skinned sequence sits in bind space (input vertices keep their
@@ -83,6 +104,7 @@ impl Default for EncodeOptions {
             order: VertexOrder::BreadthFirst,
             skin: Some(SkinPlacement::default()),
             chunk_flags: crate::format::FLAGS,
+            palette_coding: PaletteCoding::Joints,
         }
     }
 }
@@ -316,10 +338,12 @@ struct PositionCoder {
 pub struct EncodeReport {
     /// Bands coded (bands times frames), and how many of them skinning predicted.
     pub bands: u64,
+    /// Of `bands`, those whose nodes skinning predicted.
     pub skinned_bands: u64,
     /// About the bits of every band's residuals (an Elias gamma code of each) under the default
     /// prediction, and as stored (the smaller of the two where skinning competed).
     pub plain_bits: u64,
+    /// The same estimate as stored; `plain_bits - stored_bits` is about what skinning saved.
     pub stored_bits: u64,
 }
 
@@ -568,8 +592,10 @@ fn check_frame(head: &Sequence, f: usize, n: usize, p: &[Vec3]) -> Result<(), Co
 /// What [`encode_stream`] can fail on: reading the input, or encoding it.
 #[derive(Debug, thiserror::Error)]
 pub enum StreamError<E> {
+    /// The frame source failed; the encode stopped and wrote nothing.
     #[error("reading the input: {0}")]
     Input(E),
+    /// The encoder failed (invalid input, options, or cancellation).
     #[error(transparent)]
     Encode(ContainerError),
 }
@@ -677,10 +703,10 @@ fn code_frames(
     };
     let skin_input = seq.skin.as_ref().zip(opts.skin);
     let mut skin: Option<SkinFit> = None;
-    // The palette entries each band's Palette chunk carries.
+    // The palette entries each band's Joints chunk carries.
     let mut bands: Vec<Vec<u32>> = Vec::new();
     // The palettes the decoder holds (the previous frame's and the one before), and this frame's.
-    let (mut held, mut palette) = (SkinState::default(), Vec::new());
+    let (mut held, mut palette) = (SkinState::default(), JointsFrame::default());
     let inv = 1.0 / step as f64;
     let mut corners: Vec<(u32, [u32; 3])> = Vec::new();
     for r in frames {
@@ -699,14 +725,14 @@ fn code_frames(
             bands = band_entries(&fit.nodes, offsets, 0, fit.header.palette_len);
             skin = Some(fit);
         }
+        let intra = header.is_keyframe(f as u32);
         if let Some(fit) = &skin {
-            palette = fit.palette(f)?;
+            palette = fit.joints(f, &held, intra)?;
         }
         let truth = |g: usize| {
             let p = positions[g] - lo;
             [p.x as f64 * inv, p.y as f64 * inv, p.z as f64 * inv]
         };
-        let intra = header.is_keyframe(f as u32);
         // First what only a client stopping at band j reads (faces on keyframes, corner
         // updates), finest band first; then the bands every client from there down reads, top
         // first. So a full-resolution client's part of a frame is one contiguous span, and a
@@ -724,7 +750,7 @@ fn code_frames(
         }
         // The frame's pose goes before its bands, once they say which bands skinning predicts.
         let pose_at = chunks.len();
-        let skinning = skin.as_ref().map(|s| Skinning { nodes: &s.nodes, palette: &palette, previous: &held.palette });
+        let skinning = skin.as_ref().map(|s| Skinning { nodes: &s.nodes, palette: &palette.palette, previous: &held.palette });
         let mut mask = 0u64;
         for j in (0..levels).rev() {
             if let Some(k) = &r.key {
@@ -738,10 +764,16 @@ fn code_frames(
         if skin.is_some() {
             // Top band first, as the bands themselves.
             for (at, j) in (pose_at..).zip((0..levels).rev().filter(|&j| has_palette_chunk(&bands, j))) {
-                let raw = write_palette(mask, &bands[j], &palette, held.prediction(intra));
-                chunks.insert(at, ChunkKind::Palette, f as u32, j as u32, raw)?;
+                let (kind, raw) = match opts.palette_coding {
+                    PaletteCoding::Joints => (ChunkKind::Joints, write_joints(mask, &bands[j], &palette, &held.joint_prediction(intra))),
+                    PaletteCoding::Palette => {
+                        (ChunkKind::Palette, write_palette(mask, &bands[j], &palette.palette, held.prediction(intra)))
+                    }
+                };
+                chunks.insert(at, kind, f as u32, j as u32, raw)?;
             }
-            held.advance(std::mem::take(&mut palette), intra, mask);
+            let JointsFrame { palette, rig, .. } = std::mem::take(&mut palette);
+            held.advance_rig(palette, rig, intra, mask);
         }
         coder.next_frame();
         // The reclustering side may have finished: then there is nothing to refill.

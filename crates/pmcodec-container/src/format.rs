@@ -24,9 +24,13 @@ pub const MAX_TABLE_LEN: u32 = 64 << 20;
 /// any mesh the encoder is meant for (a million vertices) and far below what would exhaust a
 /// server.
 pub const MAX_VERTICES: u32 = 1 << 24;
+/// Most input triangles a header may declare.
 pub const MAX_TRIANGLES: u32 = 1 << 25;
+/// Most nodes over all levels a header may declare.
 pub const MAX_NODES: u64 = 1 << 25;
+/// Most frames a header may declare.
 pub const MAX_FRAMES: u32 = 1 << 20;
+/// Most levels a header may declare.
 pub const MAX_LEVELS: usize = 64;
 /// zstd level for chunks: files are written once and read many times.
 pub const ZSTD_LEVEL: i32 = 19;
@@ -60,15 +64,22 @@ pub fn sparse_kind(kind: ChunkKind, flags: u16) -> bool {
 /// The fixed 32-byte preamble.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Preamble {
+    /// Format version of the file ([`OLDEST_READABLE`]..=[`VERSION`]); it decides how the header parses.
     pub version: u16,
+    /// Bits of [`FLAG_STORED`] and [`FLAG_SPARSE`] (version 6; 0 in older files).
     pub flags: u16,
+    /// Length of the postcard header that follows the preamble.
     pub header_len: u32,
+    /// Length of the postcard index that follows the header.
     pub index_len: u32,
+    /// CRC-32 (IEEE) of the header bytes.
     pub header_crc: u32,
+    /// CRC-32 (IEEE) of the index bytes.
     pub index_crc: u32,
 }
 
 impl Preamble {
+    /// The 32 bytes: magic, the fields little-endian, 4 reserved zero bytes (proto/container.md, "Preamble").
     pub fn to_bytes(&self) -> [u8; PREAMBLE_LEN] {
         let mut b = [0u8; PREAMBLE_LEN];
         b[..8].copy_from_slice(&MAGIC);
@@ -115,20 +126,30 @@ impl Preamble {
 /// How positions are quantized: `q = round((p - bbox_min) / step)` per axis.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Quantization {
+    /// Size of one quantum in input units, the same on every axis.
     pub step: f32,
 }
 
 /// The options the file was encoded with (for `info`, and to re-encode alike).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct EncodedWith {
+    /// The base poses the quadrics were summed over (`first-frame`, `all-frames`, `sampled-N`).
     pub base_poses: String,
+    /// The per-vertex weights of the base poses (`none`, `tertiles`, `smooth`).
     pub base_weights: String,
+    /// Growth exponent of the QEM across levels (Kircher & Garland equation 2).
     pub beta: f64,
+    /// Smallest improvement, as a fraction of a node's error, that a swap had to bring.
     pub min_relative_benefit: f64,
+    /// Independent-set passes per level per frame.
     pub max_passes: u32,
+    /// Whether swaps also had to keep the homeomorphism rule (section 4.2).
     pub homeomorphism: bool,
+    /// Whether swaps were ranked by the exact change of error rather than equation 1's estimate.
     pub exact_benefit: bool,
+    /// The quantization's error bound, when it was given as one (a fraction of the diagonal).
     pub max_error: Option<f64>,
+    /// The quantization's bit count, when it was given as one.
     pub quant_bits: Option<u8>,
 }
 
@@ -166,20 +187,31 @@ pub enum VertexOrder {
 /// The header (postcard).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Header {
+    /// Input vertices.
     pub vertex_count: u32,
+    /// Input triangles.
     pub triangle_count: u32,
+    /// Frames.
     pub frame_count: u32,
+    /// Playback rate in frames per second.
     pub frame_rate: f32,
     /// |M_0| .. |M_top|.
     pub level_sizes: Vec<u32>,
+    /// The hierarchy's branching factor: each level about this many times fewer nodes than the one below.
     pub branching: u32,
+    /// Lower corner of the bounding box over all frames; quantized positions count from it.
     pub bbox_min: [f32; 3],
+    /// Upper corner of the bounding box over all frames.
     pub bbox_max: [f32; 3],
+    /// The position quantum.
     pub quantization: Quantization,
     /// A keyframe every this many frames (0: only frame 0).
     pub keyframe_interval: u32,
+    /// The options the file was encoded with.
     pub encoded_with: EncodedWith,
+    /// The encoder's name and version (`pmcodec 0.1.0`).
     pub generator: String,
+    /// One name per frame (file names for OBJ input, `anim@time` for glTF).
     pub frame_names: Vec<String>,
     /// Band 0's prediction on inter frames.
     pub motion: Motion,
@@ -206,14 +238,17 @@ impl Header {
         }
     }
 
+    /// Number of levels (bands).
     pub fn levels(&self) -> usize {
         self.level_sizes.len()
     }
 
+    /// Index of the coarsest level.
     pub fn top(&self) -> usize {
         self.level_sizes.len().saturating_sub(1)
     }
 
+    /// Whether `frame` is a keyframe: frame 0 and every `keyframe_interval`-th frame.
     pub fn is_keyframe(&self, frame: u32) -> bool {
         frame == 0 || (self.keyframe_interval > 0 && frame.is_multiple_of(self.keyframe_interval))
     }
@@ -223,6 +258,7 @@ impl Header {
         if self.keyframe_interval == 0 { 0 } else { frame - frame % self.keyframe_interval }
     }
 
+    /// Nodes over all levels.
     pub fn node_count(&self) -> u64 {
         self.level_sizes.iter().map(|&s| s as u64).sum()
     }
@@ -243,32 +279,49 @@ fn exactly<'a, T: Deserialize<'a>>(bytes: &'a [u8]) -> Result<T, crate::Containe
 /// another, so the later versions nest it as their first field and read the same bytes.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct HeaderV3 {
+    /// See [`Header::vertex_count`].
     pub vertex_count: u32,
+    /// See [`Header::triangle_count`].
     pub triangle_count: u32,
+    /// See [`Header::frame_count`].
     pub frame_count: u32,
+    /// See [`Header::frame_rate`].
     pub frame_rate: f32,
+    /// See [`Header::level_sizes`].
     pub level_sizes: Vec<u32>,
+    /// See [`Header::branching`].
     pub branching: u32,
+    /// See [`Header::bbox_min`].
     pub bbox_min: [f32; 3],
+    /// See [`Header::bbox_max`].
     pub bbox_max: [f32; 3],
+    /// See [`Header::quantization`].
     pub quantization: Quantization,
+    /// See [`Header::keyframe_interval`].
     pub keyframe_interval: u32,
+    /// See [`Header::encoded_with`].
     pub encoded_with: EncodedWith,
+    /// See [`Header::generator`].
     pub generator: String,
+    /// See [`Header::frame_names`].
     pub frame_names: Vec<String>,
 }
 
 /// Band 0's motions version 4 knew (a third discriminant is not a version 4 file).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum MotionV4 {
+    /// [`Motion::Mean`].
     Mean,
+    /// [`Motion::Affine`].
     Affine,
 }
 
 /// The header of format version 4: version 3's and band 0's motion; band 0 in input order.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct HeaderV4 {
+    /// Version 3's fields, first in the bytes.
     pub v3: HeaderV3,
+    /// Band 0's prediction on inter frames.
     pub motion: MotionV4,
 }
 
@@ -281,8 +334,11 @@ impl From<HeaderV3> for HeaderV4 {
 /// The header of format version 5: version 3's, band 0's motion and order.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct HeaderV5 {
+    /// Version 3's fields, first in the bytes.
     pub v3: HeaderV3,
+    /// Band 0's prediction on inter frames.
     pub motion: Motion,
+    /// Band 0's decoding order.
     pub order: VertexOrder,
 }
 
@@ -361,6 +417,10 @@ pub enum ChunkKind {
     /// mask (version 6, skinned files; read by clients whose finest level is the band or finer,
     /// so a coarse client reads only the joints its bands are skinned by).
     Palette = 12,
+    /// The Palette chunk's entries coded as rigid transforms where they are: quaternion, scale
+    /// and translation (version 6, skinned files; files written since this chunk carry Joints
+    /// chunks instead of Palette chunks; read as Palette chunks are).
+    Joints = 13,
 }
 
 impl From<ChunkKind> for u32 {
@@ -386,6 +446,7 @@ impl TryFrom<u32> for ChunkKind {
             10 => ChunkKind::Bind,
             11 => ChunkKind::Pose,
             12 => ChunkKind::Palette,
+            13 => ChunkKind::Joints,
             _ => return Err(format!("unknown chunk kind {v}")),
         })
     }
@@ -398,7 +459,9 @@ impl ChunkKind {
     pub fn read_at(self, band: usize, min_level: usize) -> bool {
         match self {
             ChunkKind::Triangles => min_level == 0,
-            ChunkKind::Key | ChunkKind::Delta | ChunkKind::Positions | ChunkKind::Bind | ChunkKind::Palette => band >= min_level,
+            ChunkKind::Key | ChunkKind::Delta | ChunkKind::Positions | ChunkKind::Bind | ChunkKind::Palette | ChunkKind::Joints => {
+                band >= min_level
+            }
             ChunkKind::Pose => true,
             ChunkKind::Faces | ChunkKind::Corners => band == min_level,
             ChunkKind::Charts | ChunkKind::Materials | ChunkKind::Image => true,
@@ -406,6 +469,7 @@ impl ChunkKind {
         }
     }
 
+    /// The kind's name in messages and `pmcodec info` (`keyframe`, `delta`, `positions`, ...).
     pub fn name(self) -> &'static str {
         match self {
             ChunkKind::Triangles => "triangles",
@@ -421,6 +485,7 @@ impl ChunkKind {
             ChunkKind::Bind => "bind",
             ChunkKind::Pose => "pose",
             ChunkKind::Palette => "palette",
+            ChunkKind::Joints => "joints",
         }
     }
 }
@@ -428,8 +493,11 @@ impl ChunkKind {
 /// One index entry.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct ChunkEntry {
+    /// What the chunk holds.
     pub kind: ChunkKind,
+    /// The frame it belongs to (0 for per-file chunks).
     pub frame: u32,
+    /// The band (level) it belongs to; an image's index for Image chunks.
     pub band: u32,
     /// Offset from the end of the index (the start of the chunk area).
     pub offset: u64,
@@ -459,6 +527,7 @@ impl ChunkEntry {
 /// whichever way the file wrote it ([`Index::from_bytes`]).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Index {
+    /// Every chunk, in file order (by offset).
     pub chunks: Vec<ChunkEntry>,
 }
 

@@ -8,6 +8,7 @@
 //!   decompresses chunks; [`Decoder`] replays frames and extracts meshes at any cut.
 //! - [`verify`] and [`summary`] back the CLI's `verify` and `info`.
 #![forbid(unsafe_code)]
+#![warn(missing_docs)]
 
 pub mod appearance;
 mod decode;
@@ -15,21 +16,22 @@ mod encode;
 pub mod format;
 pub mod payload;
 pub mod predict;
-pub mod rans;
+mod rans;
 mod read;
-pub mod skin;
+mod skin;
 #[cfg(feature = "test-support")]
 pub mod testing;
 
 pub use decode::Decoder;
 pub use encode::{
-    EncodeOptions, EncodeReport, QuantizationChoice, SkinPlacement, StreamError, encode, encode_stream, encode_until, encode_with_report,
-    write_file,
+    EncodeOptions, EncodeReport, PaletteCoding, QuantizationChoice, SkinPlacement, StreamError, encode, encode_stream, encode_until,
+    encode_with_report, write_file,
 };
 pub use format::{ChunkEntry, ChunkKind, Header, Index, Motion, VertexOrder};
 pub use pmcodec_hierarchy::{CutTarget, Distance};
 pub use predict::coarse_shift;
 pub use read::{ByteSource, FileSource, Reader};
+pub use skin::{NodeSkin, SkinHeader, bind_position, influences, palette_transforms};
 
 use serde::Serialize;
 
@@ -37,48 +39,97 @@ use serde::Serialize;
 /// chunk at fault ("frame 12 band 3 positions: checksum mismatch").
 #[derive(Debug, thiserror::Error)]
 pub enum ContainerError {
+    /// An I/O error of the byte source, or a value that could not be serialized while writing.
     #[error("I/O: {0}")]
     Io(String),
+    /// The first 8 bytes are not [`format::MAGIC`].
     #[error("not a .pmc file (bad magic number)")]
     BadMagic,
+    /// The preamble's version is outside [`format::OLDEST_READABLE`]..=[`format::VERSION`].
     #[error("container version {0} is not supported (this build reads versions {o} to {v})", o = format::OLDEST_READABLE, v = format::VERSION)]
     UnsupportedVersion(u16),
+    /// A region (preamble, header, index, a chunk) reaches past the end of the source.
     #[error("{what}: the file ends before it does")]
-    Truncated { what: String },
+    Truncated {
+        /// The region, as in "frame 12 band 3 positions".
+        what: String,
+    },
+    /// A region's CRC-32 does not match its bytes.
     #[error("{what}: checksum mismatch")]
-    Checksum { what: String },
+    Checksum {
+        /// The region.
+        what: String,
+    },
+    /// A region passed its checksum but its contents break the format (a count over the
+    /// header's, an id out of range, a chunk the index lacks, bytes left over).
     #[error("{what}: {detail}")]
-    Corrupt { what: String, detail: String },
+    Corrupt {
+        /// The region.
+        what: String,
+        /// What is wrong in it.
+        detail: String,
+    },
+    /// The input sequence failed [`pmcodec_mesh::Sequence::validate`] or the encoder's own checks.
     #[error("invalid input: {0}")]
     Mesh(#[from] pmcodec_mesh::MeshError),
+    /// The hierarchy could not be built from the input (Kircher & Garland section 3).
     #[error("building the hierarchy: {0}")]
     Build(#[from] pmcodec_hierarchy::BuildError),
+    /// A keyframe or topology delta did not apply to the replayed hierarchy (a file that
+    /// passed its checksums but whose swaps are inconsistent).
     #[error("{what}: {source}")]
-    Delta { what: String, source: pmcodec_hierarchy::progressive::DeltaError },
+    Delta {
+        /// The frame and chunk.
+        what: String,
+        /// What the replay refused.
+        source: pmcodec_hierarchy::progressive::DeltaError,
+    },
+    /// The options or the request do not fit the input or the file (a quantization that does not
+    /// fit 30 bits, an empty sequence, appearance asked of a file without one).
     #[error("invalid options: {0}")]
     Options(String),
+    /// The source is longer than its last chunk's end (checked when a reader opens a whole file).
     #[error("{bytes} bytes after the end of the container (its last chunk ends before the file does)")]
-    TrailingBytes { bytes: u64 },
+    TrailingBytes {
+        /// How many bytes follow the last chunk.
+        bytes: u64,
+    },
+    /// The encoder's progress callback asked it to stop, or the input stream ended early.
     #[error("encoding cancelled")]
     Cancelled,
+    /// A seek past the last frame.
     #[error("frame {frame} is beyond the {frames} frames of the file")]
-    NoSuchFrame { frame: u32, frames: u32 },
+    NoSuchFrame {
+        /// The frame asked for.
+        frame: u32,
+        /// Frames in the file.
+        frames: u32,
+    },
 }
 
 /// Byte counts of a file by chunk kind and band, and the figures derived from them.
 #[derive(Clone, Debug, Serialize)]
 pub struct Summary {
+    /// The file's header, as read (migrated to today's version).
     pub header: Header,
+    /// Length of the whole file.
     pub file_bytes: u64,
+    /// Bytes before the chunk area: preamble, header and index.
     pub preamble_header_index_bytes: u64,
+    /// Stored bytes of the input triangles chunk.
     pub triangles_bytes: u64,
     /// Per band (index = level): stored bytes of key, delta (swaps), positions, faces and
     /// corners chunks.
     pub key_bytes: Vec<u64>,
+    /// Per band: stored bytes of Faces chunks.
     pub faces_bytes: Vec<u64>,
+    /// Per band: stored bytes of Corners chunks.
     pub corners_bytes: Vec<u64>,
+    /// Per band: stored bytes of Delta chunks (swaps).
     pub delta_bytes: Vec<u64>,
+    /// Per band: stored bytes of Positions chunks.
     pub positions_bytes: Vec<u64>,
+    /// Per band: bytes of Delta chunks after decompression.
     pub delta_raw_bytes: Vec<u64>,
     /// Per band: stored bytes of its nodes' skins (bind positions and influences).
     pub bind_bytes: Vec<u64>,
@@ -93,6 +144,7 @@ pub struct Summary {
     /// Topology deltas (swaps), all bands, per frame (compressed and raw): what a
     /// full-resolution client reads.
     pub delta_bytes_per_frame: f64,
+    /// Topology deltas per frame before compression.
     pub delta_raw_bytes_per_frame: f64,
     /// Bytes a client stopping at each level reads per frame (swaps and positions of bands >=
     /// level, and the corner updates of its own level).
@@ -100,8 +152,11 @@ pub struct Summary {
     /// Appearance (version 6), stored bytes: the charts, the attribute table per band, the
     /// materials, and the images.
     pub charts_bytes: u64,
+    /// Per band: stored bytes of its Attributes chunk.
     pub attributes_bytes: Vec<u64>,
+    /// Stored bytes of the Materials chunk.
     pub materials_bytes: u64,
+    /// Stored bytes of every Image chunk.
     pub image_bytes: u64,
 }
 
@@ -157,7 +212,7 @@ pub fn summary<S: ByteSource>(reader: &Reader<S>) -> Summary {
             ChunkKind::Image => {}
             ChunkKind::Bind => s.bind_bytes[b] += e.stored_len as u64,
             ChunkKind::Pose => s.pose_bytes += e.stored_len as u64,
-            ChunkKind::Palette => {
+            ChunkKind::Palette | ChunkKind::Joints => {
                 s.pose_bytes += e.stored_len as u64;
                 s.palette_bytes[b] += e.stored_len as u64;
             }
@@ -186,8 +241,11 @@ pub fn summary<S: ByteSource>(reader: &Reader<S>) -> Summary {
 /// What [`verify`] checked.
 #[derive(Clone, Debug, Serialize)]
 pub struct VerifyReport {
+    /// Index entries whose chunk was read and checked.
     pub chunks: usize,
+    /// Frames replayed.
     pub frames: u32,
+    /// Length of the file.
     pub bytes: u64,
 }
 

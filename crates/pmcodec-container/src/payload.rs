@@ -4,6 +4,7 @@
 
 use crate::ContainerError;
 
+/// Appends `v` as an unsigned LEB128 varint (1 to 5 bytes).
 pub fn put(out: &mut Vec<u8>, mut v: u32) {
     while v >= 0x80 {
         out.push((v as u8) | 0x80);
@@ -12,11 +13,13 @@ pub fn put(out: &mut Vec<u8>, mut v: u32) {
     out.push(v as u8);
 }
 
+/// Zigzag code of `v`: 0, -1, 1, -2 ... to 0, 1, 2, 3 ..., so small magnitudes make short varints.
 #[inline]
 pub fn zigzag(v: i32) -> u32 {
     ((v << 1) ^ (v >> 31)) as u32
 }
 
+/// The inverse of [`zigzag`].
 #[inline]
 pub fn unzigzag(v: u32) -> i32 {
     ((v >> 1) as i32) ^ -((v & 1) as i32)
@@ -30,6 +33,7 @@ pub struct Cursor<'a> {
 }
 
 impl<'a> Cursor<'a> {
+    /// A cursor at the start of `bytes`; `what` names the chunk in errors.
     pub fn new(bytes: &'a [u8], what: &'a str) -> Self {
         Cursor { bytes, pos: 0, what }
     }
@@ -38,6 +42,7 @@ impl<'a> Cursor<'a> {
         ContainerError::Corrupt { what: self.what.to_string(), detail: detail.into() }
     }
 
+    /// The next varint; [`ContainerError::Corrupt`] when it ends early or exceeds 32 bits.
     pub fn get(&mut self) -> Result<u32, ContainerError> {
         let mut v: u64 = 0;
         for shift in (0..35).step_by(7) {
@@ -105,6 +110,7 @@ impl<'a> Cursor<'a> {
         Ok(v as u32)
     }
 
+    /// Succeeds only when every byte was read: a chunk with bytes left over is corrupt.
     pub fn finish(&self) -> Result<(), ContainerError> {
         if self.pos == self.bytes.len() { Ok(()) } else { Err(self.corrupt(format!("{} bytes left over", self.bytes.len() - self.pos))) }
     }
@@ -140,7 +146,8 @@ pub fn write_triangles(tris: &[[u32; 3]], version: u16) -> Vec<u8> {
     out
 }
 
-/// Reads a TRIANGLES chunk of a file of format `version` (see [`write_triangles`]).
+/// Reads a TRIANGLES chunk of a file of format `version` (see [`write_triangles`]): exactly
+/// `triangles` triangles, every index below `vertices`.
 pub fn read_triangles(bytes: &[u8], what: &str, triangles: u32, vertices: u32, version: u16) -> Result<Vec<[u32; 3]>, ContainerError> {
     let mut c = Cursor::new(bytes, what);
     let n = c.count_within(triangles as u64, 3, "triangles")?;
@@ -181,7 +188,8 @@ pub fn write_key(parent: &[u32], version: u16) -> Vec<u8> {
     out
 }
 
-/// Reads a KEY chunk of a file of format `version` (see [`write_key`]).
+/// Reads a KEY chunk of a file of format `version` (see [`write_key`]) for `band`:
+/// `sizes[band]` parents below `sizes[band + 1]` (none for the top band).
 pub fn read_key(bytes: &[u8], what: &str, sizes: &[u32], band: usize, version: u16) -> Result<Vec<u32>, ContainerError> {
     let mut c = Cursor::new(bytes, what);
     let top = sizes.len() - 1;
@@ -332,6 +340,7 @@ pub fn write_delta(moves: &[(u32, u32)]) -> Vec<u8> {
     out
 }
 
+/// Reads what [`write_delta`] writes for `band`: at most `sizes[band]` moves, nodes strictly ascending, parents in level `band + 1`.
 pub fn read_delta(bytes: &[u8], what: &str, sizes: &[u32], band: usize) -> Result<Vec<(u32, u32)>, ContainerError> {
     let mut c = Cursor::new(bytes, what);
     let top = sizes.len() - 1;

@@ -80,6 +80,7 @@ fn breadth_first(n: usize, offsets: &[u32], items: &[u32]) -> Vec<u32> {
 }
 
 impl LowerNeighbours {
+    /// The rows and stencils for `n` vertices of `triangles`, decoded in `order`.
     pub fn new(n: usize, triangles: &[[u32; 3]], order: VertexOrder) -> Self {
         let (all_offsets, all) = neighbour_rows(n, triangles);
         let sequence: Vec<u32> = match order {
@@ -149,6 +150,7 @@ impl LowerNeighbours {
         }
     }
 
+    /// The stencil of vertex `v` (input numbering), in decoding order; empty for a vertex out of range.
     #[inline]
     pub fn stencil(&self, v: usize) -> &[u32] {
         match (self.stencil_offsets.get(v), self.stencil_offsets.get(v + 1)) {
@@ -157,6 +159,7 @@ impl LowerNeighbours {
         }
     }
 
+    /// The lower neighbours of vertex `v` (input numbering), in decoding order; empty for a vertex out of range.
     #[inline]
     pub fn row(&self, v: usize) -> &[u32] {
         match (self.offsets.get(v), self.offsets.get(v + 1)) {
@@ -350,7 +353,7 @@ struct Fit {
 ///
 /// The fit is split so that decoding stays fast: [`AffineFits::prepare`] solves, for every
 /// vertex before the band is decoded, what depends on the previous frame alone (independent
-/// work a CPU overlaps); [`AffineFits::predict`] then needs one pass over the stencil's
+/// work a CPU overlaps); `AffineFits::predict` then needs one pass over the stencil's
 /// decoded positions and no division. Coordinates are relative to the vertex's previous
 /// position, so on valid files the stencil sums are of small integers and exact in doubles;
 /// proto/container.md fixes the order of every other operation.

@@ -12,8 +12,6 @@
 //! State `x` stays in `[L, 2^31)` with `L = 2^23`; frequencies are 12-bit (`M = 4096`), so
 //! `freq * (x >> 12) < 2^31` never overflows.
 
-use crate::ContainerError;
-
 /// Frequencies of a table add up to this.
 pub const SCALE_BITS: u32 = 12;
 pub const M: u32 = 1 << SCALE_BITS;
@@ -173,7 +171,9 @@ impl<'a> Decoder<'a> {
         Ok(Decoder { bytes, pos: 4 * WAYS, x, overrun: false })
     }
 
-    /// The next symbol of state `way`.
+    /// The next symbol of state `way` (the one-symbol reference the tests check the payload
+    /// reader's unrolled loop against).
+    #[cfg(test)]
     #[inline(always)]
     pub fn get(&mut self, way: usize, t: &Table) -> u32 {
         let x = self.x[way];
@@ -257,11 +257,6 @@ impl<'a> Decoder<'a> {
             Ok(())
         }
     }
-}
-
-/// Maps a decoder message to the chunk's error.
-pub fn corrupt(what: &str, detail: &str) -> ContainerError {
-    ContainerError::Corrupt { what: what.to_string(), detail: detail.to_string() }
 }
 
 #[cfg(test)]

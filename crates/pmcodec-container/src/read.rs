@@ -58,6 +58,7 @@ pub struct FileSource {
 }
 
 impl FileSource {
+    /// Opens the file at `path` for positioned reads; [`ContainerError::Io`] names the path.
     pub fn open(path: &Path) -> Result<Self, ContainerError> {
         let file = std::fs::File::open(path).map_err(|e| ContainerError::Io(format!("{}: {e}", path.display())))?;
         let len = file.metadata().map_err(|e| ContainerError::Io(format!("{}: {e}", path.display())))?.len();
@@ -154,6 +155,7 @@ impl<S: ByteSource> Reader<S> {
         self.flags
     }
 
+    /// The file's header, migrated to today's version.
     pub fn header(&self) -> &Header {
         &self.header
     }
@@ -173,10 +175,12 @@ impl<S: ByteSource> Reader<S> {
         }
     }
 
+    /// The chunk index, in file order.
     pub fn index(&self) -> &Index {
         &self.index
     }
 
+    /// Length of the source in bytes.
     pub fn file_len(&self) -> u64 {
         self.file_len
     }
@@ -191,6 +195,7 @@ impl<S: ByteSource> Reader<S> {
         self.bytes_read.get()
     }
 
+    /// The byte source.
     pub fn source(&self) -> &S {
         &self.source
     }
@@ -311,7 +316,7 @@ fn raw_len_range(h: &Header, kind: ChunkKind, band: usize) -> (u64, u64) {
         }
         ChunkKind::Materials => (4, MAX_MATERIALS_LEN),
         ChunkKind::Image => (1, MAX_IMAGE_LEN),
-        ChunkKind::Bind | ChunkKind::Pose | ChunkKind::Palette => crate::skin::raw_len_range(h, kind, n),
+        ChunkKind::Bind | ChunkKind::Pose | ChunkKind::Palette | ChunkKind::Joints => crate::skin::raw_len_range(h, kind, n),
     }
 }
 

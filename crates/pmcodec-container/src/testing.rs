@@ -12,10 +12,13 @@ use crate::{ContainerError, CutTarget, Decoder, Distance, Reader, verify};
 /// order. [`Unsealed::seal`] lays them out again.
 #[derive(Clone, Debug)]
 pub struct Unsealed {
+    /// The preamble's version, written back as is (it decides how the header parses).
     pub version: u16,
+    /// The preamble's flags, written back as is; they also decide how chunks are stored on sealing.
     pub flags: u16,
     /// The header as postcard bytes (what the preamble's `header_len` counts).
     pub header: Vec<u8>,
+    /// The chunks, in file order; sealing lays them out in this order.
     pub chunks: Vec<Chunk>,
     /// Bytes after the last chunk (none in a valid file).
     pub trailing: Vec<u8>,
@@ -27,6 +30,7 @@ pub struct Chunk {
     /// Kind, frame and band are written as they are; offset, lengths and CRC are recomputed
     /// on sealing unless `lie` says otherwise.
     pub entry: ChunkEntry,
+    /// The decompressed payload; sealing compresses it again (zstd level 1, or stored).
     pub raw: Vec<u8>,
     /// An index field to write as given instead of the true value (the CRC then covers
     /// whatever bytes the entry points at, so the lie still passes the checksum).
@@ -36,8 +40,11 @@ pub struct Chunk {
 /// A false index field.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Lie {
+    /// The entry's `offset`.
     Offset(u64),
+    /// The entry's `stored_len`.
     StoredLen(u32),
+    /// The entry's `raw_len`.
     RawLen(u32),
 }
 
@@ -160,10 +167,12 @@ pub fn reseal(bytes: &[u8], mutate: impl FnOnce(&mut Unsealed)) -> Result<Vec<u8
 pub struct Rng(pmcodec_eval::SplitMix64);
 
 impl Rng {
+    /// A generator whose sequence is fixed by `seed`.
     pub fn new(seed: u64) -> Rng {
         Rng(pmcodec_eval::SplitMix64::new(seed))
     }
 
+    /// The next 64 random bits.
     pub fn next_u64(&mut self) -> u64 {
         self.0.next_u64()
     }
@@ -173,6 +182,7 @@ impl Rng {
         if n == 0 { 0 } else { (self.next_u64() % n as u64) as usize }
     }
 
+    /// True about once in `one_in` calls (always for 0 and 1).
     pub fn chance(&mut self, one_in: usize) -> bool {
         self.below(one_in) == 0
     }

@@ -188,3 +188,43 @@ fn version_6_files_decode_as_they_did() {
     let v6_triangles = c.index().chunks[0].stored_len;
     assert!(v6_triangles > b.index().chunks[0].stored_len, "triangles: {v6_triangles} against {}", b.index().chunks[0].stored_len);
 }
+
+/// `tests/compat/v6-skinned-palette-tube-k4.pmc`: a skinned bending tube written with Palette
+/// chunks (kind 12), as the encoder wrote skinned files before the Joints chunk; the TypeScript
+/// decoder reads it too (web/test/container.test.ts). It must verify, hold Palette chunks and
+/// no Joints chunk, decode every frame to the input within the quantization bound, and a
+/// level-1 client must decode the bands it reads as a full one does.
+/// (`PMCODEC_WRITE_PALETTE_FIXTURE=1` writes it anew with `PaletteCoding::Palette`.)
+#[test]
+fn version_6_palette_chunk_files_decode_as_they_did() {
+    use pmcodec_container::{ChunkKind, PaletteCoding};
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/compat/v6-skinned-palette-tube-k4.pmc");
+    let seq = pmcodec_mesh::skin::bending_tube(8, 12, 10);
+    if std::env::var_os("PMCODEC_WRITE_PALETTE_FIXTURE").is_some() {
+        let opts = EncodeOptions {
+            keyframe_interval: 4,
+            quantization: QuantizationChoice::Bits(12),
+            palette_coding: PaletteCoding::Palette,
+            ..Default::default()
+        };
+        std::fs::write(&path, encode(&seq, &opts, |_| {}).expect("encode")).expect("write the fixture");
+    }
+    let old = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let a = Reader::open(old.as_slice()).expect("open");
+    verify(&a).expect("verify");
+    assert!(a.index().chunks.iter().any(|e| e.kind == ChunkKind::Palette));
+    assert!(a.index().chunks.iter().all(|e| !matches!(e.kind, ChunkKind::Joints | ChunkKind::Pose)));
+    let h = a.header().clone();
+    let bound = h.quantization.step * 0.5 * 3f32.sqrt() * 1.01;
+    let (mut full, mut coarse) = (Decoder::new(a.borrowed(), 0).expect("decoder"), Decoder::new(a.borrowed(), 1).expect("decoder"));
+    let from = h.level_sizes[0] as usize;
+    for f in 0..h.frame_count {
+        full.seek(f).expect("frame");
+        coarse.seek(f).expect("coarse frame");
+        let mesh = full.mesh(CutTarget::Level(0)).expect("mesh");
+        for (v, (p, t)) in mesh.positions.iter().zip(&seq.frames[f as usize]).enumerate() {
+            assert!((*p - *t).abs().max_element() <= bound, "frame {f} vertex {v}: {p} for {t}");
+        }
+        assert_eq!(coarse.quantized()[from..], full.quantized()[from..], "frame {f}");
+    }
+}

@@ -6,7 +6,7 @@
 
 use pmcodec_container::testing::reseal;
 use pmcodec_container::{
-    ChunkKind, ContainerError, CutTarget, Decoder, EncodeOptions, QuantizationChoice, Reader, encode, summary, verify,
+    ChunkKind, ContainerError, CutTarget, Decoder, EncodeOptions, PaletteCoding, QuantizationChoice, Reader, encode, summary, verify,
 };
 use pmcodec_mesh::Sequence;
 use pmcodec_mesh::skin::bending_tube;
@@ -60,10 +60,13 @@ fn exact_skinning_round_trips_with_a_fraction_of_the_position_bytes() {
     round_trip(&seq, &plain);
     let (rs, rp) = (Reader::open(skinned.as_slice()).expect("open"), Reader::open(plain.as_slice()).expect("open"));
     assert!(rs.header().skin.is_some() && rp.header().skin.is_none());
-    assert!(rp.index().chunks.iter().all(|e| !matches!(e.kind, ChunkKind::Bind | ChunkKind::Pose | ChunkKind::Palette)));
-    // Today's encoder writes the palette by band (Palette chunks), never the older Pose chunks.
-    assert!(rs.index().chunks.iter().any(|e| e.kind == ChunkKind::Palette));
-    assert!(rs.index().chunks.iter().all(|e| e.kind != ChunkKind::Pose));
+    assert!(
+        rp.index().chunks.iter().all(|e| !matches!(e.kind, ChunkKind::Bind | ChunkKind::Pose | ChunkKind::Palette | ChunkKind::Joints))
+    );
+    // Today's encoder writes the palette by band as Joints chunks, never the older Pose or
+    // Palette chunks.
+    assert!(rs.index().chunks.iter().any(|e| e.kind == ChunkKind::Joints));
+    assert!(rs.index().chunks.iter().all(|e| !matches!(e.kind, ChunkKind::Pose | ChunkKind::Palette)));
     let (ss, sp) = (summary(&rs), summary(&rp));
     // Band 0 follows the skin to within rounding: its residuals all but vanish.
     assert!(
@@ -131,13 +134,13 @@ fn coarse_clients_read_only_their_bands_joints() {
         r.index()
             .chunks
             .iter()
-            .filter(|e| e.kind == ChunkKind::Palette && e.kind.read_at(e.band as usize, level))
+            .filter(|e| e.kind == ChunkKind::Joints && e.kind.read_at(e.band as usize, level))
             .map(|e| e.stored_len as u64)
             .sum()
     };
     let top = r.header().top();
     assert!(palette_bytes(top) < palette_bytes(0), "palette bytes: {} at the top level, {} in full", palette_bytes(top), palette_bytes(0));
-    assert!(r.index().chunks.iter().any(|e| e.kind == ChunkKind::Palette && e.band as usize != top), "entries below the top band");
+    assert!(r.index().chunks.iter().any(|e| e.kind == ChunkKind::Joints && e.band as usize != top), "entries below the top band");
     // `summary` (what `pmcodec info` and the server's asset metadata report) counts for each
     // level the palettes its clients read, not every band's.
     let s = summary(&r);
@@ -166,15 +169,22 @@ fn refused(bytes: &[u8]) -> ContainerError {
 fn damaged_skin_chunks_are_refused_by_name() {
     let seq = bending_tube(8, 12, 6);
     let bytes = encode(&seq, &options(), |_| {}).expect("encode");
+    let older = encode(&seq, &EncodeOptions { palette_coding: PaletteCoding::Palette, ..options() }, |_| {}).expect("encode");
     let damage = |kind: ChunkKind, frame: u32, f: fn(&mut Vec<u8>)| {
-        reseal(&bytes, |u| {
+        let bytes = if kind == ChunkKind::Palette { &older } else { &bytes };
+        reseal(bytes, |u| {
             let c = u.chunks.iter_mut().find(|c| c.entry.kind == kind && c.entry.frame == frame).expect("chunk");
             f(&mut c.raw);
         })
         .expect("reseal")
     };
     type Damage = fn(&mut Vec<u8>);
-    let cases: [(ChunkKind, u32, Damage, &str); 5] = [
+    let cases: [(ChunkKind, u32, Damage, &str); 9] = [
+        (ChunkKind::Joints, 2, |raw| raw[0] = 0x7f, "joints: band mask 0x7f names bands beyond"),
+        (ChunkKind::Joints, 0, |raw| raw.push(1), "joints: 1 bytes left over"),
+        (ChunkKind::Joints, 3, |raw| raw.truncate(2), "joints: ends inside its bits"),
+        // A keyframe's first entry: every order 31 makes its numbers run past the chunk.
+        (ChunkKind::Joints, 0, |raw| raw[1..].fill(0xff), "joints: "),
         (ChunkKind::Bind, 0, |raw| raw.push(0), "bind: 1 bytes left over"),
         (
             ChunkKind::Bind,
@@ -192,6 +202,7 @@ fn damaged_skin_chunks_are_refused_by_name() {
     ];
     for (kind, frame, f, expected) in cases {
         let e = refused(&damage(kind, frame, f));
+        assert!(kind == ChunkKind::Bind || e.to_string().contains(&format!("frame {frame} band")), "{kind:?}: {e}");
         assert!(matches!(e, ContainerError::Corrupt { .. }) && e.to_string().contains(expected), "{kind:?}: {e}");
     }
     // The header's skin: a palette of no entries.
@@ -217,8 +228,8 @@ fn chunks_for_a_frame_include_the_skin() {
         let want = d.chunks_for(6);
         let binds: Vec<u32> = want.iter().filter(|e| e.kind == ChunkKind::Bind).map(|e| e.band).collect();
         let top = r.header().top() as u32;
-        let poses: Vec<u32> = want.iter().filter(|e| e.kind == ChunkKind::Palette && e.band == top).map(|e| e.frame).collect();
-        assert!(want.iter().filter(|e| e.kind == ChunkKind::Palette).all(|e| e.band as usize >= level), "level {level}");
+        let poses: Vec<u32> = want.iter().filter(|e| e.kind == ChunkKind::Joints && e.band == top).map(|e| e.frame).collect();
+        assert!(want.iter().filter(|e| e.kind == ChunkKind::Joints).all(|e| e.band as usize >= level), "level {level}");
         assert_eq!(binds, (level as u32..r.header().levels() as u32).rev().collect::<Vec<_>>(), "level {level}");
         assert_eq!(poses, vec![4, 5, 6], "level {level}: keyframe 4 and the frames after it");
         d.seek(6).expect("seek");
@@ -252,4 +263,54 @@ fn sparse_and_stored_chunks_shrink_small_files_and_decode_the_same() {
             assert_eq!(da.quantized(), db.quantized(), "level {level} frame {f}");
         }
     }
+}
+
+/// Files written with Palette chunks (before the Joints chunk) still decode; the Joints chunks
+/// of the same sequence take fewer bytes and give the same palettes to within the bound (both
+/// round trip), on a skeleton whose joints rotate, one of them with a uniform scale that
+/// changes and one sheared (not rigid: sent as twelve values).
+#[test]
+fn joints_chunks_code_rotations_scales_and_shears_in_fewer_bytes_than_palette_chunks() {
+    let mut seq = bending_tube(12, 30, 32);
+    let skin = seq.skin.as_mut().expect("skin");
+    let n = skin.rest.len();
+    skin.palette_len = 4;
+    skin.palette_names.extend(["scaled".to_string(), "sheared".to_string()]);
+    for v in 0..n {
+        // The first third of the vertices follow the scaled joint, the last third the sheared one.
+        let e = if v < n / 3 {
+            2
+        } else if v >= 2 * n / 3 {
+            3
+        } else {
+            continue;
+        };
+        skin.joints[v] = [e, 0, 0, 0];
+        skin.weights[v] = [1.0, 0.0, 0.0, 0.0];
+    }
+    for (f, ms) in skin.matrices.iter_mut().enumerate() {
+        let upper = ms[1];
+        let s = 1.0 + 0.02 * f as f32;
+        let scaled: [f32; 12] = std::array::from_fn(|i| if i % 4 == 3 { upper[i] + 0.01 * f as f32 } else { upper[i] * s });
+        let mut sheared = upper;
+        sheared[1] += 0.3 + 0.01 * f as f32;
+        ms.extend([scaled, sheared]);
+    }
+    let skin = seq.skin.as_ref().expect("skin");
+    seq.frames = (0..skin.matrices.len()).map(|f| (0..n).map(|v| skin.pose_vertex(f, v)).collect()).collect();
+    // Keyframes every 16 frames, as by default: each sends every entry from scratch.
+    let opts = EncodeOptions { keyframe_interval: 16, ..options() };
+    let joints = encode(&seq, &opts, |_| {}).expect("encode");
+    let older = encode(&seq, &EncodeOptions { palette_coding: PaletteCoding::Palette, ..opts }, |_| {}).expect("encode");
+    round_trip(&seq, &joints);
+    round_trip(&seq, &older);
+    let (a, b) = (Reader::open(joints.as_slice()).expect("open"), Reader::open(older.as_slice()).expect("open"));
+    assert!(b.index().chunks.iter().any(|e| e.kind == ChunkKind::Palette) && b.index().chunks.iter().all(|e| e.kind != ChunkKind::Joints));
+    let (sa, sb) = (summary(&a), summary(&b));
+    assert!(
+        sa.pose_bytes * 4 < sb.pose_bytes * 3,
+        "palettes: {} bytes in Joints chunks, {} in Palette chunks",
+        sa.pose_bytes,
+        sb.pose_bytes
+    );
 }

@@ -3,7 +3,7 @@
 //! A cut is stored as the set of *expanded* nodes: nodes whose children are shown instead of
 //! themselves. It is closed upward (a node's parent is expanded whenever it is), and the cut
 //! nodes are the unexpanded nodes whose parent is expanded, plus the unexpanded top-level
-//! nodes. By the degenerate-set rule (see [`crate::degenerate`]) the shown triangles are the
+//! nodes. By the degenerate-set rule (see [`crate::DegenerateSets`]) the shown triangles are the
 //! never-degenerating ones plus D_a of every expanded node a.
 
 use crate::Hierarchy;

@@ -52,11 +52,6 @@ impl LevelAdjacency {
     }
 }
 
-/// Adjacency of every level of `h`, built bottom-up, into `out`'s allocations.
-pub fn level_adjacency(h: &Hierarchy, topo: &FineTopology, out: &mut Vec<LevelAdjacency>) {
-    level_adjacency_with(h, topo, out, &mut LevelScratch::default());
-}
-
 /// What [`level_adjacency_with`] sorts and fills through, kept between frames.
 #[derive(Debug, Default)]
 pub struct LevelScratch {
@@ -65,8 +60,9 @@ pub struct LevelScratch {
     fill: Vec<u32>,
 }
 
-/// [`level_adjacency`] with its scratch kept by the caller: no allocation once every level has
-/// been as large as it gets (reclustering calls this every frame).
+/// Adjacency of every level of `h`, built bottom-up, into `out`'s allocations, with the scratch
+/// kept by the caller: no allocation once every level has been as large as it gets
+/// (reclustering calls this every frame).
 pub fn level_adjacency_with(h: &Hierarchy, topo: &FineTopology, out: &mut Vec<LevelAdjacency>, s: &mut LevelScratch) {
     out.resize_with(h.levels(), LevelAdjacency::default);
     out[0].offsets.clone_from(&topo.adj_offsets);

@@ -1,6 +1,6 @@
 //! The multilevel hierarchy of Kircher & Garland, *Progressive Multiresolution Meshes for
-//! Deforming Surfaces* (2005): built by QEM edge collapse (section 3, [`build`]), with degenerate sets
-//! ([`degenerate`]) that make triangle budgets exact, and cuts ([`cut`]) that extract a mesh for
+//! Deforming Surfaces* (2005): built by QEM edge collapse (section 3, [`mod@build`]), with degenerate sets
+//! ([`DegenerateSets`]) that make triangle budgets exact, and cuts ([`cut`]) that extract a mesh for
 //! any frame.
 //!
 //! Data is flat arrays indexed by `u32`; nodes have a global id (see [`Hierarchy`]).
@@ -12,17 +12,17 @@
 pub mod base;
 pub mod build;
 pub mod cut;
-pub mod degenerate;
-pub mod hierarchy;
-pub mod levels;
-pub mod nodes;
+mod degenerate;
+mod hierarchy;
+mod levels;
+mod nodes;
 pub mod progressive;
 pub mod quadric;
 pub mod recluster;
 pub mod rows;
 pub mod split_order;
-pub mod target;
-pub mod topology;
+mod target;
+mod topology;
 
 pub use build::{BuildError, BuildOptions, build};
 pub use cut::{ChildIndex, Cut};

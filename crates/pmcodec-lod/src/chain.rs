@@ -41,8 +41,12 @@ pub struct LodLevel {
 /// The input (welded), the levels, and how they were made.
 #[derive(Clone, Debug)]
 pub struct LodChain {
+    /// The rig the chain was built from, as given; every level keeps its nodes, skins and animations.
     pub input: RiggedMesh,
+    /// The input's vertices welded across seams (rest position, influences, morph deltas) with
+    /// their classes; a level vertex's id indexes these.
     pub attrs: VertexAttrs,
+    /// The levels, finest first, each nested in the one before.
     pub levels: Vec<LodLevel>,
     /// Number of example poses the costs were summed over.
     pub pose_count: usize,

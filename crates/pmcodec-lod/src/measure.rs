@@ -17,6 +17,7 @@ use serde::Serialize;
 pub struct MeasureOptions {
     /// Frames per second at which every animation is sampled.
     pub frame_rate: f32,
+    /// Surface samples for the two-sided RMS distance (count and seed; fixed seed, so runs repeat).
     pub samples: SampleOptions,
 }
 
@@ -33,6 +34,7 @@ pub struct ErrorStats {
     pub mean: f64,
     /// Largest per-frame RMS distance.
     pub max: f64,
+    /// Frames measured, over every animation.
     pub frames: usize,
 }
 

@@ -32,15 +32,20 @@ use pmcodec_hierarchy::Quadric;
 /// How a collapse places the surviving vertex (see the module documentation).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Placement {
+    /// Keep the cheaper endpoint as it is (Mohr & Gleicher 2003, 4.3).
     Endpoint,
+    /// Blend both endpoints' skins and solve the rest position over all poses.
     Blended,
+    /// One endpoint's skin, moved by a bone-space translation (Houle & Poulin 2001, 4.1, over all poses).
     #[default]
     HoulePoulin,
 }
 
 impl Placement {
+    /// Every policy: endpoint, blended, Houle & Poulin (examples and tests compare all three).
     pub const ALL: [Placement; 3] = [Placement::Endpoint, Placement::Blended, Placement::HoulePoulin];
 
+    /// The policy's name on the command line and in the GLB's `extras` (`endpoint`, `blended`, `houle-poulin`).
     pub fn name(self) -> &'static str {
         match self {
             Placement::Endpoint => "endpoint",
@@ -49,6 +54,7 @@ impl Placement {
         }
     }
 
+    /// The policy named `s` (see [`Placement::name`]); `None` for any other text.
     pub fn parse(s: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|p| p.name() == s)
     }

@@ -91,6 +91,7 @@ pub fn animation_key(a: &Animation) -> String {
 /// Per-vertex importance (see the module documentation).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum VertexWeighting {
+    /// Every vertex weighs 1.
     None,
     /// Berner & Rieger: 0.33 / 0.66 / 1.0 by displacement tertile.
     #[default]
@@ -104,7 +105,9 @@ pub enum VertexWeighting {
 pub struct PoseOptions {
     /// Frames sampled evenly over each animation (first and last key included).
     pub per_animation: usize,
+    /// User weights per pose (by animation name or `#index`, `rest`, `morph`).
     pub weights: PoseWeights,
+    /// Per-vertex importance from morph-target displacement (Berner & Rieger).
     pub vertex_weighting: VertexWeighting,
 }
 

@@ -33,31 +33,48 @@ pub struct Appearance {
     /// Material of each triangle, an index into `materials`; empty means every triangle uses
     /// material 0 (or the default material when `materials` is empty too).
     pub triangle_material: Vec<u32>,
+    /// The materials `triangle_material` indexes (glTF §3.9); empty for an input without any.
     pub materials: Vec<Material>,
+    /// The textures materials name through [`TextureRef::texture`].
     pub textures: Vec<Texture>,
+    /// The samplers textures name through [`Texture::sampler`].
     pub samplers: Vec<Sampler>,
+    /// The encoded images textures name through [`Texture::image`].
     pub images: Vec<Image>,
 }
 
 /// glTF 2.0's metallic-roughness material (§3.9), the core fields.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
+    /// The material's name in the input (glTF `name`, OBJ `newmtl`), if any.
     pub name: Option<String>,
+    /// `baseColorFactor`, linear RGBA; multiplies the base colour texture.
     pub base_color_factor: [f32; 4],
+    /// `baseColorTexture` (sRGB).
     pub base_color_texture: Option<TextureRef>,
+    /// `metallicFactor` in 0..=1.
     pub metallic_factor: f32,
+    /// `roughnessFactor` in 0..=1.
     pub roughness_factor: f32,
+    /// `metallicRoughnessTexture`: roughness in its green channel, metalness in blue.
     pub metallic_roughness_texture: Option<TextureRef>,
+    /// `normalTexture`, a tangent-space normal map.
     pub normal_texture: Option<TextureRef>,
     /// `normalTexture.scale`.
     pub normal_scale: f32,
+    /// `occlusionTexture`: ambient occlusion in its red channel.
     pub occlusion_texture: Option<TextureRef>,
     /// `occlusionTexture.strength`.
     pub occlusion_strength: f32,
+    /// `emissiveTexture` (sRGB).
     pub emissive_texture: Option<TextureRef>,
+    /// `emissiveFactor`, linear RGB.
     pub emissive_factor: [f32; 3],
+    /// `alphaMode`: how the base colour's alpha is used.
     pub alpha_mode: AlphaMode,
+    /// `alphaCutoff`: the threshold of [`AlphaMode::Mask`], ignored otherwise.
     pub alpha_cutoff: f32,
+    /// `doubleSided`: back faces are drawn and lit too.
     pub double_sided: bool,
 }
 
@@ -87,9 +104,12 @@ impl Default for Material {
 /// glTF `alphaMode`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum AlphaMode {
+    /// Alpha is ignored; the surface is fully opaque.
     #[default]
     Opaque,
+    /// Alpha below [`Material::alpha_cutoff`] is not drawn, the rest is opaque.
     Mask,
+    /// Alpha blends with what is behind.
     Blend,
 }
 
@@ -107,8 +127,11 @@ pub struct TextureRef {
 /// `KHR_texture_transform`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TextureTransform {
+    /// UV offset, applied after rotation and scale.
     pub offset: [f32; 2],
+    /// Counter-clockwise rotation of the UVs in radians.
     pub rotation: f32,
+    /// UV scale, applied first.
     pub scale: [f32; 2],
     /// Overrides [`TextureRef::tex_coord`] when set.
     pub tex_coord: Option<u32>,
@@ -126,9 +149,13 @@ pub struct Texture {
 /// glTF sampler (§3.8.4), its numeric enums as in the file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Sampler {
+    /// `magFilter` (9728 NEAREST, 9729 LINEAR); `None` lets the renderer choose.
     pub mag_filter: Option<u32>,
+    /// `minFilter` (NEAREST, LINEAR or one of the four mipmap modes); `None` lets the renderer choose.
     pub min_filter: Option<u32>,
+    /// `wrapS` (10497 REPEAT, 33071 CLAMP_TO_EDGE, 33648 MIRRORED_REPEAT).
     pub wrap_s: u32,
+    /// `wrapT`, the same values as `wrap_s`.
     pub wrap_t: u32,
 }
 
@@ -141,9 +168,11 @@ impl Default for Sampler {
 /// An encoded image, kept as the input's bytes (PNG or JPEG); never re-encoded.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Image {
+    /// The image's name in the input, if any (kept for writers and tools, not for decoding).
     pub name: Option<String>,
     /// `image/png` or `image/jpeg`.
     pub mime_type: String,
+    /// The encoded file, exactly as read.
     pub bytes: Vec<u8>,
 }
 

@@ -28,8 +28,11 @@ pub struct BinMeshError(pub &'static str);
 pub const VERSION_APPEARANCE: u32 = 3;
 /// Version 3's attribute flags: which per-vertex arrays follow the positions, in this order.
 pub const HAS_NORMALS: u32 = 1;
+/// Version 3 flag: per-vertex texture coordinates 0 follow (2 x f32 each).
 pub const HAS_UV0: u32 = 2;
+/// Version 3 flag: per-vertex texture coordinates 1 follow (2 x f32 each).
 pub const HAS_UV1: u32 = 4;
+/// Version 3 flag: per-vertex RGBA colours follow (4 x u8 each).
 pub const HAS_COLORS: u32 = 8;
 /// Bytes before version 3's material runs: the version 2 header, the flags and the run count.
 pub const HEADER_LEN_V3: usize = 24;
@@ -38,8 +41,11 @@ pub const HEADER_LEN_V3: usize = 24;
 /// an index into the asset's `appearance.materials` (proto/http.md).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct MaterialRun {
+    /// Index into the asset's materials.
     pub material: u32,
+    /// First triangle of the run.
     pub first: u32,
+    /// Triangles in the run.
     pub count: u32,
 }
 
@@ -48,6 +54,8 @@ fn index_bytes(version: u32, vertices: usize) -> usize {
     if version >= 2 && vertices <= MAX_U16_VERTICES { 2 } else { 4 }
 }
 
+/// Writes `mesh` in the version 2 layout (16-bit indices when it has at most
+/// [`MAX_U16_VERTICES`] vertices). Infallible: the layout holds any mesh whose counts fit a u32.
 pub fn encode_bin(mesh: &TriMesh) -> Vec<u8> {
     let (v, t) = (mesh.positions.len(), mesh.triangles.len());
     let width = index_bytes(VERSION, v);

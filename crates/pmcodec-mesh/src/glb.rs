@@ -11,10 +11,15 @@ use crate::appearance::{AlphaMode, Appearance, Material, TextureRef};
 use glam::Vec3;
 use serde_json::{Map, Value, json};
 
+/// glTF component type FLOAT (32-bit IEEE float).
 pub const FLOAT: u32 = 5126;
+/// glTF component type UNSIGNED_SHORT (16-bit indices, joint indices).
 pub const UNSIGNED_SHORT: u32 = 5123;
+/// glTF component type UNSIGNED_INT (32-bit indices).
 pub const UNSIGNED_INT: u32 = 5125;
+/// Buffer view target for vertex attributes.
 pub const ARRAY_BUFFER: u32 = 34962;
+/// Buffer view target for indices.
 pub const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 /// Primitive mode TRIANGLES.
 pub const TRIANGLES: u32 = 4;

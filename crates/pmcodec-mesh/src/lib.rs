@@ -2,19 +2,21 @@
 //!
 //! This crate is the input and output edge of pmcodec. It reads OBJ sequences ([`obj`]) and
 //! animated glTF/GLB files ([`gltf_input`]), validates them ([`Sequence::validate`]), and writes
-//! single frames as OBJ or GLB ([`write`]). Everything downstream (the hierarchy, the container,
+//! single frames as OBJ or GLB ([`mod@write`]). Everything downstream (the hierarchy, the container,
 //! the server) works on [`Sequence`] and [`TriMesh`] and never touches files itself.
 
+#![warn(missing_docs)]
 // `!(x > 0.0)` is written on purpose: it is also true for NaN, which these checks must reject.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod appearance;
 pub mod binmesh;
-pub mod error;
+mod error;
 pub mod glb;
 pub mod gltf_input;
-pub mod limits;
+mod limits;
 pub mod obj;
+pub mod rig_glb;
 pub mod samples;
 pub mod skin;
 pub mod skin_fit;
@@ -29,7 +31,9 @@ pub use skin::SequenceSkin;
 /// An indexed triangle mesh: the unit every writer and every measurement works on.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TriMesh {
+    /// Vertex positions, in the input's units.
     pub positions: Vec<Vec3>,
+    /// Counter-clockwise triangles indexing `positions`.
     pub triangles: Vec<[u32; 3]>,
 }
 
@@ -85,10 +89,12 @@ pub struct Sequence {
 }
 
 impl Sequence {
+    /// Vertices per frame (0 for a sequence without frames).
     pub fn vertex_count(&self) -> usize {
         self.frames.first().map_or(0, Vec::len)
     }
 
+    /// Number of frames.
     pub fn frame_count(&self) -> usize {
         self.frames.len()
     }

@@ -2,7 +2,7 @@
 //!
 //! Every frame's `v` and `f` records give the positions and the (shared) faces. The first
 //! frame's `vt`, `vn`, `mtllib` and `usemtl` records, when present, also give the sequence's
-//! [`crate::Appearance`] (see [`appearance`]): texture coordinates, normals and materials are
+//! [`crate::Appearance`] (see `obj::appearance`): texture coordinates, normals and materials are
 //! the same in every frame, so later frames' are not read. Groups and smoothing groups are
 //! ignored. Polygons are triangulated as fans, which is exact for the convex quads and n-gons
 //! that deforming-mesh exporters write.
@@ -20,7 +20,9 @@ pub const NONE: u32 = u32::MAX;
 /// One parsed OBJ file.
 #[derive(Clone, Debug, Default)]
 pub struct ObjFrame {
+    /// Vertex positions (`v` lines), in file order.
     pub positions: Vec<Vec3>,
+    /// Triangles (`f` lines, polygons fan-triangulated), 0-based indices into `positions`.
     pub triangles: Vec<[u32; 3]>,
     /// Appearance records, read only when asked for ([`parse_obj_appearance`],
     /// [`read_obj_appearance_with`]); empty otherwise.
@@ -28,7 +30,7 @@ pub struct ObjFrame {
 }
 
 /// The raw appearance records of one OBJ file, as written (resolved into wedges by
-/// [`appearance::build`]).
+/// `appearance::build`).
 #[derive(Clone, Debug, Default)]
 pub struct ObjAttributes {
     /// `vt` records (u, v; a third coordinate is ignored).

@@ -167,10 +167,6 @@ impl AssetCache {
         }
     }
 
-    pub fn store(&self) -> &Arc<dyn AssetStore> {
-        &self.store
-    }
-
     fn lru(&self) -> std::sync::MutexGuard<'_, Lru<AssetId, Cached>> {
         // Every critical section is a single map operation: a panic cannot leave it half done.
         self.lru.lock().unwrap_or_else(|p| p.into_inner())

@@ -18,10 +18,15 @@ pub struct Config {
     /// Folder where upload bodies wait for their encode job (one temporary file per job,
     /// removed when the job ends); `None` is the system's temporary folder.
     pub upload_dir: Option<PathBuf>,
+    /// Where assets live (`[store]`); the built-in samples by default.
     pub store: StoreConfig,
+    /// Bearer tokens for writes and reads (`[auth]`).
     pub auth: AuthConfig,
+    /// Body sizes, timeouts, queue depths and input limits (`[limits]`).
     pub limits: LimitsConfig,
+    /// Memory budgets of the asset and decoder caches (`[cache]`).
     pub cache: CacheConfig,
+    /// Origins allowed to call the API from a browser (`[cors]`).
     pub cors: CorsConfig,
     /// Frames between keyframes in containers encoded from uploads.
     pub keyframe_interval: u32,
@@ -58,27 +63,35 @@ pub enum StoreConfig {
     /// An empty in-memory store (tests, throwaway servers).
     Memory,
     /// A folder of `<id>.pmc` files.
-    Local { path: PathBuf },
+    Local {
+        /// The folder; it must exist when the server starts.
+        path: PathBuf,
+    },
     /// An S3-compatible bucket, shared by any number of servers.
     S3(S3Config),
 }
 
+/// An S3-compatible bucket (`[store] kind = "s3"`).
 #[derive(Clone, Debug, Default, Deserialize, Serialize, PartialEq)]
 #[serde(default, deny_unknown_fields)]
 pub struct S3Config {
+    /// Bucket name; must not be empty.
     pub bucket: String,
     /// Endpoint URL for S3-compatible stores (MinIO, s3s-fs, ...); empty for AWS itself.
     pub endpoint: Option<String>,
+    /// Region; `None` takes it from the environment (AWS_REGION), as the AWS SDKs do.
     pub region: Option<String>,
     /// Key prefix inside the bucket (e.g. `pmcodec/`), so a bucket can be shared.
     pub prefix: String,
     /// Credentials; without them the AWS_* environment variables and instance metadata apply.
     pub access_key_id: Option<Secret>,
+    /// Secret of `access_key_id`; only used together with it.
     pub secret_access_key: Option<Secret>,
     /// Allow `http://` endpoints (a store on the same host or network).
     pub allow_http: bool,
 }
 
+/// Bearer tokens (`[auth]`); compared in constant time, never logged.
 #[derive(Clone, Debug, Default, Deserialize, Serialize, PartialEq)]
 #[serde(default, deny_unknown_fields)]
 pub struct AuthConfig {
@@ -88,6 +101,8 @@ pub struct AuthConfig {
     pub read_token: Option<Secret>,
 }
 
+/// What one request, upload or job may cost (`[limits]`): every value has a default, so a file
+/// sets only those it changes.
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(default, deny_unknown_fields)]
 pub struct LimitsConfig {
@@ -99,6 +114,7 @@ pub struct LimitsConfig {
     pub unpacked_bytes: u64,
     /// Time to produce a response head; uploads get `upload_timeout_secs` for their body.
     pub request_timeout_secs: u64,
+    /// Time an upload's body may take to arrive.
     pub upload_timeout_secs: u64,
     /// More ranges than this in one `Range` header get the whole representation.
     pub max_ranges: usize,
@@ -151,20 +167,25 @@ impl Default for LimitsConfig {
 }
 
 impl LimitsConfig {
+    /// `request_timeout_secs` as a duration, at least one second.
     pub fn request_timeout(&self) -> Duration {
         Duration::from_secs(self.request_timeout_secs.max(1))
     }
+    /// `upload_timeout_secs` as a duration, at least one second.
     pub fn upload_timeout(&self) -> Duration {
         Duration::from_secs(self.upload_timeout_secs.max(1))
     }
+    /// `header_read_timeout_secs` as a duration, at least one second.
     pub fn header_read_timeout(&self) -> Duration {
         Duration::from_secs(self.header_read_timeout_secs.max(1))
     }
+    /// `idle_timeout_secs` as a duration, at least one second.
     pub fn idle_timeout(&self) -> Duration {
         Duration::from_secs(self.idle_timeout_secs.max(1))
     }
 }
 
+/// Memory budgets and workers of the in-process caches (`[cache]`).
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(default, deny_unknown_fields)]
 pub struct CacheConfig {
@@ -184,6 +205,7 @@ impl Default for CacheConfig {
     }
 }
 
+/// Cross-origin requests (`[cors]`).
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(default, deny_unknown_fields)]
 pub struct CorsConfig {
@@ -203,6 +225,7 @@ impl Default for CorsConfig {
 pub struct Secret(pub String);
 
 impl Secret {
+    /// The text itself, for a constant-time comparison or a store client; never log it.
     pub fn expose(&self) -> &str {
         &self.0
     }
@@ -214,14 +237,35 @@ impl fmt::Debug for Secret {
     }
 }
 
+/// Why a configuration could not be loaded: the message names the file or variable at fault.
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
+    /// The configuration file could not be read.
     #[error("reading {path}: {source}")]
-    Read { path: PathBuf, source: std::io::Error },
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// What the operating system said.
+        source: std::io::Error,
+    },
+    /// The configuration file is not valid TOML or JSON for [`Config`] (unknown keys are errors too).
     #[error("{path}: {detail}")]
-    Parse { path: PathBuf, detail: String },
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// The parser's message, with line and column.
+        detail: String,
+    },
+    /// A `PMCODEC_*` variable's value does not parse as its field's type.
     #[error("environment variable {name}={value:?}: {detail}")]
-    Env { name: &'static str, value: String, detail: String },
+    Env {
+        /// The variable.
+        name: &'static str,
+        /// Its value.
+        value: String,
+        /// Why it does not parse.
+        detail: String,
+    },
 }
 
 impl Config {
@@ -235,6 +279,7 @@ impl Config {
         Ok(config)
     }
 
+    /// Defaults, then the file alone (TOML, or JSON when it ends in `.json`); no environment.
     pub fn from_file(path: &Path) -> Result<Config, ConfigError> {
         let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read { path: path.into(), source })?;
         let parse_err = |detail: String| ConfigError::Parse { path: path.into(), detail };

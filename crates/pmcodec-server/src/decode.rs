@@ -286,10 +286,6 @@ impl DecodePool {
         drop(gone);
     }
 
-    pub fn workers(&self) -> usize {
-        self.workers
-    }
-
     pub fn gauges(&self) -> DecodeGauges {
         let s = &self.shared.stats;
         let inner = self.shared.lock();

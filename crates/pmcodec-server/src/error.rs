@@ -11,33 +11,60 @@ use std::time::Duration;
 /// the only place that turns them into statuses and bodies.
 #[derive(Debug, thiserror::Error)]
 pub enum ApiError {
+    /// 400: a malformed query, header or body (the text says which parameter and why).
     #[error("{0}")]
     BadRequest(String),
+    /// 400: a path names an asset id outside [`crate::AssetId`]'s alphabet.
     #[error("invalid asset id {0:?}: an id is 1 to 64 characters from a-z 0-9 . _ - and starts with a letter or digit")]
     InvalidId(String),
+    /// 401: no bearer token, or the wrong one, where one is needed.
     #[error("{0}")]
     Unauthorized(String),
+    /// 403: writes are disabled because no write token is configured.
     #[error("{0}")]
     Forbidden(String),
+    /// 404: no such asset, job, chunk, level or frame.
     #[error("{0}")]
     NotFound(String),
+    /// 405: the path exists but not with this method (the router's fallback).
     #[error("{method} is not allowed on {path}")]
-    MethodNotAllowed { method: String, path: String },
+    MethodNotAllowed {
+        /// The request's method.
+        method: String,
+        /// The request's path, clipped for the message.
+        path: String,
+    },
+    /// 409: the asset exists (create without `replace=true`), a job for it is running, or a
+    /// finished job was cancelled.
     #[error("{0}")]
     Conflict(String),
+    /// 413: the body is over the configured limit.
     #[error("the request body is larger than the limit of {limit} bytes")]
-    PayloadTooLarge { limit: u64 },
+    PayloadTooLarge {
+        /// The limit that applied, in bytes.
+        limit: u64,
+    },
+    /// 415: an upload that is neither OBJ, glTF/GLB nor a zip of them.
     #[error("{0}")]
     UnsupportedMediaType(String),
+    /// 416: no range of the `Range` header overlaps the representation.
     #[error("{detail}")]
-    RangeNotSatisfiable { detail: String, len: u64 },
+    RangeNotSatisfiable {
+        /// Which range and why.
+        detail: String,
+        /// The representation's length, sent as `Content-Range: bytes */len`.
+        len: u64,
+    },
     /// A bounded queue is full: the client should retry later.
     #[error("{0}")]
     Busy(String),
+    /// 503 with `Retry-After`: the handler did not answer within the request timeout.
     #[error("no response within {0:?}")]
     Timeout(Duration),
+    /// 502, or 404/409 for the store's own not-found and already-exists: the asset store failed.
     #[error("asset store: {0}")]
     Store(#[from] StoreError),
+    /// 500: an asset that cannot be read or a broken invariant; logged in full, answered with a generic text.
     #[error("{0}")]
     Internal(String),
 }
@@ -65,6 +92,7 @@ impl ApiError {
         }
     }
 
+    /// The HTTP status this error is answered with.
     pub fn status(&self) -> StatusCode {
         self.status_and_kind().0
     }
@@ -114,14 +142,24 @@ impl IntoResponse for ApiError {
 /// Why a server could not start.
 #[derive(Debug, thiserror::Error)]
 pub enum ServerError {
+    /// The configuration is inconsistent (see `Config::validate`), or decode workers or the upload folder could not be set up.
     #[error("configuration: {0}")]
     Config(String),
+    /// The configured store could not be opened (a missing folder, a bad S3 configuration).
     #[error("asset store: {0}")]
     Store(#[from] StoreError),
+    /// The listen address could not be bound (in use, no permission).
     #[error("binding {addr}: {source}")]
-    Bind { addr: std::net::SocketAddr, source: std::io::Error },
+    Bind {
+        /// The address.
+        addr: std::net::SocketAddr,
+        /// What the operating system said.
+        source: std::io::Error,
+    },
+    /// The accept loop or the server task failed.
     #[error("serving: {0}")]
     Serve(std::io::Error),
+    /// Encoding the built-in sample animations for a `samples` store failed.
     #[error("encoding the built-in samples: {0}")]
     Samples(String),
 }

@@ -12,12 +12,15 @@ use std::fmt;
 pub struct AssetId(String);
 
 impl AssetId {
+    /// Longest id, in bytes (ASCII, so also characters).
     pub const MAX_LEN: usize = 64;
 
+    /// Checks `s` and takes it; [`ApiError::InvalidId`] (400) otherwise, quoting at most a short prefix.
     pub fn parse(s: &str) -> Result<AssetId, ApiError> {
         if Self::is_valid(s) { Ok(AssetId(s.to_string())) } else { Err(ApiError::InvalidId(truncate_for_message(s))) }
     }
 
+    /// Whether `s` is a valid id: 1 to [`AssetId::MAX_LEN`] bytes of `a-z 0-9 . _ -`, the first a letter or digit.
     pub fn is_valid(s: &str) -> bool {
         let b = s.as_bytes();
         let first_ok = b.first().is_some_and(|c| c.is_ascii_lowercase() || c.is_ascii_digit());
@@ -26,6 +29,7 @@ impl AssetId {
             && b.iter().all(|&c| c.is_ascii_lowercase() || c.is_ascii_digit() || matches!(c, b'.' | b'_' | b'-'))
     }
 
+    /// The id as text.
     pub fn as_str(&self) -> &str {
         &self.0
     }

@@ -4,31 +4,33 @@
 //!   S3-compatible bucket shared by any number of stateless servers, or memory (the built-in
 //!   samples, encoded at start when no store is configured).
 //! - **LOD on demand**: any frame at a triangle budget, level or error bound, as GLB or a compact
-//!   binary, decoded on worker threads that keep decoder states in a bounded LRU ([`decode`]).
+//!   binary, decoded on worker threads that keep decoder states in a bounded LRU (module `decode`).
 //! - **Streaming**: the container, its chunk table and each chunk at content-addressed,
 //!   immutable URLs with strong ETags, conditional requests and (multi-)range support
-//!   ([`ranges`]), and a playback-order stream limited to the levels a client draws.
-//! - **Uploads** (bearer token) become encode jobs with progress over SSE ([`jobs`]); the asset
+//!   (module `ranges`), and a playback-order stream limited to the levels a client draws.
+//! - **Uploads** (bearer token) become encode jobs with progress over SSE (module `jobs`); the asset
 //!   appears with one atomic store write when the job succeeds.
 //! - **Operations**: request ids and tracing, Prometheus metrics, health and readiness, body
-//!   limits, timeouts, compression of JSON, CORS, graceful shutdown ([`middleware`]).
+//!   limits, timeouts, compression of JSON, CORS, graceful shutdown (module `middleware`).
 
-pub mod assets;
+#![warn(missing_docs)]
+
+mod assets;
 pub mod config;
 mod conn;
-pub mod decode;
+mod decode;
 mod error;
 mod id;
-pub mod jobs;
+mod jobs;
 mod looks;
 mod lru;
-pub mod meshfmt;
-pub mod metrics;
-pub mod middleware;
-pub mod ranges;
-pub mod routes;
+mod meshfmt;
+mod metrics;
+mod middleware;
+mod ranges;
+mod routes;
 pub mod store;
-pub mod upload;
+mod upload;
 
 pub use config::Config;
 pub use error::{ApiError, ServerError};
@@ -51,13 +53,16 @@ use tokio::sync::watch;
 #[derive(Clone)]
 pub struct AppState(Arc<Inner>);
 
+/// The server's shared state behind [`AppState`]: configuration, store, caches, jobs, metrics.
 pub struct Inner {
+    /// The configuration the server started with (read only after start).
     pub config: Config,
+    /// The asset store every server of a deployment shares.
     pub store: Arc<dyn AssetStore>,
-    pub assets: AssetCache,
-    pub decoder: Arc<DecodePool>,
-    pub jobs: Jobs,
-    pub metrics: Metrics,
+    pub(crate) assets: AssetCache,
+    pub(crate) decoder: Arc<DecodePool>,
+    pub(crate) jobs: Jobs,
+    pub(crate) metrics: Metrics,
     /// False until the store is filled (samples) and after shutdown began.
     pub ready: AtomicBool,
     /// Flips to true when shutdown begins; long responses (SSE) end on it.
@@ -106,10 +111,12 @@ impl AppState {
         })))
     }
 
+    /// Opens or closes `/readyz`: it answers 503 while `ready` is false.
     pub fn set_ready(&self, ready: bool) {
         self.ready.store(ready, Ordering::SeqCst);
     }
 
+    /// Whether `/readyz` answers 200.
     pub fn is_ready(&self) -> bool {
         self.ready.load(Ordering::SeqCst)
     }
@@ -193,7 +200,9 @@ pub async fn shutdown_signal() {
 
 /// A server running in the background of the current tokio runtime (tests, embedding).
 pub struct RunningServer {
+    /// The address actually bound (the OS picks the port when the configuration says 0).
     pub addr: SocketAddr,
+    /// The server's state, for tests that look at or change it while it runs.
     pub state: AppState,
     stop: Option<tokio::sync::oneshot::Sender<()>>,
     task: tokio::task::JoinHandle<Result<(), ServerError>>,

@@ -5,8 +5,11 @@ use pmcodec_mesh::{Appearance, TriMesh};
 
 pub use pmcodec_mesh::binmesh::{MAGIC as MESH_MAGIC, decode_bin, decode_bin_appearance, encode_bin, encode_bin_v3};
 
+/// The body format of a mesh response (`format=glb|bin`, `layout=3`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MeshFormat {
+    /// Binary glTF (`model/gltf-binary`), one mesh in one scene; textured when the asset has an
+    /// appearance.
     Glb,
     /// The compact binary, layout version 2 (positions and triangles).
     Bin,
@@ -16,6 +19,7 @@ pub enum MeshFormat {
 }
 
 impl MeshFormat {
+    /// The format named by a `format` query value (`glb` or `bin`); `layout=3` turns `bin` into [`MeshFormat::Bin3`] in the route.
     pub fn parse(s: &str) -> Option<MeshFormat> {
         match s {
             "glb" => Some(MeshFormat::Glb),
@@ -24,6 +28,7 @@ impl MeshFormat {
         }
     }
 
+    /// The name in logs and metrics labels (`glb`, `bin`, `bin3`).
     pub fn name(self) -> &'static str {
         match self {
             MeshFormat::Glb => "glb",
@@ -32,6 +37,7 @@ impl MeshFormat {
         }
     }
 
+    /// The response's `Content-Type`.
     pub fn content_type(self) -> &'static str {
         match self {
             MeshFormat::Glb => "model/gltf-binary",

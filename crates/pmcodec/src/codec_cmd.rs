@@ -94,6 +94,10 @@ pub struct EncodeArgs {
     /// has; the encoder falls back to the plain file where the skin does not pay for itself.
     #[arg(long, num_args = 0..=1, default_missing_value = "auto", value_name = "BONES")]
     pub fit_skin: Option<String>,
+    /// With --fit-skin: keep the fitted skin even where the plain file would be smaller (for
+    /// `decode --skinned-glb`, which exports a file's skin as a skinned glTF).
+    #[arg(long, requires = "fit_skin")]
+    pub keep_skin: bool,
     /// Print what was written (sizes, times, the fitted skin and whether it was used) as JSON
     /// on stdout.
     #[arg(long)]
@@ -319,7 +323,7 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
     let mut fitted_out = None;
     // What the encoder refuses is the input or an option value out of range: bad input.
     let bytes = if let Some((fit, fit_seconds)) = fitted {
-        let (bytes, out) = encode_fitted(&mut seq, &opts, fit, fit_seconds, &bar, &what())?;
+        let (bytes, out) = encode_fitted(&mut seq, &opts, (fit, fit_seconds, args.keep_skin), &bar, &what())?;
         fitted_out = Some(out);
         bytes
     } else {
@@ -398,12 +402,11 @@ fn encode_read(
 }
 
 /// Encodes `seq` with its fitted skin, and without it when the skin does not pay for its
-/// bytes; returns the file kept and what `--json` says of the fit.
+/// bytes (unless `keep`, from --keep-skin); returns the file kept and what `--json` says of the fit.
 fn encode_fitted(
     seq: &mut pmcodec_mesh::Sequence,
     opts: &EncodeOptions,
-    fit: pmcodec_mesh::skin_fit::FitReport,
-    fit_seconds: f64,
+    (fit, fit_seconds, keep): (pmcodec_mesh::skin_fit::FitReport, f64, bool),
     bar: &indicatif::ProgressBar,
     what: &str,
 ) -> Result<(Vec<u8>, FittedSkinOutput), Exit> {
@@ -431,6 +434,10 @@ fn encode_fitted(
     // 12 bits estimated 121,212 saved for 119,550 and was 0.4% larger), the plain file is
     // encoded too and the smaller kept.
     let mut used = saved as f64 > 1.25 * skin_bytes as f64;
+    if keep && !used {
+        reason.push_str("; kept as --keep-skin asks");
+        used = true;
+    }
     if !used {
         seq.skin = None;
         let plain = encode(seq, opts, |_| bar.inc(1)).map_err(|e| container_error(e, what))?;

@@ -69,6 +69,12 @@ pub struct DecodeArgs {
     /// the coarsest cut exceeded the budget).
     #[arg(long)]
     pub json: bool,
+    /// Write the file's skin as a skinned GLB to -o (.glb): the input's vertices at their bind
+    /// positions with their influences, every frame's bone transforms as an animation (files
+    /// with a skin: a glTF's, or one fitted by `encode --fit-skin --keep-skin`). Motion the skin
+    /// does not explain is left out; --json says how much.
+    #[arg(long, conflicts_with_all = ["all_frames", "frame", "triangles", "vertices", "level", "max_error"])]
+    pub skinned_glb: bool,
 }
 
 /// What one decoded frame holds, for the summary and `--json`.
@@ -191,6 +197,27 @@ pub fn decode_cmd(args: DecodeArgs, quiet: bool) -> Result<(), Exit> {
     }
     let reader = open(&args.input)?;
     let h = reader.header();
+    if args.skinned_glb {
+        if !args.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("glb")) {
+            return Err(Exit(2, anyhow!("--skinned-glb -o {}: name a .glb file", args.output.display())));
+        }
+        let mut dec = Decoder::new(reader.borrowed(), 0).map_err(|e| container_error(e, format!("reading {}", args.input.display())))?;
+        let out = crate::decode_rig::decode_rig(&mut dec, &args.input, &args.output, quiet)?;
+        if args.json {
+            println!("{}", serde_json::to_string_pretty(&out).context("writing JSON")?);
+        } else if !quiet {
+            eprintln!(
+                "{}: {} vertices, {} bones, {} frames; the rig misses the decoded frames by {:.4}% of the diagonal (RMS), {:.4}% at most",
+                out.path,
+                out.vertices,
+                out.bones,
+                out.frames,
+                out.rms_error * 100.0,
+                out.max_error * 100.0
+            );
+        }
+        return Ok(());
+    }
     let target = decode_target(&args, h)?;
     if !args.all_frames && args.frame >= h.frame_count {
         return Err(Exit(

@@ -3,6 +3,7 @@
 
 mod codec_cmd;
 mod decode_cmd;
+mod decode_rig;
 mod eval_cmd;
 mod info_cmd;
 mod input;

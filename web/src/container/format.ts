@@ -20,7 +20,7 @@ export const MAX_TABLE_LEN = 64 << 20;
 /** Caps on a header's declared sizes (proto/container.md, "Limits"). */
 export const MAX_VERTICES = 1 << 24, MAX_TRIANGLES = 1 << 25, MAX_NODES = 1 << 25, MAX_FRAMES = 1 << 20;
 
-export enum ChunkKind { Triangles = 0, Key = 1, Delta = 2, Positions = 3, Faces = 4, Corners = 5, Charts = 6, Attributes = 7, Materials = 8, Image = 9, Bind = 10, Pose = 11, Palette = 12 }
+export enum ChunkKind { Triangles = 0, Key = 1, Delta = 2, Positions = 3, Faces = 4, Corners = 5, Charts = 6, Attributes = 7, Materials = 8, Image = 9, Bind = 10, Pose = 11, Palette = 12, Joints = 13 }
 /** Most materials and images a file may declare; the largest Materials and Image chunks. */
 export const MAX_MATERIALS = 1 << 16, MAX_IMAGES = 1 << 12, MAX_MATERIALS_LEN = 16 << 20, MAX_IMAGE_LEN = 256 << 20;
 /** How band 0 is predicted on frames that are not keyframes (proto/container.md, "Positions, band j"). */
@@ -130,7 +130,7 @@ export function parseHeader(hb: Uint8Array, version: number): Header {
 }
 
 /** The largest chunk kind this decoder knows. */
-const LAST_KIND = ChunkKind.Palette;
+const LAST_KIND = ChunkKind.Joints;
 
 /**
  * The index of a file of `version` whose header declares `frames` frames. Versions up to 6:
@@ -194,7 +194,7 @@ export function checkTables(h: Header, index: ChunkEntry[], dataLen: number): vo
   let end = 0;
   const seen = new Set<string>();
   for (const e of index) {
-    if ((e.kind === ChunkKind.Bind || e.kind === ChunkKind.Pose || e.kind === ChunkKind.Palette) && !h.skin) throw new DecodeError(`${describe(e)}: a skin chunk in a file without a skin`);
+    if ((e.kind === ChunkKind.Bind || e.kind === ChunkKind.Pose || e.kind === ChunkKind.Palette || e.kind === ChunkKind.Joints) && !h.skin) throw new DecodeError(`${describe(e)}: a skin chunk in a file without a skin`);
     if (e.kind === ChunkKind.Bind && e.frame !== 0) throw new DecodeError(`${describe(e)}: frame ${e.frame}, where bind chunks are frame 0`);
     if (e.kind === ChunkKind.Pose && e.band !== 0) throw new DecodeError(`${describe(e)}: band ${e.band}, where pose chunks are band 0`);
     if (e.offset + e.storedLen > dataLen) throw new DecodeError(`${describe(e)}: the file ends before it does`);
@@ -228,6 +228,7 @@ function rawLenRange(h: Header, kind: ChunkKind, band: number): [number, number]
     case ChunkKind.Bind: return [4 * n, 101 * n];
     case ChunkKind.Pose: { const p = (h.skin?.paletteLen ?? 0) * ENTRY; return [1 + p, 10 + 10 * p]; }
     case ChunkKind.Palette: { const p = (h.skin?.paletteLen ?? 0) * ENTRY; return [1, 10 + Math.floor(p / ENTRY / 8) + 1 + 10 * p]; }
+    case ChunkKind.Joints: { const p = (h.skin?.paletteLen ?? 0) * ENTRY; return [2, 10 + 3 + Math.floor(p / ENTRY / 4) + 1 + 16 * p]; }
     default: return [1, 1024 + 24 * n];
   }
 }

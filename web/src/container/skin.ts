@@ -41,6 +41,59 @@ class Cursor64 {
 }
 
 const abs = (v: bigint): bigint => (v < 0n ? -v : v);
+const MAX_QUATERNION = 1n << 24n, MAX_SCALE = 1n << 48n, SCALE_ONE = 1n << 8n;
+
+/** An entry's rigid parameters (Joints chunks): quaternion w, x, y, z and the uniform scale in 2^-8 linear units. */
+export type Rig = bigint[];
+
+/**
+ * The integer matrix (row-major) of quaternion `r[0..4]` scaled by `r[4] / 2^8`, as `skin::rig_matrix`:
+ * `L[a][c] = floor((2 s N[a][c] + 2^8 n) / (2^9 n))`, exact in BigInt; null for the zero quaternion.
+ */
+export function rigMatrix(r: Rig): bigint[] | null {
+  const [w, x, y, z, s] = r;
+  const n = w * w + x * x + y * y + z * z;
+  if (n === 0n) return null;
+  const num = [
+    w * w + x * x - y * y - z * z, 2n * (x * y - w * z), 2n * (x * z + w * y),
+    2n * (x * y + w * z), w * w - x * x + y * y - z * z, 2n * (y * z - w * x),
+    2n * (x * z - w * y), 2n * (y * z + w * x), w * w - x * x - y * y + z * z,
+  ];
+  return num.map((m) => {
+    const a = 2n * s * m + SCALE_ONE * n, b = 2n * SCALE_ONE * n;
+    const q = a / b;
+    // BigInt division truncates; the format's is a floor.
+    return a % b < 0n ? q - 1n : q;
+  });
+}
+
+/** Bits, least significant first within each byte, and Exp-Golomb codes of them. */
+class Bits {
+  bit = 0;
+  constructor(private b: Uint8Array, private start: number, private what: string) {}
+  corrupt(detail: string): DecodeError { return new DecodeError(`${this.what}: ${detail}`); }
+  one(): number {
+    const i = this.start + (this.bit >> 3);
+    if (i >= this.b.length) throw this.corrupt(`ends inside its bits at byte ${this.b.length - this.start}`);
+    const v = (this.b[i] >> (this.bit & 7)) & 1;
+    this.bit++;
+    return v;
+  }
+  get(n: number): number { let v = 0; for (let i = 0; i < n; i++) v |= this.one() << i; return v; }
+  golomb(k: number): bigint {
+    let zeros = 0;
+    while (this.one() === 0) if (++zeros + k >= 64) throw this.corrupt("a number beyond 64 bits");
+    let v = 1n;
+    for (let i = 0; i < zeros + k; i++) v = (v << 1n) | BigInt(this.one());
+    return v - (1n << BigInt(k));
+  }
+  signed(k: number): bigint { const z = this.golomb(k); return BigInt.asIntN(64, (z >> 1n) ^ -(z & 1n)); }
+  finish(): void {
+    const end = this.start + Math.ceil(this.bit / 8);
+    if (end !== this.b.length) throw this.corrupt(`${this.b.length - end} bytes left over`);
+    if (this.bit % 8 !== 0 && this.b[end - 1] >> (this.bit % 8) !== 0) throw this.corrupt("bits set after its last number");
+  }
+}
 const wrap = (v: bigint): bigint => BigInt.asIntN(64, v);
 
 /** Reads a Bind chunk of `count` nodes into `out` from node `offset` on. */
@@ -109,8 +162,13 @@ export class SkinState {
   palette: BigInt64Array | null = null;
   previous: BigInt64Array | null = null;
   mask = 0n;
-  /** Files with Palette chunks: each band's entries (`bandEntries`); null: one Pose chunk per frame. */
+  /** Files with Palette or Joints chunks: each band's entries (`bandEntries`); null: one Pose chunk per frame. */
   bands: number[][] | null = null;
+  /** The file's palettes are in Joints chunks. */
+  joints = false;
+  /** Files with Joints chunks: each entry's rigid parameters in the current and the previous frame (null: not rigid). */
+  rig: (Rig | null)[] = [];
+  rigBefore: (Rig | null)[] = [];
   constructor(readonly nodes: NodeSkins) {}
 
   uses(j: number): boolean { return j < 64 && ((this.mask >> BigInt(j)) & 1n) === 1n; }
@@ -171,10 +229,64 @@ export class SkinState {
     return mask;
   }
 
-  advance(palette: BigInt64Array, intra: boolean, mask: bigint): void {
+  /**
+   * Reads a Joints chunk carrying `entries` into `out` and `rig` (the frame's palette and rigid
+   * parameters; entries it does not carry left as they are), predicted from the held palettes
+   * and rigid parameters; returns the band mask (proto/container.md, "Joints").
+   */
+  readJoints(raw: Uint8Array, what: string, entries: number[], levels: number, intra: boolean, out: BigInt64Array, rig: (Rig | null)[]): bigint {
+    const c = new Cursor64(raw, what);
+    const mask = c.get();
+    if (levels < 64 && mask >> BigInt(levels) !== 0n) throw c.corrupt(`band mask 0x${mask.toString(16)} names bands beyond the file's ${levels}`);
+    const p = intra ? null : this.palette, q = intra ? null : this.previous;
+    const predicted = (i: number): bigint => (p === null ? 0n : q === null ? (p[i] ?? 0n) : wrap(2n * (p[i] ?? 0n) - (q[i] ?? 0n)));
+    const rigAt = (e: number): bigint[] => {
+      const a = p === null ? null : (this.rig[e] ?? null), b = q === null ? null : (this.rigBefore[e] ?? null);
+      if (a === null) return [0n, 0n, 0n, 0n, 0n];
+      return b === null ? a : a.map((v, i) => wrap(2n * v - b[i]));
+    };
+    const r = new Bits(raw, c.pos, what);
+    const orders = [r.get(5), r.get(5), r.get(5), r.get(5)];
+    for (const e of entries) {
+      const base = e * ENTRY;
+      if (base + ENTRY > out.length || e >= rig.length) throw r.corrupt(`palette entry ${e} beyond the palette of ${out.length / ENTRY}`);
+      if (p !== null && r.one() === 0) {
+        for (let i = base; i < base + ENTRY; i++) out[i] = p[i] ?? 0n;
+        rig[e] = this.rig[e] ?? null;
+        continue;
+      }
+      const values: bigint[] = new Array(ENTRY);
+      if (r.one() === 1) {
+        const pr = rigAt(e);
+        const g = pr.map((v, i) => wrap(v + r.signed(orders[i < 4 ? 0 : 1])));
+        if (g.slice(0, 4).some((v) => abs(v) > MAX_QUATERNION)) throw r.corrupt(`palette entry ${e}: quaternion [${g.slice(0, 4).join(", ")}] beyond the limit of ${MAX_QUATERNION}`);
+        if (abs(g[4]) > MAX_SCALE) throw r.corrupt(`palette entry ${e}: scale ${g[4]} beyond the limit of ${MAX_SCALE}`);
+        const m = rigMatrix(g);
+        if (m === null) throw r.corrupt(`palette entry ${e}: the zero quaternion`);
+        for (let a = 0; a < 3; a++) {
+          for (let k = 0; k < 3; k++) values[4 * a + k] = m[3 * a + k];
+          values[4 * a + 3] = wrap(predicted(base + 4 * a + 3) + r.signed(orders[2]));
+        }
+        rig[e] = g;
+      } else {
+        for (let i = 0; i < ENTRY; i++) values[i] = wrap(predicted(base + i) + r.signed(orders[3]));
+        rig[e] = null;
+      }
+      for (let i = 0; i < ENTRY; i++) {
+        if (abs(values[i]) > MAX_MATRIX) throw r.corrupt(`palette entry ${e} ${i % 4 === 3 ? "translation" : "linear value"} ${values[i]} beyond the limit of ${MAX_MATRIX}`);
+        out[base + i] = values[i];
+      }
+    }
+    r.finish();
+    return mask;
+  }
+
+  advance(palette: BigInt64Array, intra: boolean, mask: bigint, rig: (Rig | null)[] = []): void {
     this.previous = intra ? null : this.palette;
     this.palette = palette;
     this.mask = mask;
+    this.rigBefore = intra ? [] : this.rig;
+    this.rig = rig;
   }
 
   /** Node `g` posed by `palette`, in position quanta, written to out[0..3]. */

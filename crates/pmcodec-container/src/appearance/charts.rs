@@ -35,6 +35,7 @@ pub struct Charts {
 }
 
 impl Charts {
+    /// Number of charts.
     pub fn count(&self) -> usize {
         self.chart_material.len()
     }

@@ -13,10 +13,13 @@ use pmcodec_mesh::{Appearance, TriMesh};
 /// Everything of a file's appearance but the images, as a decoder holds it.
 #[derive(Clone, Debug, Default)]
 pub struct DecodedAppearance {
+    /// The header's appearance field; `None` for a bare surface (then everything here is empty).
     pub info: Option<AppearanceInfo>,
+    /// Every input triangle's chart, and every chart's material and smoothing group.
     pub charts: Charts,
     /// Per level; `None` below the decoder's finest level.
     pub tables: Vec<Option<Table>>,
+    /// The Materials chunk: materials, textures, samplers, image descriptions.
     pub materials: MaterialsChunk,
     /// The images, read on first use and shared by clones of the decoder.
     pub images: Option<std::sync::Arc<Vec<pmcodec_mesh::appearance::Image>>>,

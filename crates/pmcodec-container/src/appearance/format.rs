@@ -21,6 +21,7 @@ pub struct AppearanceInfo {
     pub uv_sets: u8,
     /// Texture coordinates are `uv_min + q * uv_step` per axis (both sets).
     pub uv_min: [f32; 2],
+    /// Quantum of texture coordinates per axis, `(max - min) / (2^bits - 1)`.
     pub uv_step: [f32; 2],
     /// Whether entries carry an RGBA colour (8 bits per channel, linear).
     pub colors: bool,
@@ -38,67 +39,106 @@ impl AppearanceInfo {
 /// The Materials chunk (postcard).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct MaterialsChunk {
+    /// Materials in the input's order; charts name them by index.
     pub materials: Vec<RawMaterial>,
+    /// Textures (an image and a sampler each).
     pub textures: Vec<RawTexture>,
+    /// Samplers, glTF's numeric filter and wrap enums.
     pub samplers: Vec<RawSampler>,
+    /// Image descriptions; image `i`'s bytes are the Image chunk of band `i`.
     pub images: Vec<RawImage>,
 }
 
+/// A glTF 2.0 metallic-roughness material as stored; [`pmcodec_mesh::appearance::Material`]
+/// documents each field.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RawMaterial {
+    /// The input's name for it, if any.
     pub name: Option<String>,
+    /// `baseColorFactor`, linear RGBA.
     pub base_color_factor: [f32; 4],
+    /// `baseColorTexture`.
     pub base_color_texture: Option<RawTextureRef>,
+    /// `metallicFactor`.
     pub metallic_factor: f32,
+    /// `roughnessFactor`.
     pub roughness_factor: f32,
+    /// `metallicRoughnessTexture`.
     pub metallic_roughness_texture: Option<RawTextureRef>,
+    /// `normalTexture`.
     pub normal_texture: Option<RawTextureRef>,
+    /// `normalTexture.scale`.
     pub normal_scale: f32,
+    /// `occlusionTexture`.
     pub occlusion_texture: Option<RawTextureRef>,
+    /// `occlusionTexture.strength`.
     pub occlusion_strength: f32,
+    /// `emissiveTexture`.
     pub emissive_texture: Option<RawTextureRef>,
+    /// `emissiveFactor`, linear RGB.
     pub emissive_factor: [f32; 3],
     /// 0 opaque, 1 mask, 2 blend.
     pub alpha_mode: u8,
+    /// `alphaCutoff`, for mode 1 (mask).
     pub alpha_cutoff: f32,
+    /// `doubleSided`.
     pub double_sided: bool,
 }
 
+/// A material's use of a texture, as stored.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RawTextureRef {
+    /// Index into [`MaterialsChunk::textures`].
     pub texture: u32,
+    /// Texture coordinate set: 0 or 1.
     pub tex_coord: u32,
+    /// `KHR_texture_transform`, when present.
     pub transform: Option<RawTransform>,
 }
 
 /// `KHR_texture_transform`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RawTransform {
+    /// UV offset.
     pub offset: [f32; 2],
+    /// Rotation in radians.
     pub rotation: f32,
+    /// UV scale.
     pub scale: [f32; 2],
+    /// Texture coordinate set overriding [`RawTextureRef::tex_coord`].
     pub tex_coord: Option<u32>,
 }
 
+/// A texture as stored: an image and how it is sampled.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RawTexture {
+    /// Index into [`MaterialsChunk::images`].
     pub image: u32,
+    /// Index into [`MaterialsChunk::samplers`]; `None` for glTF's default sampler.
     pub sampler: Option<u32>,
 }
 
+/// A glTF sampler as stored (its numeric enums, as in the input).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RawSampler {
+    /// `magFilter`.
     pub mag_filter: Option<u32>,
+    /// `minFilter`.
     pub min_filter: Option<u32>,
+    /// `wrapS`.
     pub wrap_s: u32,
+    /// `wrapT`.
     pub wrap_t: u32,
 }
 
 /// An image's description; its bytes are its Image chunk.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RawImage {
+    /// The input's name for it, if any.
     pub name: Option<String>,
+    /// `image/png` or `image/jpeg`, from the bytes' signature.
     pub mime_type: String,
+    /// Length of its Image chunk's payload; a reader checks the chunk against it.
     pub byte_length: u32,
 }
 
@@ -119,6 +159,7 @@ fn cooked_ref(r: &Option<RawTextureRef>) -> Option<TextureRef> {
 }
 
 impl MaterialsChunk {
+    /// The chunk for `a`'s materials, textures, samplers and image descriptions (the image bytes go in Image chunks).
     pub fn from_appearance(a: &pmcodec_mesh::Appearance) -> MaterialsChunk {
         MaterialsChunk {
             materials: a

@@ -2,18 +2,18 @@
 //! materials stored once for the sequence, per level, coarse first; normals computed by
 //! decoders from decoded positions. See proto/container.md, "Appearance".
 //!
-//! - [`charts`]: the charts and smoothing groups of the input triangles.
-//! - [`tables`]: the encoder's per-level (node, chart) attribute tables.
-//! - [`payload`]: the Charts and Attributes chunk payloads.
-//! - [`cut`]: a decoded cut's per-corner attributes and normals.
-//! - [`format`]: the raw serialized types (header field, Materials chunk).
+//! - `charts`: the charts and smoothing groups of the input triangles.
+//! - `tables`: the encoder's per-level (node, chart) attribute tables.
+//! - `payload`: the Charts and Attributes chunk payloads.
+//! - `cut`: a decoded cut's per-corner attributes and normals.
+//! - [`mod@format`]: the raw serialized types (header field, Materials chunk).
 
-pub mod charts;
-pub mod cut;
+pub(crate) mod charts;
+pub(crate) mod cut;
 pub mod export;
 pub mod format;
-pub mod payload;
-pub mod tables;
+pub(crate) mod payload;
+pub(crate) mod tables;
 
 pub use charts::Charts;
 pub use cut::DecodedAppearance;

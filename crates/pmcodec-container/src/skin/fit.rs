@@ -5,7 +5,8 @@
 //! bone-space placement, "Simplification and real-time smooth transitions of articulated
 //! meshes", 2001, which `pmcodec-lod` applies per collapse).
 
-use super::{ENTRY, LINEAR_BITS, MAX_BIND, MAX_MATRIX, NodeSkin, SkinHeader, TRANSLATION_BITS, WEIGHT_ONE};
+use super::joints::{JointsFrame, fit_rig, rig_matrix};
+use super::{ENTRY, LINEAR_BITS, MAX_BIND, MAX_MATRIX, NodeSkin, SkinHeader, SkinState, TRANSLATION_BITS, WEIGHT_ONE};
 use crate::ContainerError;
 use crate::encode::SkinPlacement;
 use glam::{DMat3, DVec3, Vec3};
@@ -18,6 +19,9 @@ pub struct SkinFit<'a> {
     skin: &'a SequenceSkin,
     /// Every node's skin (global ids).
     pub nodes: Vec<NodeSkin>,
+    /// Per palette entry, the largest norm of a bind position of a node it influences, in bind
+    /// quanta: how far a rotation error of the entry moves a point.
+    radius: Vec<f64>,
     lo: Vec3,
     step: f64,
 }
@@ -133,7 +137,16 @@ pub fn fit_skin<'a>(
             nodes[g] = NodeSkin { bind: quantize_bind(bind, &|| format!("level {j} node {local}"))?, joints, weights };
         }
     }
-    Ok(SkinFit { header, skin, nodes, lo, step })
+    let mut radius = vec![0.0f64; skin.palette_len as usize];
+    for n in &nodes {
+        let norm = n.bind.iter().map(|&b| (b as f64).powi(2)).sum::<f64>().sqrt();
+        for (&j, &w) in n.joints.iter().zip(&n.weights) {
+            if let Some(r) = radius.get_mut(j as usize).filter(|_| w > 0) {
+                *r = r.max(norm);
+            }
+        }
+    }
+    Ok(SkinFit { header, skin, nodes, radius, lo, step })
 }
 
 /// The bind position that the blended transform of `joints`/`weights` in `frame` carries to
@@ -154,8 +167,43 @@ fn back_propagate(joints: &[u32; 4], weights: &[i64; 4], frame: &[[f32; 12]], x:
 }
 
 impl SkinFit<'_> {
-    /// Frame `f`'s palette in the file's fixed point (ENTRY values per entry).
-    pub fn palette(&self, f: usize) -> Result<Vec<i64>, ContainerError> {
+    /// Frame `f`'s palette as the Joints chunks code it, given what the decoder holds: entries
+    /// whose input matrix is the previous frame's are held; the others are rigid where a
+    /// rotation and uniform scale rebuild them to within a quarter quantum more than rounding
+    /// their twelve values would (`fit_rig`), else their twelve values rounded.
+    pub fn joints(&self, f: usize, held: &SkinState, intra: bool) -> Result<JointsFrame, ContainerError> {
+        let fixed = self.fixed(f)?;
+        let n = fixed.len() / ENTRY;
+        let prediction = held.joint_prediction(intra);
+        let mut out = JointsFrame { palette: vec![0; n * ENTRY], rig: vec![None; n], held: vec![false; n] };
+        let (now, before) = (self.skin.matrices.get(f), f.checked_sub(1).and_then(|b| self.skin.matrices.get(b)));
+        for e in 0..n {
+            let r = e * ENTRY..(e + 1) * ENTRY;
+            let same = matches!((now.and_then(|m| m.get(e)), before.and_then(|m| m.get(e))), (Some(a), Some(b)) if a == b);
+            if let (false, true, Some(p)) = (intra, same, held.palette.get(r.clone())) {
+                out.palette[r].copy_from_slice(p);
+                out.rig[e] = held.rig.get(e).copied().flatten();
+                out.held[e] = true;
+                continue;
+            }
+            let m = &fixed[r.clone()];
+            let radius = self.radius.get(e).copied().unwrap_or(0.0).max(1.0);
+            let tolerance = 0.25 + 1.5 * radius / (1u64 << LINEAR_BITS) as f64;
+            let rig = fit_rig(m, radius, prediction.rig_at(e), tolerance);
+            let linear = rig.as_ref().and_then(rig_matrix);
+            for (i, slot) in out.palette[r].iter_mut().enumerate() {
+                *slot = match linear {
+                    Some(l) if i % 4 != 3 => l[3 * (i / 4) + i % 4],
+                    _ => m[i].round() as i64,
+                };
+            }
+            out.rig[e] = rig;
+        }
+        Ok(out)
+    }
+
+    /// Frame `f`'s palette in the file's fixed point, before rounding.
+    fn fixed(&self, f: usize) -> Result<Vec<f64>, ContainerError> {
         let scale = self.header.bind_step as f64 / self.step * (1u64 << LINEAR_BITS) as f64;
         let tscale = (1u64 << TRANSLATION_BITS) as f64 / self.step;
         let lo = self.lo.as_dvec3().to_array();
@@ -165,14 +213,14 @@ impl SkinFit<'_> {
             for a in 0..3 {
                 for c in 0..4 {
                     let x = m[4 * a + c] as f64;
-                    let q = if c < 3 { (x * scale).round() } else { ((x - lo[a]) * tscale).round() };
-                    if !(q.is_finite() && q.abs() <= MAX_MATRIX as f64) {
+                    let q = if c < 3 { x * scale } else { (x - lo[a]) * tscale };
+                    if !(q.is_finite() && q.abs() <= MAX_MATRIX as f64 - 1.0) {
                         return Err(ContainerError::Options(format!(
                             "skin: frame {f}: the matrix of {} does not fit the file's fixed point",
                             self.skin.name(k)
                         )));
                     }
-                    out.push(q as i64);
+                    out.push(q);
                 }
             }
         }

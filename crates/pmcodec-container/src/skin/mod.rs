@@ -13,10 +13,15 @@
 #![allow(clippy::needless_range_loop)]
 
 mod fit;
+mod joints;
 mod payload;
+mod rig;
 
 pub(crate) use fit::{SkinFit, fit_skin};
+pub use joints::Rig;
+pub(crate) use joints::{JointPrediction, JointsFrame, read_joints, write_joints};
 pub(crate) use payload::{PosePrediction, read_binds, read_palette, read_pose, write_binds, write_palette};
+pub use rig::{bind_position, influences, palette_transforms};
 
 use serde::{Deserialize, Serialize};
 
@@ -47,8 +52,11 @@ pub const ENTRY: usize = 12;
 /// One node's skin: bind position and influences (palette entry, weight; weight 0 unused).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct NodeSkin {
+    /// Bind position in quanta of the header's `bind_step`.
     pub bind: [i64; 3],
+    /// Palette entries of the influences, in stored order.
     pub joints: [u32; 4],
+    /// Their weights in units of 2^-16, summing to 65536; 0 marks an unused slot.
     pub weights: [i64; 4],
 }
 
@@ -101,9 +109,15 @@ pub struct SkinState {
     pub previous: Vec<i64>,
     /// Bit j: band j is predicted by skinning in the current frame.
     pub mask: u64,
-    /// Files with Palette chunks: the palette entries each band's chunk carries (see
+    /// Files with Palette or Joints chunks: the palette entries each band's chunk carries (see
     /// [`band_entries`]; empty below the decoder's level). `None`: one Pose chunk per frame.
     pub bands: Option<Vec<Vec<u32>>>,
+    /// Files with Joints chunks: each entry's rigid parameters in the current frame and in the
+    /// previous one (`None`: not rigid; empty where the palette is).
+    pub rig: Vec<Option<Rig>>,
+    pub rig_before: Vec<Option<Rig>>,
+    /// The file's palettes are in Joints chunks (else Palette or Pose chunks).
+    pub joints: bool,
 }
 
 /// The palette entries each band's Palette chunk carries: those some node of the band uses
@@ -148,6 +162,11 @@ impl SkinState {
         }
     }
 
+    /// How the next frame's Joints chunks are predicted (see [`SkinState::prediction`]).
+    pub fn joint_prediction(&self, intra: bool) -> JointPrediction<'_> {
+        JointPrediction { pose: self.prediction(intra), rig: &self.rig, rig_before: &self.rig_before }
+    }
+
     /// Makes `palette` the current frame's (`intra`: a keyframe's).
     pub fn advance(&mut self, palette: Vec<i64>, intra: bool, mask: u64) {
         self.previous = std::mem::replace(&mut self.palette, palette);
@@ -156,6 +175,15 @@ impl SkinState {
             self.previous.clear();
         }
         self.mask = mask;
+    }
+
+    /// [`SkinState::advance`] for files with Joints chunks, with the frame's rigid parameters.
+    pub fn advance_rig(&mut self, palette: Vec<i64>, rig: Vec<Option<Rig>>, intra: bool, mask: u64) {
+        self.advance(palette, intra, mask);
+        self.rig_before = std::mem::replace(&mut self.rig, rig);
+        if intra {
+            self.rig_before.clear();
+        }
     }
 
     /// Whether band `j` is predicted by skinning in the current frame.
@@ -182,7 +210,9 @@ pub fn check_header(h: &crate::Header) -> Option<String> {
 pub fn check_entry(h: &crate::Header, e: &crate::ChunkEntry) -> Result<(), String> {
     use crate::ChunkKind;
     match e.kind {
-        ChunkKind::Bind | ChunkKind::Pose | ChunkKind::Palette if h.skin.is_none() => Err("a skin chunk in a file without a skin".into()),
+        ChunkKind::Bind | ChunkKind::Pose | ChunkKind::Palette | ChunkKind::Joints if h.skin.is_none() => {
+            Err("a skin chunk in a file without a skin".into())
+        }
         ChunkKind::Bind if e.frame != 0 => Err(format!("frame {}, where bind chunks are frame 0", e.frame)),
         ChunkKind::Pose if e.band != 0 => Err(format!("band {}, where pose chunks are band 0", e.band)),
         _ => Ok(()),
@@ -192,12 +222,14 @@ pub fn check_entry(h: &crate::Header, e: &crate::ChunkEntry) -> Result<(), Strin
 /// The decompressed sizes a skin chunk may declare: a bind chunk of `n` nodes takes 4 to 101
 /// bytes per node (three coordinates, a count, four entries and three weights of up to 10
 /// bytes), a pose chunk 1 to 10 bytes per palette value and its mask, a palette chunk its
-/// mask (1 to 10 bytes), a bit per entry and up to 10 bytes per value.
+/// mask (1 to 10 bytes), a bit per entry and up to 10 bytes per value; a joints chunk its mask
+/// and up to 20 bits of orders, 2 bits per entry and 127 bits per value.
 pub fn raw_len_range(h: &crate::Header, kind: crate::ChunkKind, n: u64) -> (u64, u64) {
     let p = h.skin.as_ref().map_or(0, |s| s.palette_len as u64) * ENTRY as u64;
     match kind {
         crate::ChunkKind::Bind => (4 * n, 101 * n),
         crate::ChunkKind::Palette => (1, 10 + p / ENTRY as u64 / 8 + 1 + 10 * p),
+        crate::ChunkKind::Joints => (2, 10 + 3 + p / ENTRY as u64 / 4 + 1 + 16 * p),
         _ => (1 + p, 10 + 10 * p),
     }
 }

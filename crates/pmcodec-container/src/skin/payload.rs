@@ -135,7 +135,7 @@ pub enum PosePrediction<'a> {
 
 impl PosePrediction<'_> {
     #[inline]
-    fn at(self, i: usize) -> i64 {
+    pub(crate) fn at(self, i: usize) -> i64 {
         let get = |p: &[i64]| p.get(i).copied().unwrap_or(0);
         match self {
             PosePrediction::Key => 0,
@@ -194,7 +194,7 @@ pub fn read_pose(
 
 impl<'a> PosePrediction<'a> {
     /// The previous frame's palette, unless this is a keyframe.
-    fn previous(self) -> Option<&'a [i64]> {
+    pub(crate) fn previous(self) -> Option<&'a [i64]> {
         match self {
             PosePrediction::Key => None,
             PosePrediction::Previous(p) | PosePrediction::Linear(p, _) => Some(p),

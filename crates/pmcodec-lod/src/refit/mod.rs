@@ -81,7 +81,7 @@ pub struct RefitOptions {
     /// position and deltas together). On the morph-animated Parrot this took the 10% error
     /// from 0.52 to 0.40 (meshoptimizer: 0.80).
     pub morph: bool,
-    /// Refit skin weights too, in rounds alternating with the positions' (see [`skin_step`]).
+    /// Refit skin weights too, in rounds alternating with the positions' (see `skin_step`).
     pub skin: bool,
 }
 

@@ -2,6 +2,69 @@
 
 use super::*;
 
+/// One animation of the file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Animation {
+    /// Position in the file's `animations` array.
+    pub index: usize,
+    /// The animation's name in the file, if any.
+    pub name: Option<String>,
+    /// Largest keyframe time over the channels, in seconds (0 without keys).
+    pub duration: f32,
+    /// The channels, in file order; samplers are resolved into them.
+    pub channels: Vec<Channel>,
+}
+
+impl Animation {
+    /// The name, or the index for an unnamed animation: what frame names start with.
+    pub fn label(&self) -> String {
+        self.name.clone().unwrap_or_else(|| self.index.to_string())
+    }
+}
+
+/// What an animation channel drives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AnimatedProperty {
+    /// `translation`, 3 floats per key.
+    Translation,
+    /// `rotation`, a quaternion (x, y, z, w) per key.
+    Rotation,
+    /// `scale`, 3 floats per key.
+    Scale,
+    /// The morph weights of the mesh the node instantiates.
+    MorphWeights,
+}
+
+/// Keyframe interpolation (glTF 2.0 §3.11, Appendix C).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Interpolation {
+    /// The value of the previous key, held until the next one.
+    Step,
+    /// Component-wise linear, spherical linear for rotations.
+    Linear,
+    /// Cubic Hermite with per-key in- and out-tangents.
+    CubicSpline,
+}
+
+/// One animation channel: keyframes of one property of one node.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Channel {
+    /// Target node, an index into the file's `nodes`.
+    pub node: usize,
+    /// Which of the node's properties the keys drive.
+    pub property: AnimatedProperty,
+    /// How values between keys are found.
+    pub interpolation: Interpolation,
+    /// Keyframe times in seconds, non-decreasing.
+    pub times: Vec<f32>,
+    /// `width` floats per keyframe, or for cubic splines three groups of `width` per keyframe:
+    /// in-tangent, value, out-tangent.
+    pub values: Vec<f32>,
+    /// Floats per value: 3 for translation and scale, 4 for rotation (x, y, z, w), the number of
+    /// morph targets for weights.
+    pub width: usize,
+}
+
 pub(super) fn read_animations(file: &GltfFile, morph_targets: &[usize]) -> Result<Vec<Animation>, MeshError> {
     use json::animation::{Interpolation as JsonInterpolation, Property};
     let mut out = Vec::new();

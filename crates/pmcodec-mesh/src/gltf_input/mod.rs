@@ -79,6 +79,7 @@ mod scene;
 mod tests;
 
 use self::animation::*;
+pub use self::animation::{AnimatedProperty, Animation, Channel, Interpolation};
 use self::draco::*;
 use self::file::*;
 use self::looks::*;

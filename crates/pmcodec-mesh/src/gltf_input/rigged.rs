@@ -77,7 +77,9 @@ pub struct MeshInstance {
 /// Which node, mesh and primitive of the file a primitive number stands for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PrimitiveRef {
+    /// Index into the file's `nodes`: the node that instantiates the mesh.
     pub node: usize,
+    /// Index into the file's `meshes`.
     pub mesh: usize,
     /// Index into the mesh's `primitives`.
     pub primitive: usize,
@@ -86,8 +88,11 @@ pub struct PrimitiveRef {
 /// A node's rest transform.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NodeTransform {
+    /// Local translation.
     pub translation: Vec3,
+    /// Local rotation, a unit quaternion.
     pub rotation: Quat,
+    /// Local non-uniform scale.
     pub scale: Vec3,
     /// Set when the node was given as a matrix. It is used as is unless an animation targets
     /// the node (which glTF forbids, §5.25), in which case its decomposition above is animated.
@@ -103,60 +108,10 @@ impl Default for NodeTransform {
 /// A skin: joint nodes and their inverse bind matrices (identity when the file has none).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Skin {
+    /// Joint nodes (indices into the file's `nodes`); a vertex's joint index `j` names `joints[j]`.
     pub joints: Vec<usize>,
+    /// One matrix per joint, from the mesh's space into the joint's space at bind time.
     pub inverse_bind_matrices: Vec<Mat4>,
-}
-
-/// One animation of the file.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Animation {
-    /// Position in the file's `animations` array.
-    pub index: usize,
-    pub name: Option<String>,
-    /// Largest keyframe time over the channels, in seconds (0 without keys).
-    pub duration: f32,
-    pub channels: Vec<Channel>,
-}
-
-impl Animation {
-    /// The name, or the index for an unnamed animation: what frame names start with.
-    pub fn label(&self) -> String {
-        self.name.clone().unwrap_or_else(|| self.index.to_string())
-    }
-}
-
-/// What an animation channel drives.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum AnimatedProperty {
-    Translation,
-    Rotation,
-    Scale,
-    /// The morph weights of the mesh the node instantiates.
-    MorphWeights,
-}
-
-/// Keyframe interpolation (glTF 2.0 §3.11, Appendix C).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Interpolation {
-    Step,
-    Linear,
-    CubicSpline,
-}
-
-/// One animation channel: keyframes of one property of one node.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Channel {
-    pub node: usize,
-    pub property: AnimatedProperty,
-    pub interpolation: Interpolation,
-    /// Keyframe times in seconds, non-decreasing.
-    pub times: Vec<f32>,
-    /// `width` floats per keyframe, or for cubic splines three groups of `width` per keyframe:
-    /// in-tangent, value, out-tangent.
-    pub values: Vec<f32>,
-    /// Floats per value: 3 for translation and scale, 4 for rotation (x, y, z, w), the number of
-    /// morph targets for weights.
-    pub width: usize,
 }
 
 /// What the rest of a file may still add while it is read: vertex records (a vertex plus one per
@@ -653,13 +608,13 @@ impl RiggedMesh {
 /// Per-vertex joints and weights, as stored in [`RiggedMesh::joints`] and [`RiggedMesh::weights`].
 pub(super) type Influences = (Vec<[u16; 4]>, Vec<[f32; 4]>);
 
-/// Reads every `JOINTS_n`/`WEIGHTS_n` pair of a skinned primitive and reduces each vertex to its
-/// four strongest influences, normalised to sum to 1 (§3.7.3.3 asks for normalised weights;
-/// exporters drift, so they are normalised rather than rejected).
 /// How far the (kept) weights of a vertex may sum from one before it is reported: 8-bit
 /// normalised weights round each to 1/255, so four of them may miss by 2/255.
 const WEIGHT_SUM_TOLERANCE: f32 = 0.01;
 
+/// Reads every `JOINTS_n`/`WEIGHTS_n` pair of a skinned primitive and reduces each vertex to its
+/// four strongest influences, normalised to sum to 1 (§3.7.3.3 asks for normalised weights;
+/// exporters drift, so they are normalised rather than rejected).
 pub(super) fn read_influences(
     file: &GltfFile,
     attribute: &dyn Fn(json::mesh::Semantic) -> Option<usize>,

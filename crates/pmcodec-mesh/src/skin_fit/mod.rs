@@ -5,9 +5,9 @@
 //! by linear blend skinning from it and codes only residuals (the motion compensation of MPEG-4
 //! FAMC, Mamou, Zaharia and Prêteux, 2008, for animations without a skeleton).
 //!
-//! The steps, one per file: [`cluster`] (bones from vertices clustered by motion), then
-//! alternately [`weights`] (each vertex's non-negative, affine weights on its candidate bones)
-//! and [`bones`] (each bone's rigid transform per frame by weighted Procrustes, [`horn`]). The
+//! The steps, one per file: `cluster` (bones from vertices clustered by motion), then
+//! alternately `weights` (each vertex's non-negative, affine weights on its candidate bones)
+//! and `bones` (each bone's rigid transform per frame by weighted Procrustes, `horn`). The
 //! rest pose is frame 0, where every bone is the identity. Deterministic (no randomness, every
 //! loop in a fixed order) and bounded: the bone count, the iterations and the frames the
 //! clustering compares are capped.
@@ -15,10 +15,10 @@
 // Per-vertex and per-bone loops index several parallel arrays at once, as the paper states them.
 #![allow(clippy::needless_range_loop)]
 
-pub mod bones;
-pub mod cluster;
-pub mod horn;
-pub mod weights;
+mod bones;
+mod cluster;
+mod horn;
+mod weights;
 
 use crate::{Sequence, SequenceSkin};
 use glam::DVec3;
@@ -38,8 +38,8 @@ pub struct FitOptions {
     pub cluster_iterations: u32,
     /// Alternations of SSDR's weight and transform steps.
     pub iterations: u32,
-    /// Candidate bones per vertex in the weight step (at least [`weights::MAX_INFLUENCES`]
-    /// pays: the fit picks the four it keeps among them).
+    /// Candidate bones per vertex in the weight step (at least the 4 influences a vertex keeps;
+    /// more pays: the fit picks the four it keeps among them).
     pub candidates: u32,
     /// Frames the clustering and the choice of candidates compare (evenly spaced).
     pub sample_frames: u32,
@@ -60,12 +60,22 @@ pub fn default_bones(n: usize) -> u32 {
 /// Why a skin could not be fitted.
 #[derive(Debug, thiserror::Error)]
 pub enum FitError {
+    /// The sequence failed [`Sequence::validate`]; a skin needs a valid one.
     #[error("fitting a skin: the sequence is invalid: {0}")]
     Invalid(#[from] crate::MeshError),
+    /// The bone count asked for is 0 or over [`MAX_BONES`].
     #[error("fitting a skin: {0} bones; use 1 to {MAX_BONES}")]
     Bones(u32),
+    /// Another [`FitOptions`] field is out of its range; `name` says which, `why` its bounds.
     #[error("fitting a skin: option {name} = {value}: {why}")]
-    Option { name: &'static str, value: u32, why: &'static str },
+    Option {
+        /// The field's name.
+        name: &'static str,
+        /// Its value.
+        value: u32,
+        /// The range it must be in.
+        why: &'static str,
+    },
 }
 
 /// How well a fitted skin reproduces its sequence.

@@ -18,6 +18,7 @@ use bytes::Bytes;
 use futures_util::future::BoxFuture;
 use std::path::{Path, PathBuf};
 
+/// A folder of `<id>.pmc` files, written by rename (or hard link for creates) of a flushed temporary dot-file.
 pub struct LocalStore {
     root: PathBuf,
 }

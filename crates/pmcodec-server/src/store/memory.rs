@@ -7,6 +7,7 @@ use futures_util::future::BoxFuture;
 use std::collections::BTreeMap;
 use std::sync::Mutex;
 
+/// Assets in a map under a mutex (the `samples` and `memory` stores, tests); lost at exit.
 #[derive(Default)]
 pub struct MemoryStore {
     inner: Mutex<Inner>,

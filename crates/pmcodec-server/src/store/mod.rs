@@ -24,7 +24,9 @@ use futures_util::future::BoxFuture;
 /// One stored asset as a listing sees it.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct StoredObject {
+    /// The asset.
     pub id: AssetId,
+    /// Bytes of the container.
     pub size: u64,
     /// Changes whenever the object is replaced (an S3 ETag, a file's inode and mtime, a
     /// counter), so a server can tell a cached copy is stale without reading the object.
@@ -41,15 +43,19 @@ pub enum PutMode {
     Create,
 }
 
+/// Why a store operation failed.
 #[derive(Debug, thiserror::Error)]
 pub enum StoreError {
+    /// The asset is not in the store.
     #[error("no asset {0}")]
     NotFound(AssetId),
     /// A [`PutMode::Create`] write found the asset there; nothing was written.
     #[error("asset {0} exists")]
     AlreadyExists(AssetId),
+    /// Reading, writing, listing or deleting failed in the store (a file system or S3 error).
     #[error("{0}")]
     Io(String),
+    /// The store could not be opened as configured (a missing folder, an empty bucket name).
     #[error("{0}")]
     Config(String),
 }

@@ -27,6 +27,7 @@ use object_store::{ClientOptions, ObjectMeta, ObjectStore, ObjectStoreExt, PutOp
 use std::sync::Arc;
 use std::time::Duration;
 
+/// An S3-compatible bucket via `object_store`: puts are atomic objects, creates use `If-None-Match: *`.
 pub struct S3Store {
     store: Arc<dyn ObjectStore>,
     bucket: String,
@@ -35,6 +36,7 @@ pub struct S3Store {
 }
 
 impl S3Store {
+    /// A client for `c`; fails with [`StoreError::Config`] on an empty bucket or a bad endpoint, without contacting the store.
     pub fn new(c: &S3Config) -> Result<S3Store, StoreError> {
         if c.bucket.trim().is_empty() {
             return Err(StoreError::Config("an S3 store needs a bucket name".into()));
