@@ -535,6 +535,7 @@ pub struct Index {
 /// which kind, frame, band and offset can be told from the order; issue 17).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct IndexV6 {
+    /// Every chunk, in file order, each entry with all its fields.
     pub chunks: Vec<ChunkEntry>,
 }
 
