@@ -38,6 +38,20 @@ function twice(log: [number, number][], len: number): number {
   return again;
 }
 
+test("range cache: a range that begins inside a held span asks for the rest only, and reads from one span", async () => {
+  // The first read of a file ends where its length falls, often inside a chunk.
+  const bytes = Uint8Array.from({ length: 1000 }, (_, i) => (i * 7) & 0xff);
+  const { fetch, log } = recorder(bytes);
+  const c = new RangeCache(fetch, 1 << 20);
+  await c.ensure([[0, 100]]);
+  await c.ensure([[90, 150]]);
+  assert.deepEqual(log, [[0, 100], [100, 150]]);
+  assert.deepEqual(Array.from(await c.read(90, 60)), Array.from(bytes.subarray(90, 150)));
+  assert.deepEqual(Array.from(await c.read(0, 150)), Array.from(bytes.subarray(0, 150)));
+  assert.equal(log.length, 2, "the reads came from the joined span");
+  assert.equal(c.size, 150);
+});
+
 test("range cache: adjacent ranges share a request, nothing is fetched twice, waiting reads share one request", async () => {
   const bytes = Uint8Array.from({ length: 1000 }, (_, i) => i & 0xff);
   const { fetch, log } = recorder(bytes);

@@ -1,16 +1,23 @@
 //! Issue 17, "overhead on small meshes": a file's bits per vertex per frame beyond its position
 //! bits (tables, chunk framing, index), written as files were before the preamble flags (every
-//! chunk a zstd frame, empty ones too) and as today's encoder writes them (`format::FLAGS`).
+//! chunk a zstd frame, empty ones too) and as today's encoder writes them (`format::FLAGS`),
+//! with the bytes of each chunk kind and of the preamble, header and index (and what the index
+//! took in version 6).
 //! Without arguments: a generated waving cloth of 54 x 54 = 2,916 vertices and 200 frames; with
-//! a glTF path, its animations played back to back (as the `skinned` example).
-//! `cargo run --release -p pmcodec-container --example overhead -- [file.glb]`
+//! a glTF path, its animations played back to back (as the `skinned` example); with a folder,
+//! its OBJ frames (the horse, the cat).
+//! `cargo run --release -p pmcodec-container --example overhead -- [file.glb | folder]`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
-use pmcodec_container::{EncodeOptions, QuantizationChoice, Reader, encode, summary};
+use pmcodec_container::{ChunkKind, EncodeOptions, QuantizationChoice, Reader, encode, summary};
 use pmcodec_mesh::gltf_input::RiggedMesh;
+use std::collections::BTreeMap;
 
 fn main() {
     let seq = match std::env::args().nth(1) {
         None => pmcodec_mesh::samples::waving_cloth(54, 54, 200),
+        Some(path) if std::path::Path::new(&path).is_dir() => {
+            pmcodec_mesh::obj::load_obj_sequence(std::path::Path::new(&path), 30.0).expect("load")
+        }
         Some(path) => {
             let mut rig = RiggedMesh::from_path(std::path::Path::new(&path)).expect("load");
             rig.weld();
@@ -32,22 +39,73 @@ fn main() {
         }
     };
     let (n, frames) = (seq.vertex_count(), seq.frame_count());
+    let per = |bytes: u64| bytes as f64 * 8.0 / (n * frames) as f64;
     println!("{n} vertices, {frames} frames, 12-bit quantization");
+    // `PMC_K=32`: another keyframe interval (the encoder's default is 16).
+    let k = std::env::var("PMC_K").ok().and_then(|k| k.parse().ok()).unwrap_or(EncodeOptions::default().keyframe_interval);
     for flags in [0, pmcodec_container::format::FLAGS] {
-        let opts = EncodeOptions { quantization: QuantizationChoice::Bits(12), chunk_flags: flags, ..Default::default() };
+        let opts =
+            EncodeOptions { quantization: QuantizationChoice::Bits(12), chunk_flags: flags, keyframe_interval: k, ..Default::default() };
         let bytes = encode(&seq, &opts, |_| {}).expect("encode");
         let r = Reader::open(bytes.as_slice()).expect("open");
         let s = summary(&r);
-        let total = bytes.len() as f64 * 8.0 / (n * frames) as f64;
+        let total = per(bytes.len() as u64);
         let stored = r.index().chunks.iter().filter(|e| e.stored_len == e.raw_len).count();
         println!(
-            "  flags {flags}: {} bytes, {total:.3} bits/vertex/frame, positions {:.3}, overhead {:.3}; \
-             {} chunks ({stored} stored as is), preamble+header+index {} B",
+            "  version {} flags {flags}: {} bytes, {total:.3} bits/vertex/frame, positions {:.3}, overhead {:.3}; \
+             {} chunks ({stored} stored as is), preamble+header+index {} B; levels {:?}",
+            r.version(),
             bytes.len(),
             s.positions_bits_per_vertex_frame,
             total - s.positions_bits_per_vertex_frame,
             r.index().chunks.len(),
-            r.data_start()
+            r.data_start(),
+            r.header().level_sizes,
         );
+        let pre = pmcodec_container::format::Preamble::parse(&bytes).expect("preamble");
+        let (header_len, index_len) = (pre.header_len as u64, pre.index_len as u64);
+        println!("    {:<12} {:>6} chunks {:>9} B {:>7.3} bits/v/f", "preamble", 1, 32, per(32));
+        println!("    {:<12} {:>6}        {:>9} B {:>7.3} bits/v/f", "header", "", header_len, per(header_len));
+        println!(
+            "    {:<12} {:>6}        {:>9} B {:>7.3} bits/v/f ({:.1} B per entry)",
+            "index",
+            "",
+            index_len,
+            per(index_len),
+            index_len as f64 / r.index().chunks.len().max(1) as f64
+        );
+        // The same entries as version 6 wrote them (postcard, every entry whole), for comparison.
+        let v6 = r.index().to_bytes(6, r.header().frame_count).expect("index").len() as u64;
+        println!("    {:<12} {:>6}        {:>9} B {:>7.3} bits/v/f (as version 6 wrote it)", "index v6", "", v6, per(v6));
+        // Bytes, chunks and items (the count each payload starts with: moves, corner updates,
+        // faces) per kind and band.
+        let mut kinds: BTreeMap<(u32, u32), (usize, u64, u64)> = BTreeMap::new();
+        for e in &r.index().chunks {
+            let k = kinds.entry((u32::from(e.kind), e.band)).or_default();
+            k.0 += 1;
+            k.1 += e.stored_len as u64;
+            if matches!(e.kind, ChunkKind::Delta | ChunkKind::Corners | ChunkKind::Faces) {
+                let raw = r.read_chunk(e).expect("chunk");
+                k.2 += pmcodec_container::payload::Cursor::new(&raw, "count").get().expect("count") as u64;
+            }
+        }
+        let mut by_kind: BTreeMap<u32, (usize, u64)> = BTreeMap::new();
+        for (&(k, _), &(count, b, _)) in &kinds {
+            let t = by_kind.entry(k).or_default();
+            t.0 += count;
+            t.1 += b;
+        }
+        for (k, (count, b)) in by_kind {
+            let name = ChunkKind::try_from(k).map_or("?", |k| k.name());
+            println!("    {name:<12} {count:>6} chunks {b:>9} B {:>7.3} bits/v/f", per(b));
+            for (&(_, band), &(c, bb, items)) in kinds.range((k, 0)..(k + 1, 0)) {
+                if matches!(k, 2 | 4 | 5) {
+                    println!(
+                        "      band {band}: {c:>5} chunks {bb:>8} B, {items:>7} items, {:.2} B per item",
+                        bb as f64 / items.max(1) as f64
+                    );
+                }
+            }
+        }
     }
 }

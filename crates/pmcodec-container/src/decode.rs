@@ -257,7 +257,7 @@ impl<S: ByteSource> Decoder<S> {
         for j in (self.min_level..h.levels()).rev() {
             let what = format!("frame {frame} band {j} keyframe");
             let raw = self.chunk(ChunkKind::Key, frame, j)?;
-            key.bands[j].parent = payload::read_key(&raw, &what, sizes, j)?;
+            key.bands[j].parent = payload::read_key(&raw, &what, sizes, j, self.reader.version())?;
             // Clusters are never empty (proto/container.md, "The model the file encodes"): a
             // parent map that leaves one empty is not a hierarchy the encoder wrote.
             if let Some(&above) = sizes.get(j + 1) {
@@ -287,7 +287,7 @@ impl<S: ByteSource> Decoder<S> {
                 .find(|e| e.kind == ChunkKind::Triangles)
                 .ok_or_else(|| ContainerError::Corrupt { what: "index".into(), detail: "no triangles chunk".into() })?;
             let raw = self.reader.read_chunk(e)?;
-            let triangles = payload::read_triangles(&raw, "triangles chunk", h.triangle_count, h.vertex_count)?;
+            let triangles = payload::read_triangles(&raw, "triangles chunk", h.triangle_count, h.vertex_count, self.reader.version())?;
             self.lower = LowerNeighbours::new(h.vertex_count as usize, &triangles, h.order);
             self.triangles = Some(triangles);
         }

@@ -288,7 +288,7 @@ fn assemble(header: &Header, chunks: Chunks) -> Result<Vec<u8>, ContainerError> 
         index.chunks.push(*e);
     }
     let hb = postcard::to_stdvec(header).map_err(|e| ContainerError::Io(format!("header: {e}")))?;
-    let ib = postcard::to_stdvec(&index).map_err(|e| ContainerError::Io(format!("index: {e}")))?;
+    let ib = index.to_bytes(VERSION, header.frame_count).map_err(|e| ContainerError::Io(format!("index: {e}")))?;
     let pre = Preamble {
         version: VERSION,
         flags,
@@ -691,7 +691,7 @@ fn code_frames(
     header.appearance = looks.as_ref().map(|l| l.info().clone());
 
     let mut chunks = Chunks(Vec::new(), opts.chunk_flags & crate::format::FLAGS);
-    chunks.push(ChunkKind::Triangles, 0, 0, payload::write_triangles(&seq.triangles))?;
+    chunks.push(ChunkKind::Triangles, 0, 0, payload::write_triangles(&seq.triangles, VERSION))?;
     let total = header.level_sizes.iter().map(|&n| n as usize).sum();
     let mut coder = PositionCoder {
         motion: opts.motion,
@@ -754,7 +754,7 @@ fn code_frames(
         let mut mask = 0u64;
         for j in (0..levels).rev() {
             if let Some(k) = &r.key {
-                chunks.push(ChunkKind::Key, f as u32, j as u32, payload::write_key(&k.bands[j].parent))?;
+                chunks.push(ChunkKind::Key, f as u32, j as u32, payload::write_key(&k.bands[j].parent, VERSION))?;
             }
             chunks.push(ChunkKind::Delta, f as u32, j as u32, payload::write_delta(&net_moves(delta, j)))?;
             let (positions, skinned) = coder.band(j, intra, h, truth, skinning);

@@ -7,11 +7,12 @@ use serde::{Deserialize, Serialize};
 /// transfers and truncating tools fail loudly, as in PNG's signature.
 pub const MAGIC: [u8; 8] = *b"\x89PMC\r\n\x1a\n";
 /// Format version this crate writes and reads.
-pub const VERSION: u16 = 6;
+pub const VERSION: u16 = 7;
 /// Oldest format version this crate still reads. Versions 3 to 5 differ from 6 in their
 /// header ([`HeaderV3`], [`HeaderV4`], [`HeaderV5`], migrated into [`Header`] on reading) and
-/// in having neither appearance nor skin chunks, so servers that upgrade keep serving what they
-/// stored.
+/// in having neither appearance nor skin chunks; versions 3 to 6 differ from 7 in their index
+/// ([`IndexV6`], postcard, migrated into [`Index`]). So servers that upgrade keep serving what
+/// they stored.
 pub const OLDEST_READABLE: u16 = 3;
 /// Size of the fixed preamble.
 pub const PREAMBLE_LEN: usize = 32;
@@ -42,7 +43,7 @@ pub const FLAG_STORED: u16 = 1;
 /// Preamble flag (version 6): Delta and Corners chunks with nothing in them (the one-byte
 /// payload 0: no swaps, no corner updates) are left out of the file, and a reader takes a
 /// missing one as that payload. Most frames of a small mesh swap nothing in most bands, and
-/// each chunk costs an index entry (about 15 bytes) besides its own bytes.
+/// each chunk costs an index entry (about 8 bytes, 15 before version 7) besides its own bytes.
 pub const FLAG_SPARSE: u16 = 2;
 /// The flags this encoder sets and this reader knows.
 pub const FLAGS: u16 = FLAG_STORED | FLAG_SPARSE;
@@ -522,9 +523,138 @@ impl ChunkEntry {
     }
 }
 
-/// The chunk index (postcard).
+/// The chunk index as readers hold it: every entry with its kind, frame, band and offset,
+/// whichever way the file wrote it ([`Index::from_bytes`]).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Index {
     /// Every chunk, in file order (by offset).
     pub chunks: Vec<ChunkEntry>,
+}
+
+/// The chunk index of versions 3 to 6: postcard, every entry whole (about 15 bytes each, of
+/// which kind, frame, band and offset can be told from the order; issue 17).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct IndexV6 {
+    /// Every chunk, in file order, each entry with all its fields.
+    pub chunks: Vec<ChunkEntry>,
+}
+
+impl From<IndexV6> for Index {
+    fn from(v6: IndexV6) -> Self {
+        Index { chunks: v6.chunks }
+    }
+}
+
+/// Version 7 index entry tag: the kind in bits 0..5, bit 5 set when the raw length equals the
+/// stored length (and is not written), the band above.
+const TAG_KIND_BITS: u32 = 5;
+const TAG_SAME_LEN: u32 = 1 << TAG_KIND_BITS;
+const TAG_BAND_SHIFT: u32 = TAG_KIND_BITS + 1;
+/// Bytes a version 7 entry takes at least: its tag, its stored length and its CRC.
+const MIN_ENTRY_V7: usize = 6;
+
+impl Index {
+    /// Parses the index of a file of format `version` whose header declares `frames` frames.
+    /// Version 7 (proto/container.md, "Index"): per frame, the count of its entries, then each
+    /// entry's tag (kind, band, whether the raw length is the stored length), stored length,
+    /// raw length unless the tag says it is the stored one, and CRC-32 (4 bytes, little-endian);
+    /// offsets follow from the order, every chunk starting where the one before ends. Every
+    /// count is checked against what the rest of the bytes can hold before anything is sized
+    /// from it.
+    pub fn from_bytes(bytes: &[u8], version: u16, frames: u32) -> Result<Index, crate::ContainerError> {
+        let corrupt = |detail: String| crate::ContainerError::Corrupt { what: "index".into(), detail };
+        if version < 7 {
+            return postcard::from_bytes::<IndexV6>(bytes).map(Index::from).map_err(|e| corrupt(e.to_string()));
+        }
+        let mut c = crate::payload::Cursor::new(bytes, "index");
+        let mut chunks = Vec::new();
+        let mut offset = 0u64;
+        for frame in 0..frames {
+            let n = c.count_within(u32::MAX as u64, MIN_ENTRY_V7, "chunks")?;
+            chunks.reserve(n);
+            for _ in 0..n {
+                let tag = c.get()?;
+                let kind = ChunkKind::try_from(tag & (TAG_SAME_LEN - 1)).map_err(corrupt)?;
+                let stored_len = c.get()?;
+                let raw_len = if tag & TAG_SAME_LEN != 0 { stored_len } else { c.get()? };
+                let crc32 = c.u32_le()?;
+                chunks.push(ChunkEntry { kind, frame, band: tag >> TAG_BAND_SHIFT, offset, stored_len, raw_len, crc32 });
+                offset += stored_len as u64;
+            }
+        }
+        c.finish()?;
+        Ok(Index { chunks })
+    }
+
+    /// The index as a file of format `version` stores it, for a header of `frames` frames.
+    /// Version 7 groups entries by frame and implies offsets from the order, so it writes what
+    /// it can of entries that break that layout (a frame out of order joins the frame before;
+    /// offsets are dropped): the encoder never makes such entries, and the test support's
+    /// damage does on purpose.
+    pub fn to_bytes(&self, version: u16, frames: u32) -> Result<Vec<u8>, postcard::Error> {
+        if version < 7 {
+            return postcard::to_stdvec(&IndexV6 { chunks: self.chunks.clone() });
+        }
+        let last = self.chunks.iter().map(|e| e.frame.saturating_add(1)).max().unwrap_or(0);
+        let mut out = Vec::with_capacity(8 * self.chunks.len() + frames as usize);
+        let mut rest = self.chunks.as_slice();
+        for frame in 0..frames.max(last) {
+            let n = rest.iter().take_while(|e| e.frame <= frame).count();
+            let (group, after) = rest.split_at(n);
+            rest = after;
+            crate::payload::put(&mut out, n as u32);
+            for e in group {
+                let same = if e.raw_len == e.stored_len { TAG_SAME_LEN } else { 0 };
+                crate::payload::put(&mut out, u32::from(e.kind) | same | e.band << TAG_BAND_SHIFT);
+                crate::payload::put(&mut out, e.stored_len);
+                if same == 0 {
+                    crate::payload::put(&mut out, e.raw_len);
+                }
+                out.extend_from_slice(&e.crc32.to_le_bytes());
+            }
+        }
+        Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entry(kind: ChunkKind, frame: u32, band: u32, offset: u64, stored_len: u32, raw_len: u32) -> ChunkEntry {
+        ChunkEntry { kind, frame, band, offset, stored_len, raw_len, crc32: 0xDEAD_BEEF ^ offset as u32 }
+    }
+
+    #[test]
+    fn version_7_index_round_trips_and_refuses_damage() {
+        // Frame 0 with the triangles and two bands, an empty frame 1, frame 2 with a band-5 and
+        // an image-like large band; offsets follow from the lengths.
+        let chunks = vec![
+            entry(ChunkKind::Triangles, 0, 0, 0, 40, 90),
+            entry(ChunkKind::Positions, 0, 1, 40, 7, 7),
+            entry(ChunkKind::Positions, 0, 0, 47, 300, 200),
+            entry(ChunkKind::Delta, 2, 5, 347, 3, 3),
+            entry(ChunkKind::Image, 2, 4000, 350, 1, 1),
+        ];
+        let index = Index { chunks };
+        let v7 = index.to_bytes(7, 3).unwrap();
+        let v6 = index.to_bytes(6, 3).unwrap();
+        assert_eq!(Index::from_bytes(&v7, 7, 3).unwrap(), index);
+        assert_eq!(Index::from_bytes(&v6, 6, 3).unwrap(), index);
+        // Entries whose raw length is their stored length write it once: 6 bytes and up.
+        assert_eq!(v7.len(), 3 + (1 + 1 + 1 + 4) + (1 + 1 + 4) + (1 + 2 + 2 + 4) + (2 + 1 + 4) + (3 + 1 + 4));
+        assert!(v7.len() * 4 < v6.len() * 3, "{} against {}", v7.len(), v6.len());
+        // Fewer frames than groups: bytes left over; more: ends early; a cut anywhere: an error.
+        assert!(Index::from_bytes(&v7, 7, 2).unwrap_err().to_string().contains("left over"));
+        assert!(Index::from_bytes(&v7, 7, 4).is_err());
+        for cut in 0..v7.len() {
+            assert!(Index::from_bytes(&v7[..cut], 7, 3).is_err(), "cut at {cut}");
+        }
+        // A count beyond what the bytes can hold is refused before anything is sized from it.
+        let e = Index::from_bytes(&[0xff, 0xff, 0xff, 0xff, 0x0f, 1, 2, 3], 7, 1).unwrap_err().to_string();
+        assert!(e.contains("chunks in 3 bytes"), "{e}");
+        // An unknown kind is named.
+        let e = Index::from_bytes(&[1, 31, 1, 0, 0, 0, 0], 7, 1).unwrap_err().to_string();
+        assert!(e.contains("unknown chunk kind 31"), "{e}");
+    }
 }

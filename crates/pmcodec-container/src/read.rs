@@ -124,8 +124,12 @@ impl<S: ByteSource> Reader<S> {
         if crc32fast::hash(&ib) != pre.index_crc {
             return Err(ContainerError::Checksum { what: "index".into() });
         }
-        let index: Index =
-            postcard::from_bytes(&ib).map_err(|e| ContainerError::Corrupt { what: "index".into(), detail: e.to_string() })?;
+        // Version 7's index is laid out by the header's frames: the header is checked first.
+        // (Older versions keep the order of their checks, and so the errors they report.)
+        if pre.version >= 7 {
+            check_header(&header)?;
+        }
+        let index = Index::from_bytes(&ib, pre.version, header.frame_count)?;
         check_header(&header)?;
         let reader = Reader {
             source,

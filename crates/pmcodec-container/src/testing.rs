@@ -67,7 +67,9 @@ impl Unsealed {
             return Err("header and index beyond the file".into());
         }
         let header = bytes[PREAMBLE_LEN..PREAMBLE_LEN + header_len].to_vec();
-        let index: Index = postcard::from_bytes(&bytes[PREAMBLE_LEN + header_len..data_start]).map_err(|e| e.to_string())?;
+        // Version 7's index is laid out by the header's frames.
+        let frames = Header::from_bytes(&bytes[PREAMBLE_LEN..PREAMBLE_LEN + header_len], version).map_or(0, |h| h.frame_count);
+        let index = Index::from_bytes(&bytes[PREAMBLE_LEN + header_len..data_start], version, frames).map_err(|e| e.to_string())?;
         let area = &bytes[data_start..];
         let mut end = 0usize;
         let mut chunks = Vec::with_capacity(index.chunks.len());
@@ -112,7 +114,10 @@ impl Unsealed {
             let covered = usize::try_from(e.offset).ok().and_then(|o| area.get(o..o.checked_add(e.stored_len as usize)?));
             e.crc32 = covered.map_or(0, crc32fast::hash);
         }
-        let index = postcard::to_allocvec(&Index { chunks: entries }).unwrap_or_default();
+        // A version 7 index cannot state an offset (chunks follow one another): an offset lie
+        // is lost there, while a stored length lie moves every chunk after it.
+        let frames = self.parsed_header().map_or(0, |h| h.frame_count);
+        let index = Index { chunks: entries }.to_bytes(self.version, frames).unwrap_or_default();
         let pre = Preamble {
             version: self.version,
             flags: self.flags,
@@ -380,7 +385,7 @@ pub fn mutate_semantic(u: &mut Unsealed, rng: &mut Rng) -> bool {
     let above = sizes.get(j + 1).copied().unwrap_or(0);
     let out = match e.kind {
         ChunkKind::Triangles => {
-            let Ok(mut t) = payload::read_triangles(raw, "t", h.triangle_count, h.vertex_count) else { return false };
+            let Ok(mut t) = payload::read_triangles(raw, "t", h.triangle_count, h.vertex_count, u.version) else { return false };
             if t.is_empty() {
                 return false;
             }
@@ -388,10 +393,10 @@ pub fn mutate_semantic(u: &mut Unsealed, rng: &mut Rng) -> bool {
             let c = rng.below(3);
             // Another vertex, or a corner repeated (a degenerate input triangle).
             t[k][c] = if rng.chance(2) { rng.below(h.vertex_count as usize) as u32 } else { t[k][(c + 1) % 3] };
-            payload::write_triangles(&t)
+            payload::write_triangles(&t, u.version)
         }
         ChunkKind::Key if !top => {
-            let Ok(mut p) = payload::read_key(raw, "t", sizes, j) else { return false };
+            let Ok(mut p) = payload::read_key(raw, "t", sizes, j, u.version) else { return false };
             if p.is_empty() || above == 0 {
                 return false;
             }
@@ -402,7 +407,7 @@ pub fn mutate_semantic(u: &mut Unsealed, rng: &mut Rng) -> bool {
                 let to = p[k];
                 p.iter_mut().for_each(|x| *x = to);
             }
-            payload::write_key(&p)
+            payload::write_key(&p, u.version)
         }
         ChunkKind::Delta if !top && above > 0 => {
             let Ok(mut m) = payload::read_delta(raw, "t", sizes, j) else { return false };

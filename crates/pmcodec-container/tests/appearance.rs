@@ -28,7 +28,7 @@ fn every_level_reads_back_inside_its_charts() {
     let (seq, bytes) = encoded(6);
     let input = seq.appearance.as_ref().unwrap();
     let reader = Reader::open(bytes.as_slice()).expect("open");
-    assert_eq!(reader.version(), 6);
+    assert_eq!(reader.version(), pmcodec_container::format::VERSION);
     verify(&reader).expect("verify");
     let info = reader.header().appearance.clone().expect("appearance in the header");
     assert_eq!((info.uv_sets, info.colors, info.materials, info.images), (1, true, 2, 1));

@@ -75,22 +75,19 @@ fn version_3_files_decode_as_they_did() {
     let mut future = new.clone();
     future[8] = 9;
     let e = Reader::open(future.as_slice()).err().expect("version 9 refused").to_string();
-    assert!(e.contains("version 9 is not supported") && e.contains("3 to 6"), "{e}");
+    assert!(e.contains("version 9 is not supported") && e.contains("3 to 7"), "{e}");
 }
 
 /// `tests/compat/v6-textured-cloth-k4.pmc`: the version 6 encoder's textured cloth (UVs,
 /// colours, two materials, a PNG), the file the TypeScript decoder's appearance is checked on
 /// (web/test/container.test.ts). It must verify and decode, appearance included, to what
-/// today's encoder makes of the same input. (`PMCODEC_WRITE_V6_FIXTURE=1` writes it anew.)
+/// today's encoder makes of the same input.
 #[test]
 fn version_6_textured_files_decode_as_they_did() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/compat/v6-textured-cloth-k4.pmc");
     let seq = pmcodec_mesh::samples::textured_cloth(10, 7, 6, 8);
     let opts = EncodeOptions { keyframe_interval: 4, quantization: QuantizationChoice::Bits(12), ..Default::default() };
     let new = encode(&seq, &opts, |_| {}).expect("encode");
-    if std::env::var_os("PMCODEC_WRITE_V6_FIXTURE").is_some() {
-        std::fs::write(&path, &new).expect("write the fixture");
-    }
     let old = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     assert_eq!(u16::from_le_bytes([old[8], old[9]]), 6);
     let (a, b) = (Reader::open(old.as_slice()).expect("open old"), Reader::open(new.as_slice()).expect("open new"));
@@ -110,6 +107,86 @@ fn version_6_textured_files_decode_as_they_did() {
             }
         }
     }
+}
+
+/// Today's file as version 6 wrote it: the header and the chunks are the same but for the
+/// Triangles and Key chunks (plain ids) and the index (postcard, every entry whole).
+fn as_version_6(v7: &[u8]) -> Vec<u8> {
+    use pmcodec_container::format::{FLAGS, Index, PREAMBLE_LEN, Preamble, ZSTD_LEVEL, store_chunk};
+    use pmcodec_container::{ChunkKind, payload};
+    let r = Reader::open(v7).expect("open");
+    let h = r.header();
+    let pre = Preamble::parse(v7).expect("preamble");
+    let header = &v7[PREAMBLE_LEN..PREAMBLE_LEN + pre.header_len as usize];
+    let (mut area, mut entries) = (Vec::new(), Vec::new());
+    for e in &r.index().chunks {
+        let mut raw = r.read_chunk(e).expect("chunk");
+        if e.kind == ChunkKind::Triangles {
+            let t = payload::read_triangles(&raw, "t", h.triangle_count, h.vertex_count, 7).expect("triangles");
+            raw = payload::write_triangles(&t, 6);
+        }
+        if e.kind == ChunkKind::Key {
+            raw = payload::write_key(&payload::read_key(&raw, "t", &h.level_sizes, e.band as usize, 7).expect("key"), 6);
+        }
+        let stored = store_chunk(&raw, ZSTD_LEVEL, FLAGS).expect("zstd");
+        let offset = area.len() as u64;
+        entries.push(pmcodec_container::ChunkEntry {
+            offset,
+            stored_len: stored.len() as u32,
+            raw_len: raw.len() as u32,
+            crc32: crc32fast::hash(&stored),
+            ..*e
+        });
+        area.extend_from_slice(&stored);
+    }
+    let index = Index { chunks: entries }.to_bytes(6, h.frame_count).expect("index");
+    let pre = Preamble { version: 6, index_len: index.len() as u32, index_crc: crc32fast::hash(&index), ..pre };
+    [&pre.to_bytes()[..], header, &index, &area].concat()
+}
+
+/// `tests/compat/v6-cloth-k4.pmc`: the version 6 encoder's cloth with its defaults and both
+/// preamble flags (small chunks stored as they are, empty Delta and Corners chunks left out),
+/// its index postcard, its triangles and parents plain ids (version 7 codes them compactly, issue 17). It
+/// must read as it did; and today's file rewritten as version 6 reads as the same entries,
+/// chunks and meshes.
+/// (`PMCODEC_WRITE_V6_FIXTURE=1` writes it anew from today's encoding, its index as version 6's.)
+#[test]
+fn version_6_files_decode_as_they_did() {
+    let opts = EncodeOptions { keyframe_interval: 4, quantization: QuantizationChoice::Bits(12), ..Default::default() };
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/compat/v6-cloth-k4.pmc");
+    if std::env::var_os("PMCODEC_WRITE_V6_FIXTURE").is_some() {
+        let new = encode(&pmcodec_mesh::samples::waving_cloth(6, 5, 6), &opts, |_| {}).expect("encode");
+        std::fs::write(&path, as_version_6(&new)).expect("write the fixture");
+    }
+    let new = decodes_as_today("v6-cloth-k4.pmc", 6, 6, &opts);
+    let old = std::fs::read(&path).expect("fixture");
+    assert_eq!(u16::from_le_bytes([old[10], old[11]]), pmcodec_container::format::FLAGS, "both flags");
+    let a = Reader::open(old.as_slice()).expect("open old");
+    assert!(a.index().chunks.len() < 4 * 6 * a.header().levels(), "empty chunks left out: {}", a.index().chunks.len());
+    // The same entries through either index; the version 7 one is the smaller.
+    let b = Reader::open(new.as_slice()).expect("open new");
+    assert_eq!(b.version(), 7);
+    let v6 = as_version_6(&new);
+    let c = Reader::open(v6.as_slice()).expect("open as version 6");
+    assert_eq!(c.version(), 6);
+    assert_eq!(c.index().chunks.len(), b.index().chunks.len());
+    for (x, y) in c.index().chunks.iter().zip(&b.index().chunks) {
+        assert_eq!((x.kind, x.frame, x.band), (y.kind, y.frame, y.band));
+        if !matches!(x.kind, pmcodec_container::ChunkKind::Triangles | pmcodec_container::ChunkKind::Key) {
+            assert_eq!(c.read_chunk(x).expect("old chunk"), b.read_chunk(y).expect("new chunk"));
+        }
+    }
+    verify(&c).expect("verify as version 6");
+    let (mut dc, mut db) = (Decoder::new(c.borrowed(), 0).expect("decoder"), Decoder::new(b.borrowed(), 0).expect("decoder"));
+    dc.seek(5).expect("old frame");
+    db.seek(5).expect("new frame");
+    // The keyframe's parent maps too: a cut through the hierarchy is the same.
+    for target in [CutTarget::Level(0), CutTarget::Triangles(60)] {
+        assert_eq!(dc.mesh(target).expect("old"), db.mesh(target).expect("new"), "{target:?}");
+    }
+    assert!(v6.len() > new.len() + 4 * b.index().chunks.len(), "{} against {} bytes", v6.len(), new.len());
+    let v6_triangles = c.index().chunks[0].stored_len;
+    assert!(v6_triangles > b.index().chunks[0].stored_len, "triangles: {v6_triangles} against {}", b.index().chunks[0].stored_len);
 }
 
 /// `tests/compat/v6-skinned-palette-tube-k4.pmc`: a skinned bending tube written with Palette

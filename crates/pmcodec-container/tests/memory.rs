@@ -152,9 +152,9 @@ fn payload_claims_are_refused_before_allocating() {
     let (r, peak) = peak_of(|| payload::read_faces(&claim, "t", 1_000_000, 2_000_000, 5));
     assert!(r.unwrap_err().to_string().contains("1000000 faces in 4 bytes"));
     assert!(peak < 4096, "read_faces held {peak} bytes");
-    let (r, peak) = peak_of(|| payload::read_triangles(&claim, "t", 1_000_000, 3_000_000));
+    let (r, peak) = peak_of(|| payload::read_triangles(&claim, "t", 1_000_000, 3_000_000, 7));
     assert!(r.is_err() && peak < 4096, "read_triangles held {peak} bytes");
-    let (r, peak) = peak_of(|| payload::read_key(&claim, "t", &sizes[1..], 0));
+    let (r, peak) = peak_of(|| payload::read_key(&claim, "t", &sizes[1..], 0, 7));
     assert!(r.is_err() && peak < 4096, "read_key held {peak} bytes");
     let (r, peak) = peak_of(|| payload::read_delta(&claim, "t", &sizes, 0));
     assert!(r.is_err() && peak < 4096, "read_delta held {peak} bytes");

@@ -133,10 +133,11 @@ fn a_keyframe_with_an_empty_cluster_is_refused() {
     let (name, bytes) = seeds().into_iter().find(|(n, _)| n.contains("tube-k2")).expect("valid-tube-k2.pmc");
     let file = reseal(&bytes, |u| {
         let sizes = u.parsed_header().expect("header").level_sizes;
+        let version = u.version;
         let c =
             u.chunks.iter_mut().find(|c| c.entry.kind == ChunkKind::Key && c.entry.frame == 0 && c.entry.band == 0).expect("key band 0");
-        let n = payload::read_key(&c.raw, "t", &sizes, 0).expect("key").len();
-        c.raw = payload::write_key(&vec![0; n]);
+        let n = payload::read_key(&c.raw, "t", &sizes, 0, version).expect("key").len();
+        c.raw = payload::write_key(&vec![0; n], version);
     })
     .expect("reseal");
     match exercise(&file) {

@@ -50,13 +50,13 @@ export class Decoder {
     const c = this.reader, h = c.header;
     const bands: KeyBand[] = h.levelSizes.map(() => ({ parent: new Uint32Array(0), faces: [] }));
     for (let j = h.levelSizes.length - 1; j >= this.minLevel; j--) {
-      bands[j].parent = readKey(await c.chunk(c.find(ChunkKind.Key, k, j)), `frame ${k} band ${j} keyframe`, h.levelSizes, j);
+      bands[j].parent = readKey(await c.chunk(c.find(ChunkKind.Key, k, j)), `frame ${k} band ${j} keyframe`, h.levelSizes, j, c.version);
     }
     const L = this.minLevel;
     if (L > 0) bands[L].faces = readFaces(await c.chunk(c.find(ChunkKind.Faces, k, L)), `frame ${k} band ${L} faces`, h.levelSizes[L], h.triangleCount, c.version);
     if (this.minLevel === 0 && !this.triangles) {
       const raw = await c.chunk(c.find(ChunkKind.Triangles, 0, 0));
-      this.triangles = readTriangles(raw, "triangles chunk", h.triangleCount, h.vertexCount);
+      this.triangles = readTriangles(raw, "triangles chunk", h.triangleCount, h.vertexCount, c.version);
       this.lower = lowerNeighbours(h.vertexCount, this.triangles, h.order);
     }
     if (h.skin && !this.skin) {

@@ -3,17 +3,18 @@
 // region carries.
 
 import { DecodeError } from "./error.js";
-import { Postcard } from "./payload.js";
+import { Cursor, Postcard } from "./payload.js";
 import { ENTRY, MAX_PALETTE, SkinHeader } from "./skin.js";
 
 export const MAGIC = [0x89, 0x50, 0x4d, 0x43, 0x0d, 0x0a, 0x1a, 0x0a];
 export const PREAMBLE_LEN = 32;
 /**
- * The format version this decoder reads, and the oldest it still reads (version 5: no
+ * The format version this decoder reads, and the oldest it still reads (version 6: the index
+ * in postcard, every entry whole; version 5: no
  * `appearance` nor `skin` in the header; version 4: no `order` either, faces and corners as
  * plain ids; version 3: no `motion` either).
  */
-export const VERSION = 6, OLDEST_READABLE = 3;
+export const VERSION = 7, OLDEST_READABLE = 3;
 /** The largest header or index the preamble may declare. */
 export const MAX_TABLE_LEN = 64 << 20;
 /** Caps on a header's declared sizes (proto/container.md, "Limits"). */
@@ -128,13 +129,45 @@ export function parseHeader(hb: Uint8Array, version: number): Header {
   return header;
 }
 
-export function parseIndex(ib: Uint8Array): ChunkEntry[] {
-  const q = new Postcard(ib, "index");
-  return q.seq((): ChunkEntry => {
-    const kind = q.varint();
-    if (kind > 13) throw new DecodeError(`index: chunk kind ${kind}`);
-    return { kind, frame: q.varint(), band: q.varint(), offset: q.varint(), storedLen: q.varint(), rawLen: q.varint(), crc32: q.varint() };
-  }, 1 << 24);
+/** The largest chunk kind this decoder knows. */
+const LAST_KIND = ChunkKind.Joints;
+
+/**
+ * The index of a file of `version` whose header declares `frames` frames. Versions up to 6:
+ * postcard, every entry whole. Version 7 (proto/container.md, "Index"): per frame, its entry
+ * count, then each entry's tag (kind in bits 0..5, bit 5: the raw length is the stored length
+ * and is not written, the band above), stored length, raw length unless the tag says so, and
+ * CRC-32 (4 bytes, little-endian); offsets follow from the order.
+ */
+export function parseIndex(ib: Uint8Array, version: number, frames: number): ChunkEntry[] {
+  if (version < 7) {
+    const q = new Postcard(ib, "index");
+    return q.seq((): ChunkEntry => {
+      const kind = q.varint();
+      if (kind > LAST_KIND) throw new DecodeError(`index: chunk kind ${kind}`);
+      return { kind, frame: q.varint(), band: q.varint(), offset: q.varint(), storedLen: q.varint(), rawLen: q.varint(), crc32: q.varint() };
+    }, 1 << 24);
+  }
+  const c = new Cursor(ib, "index");
+  const out: ChunkEntry[] = [];
+  let offset = 0;
+  for (let frame = 0; frame < frames; frame++) {
+    // Each entry takes at least 6 bytes (tag, stored length, CRC): a count beyond what is left is refused.
+    const n = c.get();
+    if (n * 6 > ib.length - c.pos) throw new DecodeError(`index: ${n} chunks in ${ib.length - c.pos} bytes`);
+    for (let i = 0; i < n; i++) {
+      const tag = c.get();
+      const kind = tag & 31;
+      if (kind > LAST_KIND) throw new DecodeError(`index: unknown chunk kind ${kind}`);
+      const storedLen = c.get();
+      const rawLen = tag & 32 ? storedLen : c.get();
+      const crc = c.u32le();
+      out.push({ kind, frame, band: Math.floor(tag / 64), offset, storedLen, rawLen, crc32: crc });
+      offset += storedLen;
+    }
+  }
+  c.finish();
+  return out;
 }
 
 /**

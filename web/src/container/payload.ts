@@ -61,28 +61,52 @@ export class Cursor {
     return v;
   }
   zigzag(): number { const v = this.get(); return (v >>> 1) ^ -(v & 1); }
+  /** A 4-byte little-endian value (a CRC-32 in the version 7 index). */
+  u32le(): number {
+    if (this.pos + 4 > this.b.length) throw new DecodeError(`${this.what}: ends inside a 4-byte value`);
+    const v = (this.b[this.pos] | (this.b[this.pos + 1] << 8) | (this.b[this.pos + 2] << 16) | (this.b[this.pos + 3] << 24)) >>> 0;
+    this.pos += 4;
+    return v;
+  }
   finish(): void { if (this.pos !== this.b.length) throw new DecodeError(`${this.what}: ${this.b.length - this.pos} bytes left over`); }
 }
 
-/** The triangles chunk: `triangles` input triangles, 3 vertex ids each. */
-export function readTriangles(raw: Uint8Array, what: string, triangles: number, vertices: number): Uint32Array {
+/**
+ * The triangles chunk: `triangles` input triangles, 3 vertex ids each; from version 7 each as
+ * the zigzag-coded difference from the same corner of the triangle before (32-bit wrapping).
+ */
+export function readTriangles(raw: Uint8Array, what: string, triangles: number, vertices: number, version: number): Uint32Array {
   const p = new Cursor(raw, what);
   const n = p.count(triangles, "triangles");
   if (n !== triangles) throw new DecodeError(`${what}: ${n} triangles`);
+  if (3 * n > raw.length - p.pos) throw new DecodeError(`${what}: ${n} triangles in ${raw.length - p.pos} bytes`);
   const tris = new Uint32Array(3 * n);
-  for (let i = 0; i < 3 * n; i++) tris[i] = p.id(vertices, "vertex");
+  for (let i = 0; i < 3 * n; i++) {
+    if (version < 7) { tris[i] = p.id(vertices, "vertex"); continue; }
+    const v = ((i < 3 ? 0 : tris[i - 3]) + p.zigzag()) >>> 0;
+    if (v >= vertices) throw new DecodeError(`${what}: vertex ${v} out of range`);
+    tris[i] = v;
+  }
   p.finish();
   return tris;
 }
 
-/** A keyframe's parent map of `band` (empty for the top band). */
-export function readKey(raw: Uint8Array, what: string, sizes: number[], band: number): Uint32Array {
+/**
+ * A keyframe's parent map of `band` (empty for the top band); from version 7 each parent as the
+ * zigzag-coded difference from the node before's (32-bit wrapping).
+ */
+export function readKey(raw: Uint8Array, what: string, sizes: number[], band: number, version: number): Uint32Array {
   const c = new Cursor(raw, what);
   const top = sizes.length - 1;
   const n = c.count(sizes[band], "parents");
   if (n !== (band < top ? sizes[band] : 0)) throw new DecodeError(`${what}: ${n} parents`);
   const parent = new Uint32Array(n);
-  for (let i = 0; i < n; i++) parent[i] = c.id(sizes[band + 1], "parent");
+  for (let i = 0; i < n; i++) {
+    if (version < 7) { parent[i] = c.id(sizes[band + 1], "parent"); continue; }
+    const p = ((i === 0 ? 0 : parent[i - 1]) + c.zigzag()) >>> 0;
+    if (p >= sizes[band + 1]) throw new DecodeError(`${what}: parent ${p} out of range`);
+    parent[i] = p;
+  }
   c.finish();
   return parent;
 }

@@ -28,7 +28,7 @@ export class Reader {
     if (crc32(hb) !== headerCrc) throw new DecodeError("header: checksum mismatch");
     if (crc32(ib) !== indexCrc) throw new DecodeError("index: checksum mismatch");
     const header = parseHeader(hb, version);
-    const index = parseIndex(ib);
+    const index = parseIndex(ib, version, header.frameCount);
     checkTables(header, index, fileLen - dataStart);
     const r = new Reader(readAt, version, flags, header, index, dataStart, fileLen);
     r.bytesRead = dataStart;

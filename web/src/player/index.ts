@@ -13,7 +13,7 @@ export { ALPHA_BLEND, ALPHA_MASK, ALPHA_OPAQUE, buildMaterials, buildTextures, d
 export type { BuildOptions, EncodedImage, Material, Materials, TextureRef } from "./appearance.js";
 
 /** The container format version this package reads (and the oldest it still reads: 3). */
-export const FORMAT_VERSION = 6;
+export const FORMAT_VERSION = 7;
 
 export interface PmcPlayerOptions {
   /** Triangles to draw (default: all); the player fetches only the bands this needs. */

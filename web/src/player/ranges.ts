@@ -52,8 +52,18 @@ export class RangeCache {
   async ensure(wanted: [number, number][]): Promise<void> {
     const waits: Promise<void>[] = [];
     const missing: [number, number][] = [];
-    for (const [s, e] of wanted) {
+    // A range that begins inside a held span (the first read of a file, which ends wherever its
+    // length falls, mid-chunk) asks only for the rest, and the reply is joined to that span, so
+    // that the range reads from one span and no byte is fetched twice.
+    const heads = new Map<number, Span>();
+    for (const [start, e] of wanted) {
+      let s = start;
       if (e <= s || this.find(s, e)) continue;
+      const head = this.spans.find((x) => x.start < s && s < x.start + x.bytes.length);
+      if (head) {
+        s = head.start + head.bytes.length;
+        heads.set(s, head);
+      }
       const p = this.pending.find((x) => x.start <= s && e <= x.end);
       if (p) waits.push(p.done);
       else missing.push([s, e]);
@@ -73,7 +83,17 @@ export class RangeCache {
         ({ bytes, at }) => {
           this.requests++;
           this.fetched += bytes.length;
-          this.add({ start: at ?? s, bytes, used: ++this.clock });
+          const start = at ?? s, head = heads.get(start);
+          if (head && this.spans.includes(head) && head.start + head.bytes.length === start) {
+            const joined = new Uint8Array(head.bytes.length + bytes.length);
+            joined.set(head.bytes);
+            joined.set(bytes, head.bytes.length);
+            this.spans.splice(this.spans.indexOf(head), 1);
+            this.held -= head.bytes.length;
+            this.add({ start: head.start, bytes: joined, used: ++this.clock });
+          } else {
+            this.add({ start, bytes, used: ++this.clock });
+          }
         },
       ).finally(() => { this.pending = this.pending.filter((x) => x !== entry); });
       this.pending.push(entry);
