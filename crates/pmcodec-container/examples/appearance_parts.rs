@@ -112,7 +112,8 @@ fn main() {
             if raw.len() > 1 && raw[0] == 0 && raw[1] == 1 {
                 // Band 0 with derived entries: only predicted values are stored.
                 let te = reader.index().chunks.iter().find(|e| e.kind == ChunkKind::Triangles).unwrap();
-                let tris = read_triangles(&reader.read_chunk(te).unwrap(), "t", h.triangle_count, h.vertex_count).unwrap();
+                let tris =
+                    read_triangles(&reader.read_chunk(te).unwrap(), "t", h.triangle_count, h.vertex_count, reader.version()).unwrap();
                 let t =
                     read_table_with(&raw, "t", h.level_sizes[j as usize], &info, h.triangle_count, Some((&tris, &charts.triangle_chart)))
                         .unwrap();

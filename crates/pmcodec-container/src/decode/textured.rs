@@ -44,7 +44,7 @@ impl<S: ByteSource> Decoder<S> {
             let table = if needs_above(&raw) {
                 // Through the parents of frame 0's hierarchy (its Key chunk of band j).
                 let key = self.chunk(ChunkKind::Key, 0, j)?;
-                let parent = read_key(&key, &format!("frame 0 band {j} keyframe"), &h.level_sizes, j)?;
+                let parent = read_key(&key, &format!("frame 0 band {j} keyframe"), &h.level_sizes, j, self.reader.version())?;
                 read_table_above(&raw, &what, h.level_sizes[j], &info, h.triangle_count, above.as_ref().map(|t| (&parent[..], t)))?
             } else if j == 0 {
                 // Band 0's entries may be derived from the triangles (a level-0 client's own).
@@ -53,7 +53,13 @@ impl<S: ByteSource> Decoder<S> {
                     None => {
                         let e = self.reader.index().chunks.iter().find(|e| e.kind == ChunkKind::Triangles);
                         let e = e.ok_or_else(|| ContainerError::Corrupt { what: "index".into(), detail: "no triangles chunk".into() })?;
-                        read_triangles(&self.reader.read_chunk(e)?, "triangles chunk", h.triangle_count, h.vertex_count)?
+                        read_triangles(
+                            &self.reader.read_chunk(e)?,
+                            "triangles chunk",
+                            h.triangle_count,
+                            h.vertex_count,
+                            self.reader.version(),
+                        )?
                     }
                 };
                 read_table_with(&raw, &what, h.level_sizes[j], &info, h.triangle_count, Some((&triangles, &charts.triangle_chart)))?
