@@ -550,11 +550,11 @@ mod tests {
                 assert_eq!(e.to_bits(), rc.nodes.quadrics[g].eval_f32(rc.nodes.positions[g]).to_bits(), "node {g}");
             }
             crate::levels::level_adjacency(&rc.h, &rc.topo, &mut adjacency);
-            for k in 0..rc.h.levels() - 1 {
+            for (k, adj) in adjacency.iter().enumerate().take(rc.h.levels() - 1) {
                 for v in 0..rc.h.level_sizes[k] {
                     let a = rc.h.parent[k][v as usize];
                     rc.memo.clear();
-                    for &w in adjacency[k].row(v) {
+                    for &w in adj.row(v) {
                         let b = rc.h.parent[k][w as usize];
                         if b != a {
                             let (got, want) = (rc.gain(k, v, a, b), rc.benefit(k, v, a, b));
