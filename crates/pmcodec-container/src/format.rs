@@ -51,8 +51,11 @@ pub fn store_chunk(raw: &[u8], level: i32, flags: u16) -> std::io::Result<Vec<u8
     Ok(if flags & FLAG_STORED != 0 && z.len() >= raw.len() { raw.to_vec() } else { z })
 }
 
-/// Inputs up to this size are remembered by [`compress`] (a small band's Positions payload is
-/// compressed to choose its coding, then again to be stored).
+/// Inputs up to this size go through [`compress`]'s kept context and are remembered (a small
+/// band's Positions payload is compressed to choose its coding, then again to be stored).
+/// Larger ones get a context of their own, freed after: zstd sizes a context's tables by its
+/// largest input, and a kept one sized by a 135k-vertex band added 20 MiB to the encoder's peak
+/// memory, while creating a context costs little beside compressing that much.
 const REMEMBERED: usize = 1 << 16;
 
 /// What [`compress`] keeps per thread: its context, and the last small input with its frame.
@@ -66,11 +69,14 @@ thread_local! {
     static CCTX: std::cell::RefCell<Compression> = std::cell::RefCell::new(Compression::default());
 }
 
-/// `raw` as one zstd frame at `level`, the same bytes as `zstd::bulk::compress` gives, through
-/// one context per thread (a level-19 context is large: creating one per chunk cost about 2%
-/// of a whole encode of the horse). The last two small inputs are remembered with their frames,
-/// so a payload compressed once to measure it and once to store it is compressed once.
+/// `raw` as one zstd frame at `level`, the same bytes as `zstd::bulk::compress` gives. Small
+/// inputs go through one context per thread (creating a level-19 context per chunk cost about
+/// 2% of a whole encode of the horse), and the last two are remembered with their frames, so a
+/// payload compressed once to measure it and once to store it is compressed once.
 pub fn compress(raw: &[u8], level: i32) -> std::io::Result<Vec<u8>> {
+    if raw.len() > REMEMBERED {
+        return zstd::bulk::compress(raw, level);
+    }
     CCTX.with(|cell| {
         let Ok(mut state) = cell.try_borrow_mut() else {
             return zstd::bulk::compress(raw, level);
@@ -85,12 +91,10 @@ pub fn compress(raw: &[u8], level: i32) -> std::io::Result<Vec<u8>> {
             Some((_, c)) => c.compress(raw)?,
             None => zstd::bulk::compress(raw, level)?,
         };
-        if raw.len() <= REMEMBERED {
-            if state.last.len() == 2 {
-                state.last.remove(0);
-            }
-            state.last.push((level, raw.to_vec(), z.clone()));
+        if state.last.len() == 2 {
+            state.last.remove(0);
         }
+        state.last.push((level, raw.to_vec(), z.clone()));
         Ok(z)
     })
 }
