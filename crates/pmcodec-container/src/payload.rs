@@ -384,7 +384,7 @@ pub fn write_positions(shift: u32, residuals: &[[i32; 3]]) -> Vec<u8> {
             put(&mut plain, zigzag(x));
         }
     }
-    let size = |b: &[u8]| zstd::bulk::compress(b, crate::format::ZSTD_LEVEL).map_or(usize::MAX, |z| z.len());
+    let size = |b: &[u8]| crate::format::compress(b, crate::format::ZSTD_LEVEL).map_or(usize::MAX, |z| z.len());
     if size(&plain) < size(&rans) { plain } else { rans }
 }
 

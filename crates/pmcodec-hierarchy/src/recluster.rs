@@ -93,6 +93,11 @@ pub struct Reclusterer {
     /// (|M_{j+1}| / |M_j|)^beta for each level j: the factor between consecutive weights.
     weight_step: Vec<f64>,
     fine_q: Vec<Quadric>,
+    /// E_g = Q_g(x_g) of every node (unclamped, as the exact benefit reads it), kept in step
+    /// with `nodes` by `fit` and `apply`: the "before" half of every exact benefit term.
+    errors: Vec<f64>,
+    /// The exact benefit's terms that depend only on the moving node (see [`GainMemo`]).
+    memo: GainMemo,
     adjacency: Vec<LevelAdjacency>,
     level_scratch: LevelScratch,
     // Scratch, kept to avoid allocation per frame.
@@ -120,6 +125,8 @@ impl Reclusterer {
             triangles,
             weight_step,
             fine_q: Vec::new(),
+            errors: Vec::new(),
+            memo: GainMemo::default(),
             adjacency: Vec::new(),
             level_scratch: LevelScratch::default(),
             locked: Vec::new(),
@@ -164,6 +171,9 @@ impl Reclusterer {
     pub fn fit(&mut self, positions: &[Vec3]) {
         vertex_quadrics(positions, &self.triangles, &self.topo.boundary, &self.opts.quadric, &mut self.fine_q);
         self.nodes.recompute(&self.h, &self.fine_q, positions);
+        let (q, x) = (&self.nodes.quadrics, &self.nodes.positions);
+        self.errors.clear();
+        self.errors.extend(q.iter().zip(x).map(|(q, &x)| q.eval_f32(x)));
     }
 
     /// Adapts the hierarchy to a new frame; appends the swaps performed, in order, to `swaps`.
@@ -202,13 +212,15 @@ impl Reclusterer {
                 self.dirty[v as usize] = false;
                 let a = self.h.parent[k][v as usize];
                 let mut best = (0.0, a);
+                // Every candidate move of v shares v's quadric and the clusters it leaves.
+                self.memo.clear();
                 for &w in adj.row(v) {
                     let b = self.h.parent[k][w as usize];
                     if b == a || b == best.1 {
                         continue;
                     }
                     stats.candidates += 1;
-                    let gain = self.benefit(k, v, a, b);
+                    let gain = self.gain(k, v, a, b);
                     if gain > best.0 {
                         best = (gain, b);
                     }
@@ -235,7 +247,8 @@ impl Reclusterer {
                 }
                 let a = self.h.parent[k][v as usize];
                 // Earlier swaps in this pass moved node positions: re-estimate.
-                if self.benefit(k, v, a, b) <= self.threshold(k, v, a) {
+                self.memo.clear();
+                if self.gain(k, v, a, b) <= self.threshold(k, v, a) {
                     continue;
                 }
                 if !self.valid(k, adj, v, a, b) {
@@ -301,10 +314,7 @@ impl Reclusterer {
                 // Re-solve both clusters as they would be after the swap.
                 let (qa, qb) = (&self.nodes.quadrics[(h.offsets[j] + x) as usize], &self.nodes.quadrics[(h.offsets[j] + y) as usize]);
                 let before = qa.eval_f32(pa) + qb.eval_f32(pb);
-                let (mut qa2, mut qb2) = (*qa, *qb);
-                qa2 -= qv;
-                qb2 += qv;
-                before - qa2.eval(qa2.optimal()) - qb2.eval(qb2.optimal())
+                before - without(qa, qv) - with(qb, qv)
             } else {
                 qv.eval_f32(pa) - qv.eval_f32(pb)
             };
@@ -312,6 +322,56 @@ impl Reclusterer {
                 break;
             }
             w *= self.weight_step[j];
+            x = h.parent[j][x as usize];
+            y = h.parent[j][y as usize];
+            j += 1;
+        }
+        sum
+    }
+
+    /// [`Reclusterer::benefit`], the same value to the bit, from what `memo` and `errors`
+    /// already hold. Of an exact term `(E_A + E_B) - E'_A - E'_B` at level j, E'_A (A_j
+    /// re-solved without v) depends only on v and A_j, the ancestors of v's own parent, so it
+    /// is solved once per moving node, not once per neighbouring cluster; E'_B is solved once
+    /// per distinct B_j (several neighbours of v share a cluster, and their clusters share
+    /// ancestors); E_A and E_B are read from `errors`. `memo` must be cleared whenever v or the
+    /// node state changes.
+    fn gain(&mut self, k: usize, v: u32, a: u32, b: u32) -> f64 {
+        if !self.opts.exact_benefit {
+            return self.benefit(k, v, a, b);
+        }
+        let Reclusterer { h, nodes, errors, memo, weight_step, .. } = self;
+        let qv = &nodes.quadrics[(h.offsets[k] + v) as usize];
+        let (mut x, mut y) = (a, b);
+        let mut w = 1.0;
+        let mut sum = 0.0;
+        let mut j = k + 1;
+        while x != y {
+            let (gx, gy) = ((h.offsets[j] + x) as usize, (h.offsets[j] + y) as usize);
+            // x runs up the one chain of a's ancestors whatever b is: level j's entry is A_j's.
+            let i = j - (k + 1);
+            let left = match memo.a_side.get(i) {
+                Some(&e) => e,
+                None => {
+                    let e = without(&nodes.quadrics[gx], qv);
+                    memo.a_side.push(e);
+                    e
+                }
+            };
+            let joined = match memo.b_side.iter().find(|m| m.0 == gy as u32) {
+                Some(m) => m.1,
+                None => {
+                    let e = with(&nodes.quadrics[gy], qv);
+                    memo.b_side.push((gy as u32, e));
+                    e
+                }
+            };
+            // The operations and their order are `benefit`'s, so the sum is bit-identical.
+            sum += w * (errors[gx] + errors[gy] - left - joined);
+            if j == h.top() {
+                break;
+            }
+            w *= weight_step[j];
             x = h.parent[j][x as usize];
             y = h.parent[j][y as usize];
             j += 1;
@@ -395,6 +455,9 @@ impl Reclusterer {
             self.nodes.quadrics[gy as usize] += &qv;
             self.nodes.resolve(gx);
             self.nodes.resolve(gy);
+            for g in [gx as usize, gy as usize] {
+                self.errors[g] = self.nodes.quadrics[g].eval_f32(self.nodes.positions[g]);
+            }
             if j == h.top() {
                 break;
             }
@@ -403,6 +466,39 @@ impl Reclusterer {
             j += 1;
         }
     }
+}
+
+/// The exact benefit's memo for one moving node v (see [`Reclusterer::gain`]).
+#[derive(Debug, Default)]
+struct GainMemo {
+    /// E'_{A_j}, the error of v's parent's level-j ancestor re-solved without v, for
+    /// j = k+1, k+2, ... in order, as far as some candidate has needed.
+    a_side: Vec<f64>,
+    /// (global id of B, E'_B): a cluster v could join, or its ancestor, re-solved with v.
+    b_side: Vec<(u32, f64)>,
+}
+
+impl GainMemo {
+    fn clear(&mut self) {
+        self.a_side.clear();
+        self.b_side.clear();
+    }
+}
+
+/// The error of cluster `q` re-solved after `v` leaves it.
+#[inline]
+fn without(q: &Quadric, v: &Quadric) -> f64 {
+    let mut q = *q;
+    q -= v;
+    q.eval(q.optimal())
+}
+
+/// The error of cluster `q` re-solved after `v` joins it.
+#[inline]
+fn with(q: &Quadric, v: &Quadric) -> f64 {
+    let mut q = *q;
+    q += v;
+    q.eval(q.optimal())
 }
 
 /// Whether the neighbours `nbrs[set[..]]` form one connected group using edges among
@@ -428,4 +524,71 @@ fn connected_among(nbrs: &[u32], set: &[u32], adj: &LevelAdjacency, stack: &mut 
         }
     }
     reached == set.len()
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used)]
+    use super::*;
+    use crate::{BuildOptions, build};
+    use pmcodec_mesh::Sequence;
+
+    /// Every candidate's memoised gain against the reference `benefit`, to the bit, and the
+    /// kept node errors against fresh ones: before and after each frame's swaps (which update
+    /// both through `apply`).
+    fn check_sequence(seq: &Sequence, exact: bool) -> u32 {
+        let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
+        let mut q = Vec::new();
+        vertex_quadrics(&seq.frames[0], &seq.triangles, &topo.boundary, &QuadricOptions::default(), &mut q);
+        let h = build(&topo, &q, &BuildOptions { min_coarsest: 4, ..Default::default() }).unwrap();
+        assert!(h.levels() >= 3, "levels {:?}", h.level_sizes);
+        let opts = ReclusterOptions { exact_benefit: exact, min_relative_benefit: 0.1, ..Default::default() };
+        let mut rc = Reclusterer::new(h, topo, seq.triangles.clone(), opts);
+        let (mut swaps, mut adjacency, mut compared) = (Vec::new(), Vec::new(), 0u64);
+        let mut check = |rc: &mut Reclusterer| {
+            for (g, e) in rc.errors.iter().enumerate() {
+                assert_eq!(e.to_bits(), rc.nodes.quadrics[g].eval_f32(rc.nodes.positions[g]).to_bits(), "node {g}");
+            }
+            crate::levels::level_adjacency(&rc.h, &rc.topo, &mut adjacency);
+            for (k, adj) in adjacency.iter().enumerate().take(rc.h.levels() - 1) {
+                for v in 0..rc.h.level_sizes[k] {
+                    let a = rc.h.parent[k][v as usize];
+                    rc.memo.clear();
+                    for &w in adj.row(v) {
+                        let b = rc.h.parent[k][w as usize];
+                        if b != a {
+                            let (got, want) = (rc.gain(k, v, a, b), rc.benefit(k, v, a, b));
+                            assert_eq!(got.to_bits(), want.to_bits(), "level {k} node {v} from {a} to {b}: {got} vs {want}");
+                            compared += 1;
+                        }
+                    }
+                }
+            }
+        };
+        for frame in &seq.frames {
+            rc.fit(frame);
+            check(&mut rc);
+            rc.frame(frame, &mut swaps);
+            check(&mut rc);
+        }
+        assert!(compared > 1000, "only {compared} candidates compared");
+        swaps.len() as u32
+    }
+
+    #[test]
+    fn memoised_gain_is_the_benefit_closed_tube() {
+        let swaps = check_sequence(&pmcodec_mesh::samples::twisting_tube(16, 24, 6), true);
+        assert!(swaps > 0, "no swaps: apply's error updates went untested");
+    }
+
+    #[test]
+    fn memoised_gain_is_the_benefit_open_cloth() {
+        let swaps = check_sequence(&pmcodec_mesh::samples::waving_cloth(20, 16, 5), true);
+        assert!(swaps > 0, "no swaps: apply's error updates went untested");
+    }
+
+    #[test]
+    fn estimate_path_unchanged() {
+        check_sequence(&pmcodec_mesh::samples::waving_cloth(12, 10, 3), false);
+    }
 }
