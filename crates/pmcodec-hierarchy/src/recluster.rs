@@ -549,7 +549,7 @@ mod tests {
             for (g, e) in rc.errors.iter().enumerate() {
                 assert_eq!(e.to_bits(), rc.nodes.quadrics[g].eval_f32(rc.nodes.positions[g]).to_bits(), "node {g}");
             }
-            crate::levels::level_adjacency(&rc.h, &rc.topo, &mut adjacency);
+            crate::levels::level_adjacency_with(&rc.h, &rc.topo, &mut adjacency, &mut Default::default());
             for (k, adj) in adjacency.iter().enumerate().take(rc.h.levels() - 1) {
                 for v in 0..rc.h.level_sizes[k] {
                     let a = rc.h.parent[k][v as usize];
