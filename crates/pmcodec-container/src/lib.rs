@@ -14,6 +14,7 @@ pub mod appearance;
 mod decode;
 mod encode;
 pub mod format;
+mod grid;
 pub mod payload;
 pub mod predict;
 mod rans;
