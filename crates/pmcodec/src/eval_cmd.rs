@@ -57,9 +57,19 @@ pub struct EvalArgs {
     pub branching: u32,
     #[command(flatten)]
     pub recluster: ReclusterArgs,
-    /// Only the first N frames.
+    /// Only the first N frames; with --sweep, N frames spread evenly from the first to the last
+    /// (the container is still encoded from every frame).
     #[arg(long)]
     pub frames: Option<usize>,
+    /// A budget sweep instead (issue 15): at N vertex budgets log-spaced from 1% to 50% of the
+    /// input's vertices, the container's cut (of --pmc, or of the input encoded in memory with
+    /// `encode`'s defaults) beside direct and static, with ratios and drift. --vertices,
+    /// --methods and --coherence-triangles do not apply.
+    #[arg(long, num_args = 0..=1, default_missing_value = "12", value_name = "N")]
+    pub sweep: Option<usize>,
+    /// With --sweep: also draw the ratios to direct against the budget as a PNG.
+    #[arg(long, value_name = "FILE.png", requires = "sweep")]
+    pub plot: Option<std::path::PathBuf>,
     /// Also measure a .pmc container of the same sequence as a client sees it: each frame
     /// decoded (quantized positions) and cut by the file's own split order at the same vertex
     /// count (and at the coherence budget). Reported as method `container`.
@@ -97,6 +107,12 @@ fn mean(x: &[f64]) -> f64 {
 
 pub fn run(args: EvalArgs, quiet: bool) -> Result<(), Exit> {
     crate::codec_cmd::check_fps(&args.input_args)?;
+    if let Some(n) = args.sweep {
+        if !(1..=MAX_SAMPLES).contains(&args.samples) || !(2..=16).contains(&args.branching) {
+            return check_args(&args, usize::MAX);
+        }
+        return crate::eval_sweep::run(&args, n, quiet);
+    }
     let mut seq = input::load(&args.input, &args.input_args)?;
     if let Some(n) = args.frames {
         seq.frames.truncate(n.max(1));

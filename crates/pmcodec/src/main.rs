@@ -4,6 +4,7 @@
 mod codec_cmd;
 mod decode_cmd;
 mod eval_cmd;
+mod eval_sweep;
 mod info_cmd;
 mod input;
 mod lod_cmd;

@@ -286,6 +286,51 @@ fn info_prints_encoding_options_as_rows() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// `eval --sweep N` measures the container's cut (encoded in memory), direct and static at N
+/// budgets from 1% to 50% of the vertices, on frames spread over the sequence, and `--plot`
+/// writes a PNG of the ratios.
+#[test]
+fn eval_sweep_table_and_plot() {
+    let dir = temp("sweep");
+    let frames_dir = dir.join("in");
+    std::fs::create_dir_all(&frames_dir).unwrap();
+    let seq = pmcodec_mesh::samples::waving_cloth(30, 20, 6);
+    for f in 0..6 {
+        pmcodec_mesh::write::write_mesh_file(&frames_dir.join(format!("f{}.obj", f + 1)), &seq.frame_mesh(f).unwrap()).unwrap();
+    }
+    let png_path = dir.join("sweep.png");
+    let out = ok(bin()
+        .args(["eval", "-q", "--sweep", "12", "--frames", "3", "--samples", "500", "--json"])
+        .arg(&frames_dir)
+        .arg("--plot")
+        .arg(&png_path));
+    let report: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let rows = report["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 12);
+    assert_eq!(report["frames_measured"], serde_json::json!([0, 3, 5]));
+    let vertices: Vec<u64> = rows.iter().map(|r| r["vertices"].as_u64().unwrap()).collect();
+    assert!(vertices.windows(2).all(|w| w[1] > w[0]) && vertices[11] == 300, "{vertices:?}");
+    for r in rows {
+        for m in ["container", "direct", "static"] {
+            let rms = r[m]["mean_rms"].as_f64().unwrap();
+            assert!(rms > 0.0 && rms < 20.0, "{m} {rms}");
+        }
+        // Finer budgets are closer for the direct method (one QEM run, snapshotted).
+        assert!(r["container_over_direct"].as_f64().unwrap() > 0.0);
+    }
+    assert!(rows[11]["direct"]["mean_rms"].as_f64().unwrap() < rows[0]["direct"]["mean_rms"].as_f64().unwrap());
+    let mut reader = png::Decoder::new(std::io::Cursor::new(std::fs::read(&png_path).unwrap())).read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert!(info.width >= 400 && info.height >= 300);
+    // The text table has a line per budget.
+    let table = ok(bin().args(["eval", "-q", "--sweep", "4", "--frames", "2", "--samples", "300"]).arg(&frames_dir));
+    assert_eq!(table.lines().filter(|l| l.trim_start().starts_with(|c: char| c.is_ascii_digit())).count(), 4, "{table}");
+    // --plot without --sweep is a usage error.
+    assert_eq!(bin().args(["eval", "-q", "--plot", "x.png"]).arg(&frames_dir).output().unwrap().status.code(), Some(2));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// `eval` checks its values before any work: out of range is bad input naming the value and the
 /// range (`--vertices 0` used to never return).
 #[test]
