@@ -31,7 +31,7 @@ pub mod triangle;
 
 pub use approx::{ApproxOptions, Method, approximate, approximate_sizes};
 pub use bvh::SurfaceIndex;
-pub use coherence::{Approximation, changed_share};
+pub use coherence::{Approximation, changed_share, changed_share_by_nodes, changed_share_of, cluster_keys, node_keys};
 use glam::Vec3;
 pub use greedy::select_cut;
 use pmcodec_mesh::TriMesh;

@@ -112,19 +112,41 @@ fn eval_measures_a_container() {
     let pmc = dir.join("seq.pmc");
     ok(bin().args(["encode", "-q"]).arg(&frames_dir).arg("-o").arg(&pmc));
     let out = ok(bin()
-        .args(["eval", "-q", "--methods", "static", "--vertices", "40", "--coherence-triangles", "60", "--samples", "2000", "--json"])
+        .args([
+            "eval",
+            "-q",
+            "--methods",
+            "static,direct",
+            "--vertices",
+            "40",
+            "--coherence-triangles",
+            "60",
+            "--samples",
+            "2000",
+            "--json",
+        ])
         .arg(&frames_dir)
         .arg("--pmc")
         .arg(&pmc));
     let report: serde_json::Value = serde_json::from_str(&out).unwrap();
     let methods = report["methods"].as_array().unwrap();
-    assert_eq!(methods.iter().map(|m| m["method"].as_str().unwrap()).collect::<Vec<_>>(), ["static", "container"]);
-    let container = &methods[1];
+    // What a client gets leads (issue 15).
+    assert_eq!(methods.iter().map(|m| m["method"].as_str().unwrap()).collect::<Vec<_>>(), ["container", "static", "direct"]);
+    let container = &methods[0];
     assert_eq!(container["rms"].as_array().unwrap().len(), 5);
     let rms = container["mean_rms"].as_f64().unwrap();
     assert!(rms > 0.0 && rms < 10.0, "{rms}");
-    let changed = container["mean_changed_share"].as_f64().unwrap();
-    assert!((0.0..=1.0).contains(&changed), "{changed}");
+    // Coherence by cluster content for every method; by node ids where nodes persist.
+    for m in methods {
+        let changed = m["mean_changed_share"].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&changed), "{changed}");
+        assert_eq!(m["changed_share"].as_array().unwrap().len(), 5);
+    }
+    assert!(methods[0]["mean_changed_share_by_node_ids"].is_f64() && methods[1]["mean_changed_share_by_node_ids"].is_f64());
+    assert!(methods[2]["mean_changed_share_by_node_ids"].is_null(), "direct has no persistent node ids");
+    // Static keeps one cut of one hierarchy: no triangle changes, by either identity.
+    assert_eq!(methods[1]["mean_changed_share"].as_f64().unwrap(), 0.0);
+    assert_eq!(methods[1]["mean_changed_share_by_node_ids"].as_f64().unwrap(), 0.0);
     // A container of another mesh is refused, naming the file.
     let other = dir.join("other");
     std::fs::create_dir_all(&other).unwrap();
