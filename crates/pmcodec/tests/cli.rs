@@ -327,12 +327,16 @@ fn eval_sweep_table_and_plot() {
         .arg("--plot")
         .arg(&png_path));
     let report: serde_json::Value = serde_json::from_str(&out).unwrap();
-    let rows = report["rows"].as_array().unwrap();
+    let all_rows = report["rows"].as_array().unwrap();
+    // The 12 budgets, and the container's levels in their range as rows of their own.
+    let rows: Vec<&serde_json::Value> = all_rows.iter().filter(|r| r["swept"] == true).collect();
     assert_eq!(rows.len(), 12);
+    assert!(all_rows.iter().any(|r| r["level"].as_u64() == Some(1)), "level 1 is within 1%..50%");
+    assert!(report["worst_frame0_at_levels"].as_f64().unwrap() > 0.0);
     assert_eq!(report["frames_measured"], serde_json::json!([0, 3, 5]));
     let vertices: Vec<u64> = rows.iter().map(|r| r["vertices"].as_u64().unwrap()).collect();
     assert!(vertices.windows(2).all(|w| w[1] > w[0]) && vertices[11] == 300, "{vertices:?}");
-    for r in rows {
+    for r in all_rows {
         for m in ["container", "direct", "static"] {
             let rms = r[m]["mean_rms"].as_f64().unwrap();
             assert!(rms > 0.0 && rms < 20.0, "{m} {rms}");
@@ -347,7 +351,9 @@ fn eval_sweep_table_and_plot() {
     assert!(info.width >= 400 && info.height >= 300);
     // The text table has a line per budget.
     let table = ok(bin().args(["eval", "-q", "--sweep", "4", "--frames", "2", "--samples", "300"]).arg(&frames_dir));
-    assert_eq!(table.lines().filter(|l| l.trim_start().starts_with(|c: char| c.is_ascii_digit())).count(), 4, "{table}");
+    let rows = table.lines().filter(|l| l.trim_start().starts_with(|c: char| c.is_ascii_digit())).count();
+    let levels = table.lines().filter(|l| l.trim_start().starts_with(|c: char| c.is_ascii_digit()) && l.contains(" L")).count();
+    assert!(rows >= 4 && rows <= 4 + levels, "{table}");
     // --plot without --sweep is a usage error.
     assert_eq!(bin().args(["eval", "-q", "--plot", "x.png"]).arg(&frames_dir).output().unwrap().status.code(), Some(2));
     std::fs::remove_dir_all(&dir).ok();
