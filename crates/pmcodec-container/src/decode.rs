@@ -606,6 +606,27 @@ impl<S: ByteSource> Decoder<S> {
         result
     }
 
+    /// [`Decoder::cut_triangles`], and for every vertex of the finest level decoded (the input's
+    /// vertices at `min_level` 0) the cut node whose cluster holds it: what identifies a shown
+    /// triangle by the content of its corners' clusters, the same way for every method `pmcodec
+    /// eval` compares (node ids persist only within one file). `Level` targets are refused.
+    pub fn cut_clusters(&mut self, target: CutTarget) -> Result<(Vec<[u32; 3]>, Vec<u32>), ContainerError> {
+        let triangles = self.cut_triangles(target)?;
+        let diagonal = self.diagonal();
+        let mut d = self.take_derived(true)?;
+        let result = match self.replay.as_ref() {
+            Some(replay) => {
+                // Never `Err`: `cut_triangles` refused levels.
+                let k = d.order.prefix(replay, &d.errors, target, diagonal).unwrap_or_default();
+                let n = replay.h.level_sizes[replay.min_level];
+                Ok((0..n).map(|v| d.order.cut_node_of(replay, v, k)).collect())
+            }
+            None => Err(ContainerError::Options("seek to a frame first".into())),
+        };
+        self.derived = Some(d);
+        result.map(|nodes| (triangles, nodes))
+    }
+
     fn cut(&mut self, target: CutTarget, d: &mut Derived, mesh: &mut TriMesh) -> Result<(), ContainerError> {
         let diagonal = self.diagonal();
         let min_level = self.min_level;

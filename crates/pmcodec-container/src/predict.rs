@@ -532,12 +532,29 @@ impl StencilWeights {
     }
 }
 
+/// `e` of [`coarse_shift`]: `log4(|M0| / |Mj|)` rounded after taking 0.1 off (a level of 25%
+/// of the input gets 1, one of 50% gets 0); the level index where the header lacks sizes.
+fn level_exponent(level_sizes: &[u32], level: usize) -> u32 {
+    match (level_sizes.first(), level_sizes.get(level)) {
+        (Some(&fine), Some(&size)) if size > 0 && fine >= size => {
+            let e = ((fine as f64 / size as f64).ln() / 4f64.ln() - 0.1).round();
+            e.clamp(0.0, crate::payload::MAX_SHIFT as f64) as u32
+        }
+        _ => level as u32,
+    }
+}
+
 /// The residual step (as a power of two of the quantum) the encoder uses for band `level`
 /// given [`crate::EncodeOptions::coarse_grid`]. Input vertices, which the error bound applies
 /// to, always get 0; with `None` (the default) so do coarser nodes. With `Some(k)` band j >= 1
-/// is stored on a grid of `2^s` quanta, `s = j + k` at most, and `2^s` quanta at most
-/// `2^(j + k) / 4096` of the bounding box's largest extent (so 12-bit quantization gets
-/// `s = j + k`, coarser quantization smaller steps). Coarse nodes approximate many vertices,
+/// is stored on a grid of `2^s` quanta, `s = e + k` at most, and `2^s` quanta at most
+/// `2^(e + k) / 4096` of the bounding box's largest extent (so 12-bit quantization gets
+/// `s = e + k`, coarser quantization smaller steps), where `e` is how many times 4 the level is
+/// coarser than the input, `log4(|M0| / |Mj|)` rounded (0.1 toward 0): the spacing of a level's
+/// nodes grows as the square root of that ratio, and the grid with it. For the default levels
+/// (anchored at 25% and 10% of the triangles, then 4 times fewer vertices each) `e = j`; levels
+/// closer together (branching 2, an anchor at 50%) no longer get a grid twice as coarse per
+/// level. Coarse nodes approximate many vertices,
 /// but a grid still shows in cuts: on the horse at 12 bits, `Some(0)` saves 1.4 bits per vertex
 /// per frame for about 3% more RMS error at 800 vertices, `Some(2)` 3 bits for 28% more.
 pub fn coarse_shift(header: &Header, level: usize, grid: Option<u32>) -> u32 {
@@ -548,11 +565,28 @@ pub fn coarse_shift(header: &Header, level: usize, grid: Option<u32>) -> u32 {
     let k = k.min(crate::payload::MAX_SHIFT);
     let extent = (0..3).map(|a| header.bbox_max[a] - header.bbox_min[a]).fold(0f32, f32::max) as f64;
     let step = header.quantization.step as f64;
-    let cap = (level as u32 + k).min(crate::payload::MAX_SHIFT);
+    let cap = (level_exponent(&header.level_sizes, level) + k).min(crate::payload::MAX_SHIFT);
     let limit = ((1u64 << cap) as f64) * extent / 4096.0 * 1.01;
     let mut s = 0;
     while s < cap && ((1u64 << (s + 1)) as f64) * step <= limit {
         s += 1;
     }
     s
+}
+
+#[cfg(test)]
+mod level_exponent_tests {
+    use super::level_exponent;
+
+    #[test]
+    fn grids_follow_level_sizes_not_indices() {
+        // The default horse levels (25% and 10% of the triangles, then 1/4): the index.
+        let default = [8431, 2113, 847, 212, 53, 13];
+        assert_eq!((0..6).map(|j| level_exponent(&default, j)).collect::<Vec<_>>(), [0, 1, 2, 3, 4, 5]);
+        // A level at 50% and branching 2: half as coarse a grid per level.
+        let fine = [8431, 4220, 2113, 847, 424, 212, 106];
+        assert_eq!((0..7).map(|j| level_exponent(&fine, j)).collect::<Vec<_>>(), [0, 0, 1, 2, 2, 3, 3]);
+        // No sizes: the index.
+        assert_eq!(level_exponent(&[], 3), 3);
+    }
 }

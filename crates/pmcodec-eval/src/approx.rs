@@ -141,3 +141,82 @@ pub fn approximate(
     }
     Ok(out)
 }
+
+/// Approximations of the frames `frames` of `seq` at every vertex count of `sizes` at once, for
+/// a budget sweep: `out[i][j]` is frame `frames[i]` at `sizes[j]` vertices. One hierarchy is
+/// built with a level at each size (`sizes` is sorted and de-duplicated here), so each level is
+/// the state of one QEM run at exactly that count: per frame for *direct* (plain QEM of the
+/// frame, Garland & Heckbert 1997), once from the base quadrics for *first-frame static* (node
+/// positions re-solved per frame), and for *reclustered* the same base hierarchy adapted frame by
+/// frame through every frame up to the last in `frames` (which must then be increasing). A size
+/// the run cannot reach (fewer vertices than the mesh has connected components) is shown at the
+/// coarsest level.
+pub fn approximate_sizes(
+    seq: &Sequence,
+    frames: &[usize],
+    sizes: &[u32],
+    method: Method,
+    opts: &ApproxOptions,
+    mut progress: impl FnMut(usize),
+) -> Result<Vec<Vec<pmcodec_mesh::TriMesh>>, BuildError> {
+    let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
+    let mut levels: Vec<u32> = sizes.iter().copied().filter(|&s| s > 0 && (s as usize) < seq.vertex_count()).collect();
+    levels.sort_unstable_by(|a, b| b.cmp(a));
+    levels.dedup();
+    let build_opts =
+        BuildOptions { branching: if opts.branching == 0 { 4 } else { opts.branching }, level_sizes: Some(levels), ..Default::default() };
+    let meshes_of = |h: &Hierarchy, nodes: &NodeState| -> Vec<pmcodec_mesh::TriMesh> {
+        let d = DegenerateSets::new(h, &seq.triangles);
+        let children = cut::ChildIndex::new(h);
+        sizes
+            .iter()
+            .map(|&s| {
+                // The level of exactly `s` nodes, else the coarsest (see above); level 0 for a
+                // size at or above the input's.
+                let level =
+                    h.level_sizes.iter().position(|&l| l == s).unwrap_or(if s as usize >= seq.vertex_count() { 0 } else { h.top() });
+                let c = crate::select_cut(h, &d, &children, nodes, CutTarget::Level(level));
+                cut::extract(h, &d, &seq.triangles, &c, &nodes.positions).0
+            })
+            .collect()
+    };
+    let mut out = Vec::with_capacity(frames.len());
+    let mut q = Vec::new();
+    match method {
+        Method::Direct => {
+            for (i, &f) in frames.iter().enumerate() {
+                let frame = &seq.frames[f];
+                vertex_quadrics(frame, &seq.triangles, &topo.boundary, &opts.base.quadric, &mut q);
+                let h = build(&topo, &q, &build_opts)?;
+                out.push(meshes_of(&h, &NodeState::compute(&h, &q, frame)));
+                progress(i);
+            }
+        }
+        Method::FirstFrameStatic => {
+            let h = build(&topo, &base_quadrics(seq, &topo, &opts.base), &build_opts)?;
+            for (i, &f) in frames.iter().enumerate() {
+                let frame = &seq.frames[f];
+                vertex_quadrics(frame, &seq.triangles, &topo.boundary, &opts.base.quadric, &mut q);
+                out.push(meshes_of(&h, &NodeState::compute(&h, &q, frame)));
+                progress(i);
+            }
+        }
+        Method::Reclustered => {
+            let h = build(&topo, &base_quadrics(seq, &topo, &opts.base), &build_opts)?;
+            let mut rc = Reclusterer::new(h, topo, seq.triangles.clone(), opts.recluster.clone());
+            let mut swaps = Vec::new();
+            let mut next = frames.iter().copied().enumerate().peekable();
+            for (f, frame) in seq.frames.iter().enumerate() {
+                let Some(&(i, want)) = next.peek() else { break };
+                rc.frame(frame, &mut swaps);
+                swaps.clear();
+                if want == f {
+                    out.push(meshes_of(rc.hierarchy(), rc.nodes()));
+                    progress(i);
+                    next.next();
+                }
+            }
+        }
+    }
+    Ok(out)
+}

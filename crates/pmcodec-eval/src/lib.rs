@@ -23,14 +23,15 @@ mod bvh;
 mod coherence;
 mod greedy;
 pub mod made;
+pub mod plot;
 mod rebalance;
 mod rng;
 mod sample;
 pub mod triangle;
 
-pub use approx::{ApproxOptions, Method, approximate};
+pub use approx::{ApproxOptions, Method, approximate, approximate_sizes};
 pub use bvh::SurfaceIndex;
-pub use coherence::{Approximation, changed_share};
+pub use coherence::{Approximation, changed_share, changed_share_by_nodes, changed_share_of, cluster_keys, node_keys};
 use glam::Vec3;
 pub use greedy::select_cut;
 use pmcodec_mesh::TriMesh;
@@ -245,6 +246,26 @@ pub fn symmetric_relative(reference: &TriMesh, approx: &TriMesh, opts: &SampleOp
         return Err(EvalError::ZeroExtent { which: "reference" });
     }
     let d = symmetric(reference, approx, opts)?;
+    let scale = 100.0 / diagonal;
+    Ok(Distance { rms: d.rms * scale, max: d.max * scale, mean: d.mean * scale })
+}
+
+/// [`symmetric_relative`] with the reference's index prebuilt (`reference_index` must be built
+/// from `reference`): for many approximations of one frame.
+pub fn symmetric_relative_indexed(
+    reference: &TriMesh,
+    reference_index: &SurfaceIndex,
+    approx: &TriMesh,
+    opts: &SampleOptions,
+) -> Result<Distance, EvalError> {
+    validate(reference, "reference")?;
+    validate(approx, "approximation")?;
+    let diagonal = reference.bounds().map_or(0.0, |(lo, hi)| (hi.as_dvec3() - lo.as_dvec3()).length());
+    if !(diagonal > 0.0) {
+        return Err(EvalError::ZeroExtent { which: "reference" });
+    }
+    let approx_index = SurfaceIndex::new(approx)?;
+    let d = symmetric_indexed(reference, reference_index, approx, &approx_index, opts)?;
     let scale = 100.0 / diagonal;
     Ok(Distance { rms: d.rms * scale, max: d.max * scale, mean: d.mean * scale })
 }

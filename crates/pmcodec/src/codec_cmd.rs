@@ -283,39 +283,7 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
     for w in seq.skin.iter().flat_map(|s| &s.warnings).filter(|_| !quiet) {
         eprintln!("warning: {}: {w}", args.input.display());
     }
-    let coarse_grid = match args.coarse_grid.trim() {
-        "none" => None,
-        k => Some(k.parse::<u32>().map_err(|_| Exit(2, anyhow!("--coarse-grid {k:?}: use a number of levels or none")))?),
-    };
-    let motion = match args.motion {
-        MotionArg::KeyframeAffine => Motion::KeyframeAffine,
-        MotionArg::Affine => Motion::Affine,
-        MotionArg::Mean => Motion::Mean,
-    };
-    let order = match args.order {
-        OrderArg::BreadthFirst => VertexOrder::BreadthFirst,
-        OrderArg::Input => VertexOrder::Input,
-    };
-    let skin = match args.skin {
-        SkinArg::BackPropagated => Some(SkinPlacement::BackPropagated),
-        SkinArg::Centroid => Some(SkinPlacement::Centroid),
-        SkinArg::None => None,
-    };
-    let mut opts = EncodeOptions { keyframe_interval: args.keyframe_interval, coarse_grid, motion, order, skin, ..Default::default() };
-    opts.build.branching = args.branching;
-    opts.build.anchors = parse_anchors(&args.level_anchors)?;
-    opts.base.poses = parse_poses(&args.base_poses).map_err(|e| Exit(2, e))?;
-    opts.base.weights = match args.base_weights {
-        WeightsArg::None => VertexWeights::None,
-        WeightsArg::Tertiles => VertexWeights::Tertiles,
-        WeightsArg::Smooth => VertexWeights::Smooth,
-    };
-    opts.recluster = args.recluster.options()?;
-    opts.quantization = match (args.max_error, args.quant_bits) {
-        (_, Some(b)) => QuantizationChoice::Bits(b),
-        (Some(e), None) => QuantizationChoice::MaxError(e),
-        (None, None) => QuantizationChoice::MaxError(1e-4),
-    };
+    let opts = encode_options(&args)?;
     let encoding = Instant::now();
     let what = || format!("encoding {}", args.input.display());
     let frames = if rest.is_some() { seq.frame_names.len() } else { seq.frame_count() };
@@ -375,6 +343,45 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
         );
     }
     Ok(())
+}
+
+/// The encoder's options from `encode`'s flags (everything but the input, the output and the
+/// skin fit). `eval --sweep` encodes with `encode`'s defaults through this too.
+pub fn encode_options(args: &EncodeArgs) -> Result<EncodeOptions, Exit> {
+    let coarse_grid = match args.coarse_grid.trim() {
+        "none" => None,
+        k => Some(k.parse::<u32>().map_err(|_| Exit(2, anyhow!("--coarse-grid {k:?}: use a number of levels or none")))?),
+    };
+    let motion = match args.motion {
+        MotionArg::KeyframeAffine => Motion::KeyframeAffine,
+        MotionArg::Affine => Motion::Affine,
+        MotionArg::Mean => Motion::Mean,
+    };
+    let order = match args.order {
+        OrderArg::BreadthFirst => VertexOrder::BreadthFirst,
+        OrderArg::Input => VertexOrder::Input,
+    };
+    let skin = match args.skin {
+        SkinArg::BackPropagated => Some(SkinPlacement::BackPropagated),
+        SkinArg::Centroid => Some(SkinPlacement::Centroid),
+        SkinArg::None => None,
+    };
+    let mut opts = EncodeOptions { keyframe_interval: args.keyframe_interval, coarse_grid, motion, order, skin, ..Default::default() };
+    opts.build.branching = args.branching;
+    opts.build.anchors = parse_anchors(&args.level_anchors)?;
+    opts.base.poses = parse_poses(&args.base_poses).map_err(|e| Exit(2, e))?;
+    opts.base.weights = match args.base_weights {
+        WeightsArg::None => VertexWeights::None,
+        WeightsArg::Tertiles => VertexWeights::Tertiles,
+        WeightsArg::Smooth => VertexWeights::Smooth,
+    };
+    opts.recluster = args.recluster.options()?;
+    opts.quantization = match (args.max_error, args.quant_bits) {
+        (_, Some(b)) => QuantizationChoice::Bits(b),
+        (Some(e), None) => QuantizationChoice::MaxError(e),
+        (None, None) => QuantizationChoice::MaxError(1e-4),
+    };
+    Ok(opts)
 }
 
 /// Encodes `seq`, whose frames after the first `rest` reads while the encoder works (OBJ

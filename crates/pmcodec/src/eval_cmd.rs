@@ -57,9 +57,19 @@ pub struct EvalArgs {
     pub branching: u32,
     #[command(flatten)]
     pub recluster: ReclusterArgs,
-    /// Only the first N frames.
+    /// Only the first N frames; with --sweep, N frames spread evenly from the first to the last
+    /// (the container is still encoded from every frame).
     #[arg(long)]
     pub frames: Option<usize>,
+    /// A budget sweep instead (issue 15): at N vertex budgets log-spaced from 1% to 50% of the
+    /// input's vertices, the container's cut (of --pmc, or of the input encoded in memory with
+    /// `encode`'s defaults) beside direct and static, with ratios and drift. --vertices,
+    /// --methods and --coherence-triangles do not apply.
+    #[arg(long, num_args = 0..=1, default_missing_value = "12", value_name = "N")]
+    pub sweep: Option<usize>,
+    /// With --sweep: also draw the ratios to direct against the budget as a PNG.
+    #[arg(long, value_name = "FILE.png", requires = "sweep")]
+    pub plot: Option<std::path::PathBuf>,
     /// Also measure a .pmc container of the same sequence as a client sees it: each frame
     /// decoded (quantized positions) and cut by the file's own split order at the same vertex
     /// count (and at the coherence budget). Reported as method `container`.
@@ -78,8 +88,14 @@ struct MethodReport {
     mean_rms: f64,
     first_quarter_rms: f64,
     last_quarter_rms: f64,
+    /// Per frame, the share of shown triangles the frame before did not show, triangles
+    /// identified by their corner clusters' content (input vertex sets): the same for every
+    /// method.
     changed_share: Option<Vec<f64>>,
     mean_changed_share: Option<f64>,
+    /// The same by corner node ids, for methods whose nodes persist (not direct).
+    changed_share_by_node_ids: Option<Vec<f64>>,
+    mean_changed_share_by_node_ids: Option<f64>,
 }
 
 #[derive(Serialize)]
@@ -97,6 +113,12 @@ fn mean(x: &[f64]) -> f64 {
 
 pub fn run(args: EvalArgs, quiet: bool) -> Result<(), Exit> {
     crate::codec_cmd::check_fps(&args.input_args)?;
+    if let Some(n) = args.sweep {
+        if !(1..=MAX_SAMPLES).contains(&args.samples) || !(2..=16).contains(&args.branching) {
+            return check_args(&args, usize::MAX);
+        }
+        return crate::eval_sweep::run(&args, n, quiet);
+    }
     let mut seq = input::load(&args.input, &args.input_args)?;
     if let Some(n) = args.frames {
         seq.frames.truncate(n.max(1));
@@ -121,20 +143,21 @@ pub fn run(args: EvalArgs, quiet: bool) -> Result<(), Exit> {
             // What cannot be measured is the input's (or a vertex count too small for any
             // surface): bad input.
             .map_err(|e| Exit(EXIT_BAD_INPUT, anyhow::Error::new(e).context(format!("measuring the {} approximations", method.name()))))?;
-        let changed = match args.coherence_triangles {
+        let (changed, by_nodes) = match args.coherence_triangles {
             Some(budget) => {
                 let bar = progress(frames as u64, "coherence", quiet);
                 let cut_frames: Vec<Approximation> = approx::approximate(&seq, CutTarget::Triangles(budget), method, &opts, |_| bar.inc(1))
                     .context("building budget cuts")?;
                 bar.finish_and_clear();
-                Some(approx::changed_share(&cut_frames))
+                (Some(approx::changed_share(&cut_frames)), approx::changed_share_by_nodes(&cut_frames))
             }
-            None => None,
+            None => (None, None),
         };
-        reports.push(method_report(method.name(), &distances, changed));
+        reports.push(method_report(method.name(), &distances, changed, by_nodes));
     }
+    // What a client gets leads: the container's stateless cut (issue 15).
     if let Some(path) = &args.pmc {
-        reports.push(container_report(path, &args, &originals, &sample, quiet)?);
+        reports.insert(0, container_report(path, &args, &originals, &sample, quiet)?);
     }
     let report = Report {
         input: args.input.display().to_string(),
@@ -172,7 +195,12 @@ fn check_args(args: &EvalArgs, input_vertices: usize) -> Result<(), Exit> {
 }
 
 /// A method's report from its per-frame distances and coherence shares.
-fn method_report(method: &'static str, distances: &[pmcodec_eval::Distance], changed: Option<Vec<f64>>) -> MethodReport {
+fn method_report(
+    method: &'static str,
+    distances: &[pmcodec_eval::Distance],
+    changed: Option<Vec<f64>>,
+    by_nodes: Option<Vec<f64>>,
+) -> MethodReport {
     let rms: Vec<f64> = distances.iter().map(|d| d.rms).collect();
     let max: Vec<f64> = distances.iter().map(|d| d.max).collect();
     let q = (rms.len() / 4).max(1);
@@ -183,6 +211,8 @@ fn method_report(method: &'static str, distances: &[pmcodec_eval::Distance], cha
         last_quarter_rms: mean(&rms[rms.len().saturating_sub(q)..]),
         mean_changed_share: changed.as_ref().map(|c| mean(&c[1.min(c.len())..])),
         changed_share: changed,
+        mean_changed_share_by_node_ids: by_nodes.as_ref().map(|c| mean(&c[1.min(c.len())..])),
+        changed_share_by_node_ids: by_nodes,
         rms,
         max,
     }
@@ -216,15 +246,16 @@ fn container_report(
     let mut d = Decoder::new(reader.borrowed(), 0).map_err(|e| container_error(e, format!("reading {}", path.display())))?;
     let bar = progress(frames as u64, "container", quiet);
     let mut meshes = Vec::with_capacity(frames);
-    let mut keys: Vec<Vec<[u32; 3]>> = Vec::new();
+    let mut keys: Vec<Vec<[u64; 3]>> = Vec::new();
+    let mut node_keys: Vec<Vec<[u64; 3]>> = Vec::new();
     for f in 0..frames {
         let at = || format!("{} frame {f}", path.display());
         d.seek(f as u32).map_err(|e| container_error(e, at()))?;
         meshes.push(d.mesh(CutTarget::Vertices(args.vertices)).map_err(|e| container_error(e, at()))?);
         if let Some(budget) = args.coherence_triangles {
-            let mut k = d.cut_triangles(CutTarget::Triangles(budget)).map_err(|e| container_error(e, at()))?;
-            k.iter_mut().for_each(|t| t.sort_unstable());
-            keys.push(k);
+            let (corners, node_of) = d.cut_clusters(CutTarget::Triangles(budget)).map_err(|e| container_error(e, at()))?;
+            keys.push(pmcodec_eval::cluster_keys(&node_of, &corners));
+            node_keys.push(pmcodec_eval::node_keys(&corners));
         }
         bar.inc(1);
     }
@@ -235,17 +266,12 @@ fn container_report(
         .map(|(orig, m)| pmcodec_eval::symmetric_relative(orig, m, sample))
         .collect::<Result<_, _>>()
         .map_err(|e| Exit(EXIT_BAD_INPUT, anyhow::Error::new(e).context(format!("measuring the cuts of {}", path.display()))))?;
-    // The share of each frame's shown triangles (by their corners' nodes) the frame before did not show.
-    let changed = args.coherence_triangles.map(|_| {
-        let mut out = vec![0.0];
-        for w in keys.windows(2) {
-            let before: std::collections::HashSet<&[u32; 3]> = w[0].iter().collect();
-            let new = w[1].iter().filter(|k| !before.contains(k)).count();
-            out.push(if w[1].is_empty() { 0.0 } else { new as f64 / w[1].len() as f64 });
-        }
-        out
-    });
-    Ok(method_report("container", &distances, changed))
+    // The share of each frame's shown triangles the frame before did not show, by cluster
+    // content as for every method, and by the corners' node ids (persistent within the file).
+    let share = |k: &[Vec<[u64; 3]>]| pmcodec_eval::changed_share_of(&k.iter().map(Vec::as_slice).collect::<Vec<_>>());
+    let changed = args.coherence_triangles.map(|_| share(&keys));
+    let by_nodes = args.coherence_triangles.map(|_| share(&node_keys));
+    Ok(method_report("container", &distances, changed, by_nodes))
 }
 
 fn print_table(r: &Report) {
@@ -269,7 +295,15 @@ fn print_table(r: &Report) {
             m.method, m.mean_rms, m.first_quarter_rms, m.last_quarter_rms
         );
         if let Some(c) = m.mean_changed_share {
-            print!("  changed triangles per frame at {} triangles: {:.2}%", r.coherence_triangles.unwrap_or(0), 100.0 * c);
+            print!(
+                "  changed triangles per frame at {} triangles: {:.2}% by cluster content",
+                r.coherence_triangles.unwrap_or(0),
+                100.0 * c
+            );
+            match m.mean_changed_share_by_node_ids {
+                Some(n) => print!(" ({:.2}% by node ids)", 100.0 * n),
+                None => print!(" (no persistent node ids)"),
+            }
         }
         println!();
     }

@@ -5,6 +5,7 @@ mod codec_cmd;
 mod decode_cmd;
 mod decode_rig;
 mod eval_cmd;
+mod eval_sweep;
 mod info_cmd;
 mod input;
 mod lod_cmd;

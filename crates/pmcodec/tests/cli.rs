@@ -112,19 +112,41 @@ fn eval_measures_a_container() {
     let pmc = dir.join("seq.pmc");
     ok(bin().args(["encode", "-q"]).arg(&frames_dir).arg("-o").arg(&pmc));
     let out = ok(bin()
-        .args(["eval", "-q", "--methods", "static", "--vertices", "40", "--coherence-triangles", "60", "--samples", "2000", "--json"])
+        .args([
+            "eval",
+            "-q",
+            "--methods",
+            "static,direct",
+            "--vertices",
+            "40",
+            "--coherence-triangles",
+            "60",
+            "--samples",
+            "2000",
+            "--json",
+        ])
         .arg(&frames_dir)
         .arg("--pmc")
         .arg(&pmc));
     let report: serde_json::Value = serde_json::from_str(&out).unwrap();
     let methods = report["methods"].as_array().unwrap();
-    assert_eq!(methods.iter().map(|m| m["method"].as_str().unwrap()).collect::<Vec<_>>(), ["static", "container"]);
-    let container = &methods[1];
+    // What a client gets leads (issue 15).
+    assert_eq!(methods.iter().map(|m| m["method"].as_str().unwrap()).collect::<Vec<_>>(), ["container", "static", "direct"]);
+    let container = &methods[0];
     assert_eq!(container["rms"].as_array().unwrap().len(), 5);
     let rms = container["mean_rms"].as_f64().unwrap();
     assert!(rms > 0.0 && rms < 10.0, "{rms}");
-    let changed = container["mean_changed_share"].as_f64().unwrap();
-    assert!((0.0..=1.0).contains(&changed), "{changed}");
+    // Coherence by cluster content for every method; by node ids where nodes persist.
+    for m in methods {
+        let changed = m["mean_changed_share"].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&changed), "{changed}");
+        assert_eq!(m["changed_share"].as_array().unwrap().len(), 5);
+    }
+    assert!(methods[0]["mean_changed_share_by_node_ids"].is_f64() && methods[1]["mean_changed_share_by_node_ids"].is_f64());
+    assert!(methods[2]["mean_changed_share_by_node_ids"].is_null(), "direct has no persistent node ids");
+    // Static keeps one cut of one hierarchy: no triangle changes, by either identity.
+    assert_eq!(methods[1]["mean_changed_share"].as_f64().unwrap(), 0.0);
+    assert_eq!(methods[1]["mean_changed_share_by_node_ids"].as_f64().unwrap(), 0.0);
     // A container of another mesh is refused, naming the file.
     let other = dir.join("other");
     std::fs::create_dir_all(&other).unwrap();
@@ -283,6 +305,57 @@ fn info_prints_encoding_options_as_rows() {
     for row in ["  base poses      first", "  homeomorphism   no", "  max passes      16", "  quantization    max error 0.0001"] {
         assert!(table.lines().any(|l| l == row || l.starts_with(row)), "no row {row:?} in\n{table}");
     }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `eval --sweep N` measures the container's cut (encoded in memory), direct and static at N
+/// budgets from 1% to 50% of the vertices, on frames spread over the sequence, and `--plot`
+/// writes a PNG of the ratios.
+#[test]
+fn eval_sweep_table_and_plot() {
+    let dir = temp("sweep");
+    let frames_dir = dir.join("in");
+    std::fs::create_dir_all(&frames_dir).unwrap();
+    let seq = pmcodec_mesh::samples::waving_cloth(30, 20, 6);
+    for f in 0..6 {
+        pmcodec_mesh::write::write_mesh_file(&frames_dir.join(format!("f{}.obj", f + 1)), &seq.frame_mesh(f).unwrap()).unwrap();
+    }
+    let png_path = dir.join("sweep.png");
+    let out = ok(bin()
+        .args(["eval", "-q", "--sweep", "12", "--frames", "3", "--samples", "500", "--json"])
+        .arg(&frames_dir)
+        .arg("--plot")
+        .arg(&png_path));
+    let report: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let all_rows = report["rows"].as_array().unwrap();
+    // The 12 budgets, and the container's levels in their range as rows of their own.
+    let rows: Vec<&serde_json::Value> = all_rows.iter().filter(|r| r["swept"] == true).collect();
+    assert_eq!(rows.len(), 12);
+    assert!(all_rows.iter().any(|r| r["level"].as_u64() == Some(1)), "level 1 is within 1%..50%");
+    assert!(report["worst_frame0_at_levels"].as_f64().unwrap() > 0.0);
+    assert_eq!(report["frames_measured"], serde_json::json!([0, 3, 5]));
+    let vertices: Vec<u64> = rows.iter().map(|r| r["vertices"].as_u64().unwrap()).collect();
+    assert!(vertices.windows(2).all(|w| w[1] > w[0]) && vertices[11] == 300, "{vertices:?}");
+    for r in all_rows {
+        for m in ["container", "direct", "static"] {
+            let rms = r[m]["mean_rms"].as_f64().unwrap();
+            assert!(rms > 0.0 && rms < 20.0, "{m} {rms}");
+        }
+        // Finer budgets are closer for the direct method (one QEM run, snapshotted).
+        assert!(r["container_over_direct"].as_f64().unwrap() > 0.0);
+    }
+    assert!(rows[11]["direct"]["mean_rms"].as_f64().unwrap() < rows[0]["direct"]["mean_rms"].as_f64().unwrap());
+    let mut reader = png::Decoder::new(std::io::Cursor::new(std::fs::read(&png_path).unwrap())).read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert!(info.width >= 400 && info.height >= 300);
+    // The text table has a line per budget.
+    let table = ok(bin().args(["eval", "-q", "--sweep", "4", "--frames", "2", "--samples", "300"]).arg(&frames_dir));
+    let rows = table.lines().filter(|l| l.trim_start().starts_with(|c: char| c.is_ascii_digit())).count();
+    let levels = table.lines().filter(|l| l.trim_start().starts_with(|c: char| c.is_ascii_digit()) && l.contains(" L")).count();
+    assert!(rows >= 4 && rows <= 4 + levels, "{table}");
+    // --plot without --sweep is a usage error.
+    assert_eq!(bin().args(["eval", "-q", "--plot", "x.png"]).arg(&frames_dir).output().unwrap().status.code(), Some(2));
     std::fs::remove_dir_all(&dir).ok();
 }
 
