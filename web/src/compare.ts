@@ -70,30 +70,9 @@ async function compare(pmc: string, glb: string): Promise<Record<string, string 
   // Skinned bounds are the bind pose's: never cull.
   root.traverse((o) => { o.frustumCulled = false; });
 
-  // The camera frames the reference's posed vertices (skinning and morphs applied).
-  const box = new THREE.Box3().setFromObject(root, true);
-  const sphere = box.getBoundingSphere(new THREE.Sphere());
-  const camera = new THREE.PerspectiveCamera(40, 1, sphere.radius / 100, sphere.radius * 100);
-  const fit = sphere.radius / Math.sin(THREE.MathUtils.degToRad(camera.fov / 2));
-  camera.position.copy(sphere.center).add(new THREE.Vector3(0.6, 0.4, 1).normalize().multiplyScalar(fit));
-  camera.lookAt(sphere.center);
-  camera.updateMatrixWorld();
-  // Zoomed (a view offset: the same camera, cropped) onto the square around what the reference
-  // draws, so the model rather than the background makes most of the images compared.
-  const first = pixels(renderer, theirs, camera);
-  let x0 = size, y0 = size, x1 = -1, y1 = -1;
-  for (let y = 0; y < size; y++) for (let x = 0; x < size; x++) {
-    const o = 4 * (y * size + x);
-    if (Math.abs(first[o] - 0x1d) + Math.abs(first[o + 1] - 0x20) + Math.abs(first[o + 2] - 0x26) <= 6) continue;
-    // readPixels' rows run bottom up; a view offset's from the top.
-    const top = size - 1 - y;
-    x0 = Math.min(x0, x); x1 = Math.max(x1, x); y0 = Math.min(y0, top); y1 = Math.max(y1, top);
-  }
-  if (x1 >= 0) {
-    const side = Math.min(size, Math.max(x1 - x0, y1 - y0) * 1.1 + 4);
-    camera.setViewOffset(size, size, (x0 + x1) / 2 - side / 2, (y0 + y1) / 2 - side / 2, side, side);
-    camera.updateProjectionMatrix();
-  }
+  // The camera frames the reference's posed vertices (skinning and morphs applied), cropped
+  // to what it draws.
+  const camera = frameCamera(root, theirs);
 
   // The stream: frame 0, every triangle, no geomorph, its own materials.
   const player = PmcPlayer.fromUrl(pmc, { autoplay: false, morphMs: 0 });
@@ -262,7 +241,11 @@ function simplifyMeshes(root: THREE.Object3D, share: number): [number, number] {
   return [before, after];
 }
 
-/** A camera framing what `root` draws now (skinning and morphs applied), cropped to it. */
+/**
+ * A camera framing what `root` draws now (skinning and morphs applied), zoomed (a view offset:
+ * the same camera, cropped) onto the square around what it draws in `scene`, so the model
+ * rather than the background makes most of the images compared.
+ */
 function frameCamera(root: THREE.Object3D, scene: THREE.Scene): THREE.PerspectiveCamera {
   const box = new THREE.Box3().setFromObject(root, true);
   const sphere = box.getBoundingSphere(new THREE.Sphere());
@@ -276,6 +259,7 @@ function frameCamera(root: THREE.Object3D, scene: THREE.Scene): THREE.Perspectiv
   for (let y = 0; y < size; y++) for (let x = 0; x < size; x++) {
     const o = 4 * (y * size + x);
     if (Math.abs(first[o] - 0x1d) + Math.abs(first[o + 1] - 0x20) + Math.abs(first[o + 2] - 0x26) <= 6) continue;
+    // readPixels' rows run bottom up; a view offset's from the top.
     const top = size - 1 - y;
     x0 = Math.min(x0, x); x1 = Math.max(x1, x); y0 = Math.min(y0, top); y1 = Math.max(y1, top);
   }
