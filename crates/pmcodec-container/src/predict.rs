@@ -532,12 +532,13 @@ impl StencilWeights {
     }
 }
 
-/// `e` of [`coarse_shift`]: `log4(|M0| / |Mj|)` rounded after taking 0.1 off (a level of 25%
-/// of the input gets 1, one of 50% gets 0); the level index where the header lacks sizes.
+/// `e` of [`coarse_shift`]: `ceil(log4(|M0| / |Mj|) - 0.25)`, the level index for levels 4x
+/// apart (and for a small mesh's levels anchored at 25% and 10%, which files before this rule
+/// were written with), less for levels closer together; the index where the header lacks sizes.
 fn level_exponent(level_sizes: &[u32], level: usize) -> u32 {
     match (level_sizes.first(), level_sizes.get(level)) {
         (Some(&fine), Some(&size)) if size > 0 && fine >= size => {
-            let e = ((fine as f64 / size as f64).ln() / 4f64.ln() - 0.1).round();
+            let e = ((fine as f64 / size as f64).ln() / 4f64.ln() - 0.25).ceil();
             e.clamp(0.0, crate::payload::MAX_SHIFT as f64) as u32
         }
         _ => level as u32,
@@ -548,9 +549,10 @@ fn level_exponent(level_sizes: &[u32], level: usize) -> u32 {
 /// given [`crate::EncodeOptions::coarse_grid`]. Input vertices, which the error bound applies
 /// to, always get 0; with `None` (the default) so do coarser nodes. With `Some(k)` band j >= 1
 /// is stored on a grid of `2^s` quanta, `s = e + k` at most, and `2^s` quanta at most
-/// `2^(e + k) / 4096` of the bounding box's largest extent (so 12-bit quantization gets
-/// `s = e + k`, coarser quantization smaller steps), where `e` is how many times 4 the level is
-/// coarser than the input, `log4(|M0| / |Mj|)` rounded (0.1 toward 0): the spacing of a level's
+/// `2^(e + k) / 4096` of the bounding box's largest extent and at most `2^(k+1) / |Mj|` of it (so
+/// 12-bit quantization of a mesh of a few thousand vertices gets `s = e + k`, coarser
+/// quantization and larger meshes smaller steps), where `e` is how many times 4 the level is
+/// coarser than the input, `ceil(log4(|M0| / |Mj|) - 0.25)`: the spacing of a level's
 /// nodes grows as the square root of that ratio, and the grid with it. For the default levels
 /// (anchored at 25% and 10% of the triangles, then 4 times fewer vertices each) `e = j`; levels
 /// closer together (branching 2, an anchor at 50%) no longer get a grid twice as coarse per
@@ -566,7 +568,12 @@ pub fn coarse_shift(header: &Header, level: usize, grid: Option<u32>) -> u32 {
     let extent = (0..3).map(|a| header.bbox_max[a] - header.bbox_min[a]).fold(0f32, f32::max) as f64;
     let step = header.quantization.step as f64;
     let cap = (level_exponent(&header.level_sizes, level) + k).min(crate::payload::MAX_SHIFT);
-    let limit = ((1u64 << cap) as f64) * extent / 4096.0 * 1.01;
+    // The grid must stay well under the level's own simplification error, which on a smooth
+    // surface falls as the inverse of its node count: at most twice the extent over the node
+    // count. The horse's default levels, 12-bit or not, keep their grids; on the 4x-subdivided
+    // horse (16 times the vertices) grids sized by quanta alone dominated its coarse cuts' error.
+    let nodes = header.level_sizes.get(level).copied().unwrap_or(1).max(1) as f64;
+    let limit = (((1u64 << cap) as f64) * extent / 4096.0 * 1.01).min(2.0 * extent * 2f64.powi(k as i32) / nodes);
     let mut s = 0;
     while s < cap && ((1u64 << (s + 1)) as f64) * step <= limit {
         s += 1;
@@ -583,9 +590,12 @@ mod level_exponent_tests {
         // The default horse levels (25% and 10% of the triangles, then 1/4): the index.
         let default = [8431, 2113, 847, 212, 53, 13];
         assert_eq!((0..6).map(|j| level_exponent(&default, j)).collect::<Vec<_>>(), [0, 1, 2, 3, 4, 5]);
-        // A level at 50% and branching 2: half as coarse a grid per level.
+        // A level at 50% and branching 2: one grid step per two levels.
         let fine = [8431, 4220, 2113, 847, 424, 212, 106];
-        assert_eq!((0..7).map(|j| level_exponent(&fine, j)).collect::<Vec<_>>(), [0, 0, 1, 2, 2, 3, 3]);
+        assert_eq!((0..7).map(|j| level_exponent(&fine, j)).collect::<Vec<_>>(), [0, 1, 1, 2, 2, 3, 3]);
+        // The new default levels (25%, 10%, 5%, 2.5%, 1.2%): one grid step per 4x in size.
+        let anchored = [8431, 2113, 847, 425, 213, 104, 26];
+        assert_eq!((0..7).map(|j| level_exponent(&anchored, j)).collect::<Vec<_>>(), [0, 1, 2, 2, 3, 3, 4]);
         // No sizes: the index.
         assert_eq!(level_exponent(&[], 3), 3);
     }
