@@ -112,7 +112,7 @@ ROWS = [
     # Issue 16's size bar: appearance bytes beside Draco's for the same attributes.
     Row("attribute-sizes", "texture coordinates, colours and material ids: pmcodec's appearance bytes beside Draco's (draco3d, Edgebreaker, default prediction) on the same mesh at the same quantization, and the textures' own bytes",
         f"(cd tests && npm ci --no-audit --no-fund -s) && {RELEASE} && node scripts/attribute-sizes.mjs {BIN} {DATA}/gltf/Fox.glb {DATA}/gltf/RobotExpressive.glb",
-        r"^(\S+\.glb:|draco|pmcodec|ratio)"),
+        r"^(\S+\.glb:|draco|pmcodec|ratio|bar )"),
     # Issue 16's image-error bar: streams cut to 25% / 10% against meshoptimizer's
     # simplifyWithAttributes of the bind pose, SSIM against the full GLB, every animation.
     Row("simplified-ssim", "image error under simplification: mean SSIM (over the model's windows) against the full GLB of the stream cut to 25% and 10% of the triangles beside meshoptimizer's simplifyWithAttributes of the bind pose at the same share, 4 frames of every animation, headless Chromium",

@@ -547,7 +547,7 @@ fn level_exponent(level_sizes: &[u32], level: usize) -> u32 {
 
 /// The residual step (as a power of two of the quantum) the encoder uses for band `level`
 /// given [`crate::EncodeOptions::coarse_grid`]. Input vertices, which the error bound applies
-/// to, always get 0; with `None` (the default) so do coarser nodes. With `Some(k)` band j >= 1
+/// to, always get 0; with `None` so do coarser nodes. With `Some(k)` (the default is `Some(0)`) band j >= 1
 /// is stored on a grid of `2^s` quanta, `s = e + k` at most, and `2^s` quanta at most
 /// `2^(e + k) / 4096` of the bounding box's largest extent and at most `2^(k+1) / |Mj|` of it (so
 /// 12-bit quantization of a mesh of a few thousand vertices gets `s = e + k`, coarser
