@@ -441,6 +441,10 @@ fn upload_appearance(
     name: &str,
     resources: &[(String, Bytes)],
 ) -> Result<Option<pmcodec_mesh::Appearance>, String> {
+    // A frame that names no material library reads no file: nothing to unpack (most uploads).
+    if first.attributes.libraries.is_empty() {
+        return frame_appearance(first, Path::new(name), Path::new(name)).map_err(|e| e.to_string());
+    }
     let dir = tempfile::tempdir().map_err(|e| format!("unpacking the upload's materials: {e}"))?;
     for (member, bytes) in resources {
         let Some(rel) = member_path(member) else { continue };
