@@ -511,7 +511,8 @@ impl<S: ByteSource> Decoder<S> {
         out
     }
 
-    fn positions_into(&self, out: &mut Vec<Vec3>) {
+    /// [`Decoder::positions`] into a buffer the caller keeps, so a loop over frames allocates once.
+    pub fn positions_into(&self, out: &mut Vec<Vec3>) {
         let h = self.reader.header();
         let lo = Vec3::from_array(h.bbox_min);
         let step = h.quantization.step;

@@ -59,6 +59,7 @@ pub fn decode_rig(dec: &mut Decoder<&FileSource>, input: &Path, out: &Path, quie
     let still = rig.weights.iter().filter(|w| w.iter().all(|&x| x == 0.0)).count();
     let diagonal = (Vec3::from_array(h.bbox_max) - Vec3::from_array(h.bbox_min)).length().max(f32::MIN_POSITIVE) as f64;
     let (mut sum, mut max) = (0.0f64, 0.0f64);
+    let mut decoded = Vec::with_capacity(n);
     let bar = progress(h.frame_count as u64, "decode", quiet);
     for f in 0..h.frame_count {
         dec.seek(f).map_err(|e| container_error(e, where_(f)))?;
@@ -67,7 +68,7 @@ pub fn decode_rig(dec: &mut Decoder<&FileSource>, input: &Path, out: &Path, quie
         if pose.len() != bones {
             return Err(bad(format!("frame {f}: {} palette entries, frame 0 has {bones}", pose.len())));
         }
-        let decoded = dec.positions();
+        dec.positions_into(&mut decoded);
         for v in 0..n {
             let mut p = Vec3::ZERO;
             let mut total = 0.0;
