@@ -284,14 +284,16 @@ test("appearance with band 0's entries derived from the triangles, values from t
     const c = await open(file);
     const a = c.header.appearance!;
     const band0 = await c.chunk(c.find(ChunkKind.Attributes, 0, 0));
-    assert.ok(band0.length > 1 && band0[0] === 0 && band0[1] === 1, `${name}: band 0 is not coded with derived entries`);
+    // Mode 1, or 1 | 8 with its residuals entropy-coded (rANS over their bit lengths).
+    assert.ok(band0.length > 1 && band0[0] === 0 && (band0[1] & 7) === 1, `${name}: band 0 is not coded with derived entries`);
+    assert.ok(band0[1] === 9, `${name}: band 0's residuals are not rANS-coded`);
     // Band 1's values are chart-wise differences (mode 2): the cuts below read that coding too.
     const chartsRaw = await c.chunk(c.find(ChunkKind.Charts, 0, 0));
     assert.ok(chartsRaw[0] === 0 && chartsRaw[1] === 1, `${name}: the charts are not new-chart runs`);
     // Bands above 0 predict their values from the band above (mode 3) or chart-wise (mode 2):
     // the cuts below read those codings too.
     const modes: number[] = [];
-    for (let j = 1; j < c.header.levelSizes.length; j++) { const b = await c.chunk(c.find(ChunkKind.Attributes, 0, j)); modes.push(b[0] === 0 ? b[1] : 0); }
+    for (let j = 1; j < c.header.levelSizes.length; j++) { const b = await c.chunk(c.find(ChunkKind.Attributes, 0, j)); modes.push(b[0] === 0 ? b[1] & 7 : 0); }
     assert.ok(modes.includes(3), `${name}: no band predicted from the band above (${modes})`);
     const player = new Decoder(c, 0);
     await player.loadAppearance();
