@@ -760,6 +760,90 @@ mod tests {
         assert!(read_charts(&write_charts(&charts), &info(), 7).is_err(), "runs cover 6 of 7");
     }
 
+    /// A seamed strip over `n` vertices in `charts` charts (every chart boundary a seam: its
+    /// vertices get one entry per chart), values from `value(entry, channel)`.
+    fn seamed(n: u32, charts: u32, value: &mut dyn FnMut(usize, usize) -> i32) -> (Vec<[u32; 3]>, Vec<u32>, QuantizedTable) {
+        let triangles: Vec<[u32; 3]> = (0..n - 2).map(|i| if i % 2 == 0 { [i, i + 1, i + 2] } else { [i + 1, i, i + 2] }).collect();
+        let chart_of: Vec<u32> = (0..n - 2).map(|i| (i * charts) / (n - 2)).collect();
+        let entries = band0_entries(&triangles, &chart_of);
+        let values = (0..entries.len() * 2).map(|i| value(i / 2, i % 2)).collect();
+        (triangles, chart_of, QuantizedTable { entries, values })
+    }
+
+    #[test]
+    fn rans_coded_residuals_round_trip_every_coding_and_fail_cleanly() {
+        let mut seed = 0x9E37_79B9u32;
+        let mut rnd = move |m: u32| {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed % m
+        };
+        let info = AppearanceInfo { charts: 5, ..info() };
+        // Repeated values (a palette of 6 texture coordinates), all distinct (a counter, so
+        // no two entries agree), and extremes whose residuals escape (beyond 30 bits).
+        let palette = [[0, 0], [4095, 17], [1024, 2048], [3, 3000], [700, 701], [2222, 11]];
+        let mut p = |e: usize, k: usize| palette[(e * 7 + e / 3) % palette.len()][k];
+        let mut distinct = |e: usize, k: usize| (e as i32) * 9 + k as i32 * 40_000;
+        let mut wild = |e: usize, k: usize| if (e + k) % 5 == 0 { i32::MIN + rnd(7) as i32 } else { rnd(4096) as i32 };
+        let values: [&mut dyn FnMut(usize, usize) -> i32; 3] = [&mut p, &mut distinct, &mut wild];
+        for (case, value) in values.into_iter().enumerate() {
+            let (triangles, chart_of, t) = seamed(300, 5, value);
+            let table = read_table(&write_table(&t, 2), "t", 300, &info, 298).unwrap();
+            // Listed, chart-wise and derived with rANS-coded residuals: the same table.
+            let listed = write_table_rans(&t, 2);
+            let chartwise = write_table_chartwise(&t, 2, true);
+            let derived = write_table_derived(&t, 2, &triangles, &chart_of, true);
+            assert_eq!((listed[1], chartwise[1], derived[1]), (8, 10, 9), "case {case}");
+            for raw in [&listed, &chartwise] {
+                let back = read_table(raw, "t", 300, &info, 298).unwrap();
+                assert_eq!((&back.values, &back.charts, &back.first), (&table.values, &table.charts, &table.first), "case {case}");
+            }
+            let back = read_table_with(&derived, "t", 300, &info, 298, Some((&triangles, &chart_of))).unwrap();
+            assert_eq!(back.values, table.values, "case {case}");
+            // From the band above: every third vertex under parent v / 3, the parent's table
+            // holding (parent, chart) for some.
+            let parent: Vec<u32> = (0..300).map(|v| v / 3).collect();
+            let above = QuantizedTable {
+                entries: (0..100).map(|p| (p, p * 5 / 100)).collect(),
+                values: (0..200).map(|i| (i * 37 % 4096) as i32).collect(),
+            }
+            .to_table();
+            let coded = write_table_from_above(&t, 2, &parent, &above, true);
+            assert_eq!(coded[1], 11);
+            assert!(needs_above(&coded));
+            assert_eq!(read_table_above(&coded, "t", 300, &info, 298, Some((&parent, &above))).unwrap().values, table.values);
+            // Cut short anywhere, or a byte changed: an error or (a changed mantissa bit) other
+            // values, never a panic; cut short is always an error.
+            for raw in [&listed, &chartwise, &coded] {
+                // (One byte, 0, is a valid empty listed table.)
+                for cut in [2, 3, raw.len() / 2, raw.len() - 1] {
+                    assert!(read_table_above(&raw[..cut], "t", 300, &info, 298, Some((&parent, &above))).is_err(), "case {case} cut {cut}");
+                }
+                for at in 2..raw.len() {
+                    let mut bad = raw.clone();
+                    bad[at] ^= 0x5A;
+                    let _ = read_table_above(&bad, "t", 300, &info, 298, Some((&parent, &above)));
+                }
+            }
+            for cut in [2, derived.len() / 2, derived.len() - 1] {
+                assert!(read_table_with(&derived[..cut], "t", 300, &info, 298, Some((&triangles, &chart_of))).is_err());
+            }
+            for at in 2..derived.len() {
+                let mut bad = derived.clone();
+                bad[at] ^= 0x5A;
+                let _ = read_table_with(&bad, "t", 300, &info, 298, Some((&triangles, &chart_of)));
+            }
+        }
+        // Repeated values take fewer bytes entropy-coded than as varints.
+        let (triangles, chart_of, t) = seamed(300, 5, &mut |e, k| palette[e % 2][k]);
+        let varints = write_table_derived(&t, 2, &triangles, &chart_of, false);
+        let coded = write_table_derived(&t, 2, &triangles, &chart_of, true);
+        assert!(coded.len() < varints.len(), "{} vs {}", coded.len(), varints.len());
+        // "0, 0" is no coding: mode 0 only with the rANS flag.
+        assert!(read_table(&[0, 0, 0], "t", 300, &info, 298).is_err());
+    }
+
     #[test]
     fn derived_band0_tables_round_trip_and_fail_cleanly() {
         // Random triangles over 40 vertices in 3 charts, some degenerate, values anywhere in
