@@ -4,10 +4,10 @@ import { test } from "node:test";
 import { pmcodecBin, repoRoot } from "./paths.js";
 import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
-import { existsSync, mkdtempSync, readdirSync, readFileSync } from "node:fs";
+import { existsSync, mkdirSync, mkdtempSync, readdirSync, readFileSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
-import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, dequantizeUv, texturedMesh } from "../src/container/index.js";
+import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, dequantizeUv, readBand0Table, readTable, texturedMesh } from "../src/container/index.js";
 
 const root = repoRoot();
 const bin = pmcodecBin(root);
@@ -284,14 +284,16 @@ test("appearance with band 0's entries derived from the triangles, values from t
     const c = await open(file);
     const a = c.header.appearance!;
     const band0 = await c.chunk(c.find(ChunkKind.Attributes, 0, 0));
-    assert.ok(band0.length > 1 && band0[0] === 0 && band0[1] === 1, `${name}: band 0 is not coded with derived entries`);
+    // Mode 1, or 1 | 8 with its residuals entropy-coded (rANS over their bit lengths).
+    assert.ok(band0.length > 1 && band0[0] === 0 && (band0[1] & 7) === 1, `${name}: band 0 is not coded with derived entries`);
+    assert.ok(band0[1] === 9, `${name}: band 0's residuals are not rANS-coded`);
     // Band 1's values are chart-wise differences (mode 2): the cuts below read that coding too.
     const chartsRaw = await c.chunk(c.find(ChunkKind.Charts, 0, 0));
     assert.ok(chartsRaw[0] === 0 && chartsRaw[1] === 1, `${name}: the charts are not new-chart runs`);
     // Bands above 0 predict their values from the band above (mode 3) or chart-wise (mode 2):
     // the cuts below read those codings too.
     const modes: number[] = [];
-    for (let j = 1; j < c.header.levelSizes.length; j++) { const b = await c.chunk(c.find(ChunkKind.Attributes, 0, j)); modes.push(b[0] === 0 ? b[1] : 0); }
+    for (let j = 1; j < c.header.levelSizes.length; j++) { const b = await c.chunk(c.find(ChunkKind.Attributes, 0, j)); modes.push(b[0] === 0 ? b[1] & 7 : 0); }
     assert.ok(modes.includes(3), `${name}: no band predicted from the band above (${modes})`);
     const player = new Decoder(c, 0);
     await player.loadAppearance();
@@ -320,6 +322,84 @@ test("appearance with band 0's entries derived from the triangles, values from t
     const odd = band0.slice();
     odd[1] = 7;
     assert.throws(() => readBand0Table(odd, "band 0", c.header.levelSizes[0], a, tris, chartOf), /coding 7 unknown/);
+  }
+});
+
+/**
+ * A generated OBJ sequence for the appearance codings: a waving grid of w x h quads, every
+ * corner its own `vt` (so charts meet along seams), quads in three materials by patches, and
+ * texture coordinates either drawn from a palette of 8 x 8 values (repeated, as a low-poly
+ * model on a palette texture) or all distinct. Deterministic from the seed.
+ */
+function texturedObjSequence(out: string, w: number, h: number, palette: boolean, seed: number): void {
+  mkdirSync(out, { recursive: true });
+  let x = seed >>> 0 || 1;
+  const rnd = (): number => { x ^= x << 13; x >>>= 0; x ^= x >>> 17; x ^= x << 5; x >>>= 0; return x / 4294967296; };
+  writeFileSync(join(out, "m.mtl"), "newmtl m0\nKd 1 0 0\nnewmtl m1\nKd 0 1 0\nnewmtl m2\nKd 0 0 1\n");
+  const uvs: string[] = [];
+  for (let q = 0; q < 4 * w * h; q++) {
+    const [u, v] = palette ? [Math.floor(rnd() * 8) / 8, Math.floor(rnd() * 8) / 8] : [rnd(), rnd()];
+    uvs.push(`vt ${u} ${v}`);
+  }
+  for (let f = 0; f < 3; f++) {
+    const lines = ["mtllib m.mtl"];
+    for (let j = 0; j <= h; j++) for (let i = 0; i <= w; i++) lines.push(`v ${i * 0.1} ${j * 0.1} ${0.2 * Math.sin(i * 0.3 + f * 0.5) * Math.cos(j * 0.2)}`);
+    lines.push(...uvs);
+    for (let j = 0, n = 1; j < h; j++) {
+      for (let i = 0; i < w; i++, n += 4) {
+        lines.push(`usemtl m${(Math.floor(i / 10) + Math.floor(j / 7)) % 3}`);
+        const v = [j * (w + 1) + i + 1, j * (w + 1) + i + 2, (j + 1) * (w + 1) + i + 2, (j + 1) * (w + 1) + i + 1];
+        lines.push(`f ${v[0]}/${n} ${v[1]}/${n + 1} ${v[2]}/${n + 2}`, `f ${v[0]}/${n} ${v[2]}/${n + 2} ${v[3]}/${n + 3}`);
+      }
+    }
+    writeFileSync(join(out, `f${String(f).padStart(3, "0")}.obj`), lines.join("\n") + "\n");
+  }
+}
+
+test("entropy-coded attribute residuals (mode | 8) on generated meshes with repeated and with all-distinct texture coordinates, seams and three materials: the same texture coordinates as the Rust decoder, bit for bit", async () => {
+  for (const palette of [true, false]) {
+    const name = palette ? "palette" : "distinct", frames = join(dir, `obj-${name}`), file = join(dir, `obj-${name}.pmc`);
+    texturedObjSequence(frames, 30, 20, palette, palette ? 7 : 11);
+    execFileSync(bin, ["encode", "-q", frames, "-o", file]);
+    const c = await open(file);
+    const a = c.header.appearance!;
+    assert.equal(a.materials, 3);
+    const modes: number[] = [];
+    for (let j = 0; j < c.header.levelSizes.length; j++) { const b = await c.chunk(c.find(ChunkKind.Attributes, 0, j)); modes.push(b[0] === 0 && b.length > 1 ? b[1] : 0); }
+    assert.ok(modes.some((m) => (m & 8) !== 0), `${name}: no band with rANS-coded residuals (${modes})`);
+    const player = new Decoder(c, 0);
+    await player.loadAppearance();
+    for (const [frame, budget] of [[0, 100000], [1, 500], [2, 120]]) {
+      const out = join(dir, `obj-${name}-${frame}-${budget}.glb`);
+      execFileSync(bin, ["decode", "-q", file, "--frame", String(frame), "--triangles", String(budget), "-o", out]);
+      const glb = readGlb(out);
+      await player.seek(frame);
+      const pos = player.positions();
+      player.replay.selectTriangles(budget, player.replay.nodeErrors(pos));
+      const mesh = player.texturedMesh(pos);
+      // One primitive per material in the GLB, all over one vertex buffer.
+      const attr = glb.json.meshes[0].primitives[0].attributes, what = `${name} frame ${frame} budget ${budget}`;
+      assert.deepEqual(Array.from(mesh.positions), Array.from(accessor(glb, attr.POSITION)), `${what}: positions`);
+      assert.deepEqual(Array.from(mesh.uv0!), Array.from(accessor(glb, attr.TEXCOORD_0)), `${what}: texture coordinates`);
+    }
+    // Every band's table cut short or with a flipped byte in its residuals: an error, never a crash.
+    let checked = 0;
+    for (let j = 0; j < c.header.levelSizes.length; j++) {
+      const raw = await c.chunk(c.find(ChunkKind.Attributes, 0, j));
+      // (Tables predicted from the band above need that band and frame 0's parents: skipped.)
+      if (!(raw[0] === 0 && (raw[1] & 8)) || (raw[1] & 7) === 3) continue;
+      const tris = (player as unknown as { triangles: Uint32Array }).triangles, chartOf = player.looks!.charts.triangleChart;
+      const read = (b: Uint8Array): unknown => j === 0
+        ? readBand0Table(b, "band 0", c.header.levelSizes[0], a, tris, chartOf)
+        : readTable(b, `band ${j}`, c.header.levelSizes[j], a, c.header.triangleCount);
+      assert.deepEqual(Array.from((read(raw) as { values: Int32Array }).values), Array.from(player.looks!.tables[j]!.values));
+      assert.throws(() => read(raw.subarray(0, raw.length - 1)), DecodeError, `${name} band ${j} cut short`);
+      for (let at = 2; at < raw.length; at += Math.max(1, raw.length >> 4)) {
+        try { read(Uint8Array.from(raw, (b, i) => (i === at ? b ^ 0x5a : b))); } catch (e) { assert.ok(e instanceof DecodeError, `${name} band ${j} byte ${at}: ${e}`); }
+      }
+      checked++;
+    }
+    assert.ok(checked > 0, `${name}: no rANS-coded table read alone (${modes})`);
   }
 });
 

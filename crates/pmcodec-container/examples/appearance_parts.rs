@@ -109,7 +109,10 @@ fn main() {
             };
             total += s;
             let raw = reader.read_chunk(e).unwrap();
-            if raw.len() > 1 && raw[0] == 0 && raw[1] == 1 {
+            // The coding mode after a first byte 0; bit 8: value residuals rANS-coded.
+            let rans = raw.len() > 1 && raw[0] == 0 && raw[1] & 8 != 0;
+            let coded = if rans { "rANS-coded" } else { "varints" };
+            if raw.len() > 1 && raw[0] == 0 && raw[1] & 7 == 1 {
                 // Band 0 with derived entries: only predicted values are stored.
                 let te = reader.index().chunks.iter().find(|e| e.kind == ChunkKind::Triangles).unwrap();
                 let tris =
@@ -118,7 +121,7 @@ fn main() {
                     read_table_with(&raw, "t", h.level_sizes[j as usize], &info, h.triangle_count, Some((&tris, &charts.triangle_chart)))
                         .unwrap();
                 println!(
-                    "  band {j}: {s} B stored ({} raw), {} entries of {} nodes derived from the triangles: predicted values only",
+                    "  band {j}: {s} B stored ({} raw), {} entries of {} nodes derived from the triangles: predicted values only ({coded})",
                     raw.len(),
                     t.len(),
                     h.level_sizes[j as usize]
@@ -126,7 +129,7 @@ fn main() {
                 continue;
             }
             if needs_above(&raw) {
-                println!("  band {j}: {s} B stored ({} raw, values from the band above)", raw.len());
+                println!("  band {j}: {s} B stored ({} raw, values from the band above, {coded})", raw.len());
                 continue;
             }
             let t = read_table(&raw, "t", h.level_sizes[j as usize], &info, h.triangle_count).unwrap();
@@ -178,7 +181,10 @@ fn main() {
             println!(
                 "  band {j}: {s} B stored ({} raw, {}), {} entries of {} nodes: entries {} B, values {} B (parts zstd alone, as listed)",
                 raw.len(),
-                if raw.len() > 1 && raw[0] == 0 { "chart-wise values" } else { "listed" },
+                match (raw.len() > 1 && raw[0] == 0, raw.get(1).map_or(0, |m| m & 7)) {
+                    (true, 2) => format!("chart-wise values, {coded}"),
+                    _ => format!("listed, {coded}"),
+                },
                 t.len(),
                 h.level_sizes[j as usize],
                 z(&ent),

@@ -110,6 +110,15 @@ impl<'a> Cursor<'a> {
         Ok(v as u32)
     }
 
+    /// The next `len` bytes as they are (an entropy-coded stream inside a payload).
+    pub fn take(&mut self, len: usize) -> Result<&'a [u8], ContainerError> {
+        let Some(b) = self.pos.checked_add(len).and_then(|end| self.bytes.get(self.pos..end)) else {
+            return Err(self.corrupt(format!("{len} bytes wanted at byte {} of {}", self.pos, self.bytes.len())));
+        };
+        self.pos += len;
+        Ok(b)
+    }
+
     /// Succeeds only when every byte was read: a chunk with bytes left over is corrupt.
     pub fn finish(&self) -> Result<(), ContainerError> {
         if self.pos == self.bytes.len() { Ok(()) } else { Err(self.corrupt(format!("{} bytes left over", self.bytes.len() - self.pos))) }

@@ -172,8 +172,8 @@ impl<'a> Decoder<'a> {
     }
 
     /// The next symbol of state `way` (the one-symbol reference the tests check the payload
-    /// reader's unrolled loop against).
-    #[cfg(test)]
+    /// reader's unrolled loop against; the attribute tables' residuals, whose table changes
+    /// by channel rather than by state, decode one at a time with it).
     #[inline(always)]
     pub fn get(&mut self, way: usize, t: &Table) -> u32 {
         let x = self.x[way];

@@ -5,6 +5,58 @@
 import { DecodeError } from "./error.js";
 import { AppearanceInfo, channels } from "./format.js";
 import { Cursor, Postcard } from "./payload.js";
+import { MAX_SYMBOLS, decodeSymbols, rAnsTable } from "./rans.js";
+
+/** Set in a table's mode (after its first byte 0): value residuals as a rANS section. */
+const RANS_VALUES = 8;
+
+/**
+ * `m * ch` residual codes (zigzag, channel after channel) as varints or, with `rans`, as the
+ * RESIDUALS section of the Rust `put_codes`: per channel a frequency table over the codes' bit
+ * lengths, the rANS stream of the lengths (code i on state i % 3 with its channel's table),
+ * the mantissa bytes (b - 1 bits below the highest of a code of length b in 2..30, least
+ * significant first), then escaped codes (length 31) as varints.
+ */
+function readCodes(c: Cursor, raw: Uint8Array, m: number, ch: number, rans: boolean, what: string): Uint32Array {
+  const n = m * ch, codes = new Uint32Array(n);
+  if (!rans) {
+    for (let i = 0; i < n; i++) codes[i] = c.get();
+    return codes;
+  }
+  const tables: Uint32Array[] = [];
+  for (let k = 0; k < ch; k++) {
+    const count = c.count(MAX_SYMBOLS, "symbols"), f: number[] = [];
+    for (let s = 0; s < count; s++) f.push(c.get());
+    tables.push(rAnsTable(f, what));
+  }
+  const take = (): Uint8Array => {
+    const len = c.get();
+    if (c.pos + len > raw.length) throw new DecodeError(`${what}: ${len} bytes wanted at byte ${c.pos} of ${raw.length}`);
+    const out = raw.subarray(c.pos, c.pos + len);
+    c.pos += len;
+    return out;
+  };
+  const stream = take();
+  const lengths = decodeSymbols(stream, n, (i) => tables[Math.floor(i / Math.max(m, 1))], what);
+  const bits = take();
+  let at = 0;
+  for (let i = 0; i < n; i++) {
+    const b = lengths[i];
+    if (b <= 1) { codes[i] = b; continue; }
+    if (b === 31) {
+      const z = c.get();
+      if (z < 2 ** 30) throw new DecodeError(`${what}: an escaped residual that a length codes`);
+      codes[i] = z;
+      continue;
+    }
+    if (at + b - 1 > bits.length * 8) throw new DecodeError(`${what}: mantissa bits end early`);
+    let z = 2 ** (b - 1);
+    for (let x = 0; x < b - 1; x++, at++) z += ((bits[at >> 3] >> (at & 7)) & 1) * 2 ** x;
+    codes[i] = z;
+  }
+  if (Math.ceil(at / 8) !== bits.length) throw new DecodeError(`${what}: mantissa bytes left over`);
+  return codes;
+}
 
 /** Each triangle's chart and smoothing group, each chart's material. */
 export interface Charts { triangleChart: Uint32Array; triangleGroup: Uint32Array; chartMaterial: Uint32Array }
@@ -72,7 +124,7 @@ export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number
 /** The Attributes chunk of a band of `nodes` nodes. */
 /** Whether a table's payload predicts its values from the band above (mode 3). */
 export function needsAbove(raw: Uint8Array): boolean {
-  return raw.length > 1 && raw[0] === 0 && raw[1] === 3;
+  return raw.length > 1 && raw[0] === 0 && (raw[1] & ~RANS_VALUES) === 3;
 }
 
 /**
@@ -83,18 +135,20 @@ export function readTable(raw: Uint8Array, what: string, nodes: number, a: Appea
   const ch = channels(a), c = new Cursor(raw, what);
   // A first byte 0 with more after it: a coding mode (2: values chart-wise; 3: from the band
   // above, else chart-wise; 1 is band 0's).
-  let chartwise = false, fromAbove: { parent: Uint32Array; table: Table } | null = null;
+  let chartwise = false, rans = false, fromAbove: { parent: Uint32Array; table: Table } | null = null;
   if (raw.length > 1 && raw[0] === 0) {
     c.get();
-    const mode = c.get();
+    const coding = c.get(), mode = coding & ~RANS_VALUES;
+    rans = (coding & RANS_VALUES) !== 0;
     if (mode === 1) throw new DecodeError(`${what}: derived entries outside band 0`);
-    if (mode !== 2 && mode !== 3) throw new DecodeError(`${what}: table coding ${mode} unknown`);
+    if (mode !== 2 && mode !== 3 && !(mode === 0 && rans)) throw new DecodeError(`${what}: table coding ${coding} unknown`);
     if (mode === 3 && !above) throw new DecodeError(`${what}: values from the band above, at the top or without it`);
-    chartwise = true;
+    chartwise = mode !== 0;
     if (mode === 3) fromAbove = above;
   }
   const m = c.count(Math.min(nodes * a.charts, 3 * triangles), "entries");
-  if (m * (2 + ch) > raw.length) throw new DecodeError(`${what}: ${m} entries in ${raw.length} bytes`);
+  // Entries take two bytes at least; varint values one more each (rANS values may take less).
+  if (m * (rans ? 2 : 2 + ch) > raw.length) throw new DecodeError(`${what}: ${m} entries in ${raw.length} bytes`);
   const first = new Uint32Array(nodes + 1), charts = new Uint32Array(m), nodeOf = new Uint32Array(m);
   let pn = -1, pc = -1;
   for (let e = 0; e < m; e++) {
@@ -106,7 +160,7 @@ export function readTable(raw: Uint8Array, what: string, nodes: number, a: Appea
     nodeOf[e] = node; charts[e] = chart; first[node + 1]++;
   }
   for (let n = 0; n < nodes; n++) first[n + 1] += first[n];
-  const values = new Int32Array(m * ch);
+  const values = new Int32Array(m * ch), codes = readCodes(c, raw, m, ch, rans, what);
   for (let k = 0; k < ch; k++) {
     // The previous value of the entry's chart (chart-wise) or of any entry (slot 0).
     const last = new Int32Array(chartwise ? a.charts : 1);
@@ -118,7 +172,8 @@ export function readTable(raw: Uint8Array, what: string, nodes: number, a: Appea
         const t = fromAbove.table, p = fromAbove.parent[nodeOf[e]];
         if (p + 1 < t.first.length) for (let x = t.first[p]; x < t.first[p + 1]; x++) if (t.charts[x] === charts[e]) { pred = t.values[x * ch + k]; break; }
       }
-      last[slot] = values[e * ch + k] = (pred + c.zigzag()) | 0;
+      const z = codes[k * m + e];
+      last[slot] = values[e * ch + k] = (pred + ((z >>> 1) ^ -(z & 1))) | 0;
     }
   }
   c.finish();
@@ -147,19 +202,19 @@ export function band0Entries(triangles: Uint32Array, triangleChart: Uint32Array)
  * Rust `read_table_with`).
  */
 export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: Uint32Array, triangleChart: Uint32Array): Table {
-  if (raw.length <= 1 || raw[0] !== 0 || raw[1] !== 1) return readTable(raw, what, nodes, a, triangleChart.length);
+  if (raw.length <= 1 || raw[0] !== 0 || (raw[1] & ~RANS_VALUES) !== 1) return readTable(raw, what, nodes, a, triangleChart.length);
   const ch = channels(a), c = new Cursor(raw, what);
   c.get();
-  c.get();
+  const rans = (c.get() & RANS_VALUES) !== 0;
   if (triangles.length !== 3 * triangleChart.length) throw new DecodeError(`${what}: triangles and charts disagree`);
   const entries = band0Entries(triangles, triangleChart), m = entries.length;
   for (const [n, k] of entries) if (n >= nodes || k >= a.charts) throw new DecodeError(`${what}: entry (node ${n}, chart ${k}) out of range`);
-  if (m * ch > raw.length) throw new DecodeError(`${what}: ${m} entries in ${raw.length} bytes`);
+  if (!rans && m * ch > raw.length) throw new DecodeError(`${what}: ${m} entries in ${raw.length} bytes`);
   const first = new Uint32Array(nodes + 1), charts = new Uint32Array(m);
   entries.forEach(([n, k], e) => { first[n + 1]++; charts[e] = k; });
   for (let n = 0; n < nodes; n++) first[n + 1] += first[n];
-  const residuals = new Int32Array(m * ch);
-  for (let i = 0; i < m * ch; i++) residuals[i] = c.zigzag();
+  const residuals = new Int32Array(m * ch), codes = readCodes(c, raw, m, ch, rans, what);
+  for (let i = 0; i < m * ch; i++) residuals[i] = (codes[i] >>> 1) ^ -(codes[i] & 1);
   c.finish();
   const values = new Int32Array(m * ch);
   const find = (v: number, k: number): number => {

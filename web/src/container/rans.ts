@@ -57,3 +57,36 @@ export function decodeResiduals(stream: Uint8Array, tables: Uint32Array[], out: 
   if (overrun) throw new DecodeError(`${what}: rANS stream ends early`);
   if (pos !== len || x[0] !== L || x[1] !== L || x[2] !== L) throw new DecodeError(`${what}: rANS stream does not end where it should`);
 }
+
+/**
+ * Decodes `count` symbols from `stream`, symbol i on state i % 3 with the table `tableOf(i)`
+ * (the attribute tables' residual lengths, whose table changes by channel, not by state; the
+ * Rust `Decoder::get` one at a time). Checks that the stream ends exactly where its final
+ * states say.
+ */
+export function decodeSymbols(stream: Uint8Array, count: number, tableOf: (i: number) => Uint32Array, what: string): Uint32Array {
+  const len = stream.length;
+  if (len < 12) throw new DecodeError(`${what}: rANS stream shorter than its states`);
+  const x = [0, 0, 0];
+  for (let w = 0; w < 3; w++) {
+    x[w] = ((stream[4 * w] << 24) >>> 0) + (stream[4 * w + 1] << 16) + (stream[4 * w + 2] << 8) + stream[4 * w + 3];
+    if (x[w] < L || x[w] >= 2 ** 31) throw new DecodeError(`${what}: rANS state out of range`);
+  }
+  const out = new Uint32Array(count);
+  let pos = 12, overrun = false;
+  for (let i = 0; i < count; i++) {
+    const w = i % 3, t = tableOf(i);
+    let s = x[w];
+    const e = t[s & (M - 1)];
+    s = (e & 0x1fff) * (s >>> 12) + ((e >>> 13) & 0xfff);
+    while (s < L) {
+      if (pos >= len) { overrun = true; s = L; break; }
+      s = (s << 8) | stream[pos++];
+    }
+    x[w] = s;
+    out[i] = e >>> 25;
+  }
+  if (overrun) throw new DecodeError(`${what}: rANS stream ends early`);
+  if (pos !== len || x[0] !== L || x[1] !== L || x[2] !== L) throw new DecodeError(`${what}: rANS stream does not end where it should`);
+  return out;
+}

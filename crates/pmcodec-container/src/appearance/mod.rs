@@ -94,12 +94,17 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
             // Triangles and Charts chunks a level-0 client reads anyway, its values predicted
             // across the triangles. Whichever zstd makes shortest is written (all read the
             // same table).
-            let mut codings = vec![payload::write_table(t, channels), payload::write_table_chartwise(t, channels)];
-            if j == 0 {
-                codings.push(payload::write_table_derived(t, channels, builder.triangles(), &builder.charts().triangle_chart));
-            }
-            if let (Some(parent), Some(above)) = (builder.first_parent(j), tables.get(j + 1)) {
-                codings.push(payload::write_table_from_above(t, channels, parent, &above.to_table()));
+            // Each also with its value residuals entropy-coded (rANS over their bit lengths),
+            // which pays once a band has a few hundred values.
+            let mut codings = vec![payload::write_table(t, channels), payload::write_table_rans(t, channels)];
+            for rans in [false, true] {
+                codings.push(payload::write_table_chartwise(t, channels, rans));
+                if j == 0 {
+                    codings.push(payload::write_table_derived(t, channels, builder.triangles(), &builder.charts().triangle_chart, rans));
+                }
+                if let (Some(parent), Some(above)) = (builder.first_parent(j), tables.get(j + 1)) {
+                    codings.push(payload::write_table_from_above(t, channels, parent, &above.to_table(), rans));
+                }
             }
             let raw = codings.into_iter().min_by_key(size).unwrap_or_default();
             out.push((ChunkKind::Attributes, j as u32, raw));

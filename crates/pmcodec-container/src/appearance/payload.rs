@@ -158,7 +158,17 @@ pub struct QuantizedTable {
 /// zigzag-coded differences from the previous entry's value of that channel (from 0).
 pub fn write_table(t: &QuantizedTable, channels: usize) -> Vec<u8> {
     let mut out = Vec::new();
-    write_listed(&mut out, t, channels, false, None);
+    write_listed(&mut out, t, channels, false, None, false);
+    out
+}
+
+/// ATTRIBUTES listed as [`write_table`], with *entropy-coded values*: `0`, `8`, then that
+/// layout with the value residuals as a [`put_codes`] rANS section instead of varints.
+pub fn write_table_rans(t: &QuantizedTable, channels: usize) -> Vec<u8> {
+    let mut out = Vec::new();
+    put(&mut out, 0);
+    put(&mut out, RANS_VALUES);
+    write_listed(&mut out, t, channels, false, None, true);
     out
 }
 
@@ -166,11 +176,12 @@ pub fn write_table(t: &QuantizedTable, channels: usize) -> Vec<u8> {
 /// each value the difference from the previous entry's of the same chart (from 0): charts sit
 /// in separate regions of the texture, and the previous entry in node order is often in
 /// another (10% to 25% fewer value bytes in the bands above 0 of issue 16's inputs).
-pub fn write_table_chartwise(t: &QuantizedTable, channels: usize) -> Vec<u8> {
+/// With `rans`, the mode is `2 | 8` and the residuals a [`put_codes`] rANS section.
+pub fn write_table_chartwise(t: &QuantizedTable, channels: usize, rans: bool) -> Vec<u8> {
     let mut out = Vec::new();
     put(&mut out, 0);
-    put(&mut out, CHARTWISE);
-    write_listed(&mut out, t, channels, true, None);
+    put(&mut out, CHARTWISE | if rans { RANS_VALUES } else { 0 });
+    write_listed(&mut out, t, channels, true, None, rans);
     out
 }
 
@@ -181,11 +192,12 @@ pub fn write_table_chartwise(t: &QuantizedTable, channels: usize) -> Vec<u8> {
 /// in this table (from 0). A coarse value is the area-weighted mean of its children's, so a
 /// child sits near it; the previous entry in node order may be anywhere in the chart.
 /// `parent` maps this band's nodes to band j+1's, `above` is band j+1's table.
-pub fn write_table_from_above(t: &QuantizedTable, channels: usize, parent: &[u32], above: &Table) -> Vec<u8> {
+/// With `rans`, the mode is `3 | 8` and the residuals a [`put_codes`] rANS section.
+pub fn write_table_from_above(t: &QuantizedTable, channels: usize, parent: &[u32], above: &Table, rans: bool) -> Vec<u8> {
     let mut out = Vec::new();
     put(&mut out, 0);
-    put(&mut out, FROM_ABOVE);
-    write_listed(&mut out, t, channels, true, Some((parent, above)));
+    put(&mut out, FROM_ABOVE | if rans { RANS_VALUES } else { 0 });
+    write_listed(&mut out, t, channels, true, Some((parent, above)), rans);
     out
 }
 
@@ -207,7 +219,7 @@ fn from_above(above: Option<(&[u32], &Table)>, node: u32, chart: u32, channels: 
     table.values.get(e * channels + k).copied()
 }
 
-fn write_listed(out: &mut Vec<u8>, t: &QuantizedTable, channels: usize, chartwise: bool, above: Option<(&[u32], &Table)>) {
+fn write_listed(out: &mut Vec<u8>, t: &QuantizedTable, channels: usize, chartwise: bool, above: Option<(&[u32], &Table)>, rans: bool) {
     put(out, t.entries.len() as u32);
     let mut prev: Option<(u32, u32)> = None;
     for &(node, chart) in &t.entries {
@@ -228,6 +240,7 @@ fn write_listed(out: &mut Vec<u8>, t: &QuantizedTable, channels: usize, chartwis
         prev = Some((node, chart));
     }
     let charts = t.entries.iter().map(|e| e.1 as usize + 1).max().unwrap_or(0);
+    let mut codes = Vec::with_capacity(t.values.len());
     for k in 0..channels {
         // The previous value of the chart (chart-wise) or of any entry (slot 0).
         let mut last = vec![0i32; if chartwise { charts } else { 1 }];
@@ -235,10 +248,150 @@ fn write_listed(out: &mut Vec<u8>, t: &QuantizedTable, channels: usize, chartwis
             let slot = if chartwise { chart as usize } else { 0 };
             let q = t.values[e * channels + k];
             let pred = from_above(above, node, chart, channels, k).unwrap_or(last[slot]);
-            put(out, zigzag(q.wrapping_sub(pred)));
+            codes.push(zigzag(q.wrapping_sub(pred)));
             last[slot] = q;
         }
     }
+    put_codes(out, &codes, t.entries.len(), channels, rans);
+}
+
+/// Set in a table's mode (after its first byte 0): the value residuals are a rANS section
+/// ([`put_codes`]) rather than varints. Files before it never set it.
+const RANS_VALUES: u32 = 8;
+/// The residual codes a rANS table codes directly: bit lengths 0 to 30; [`rans::ESCAPE`]
+/// (31) stands for a longer code, stored whole as a varint.
+const LONGEST_DIRECT: u32 = 30;
+
+/// Bit length of a code: 0 for 0, else the position of its highest set bit plus one.
+fn bit_length(z: u32) -> u32 {
+    32 - z.leading_zeros()
+}
+
+/// The value residuals of a table: `codes` (zigzag codes, channel after channel, `m` per
+/// channel) as varints, or, with `rans`, as a *RESIDUALS* section: per channel a rANS
+/// frequency table ([`rans::write_table`]) over the codes' bit lengths `b` (0 to 30; 31
+/// escapes); the length of the rANS stream and the stream (code i on state `i % 3` with its
+/// channel's table, as the position chunks' coder: Duda's rANS, 12-bit frequencies); the
+/// length of the *mantissa* bytes and those bytes: per code of length b from 2 to 30 its
+/// `b - 1` bits below the highest, least significant first, packed from bit 0 of byte 0 on;
+/// then each escaped code as a varint, in order. A code is then `2^(b-1) + mantissa` (0 and
+/// 1 for b = 0 and 1). Why: the residuals of texture coordinates spread over several bits
+/// (Fox's band 0: about 7 below the highest on average) while their lengths cluster, so coding the length
+/// with a per-channel model and the bits below it raw is what Draco's tagged residual coding
+/// does too (its "RAnsSymbolEncoder" over bit lengths); varints under zstd spend a byte or
+/// two per code whatever the distribution.
+fn put_codes(out: &mut Vec<u8>, codes: &[u32], m: usize, channels: usize, rans: bool) {
+    use crate::rans::{self, ESCAPE, SYMBOLS};
+    if !rans {
+        for &z in codes {
+            put(out, z);
+        }
+        return;
+    }
+    let sym = |z: u32| if bit_length(z) > LONGEST_DIRECT { ESCAPE } else { bit_length(z) };
+    let mut counts = vec![[0u64; SYMBOLS]; channels];
+    for (i, &z) in codes.iter().enumerate() {
+        counts[i / m.max(1)][sym(z) as usize] += 1;
+    }
+    let freqs: Vec<Vec<u32>> = counts.iter().map(|c| rans::normalize(c)).collect();
+    let starts: Vec<Vec<u32>> =
+        freqs.iter().map(|f| f.iter().scan(0u32, |acc, &x| Some(std::mem::replace(acc, *acc + x))).collect()).collect();
+    for f in &freqs {
+        rans::write_table(out, f);
+    }
+    let mut e = rans::Encoder::default();
+    for (i, &z) in codes.iter().enumerate().rev() {
+        let (k, s) = (i / m.max(1), sym(z) as usize);
+        e.put(i % rans::WAYS, starts[k][s], freqs[k][s]);
+    }
+    let stream = e.finish();
+    put(out, stream.len() as u32);
+    out.extend_from_slice(&stream);
+    let mut bits = Vec::new();
+    let mut at = 0usize;
+    for &z in codes {
+        let b = bit_length(z);
+        if (2..=LONGEST_DIRECT).contains(&b) {
+            for x in 0..b - 1 {
+                if at.is_multiple_of(8) {
+                    bits.push(0u8);
+                }
+                bits[at / 8] |= (((z >> x) & 1) as u8) << (at % 8);
+                at += 1;
+            }
+        }
+    }
+    put(out, bits.len() as u32);
+    out.extend_from_slice(&bits);
+    for &z in codes {
+        if sym(z) == ESCAPE {
+            put(out, z);
+        }
+    }
+}
+
+/// Reads `m * channels` residual codes as [`put_codes`] wrote them (varints, or with `rans`
+/// its rANS section); errors name the chunk.
+fn read_codes(c: &mut Cursor<'_>, m: usize, channels: usize, rans: bool) -> Result<Vec<u32>, ContainerError> {
+    use crate::rans::{self, ESCAPE, SYMBOLS};
+    let n = m * channels;
+    let mut codes = Vec::with_capacity(n);
+    if !rans {
+        for _ in 0..n {
+            codes.push(c.get()?);
+        }
+        return Ok(codes);
+    }
+    let mut tables = Vec::with_capacity(channels);
+    for _ in 0..channels {
+        let k = c.count(SYMBOLS as u64, "symbols")?;
+        let mut f = [0u32; SYMBOLS];
+        for x in f.iter_mut().take(k) {
+            *x = c.get()?;
+        }
+        let bad = ContainerError::Corrupt { what: "attribute residuals".into(), detail: "frequency table does not add up to 4096".into() };
+        tables.push(rans::Table::new(&f[..k], m).ok_or(bad)?);
+    }
+    let len = c.get()? as usize;
+    let stream = c.take(len)?;
+    let corrupt = |detail: &str| ContainerError::Corrupt { what: "attribute residuals".into(), detail: detail.into() };
+    let mut d = rans::Decoder::new(stream).map_err(corrupt)?;
+    let mut lengths = Vec::with_capacity(n);
+    for i in 0..n {
+        lengths.push(d.get(i % rans::WAYS, &tables[i / m.max(1)]));
+    }
+    d.finish().map_err(corrupt)?;
+    let len = c.get()? as usize;
+    let bits = c.take(len)?;
+    let mut at = 0usize;
+    for b in lengths {
+        let z = match b {
+            0 | 1 => b,
+            ESCAPE => {
+                let z = c.get()?;
+                if bit_length(z) <= LONGEST_DIRECT {
+                    return Err(corrupt("an escaped residual that a length codes"));
+                }
+                z
+            }
+            _ => {
+                let mut z = 1u32 << (b - 1);
+                if at + (b as usize - 1) > bits.len() * 8 {
+                    return Err(corrupt("mantissa bits end early"));
+                }
+                for x in 0..b - 1 {
+                    z |= (((bits[at / 8] >> (at % 8)) & 1) as u32) << x;
+                    at += 1;
+                }
+                z
+            }
+        };
+        codes.push(z);
+    }
+    if at.div_ceil(8) != bits.len() {
+        return Err(corrupt("mantissa bytes left over"));
+    }
+    Ok(codes)
 }
 
 /// A decoded attribute table, indexed by node: entries of node n are `first[n]..first[n+1]`.
@@ -382,7 +535,8 @@ fn traverse(
 /// ATTRIBUTES, band 0 with derived entries: `0`, `1`, then, channel by channel, the zigzag-coded
 /// residuals of the values against [`traverse`]'s predictions, in the order it visits the
 /// entries. `t`'s entries must be [`band0_entries`] of the same triangles and charts.
-pub fn write_table_derived(t: &QuantizedTable, channels: usize, triangles: &[[u32; 3]], triangle_chart: &[u32]) -> Vec<u8> {
+/// With `rans`, the mode is `1 | 8` and the residuals a [`put_codes`] rANS section.
+pub fn write_table_derived(t: &QuantizedTable, channels: usize, triangles: &[[u32; 3]], triangle_chart: &[u32], rans: bool) -> Vec<u8> {
     let nodes = t.entries.last().map_or(0, |e| e.0 + 1);
     let table = Table::index(&t.entries, nodes);
     let mut values = t.values.clone();
@@ -395,16 +549,12 @@ pub fn write_table_derived(t: &QuantizedTable, channels: usize, triangles: &[[u3
     };
     let mut out = Vec::new();
     put(&mut out, 0);
-    put(&mut out, DERIVED_ENTRIES);
+    put(&mut out, DERIVED_ENTRIES | if rans { RANS_VALUES } else { 0 });
     // The entries are the triangles' own: the traversal cannot miss one.
     if traverse(&table, triangles, triangle_chart, channels, &mut values, visit, "band 0 attributes").is_err() {
         return write_table(t, channels);
     }
-    for r in &residuals {
-        for &x in r {
-            put(&mut out, x);
-        }
-    }
+    put_codes(&mut out, &residuals.concat(), t.entries.len(), channels, rans);
     out
 }
 
@@ -418,13 +568,13 @@ pub fn read_table_with(
     triangles: u32,
     band0: Option<(&[[u32; 3]], &[u32])>,
 ) -> Result<Table, ContainerError> {
-    if bytes.first() != Some(&0) || bytes.len() < 2 || bytes[1] != DERIVED_ENTRIES as u8 {
+    if bytes.first() != Some(&0) || bytes.len() < 2 || bytes[1] & !(RANS_VALUES as u8) != DERIVED_ENTRIES as u8 {
         return read_table(bytes, what, nodes, info, triangles);
     }
     let channels = info.channels();
     let mut c = Cursor::new(bytes, what);
     c.get()?;
-    c.get()?;
+    let rans = c.get()? & RANS_VALUES != 0;
     let corrupt = |detail: String| ContainerError::Corrupt { what: what.into(), detail };
     let Some((tris, chart_of)) = band0 else {
         return Err(corrupt("derived entries outside band 0".into()));
@@ -438,10 +588,7 @@ pub fn read_table_with(
     }
     let m = entries.len();
     let mut table = Table::index(&entries, nodes);
-    let mut residuals = Vec::with_capacity(m * channels);
-    for _ in 0..m * channels {
-        residuals.push(unzigzag(c.get()?));
-    }
+    let residuals: Vec<i32> = read_codes(&mut c, m, channels, rans)?.into_iter().map(unzigzag).collect();
     c.finish()?;
     let mut values = vec![0i32; m * channels];
     let mut k = 0;
@@ -465,7 +612,7 @@ pub fn read_table(bytes: &[u8], what: &str, nodes: u32, info: &AppearanceInfo, t
 /// Whether a table's payload predicts its values from the band above (it then needs the
 /// parents of frame 0's hierarchy and that band's table).
 pub fn needs_above(bytes: &[u8]) -> bool {
-    bytes.len() > 1 && bytes[0] == 0 && bytes[1] == FROM_ABOVE as u8
+    bytes.len() > 1 && bytes[0] == 0 && bytes[1] & !(RANS_VALUES as u8) == FROM_ABOVE as u8
 }
 
 /// [`read_table`] with `above`: frame 0's parents of this band's nodes and the band above's
@@ -481,9 +628,13 @@ pub fn read_table_above(
     let mut c = Cursor::new(bytes, what);
     let mut chartwise = false;
     let mut predicted = None;
+    let mut rans = false;
     if bytes.first() == Some(&0) && bytes.len() > 1 {
         c.get()?;
-        match c.get()? {
+        let mode = c.get()?;
+        rans = mode & RANS_VALUES != 0;
+        match mode & !RANS_VALUES {
+            0 if rans => {}
             CHARTWISE => chartwise = true,
             FROM_ABOVE => {
                 chartwise = true;
@@ -497,7 +648,9 @@ pub fn read_table_above(
         }
     }
     let channels = info.channels();
-    let m = c.count_within((nodes as u64 * info.charts as u64).min(3 * triangles as u64), 2 + channels, "entries")?;
+    // Entries take two bytes at least; varint values one more each (rANS values may take less).
+    let min_bytes = if rans { 2 } else { 2 + channels };
+    let m = c.count_within((nodes as u64 * info.charts as u64).min(3 * triangles as u64), min_bytes, "entries")?;
     let mut table = Table { first: vec![0; nodes as usize + 1], charts: Vec::with_capacity(m), values: Vec::with_capacity(m * channels) };
     let mut prev: Option<(u32, u32)> = None;
     let mut node_of = Vec::with_capacity(m);
@@ -524,13 +677,14 @@ pub fn read_table_above(
         table.first[n + 1] += table.first[n];
     }
     table.values.resize(m * channels, 0);
+    let codes = read_codes(&mut c, m, channels, rans)?;
     for k in 0..channels {
         let mut last = vec![0i32; if chartwise { info.charts as usize } else { 1 }];
         for (e, &node) in node_of.iter().enumerate() {
             let chart = table.charts[e];
             let slot = if chartwise { chart as usize } else { 0 };
             let pred = from_above(predicted, node, chart, channels, k).unwrap_or(last[slot]);
-            let q = pred.wrapping_add(unzigzag(c.get()?));
+            let q = pred.wrapping_add(unzigzag(codes[k * m + e]));
             table.values[e * channels + k] = q;
             last[slot] = q;
         }
@@ -566,7 +720,7 @@ mod tests {
         assert_eq!(table.get(3, 0, 2), None);
         assert!(read_table(&write_table(&t, 2), "t", 7, &info(), 100).is_err(), "node 7 of 7");
         // Chart-wise differences read back the same values; a derived coding is band 0's only.
-        let chartwise = write_table_chartwise(&t, 2);
+        let chartwise = write_table_chartwise(&t, 2, false);
         assert_eq!(&chartwise[..2], &[0, 2]);
         let back = read_table(&chartwise, "t", 8, &info(), 100).unwrap();
         assert_eq!((back.values, back.charts), (table.values.clone(), table.charts.clone()));
@@ -578,7 +732,7 @@ mod tests {
         // (0, 1) and (1, 0), (1, 2): some predicted from above, the rest chart-wise.
         let above = QuantizedTable { entries: vec![(0, 1), (1, 0), (1, 2)], values: vec![100, 200, 7, 9, 30, 31] }.to_table();
         let parent = [1, 1, 1, 0, 1, 1, 1, 1];
-        let coded = write_table_from_above(&t, 2, &parent, &above);
+        let coded = write_table_from_above(&t, 2, &parent, &above, false);
         assert_eq!(&coded[..2], &[0, 3]);
         let back = read_table_above(&coded, "t", 8, &info(), 100, Some((&parent, &above))).unwrap();
         assert_eq!(back.values, table.values);
@@ -606,6 +760,88 @@ mod tests {
         assert!(read_charts(&write_charts(&charts), &info(), 7).is_err(), "runs cover 6 of 7");
     }
 
+    /// A seamed strip over `n` vertices in `charts` charts (every chart boundary a seam: its
+    /// vertices get one entry per chart), values from `value(entry, channel)`.
+    fn seamed(n: u32, charts: u32, value: &mut dyn FnMut(usize, usize) -> i32) -> (Vec<[u32; 3]>, Vec<u32>, QuantizedTable) {
+        let triangles: Vec<[u32; 3]> = (0..n - 2).map(|i| if i % 2 == 0 { [i, i + 1, i + 2] } else { [i + 1, i, i + 2] }).collect();
+        let chart_of: Vec<u32> = (0..n - 2).map(|i| (i * charts) / (n - 2)).collect();
+        let entries = band0_entries(&triangles, &chart_of);
+        let values = (0..entries.len() * 2).map(|i| value(i / 2, i % 2)).collect();
+        (triangles, chart_of, QuantizedTable { entries, values })
+    }
+
+    #[test]
+    fn rans_coded_residuals_round_trip_every_coding_and_fail_cleanly() {
+        let mut seed = 0x9E37_79B9u32;
+        let mut rnd = move |m: u32| {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed % m
+        };
+        let info = AppearanceInfo { charts: 5, ..info() };
+        // Repeated values (a palette of 6 texture coordinates), all distinct (a counter, so
+        // no two entries agree), and extremes whose residuals escape (beyond 30 bits).
+        let palette = [[0, 0], [4095, 17], [1024, 2048], [3, 3000], [700, 701], [2222, 11]];
+        let mut p = |e: usize, k: usize| palette[(e * 7 + e / 3) % palette.len()][k];
+        let mut distinct = |e: usize, k: usize| (e as i32) * 9 + k as i32 * 40_000;
+        let mut wild = |e: usize, k: usize| if (e + k).is_multiple_of(5) { i32::MIN + rnd(7) as i32 } else { rnd(4096) as i32 };
+        let values: [&mut dyn FnMut(usize, usize) -> i32; 3] = [&mut p, &mut distinct, &mut wild];
+        for (case, value) in values.into_iter().enumerate() {
+            let (triangles, chart_of, t) = seamed(300, 5, value);
+            let table = read_table(&write_table(&t, 2), "t", 300, &info, 298).unwrap();
+            // Listed, chart-wise and derived with rANS-coded residuals: the same table.
+            let listed = write_table_rans(&t, 2);
+            let chartwise = write_table_chartwise(&t, 2, true);
+            let derived = write_table_derived(&t, 2, &triangles, &chart_of, true);
+            assert_eq!((listed[1], chartwise[1], derived[1]), (8, 10, 9), "case {case}");
+            for raw in [&listed, &chartwise] {
+                let back = read_table(raw, "t", 300, &info, 298).unwrap();
+                assert_eq!((&back.values, &back.charts, &back.first), (&table.values, &table.charts, &table.first), "case {case}");
+            }
+            let back = read_table_with(&derived, "t", 300, &info, 298, Some((&triangles, &chart_of))).unwrap();
+            assert_eq!(back.values, table.values, "case {case}");
+            // From the band above: every third vertex under parent v / 3, the parent's table
+            // holding (parent, chart) for some.
+            let parent: Vec<u32> = (0..300).map(|v| v / 3).collect();
+            let above =
+                QuantizedTable { entries: (0..100).map(|p| (p, p * 5 / 100)).collect(), values: (0..200).map(|i| i * 37 % 4096).collect() }
+                    .to_table();
+            let coded = write_table_from_above(&t, 2, &parent, &above, true);
+            assert_eq!(coded[1], 11);
+            assert!(needs_above(&coded));
+            assert_eq!(read_table_above(&coded, "t", 300, &info, 298, Some((&parent, &above))).unwrap().values, table.values);
+            // Cut short anywhere, or a byte changed: an error or (a changed mantissa bit) other
+            // values, never a panic; cut short is always an error.
+            for raw in [&listed, &chartwise, &coded] {
+                // (One byte, 0, is a valid empty listed table.)
+                for cut in [2, 3, raw.len() / 2, raw.len() - 1] {
+                    assert!(read_table_above(&raw[..cut], "t", 300, &info, 298, Some((&parent, &above))).is_err(), "case {case} cut {cut}");
+                }
+                for at in 2..raw.len() {
+                    let mut bad = raw.clone();
+                    bad[at] ^= 0x5A;
+                    let _ = read_table_above(&bad, "t", 300, &info, 298, Some((&parent, &above)));
+                }
+            }
+            for cut in [2, derived.len() / 2, derived.len() - 1] {
+                assert!(read_table_with(&derived[..cut], "t", 300, &info, 298, Some((&triangles, &chart_of))).is_err());
+            }
+            for at in 2..derived.len() {
+                let mut bad = derived.clone();
+                bad[at] ^= 0x5A;
+                let _ = read_table_with(&bad, "t", 300, &info, 298, Some((&triangles, &chart_of)));
+            }
+        }
+        // Repeated values take fewer bytes entropy-coded than as varints.
+        let (triangles, chart_of, t) = seamed(300, 5, &mut |e, k| palette[e % 2][k]);
+        let varints = write_table_derived(&t, 2, &triangles, &chart_of, false);
+        let coded = write_table_derived(&t, 2, &triangles, &chart_of, true);
+        assert!(coded.len() < varints.len(), "{} vs {}", coded.len(), varints.len());
+        // "0, 0" is no coding: mode 0 only with the rANS flag.
+        assert!(read_table(&[0, 0, 0], "t", 300, &info, 298).is_err());
+    }
+
     #[test]
     fn derived_band0_tables_round_trip_and_fail_cleanly() {
         // Random triangles over 40 vertices in 3 charts, some degenerate, values anywhere in
@@ -624,7 +860,7 @@ mod tests {
             values: (0..entries.len() * 2).map(|k| if k % 7 == 0 { i32::MIN + rnd(9) as i32 } else { rnd(4096) as i32 }).collect(),
             entries,
         };
-        let raw = write_table_derived(&t, 2, &triangles, &chart_of);
+        let raw = write_table_derived(&t, 2, &triangles, &chart_of, false);
         assert_eq!(&raw[..2], &[0, 1]);
         let table = read_table_with(&raw, "t", 40, &info(), 90, Some((&triangles, &chart_of))).unwrap();
         for (e, &(n, k)) in t.entries.iter().enumerate() {
