@@ -124,6 +124,11 @@ fn net_moves(delta: &FrameDelta, level: usize) -> Vec<(u32, u32)> {
     moves
 }
 
+/// Band j's Delta payload in its shorter coding (proto/container.md, "Delta").
+fn topology_delta(h: &Hierarchy, j: usize, moves: &[(u32, u32)]) -> Vec<u8> {
+    payload::write_delta_best(moves, h.level_sizes[j], h.level_sizes.get(j + 1).copied().unwrap_or(0))
+}
+
 fn pose_name(p: PoseSet) -> String {
     match p {
         PoseSet::FirstFrame => "first-frame".into(),
@@ -700,11 +705,11 @@ fn code_frames(
         // level-j client's span holds only the (smaller) faces and corners of coarser bands.
         for (j, held) in held_corners.iter_mut().enumerate().skip(1) {
             if let Some(k) = &r.key {
-                chunks.push(ChunkKind::Faces, f as u32, j as u32, payload::write_faces(&k.bands[j].faces))?;
+                chunks.push(ChunkKind::Faces, f as u32, j as u32, payload::write_faces_best(&k.bands[j].faces, h.level_sizes[j], seq.triangles.len() as u32))?;
             }
             corners.clear();
             corners.extend(delta.corners.iter().filter(|c| c.level as usize == j).map(|c| (c.t, c.corners)));
-            chunks.push(ChunkKind::Corners, f as u32, j as u32, payload::write_corner_updates(&corners, held))?;
+            chunks.push(ChunkKind::Corners, f as u32, j as u32, payload::write_corner_updates_best(&corners, held, h.level_sizes[j]))?;
             for &(t, c) in &corners {
                 held[t as usize] = c;
             }
@@ -715,9 +720,9 @@ fn code_frames(
         let mut mask = 0u64;
         for j in (0..levels).rev() {
             if let Some(k) = &r.key {
-                chunks.push(ChunkKind::Key, f as u32, j as u32, payload::write_key(&k.bands[j].parent, VERSION))?;
+                chunks.push(ChunkKind::Key, f as u32, j as u32, payload::write_key_best(&k.bands[j].parent, h.level_sizes.get(j + 1).copied().unwrap_or(0)))?;
             }
-            chunks.push(ChunkKind::Delta, f as u32, j as u32, payload::write_delta(&net_moves(delta, j)))?;
+            chunks.push(ChunkKind::Delta, f as u32, j as u32, topology_delta(h, j, &net_moves(delta, j)))?;
             let (positions, skinned) = coder.band(j, intra, h, truth, skinning);
             mask |= (skinned as u64) << j;
             chunks.push(ChunkKind::Positions, f as u32, j as u32, positions)?;

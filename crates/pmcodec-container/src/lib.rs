@@ -20,6 +20,7 @@ pub mod predict;
 mod rans;
 mod read;
 mod skin;
+mod topology;
 #[cfg(feature = "test-support")]
 pub mod testing;
 
