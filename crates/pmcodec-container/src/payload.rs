@@ -350,7 +350,7 @@ pub fn write_faces_best(faces: &[(u32, [u32; 3])], size: u32, triangles: u32) ->
     let plain = write_faces(faces);
     let bits = crate::topology::write_faces(faces);
     let same = read_faces(&bits, "faces", size, triangles, crate::format::VERSION).is_ok_and(|f| f == faces);
-    if same && stored_size(&bits) < stored_size(&plain) { bits } else { plain }
+    if same && bits.len() <= plain.len() && stored_size(&bits) < stored_size(&plain) { bits } else { plain }
 }
 
 /// The CORNERS payload of band j in whichever coding stores shorter: the varint coding of
@@ -363,7 +363,7 @@ pub fn write_corner_updates_best(updates: &[(u32, [u32; 3])], before: &[[u32; 3]
     }
     let bits = crate::topology::write_corner_updates(updates, before, size);
     let same = read_corner_updates(&bits, "corners", size, before).is_ok_and(|u| u == updates);
-    if same && stored_size(&bits) < stored_size(&plain) { bits } else { plain }
+    if same && bits.len() <= plain.len() && stored_size(&bits) < stored_size(&plain) { bits } else { plain }
 }
 
 /// The KEY payload of band j (parents below `limit`) in whichever coding stores shorter: the
@@ -376,7 +376,7 @@ pub fn write_key_best(parent: &[u32], limit: u32) -> Vec<u8> {
     let bits = crate::topology::write_key(parent);
     let start = 2;
     let same = crate::topology::read_key(&bits, start, "key", parent.len() as u32, limit).is_ok_and(|p| p == parent);
-    if same && stored_size(&bits) < stored_size(&plain) { bits } else { plain }
+    if same && bits.len() <= plain.len() && stored_size(&bits) < stored_size(&plain) { bits } else { plain }
 }
 
 /// The DELTA payload of band j (nodes below `nodes`, parents below `parents`) in whichever
@@ -388,7 +388,7 @@ pub fn write_delta_best(moves: &[(u32, u32)], nodes: u32, parents: u32) -> Vec<u
     }
     let bits = crate::topology::write_delta(moves);
     let same = crate::topology::read_delta(&bits, 2, "delta", nodes, parents).is_ok_and(|m| m == moves);
-    if same && stored_size(&bits) < stored_size(&plain) { bits } else { plain }
+    if same && bits.len() <= plain.len() && stored_size(&bits) < stored_size(&plain) { bits } else { plain }
 }
 
 /// DELTA band j: net parent changes of level-j nodes, a count then (node ascending and

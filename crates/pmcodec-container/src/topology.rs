@@ -21,9 +21,6 @@ use crate::payload::{unzigzag, zigzag};
 /// with a count of 0 ends there, so a 0 followed by more bytes is never a varint payload).
 pub const CODING_BITS: u32 = 1;
 
-/// A triangle the reader was never told of (proto/container.md, "Corners").
-const NONE: u32 = u32::MAX;
-
 /// When a context has seen this many numbers, its sums are halved, so its order follows the
 /// recent ones.
 const HALVE_AT: u64 = 16;
@@ -369,8 +366,10 @@ impl Held {
 /// CORNERS, coding 1. The updates of triangles alive at j before the frame (as the reader
 /// holds them, `before`) go as *transitions* `(X, Y, which)`: corner X of the triangles
 /// `which` (a bit for each triangle alive at j with corner X, ascending) becomes Y; the other
-/// updates (triangles not alive before) as a list of their own, each corner a zigzag
-/// difference from the held one (from 0 for a triangle the reader was never told of).
+/// updates (triangles not alive before) as a list of their own, ascending, each corner a zigzag
+/// difference from the same corner of the one before (from 0 for the first): a reader holds a
+/// triangle that is not alive as it last heard of it or not at all (`NONE`), so its held
+/// corners are no reference.
 /// `updates` is ascending by triangle, as `payload::write_corner_updates` takes it.
 pub fn write_corner_updates(updates: &[(u32, [u32; 3])], before: &[[u32; 3]], size: u32) -> Vec<u8> {
     let held = Held::new(before, size);
@@ -404,15 +403,14 @@ pub fn write_corner_updates(updates: &[(u32, [u32; 3])], before: &[[u32; 3]], si
         }
     }
     w.number(&mut count, others.len() as u32);
-    let mut prev = None::<u32>;
+    let (mut prev, mut last) = (None::<u32>, [0u32; 3]);
     for &(t, c) in &others {
         w.number(&mut gap, prev.map_or(t, |p| t - p - 1));
         prev = Some(t);
-        let b = before.get(t as usize).copied().unwrap_or([NONE; 3]);
         for i in 0..3 {
-            let from = if b[i] == NONE { 0 } else { b[i] };
-            w.number(&mut diff, zigzag(c[i].wrapping_sub(from) as i32));
+            w.number(&mut diff, zigzag(c[i].wrapping_sub(last[i]) as i32));
         }
+        last = c;
     }
     w.bytes
 }
@@ -470,7 +468,7 @@ pub fn read_corner_updates(bytes: &[u8], start: usize, what: &str, size: u32, be
     if m > triangles || m * 4 > stream_bits {
         return Err(r.corrupt(format!("{m} updates of triangles not alive in {} bytes", bytes.len() - start)));
     }
-    let mut prev = None::<u64>;
+    let (mut prev, mut last) = (None::<u64>, [0u32; 3]);
     for _ in 0..m {
         let d = r.number(&mut gap)? as u64;
         let t = prev.map_or(d, |p| p + d + 1);
@@ -484,12 +482,12 @@ pub fn read_corner_updates(bytes: &[u8], start: usize, what: &str, size: u32, be
         }
         let mut c = [0u32; 3];
         for i in 0..3 {
-            let from = if b[i] == NONE { 0 } else { b[i] };
-            c[i] = from.wrapping_add(unzigzag(r.number(&mut diff)?) as u32);
+            c[i] = last[i].wrapping_add(unzigzag(r.number(&mut diff)?) as u32);
             if c[i] >= size {
                 return Err(r.corrupt(format!("corner {} out of range (< {size})", c[i])));
             }
         }
+        last = c;
         new.insert(t as u32, c);
     }
     r.finish()?;
@@ -553,7 +551,7 @@ mod tests {
     #[test]
     fn corner_updates_round_trip_as_transitions() {
         // A strip of 6 triangles over nodes 0..8, one never told of, one degenerate.
-        let before = vec![[0, 1, 2], [1, 3, 2], [2, 3, 4], [3, 5, 4], [4, 5, 6], [NONE; 3], [6, 6, 7]];
+        let before = vec![[0, 1, 2], [1, 3, 2], [2, 3, 4], [3, 5, 4], [4, 5, 6], [u32::MAX; 3], [6, 6, 7]];
         // Node 2's corner becomes 7 in two triangles (one of them dies), node 4 becomes 6 in
         // one, triangle 2 changes two corners, the unknown and the degenerate come to life.
         let updates = vec![(0, [0, 1, 7]), (2, [7, 3, 6]), (5, [1, 2, 3]), (6, [6, 5, 7])];

@@ -6,7 +6,6 @@
 
 import { DecodeError } from "./error.js";
 
-const NONE = 0xffffffff;
 /** The coding a coded payload names after its leading 0. */
 export const CODING_BITS = 1;
 const HALVE_AT = 16;
@@ -158,6 +157,7 @@ export function readCornerUpdatesCoded(raw: Uint8Array, start: number, what: str
   const m = r.number(count);
   if (m > triangles || m * 4 > bits) throw new DecodeError(`${what}: ${m} updates of triangles not alive in ${raw.length - start} bytes`);
   let prev: number | null = null;
+  let last: [number, number, number] = [0, 0, 0];
   for (let i = 0; i < m; i++) {
     const d = r.number(gap);
     const t: number = prev === null ? d : prev + d + 1;
@@ -166,10 +166,10 @@ export function readCornerUpdatesCoded(raw: Uint8Array, start: number, what: str
     if (alive(held, t, size)) throw new DecodeError(`${what}: triangle ${t} was alive: its update belongs to a transition`);
     const c: [number, number, number] = [0, 0, 0];
     for (let k = 0; k < 3; k++) {
-      const h = held[3 * t + k];
-      c[k] = ((h === NONE ? 0 : h) + zigzagOf(r.number(diff))) >>> 0;
+      c[k] = (last[k] + zigzagOf(r.number(diff))) >>> 0;
       if (c[k] >= size) throw new DecodeError(`${what}: corner ${c[k]} out of range (< ${size})`);
     }
+    last = c;
     out.set(t, c);
   }
   r.finish();
