@@ -8,6 +8,7 @@ import { existsSync, mkdtempSync, readdirSync, readFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, dequantizeUv, texturedMesh } from "../src/container/index.js";
+import { readCornerUpdates, readDelta, readFaces, readKey } from "../src/container/payload.js";
 
 const root = repoRoot();
 const bin = pmcodecBin(root);
@@ -156,6 +157,47 @@ test("level-limited players derive the same degenerate sets as a full one, frame
       }
     }
     assert.ok(alive > 0);
+  }
+});
+
+test("bit-coded topology chunks (coding 1): the tube holds them of every kind, and a damaged one is a DecodeError naming it", async () => {
+  const c = await open(pmc), h = c.header;
+  const coded = new Map<ChunkKind, number>();
+  for (const e of c.index) {
+    if (![ChunkKind.Key, ChunkKind.Delta, ChunkKind.Faces, ChunkKind.Corners].includes(e.kind)) continue;
+    const raw = await c.chunk(e);
+    if (raw.length >= 2 && raw[0] === 0) coded.set(e.kind, (coded.get(e.kind) ?? 0) + 1);
+  }
+  for (const k of [ChunkKind.Key, ChunkKind.Delta, ChunkKind.Faces, ChunkKind.Corners]) assert.ok((coded.get(k) ?? 0) > 0, `no coded chunk of kind ${k}`);
+  // Every truncation of a coded Key, Faces and Delta chunk is refused with the chunk's name.
+  const key = c.index.find((e) => e.kind === ChunkKind.Key && e.band === 1)!;
+  const faces = c.index.find((e) => e.kind === ChunkKind.Faces && e.band === 1)!;
+  const delta = (await Promise.all(c.index.filter((e) => e.kind === ChunkKind.Delta).map(async (e) => ({ e, raw: await c.chunk(e) })))).find((x) => x.raw[0] === 0 && x.raw.length > 2)!;
+  const k = await c.chunk(key), f = await c.chunk(faces);
+  assert.equal(readKey(k, "k", h.levelSizes, 1, c.version).length, h.levelSizes[1]);
+  assert.ok(readFaces(f, "f", h.levelSizes[1], h.triangleCount, c.version).length > 0);
+  for (let cut = 2; cut < k.length; cut++) assert.throws(() => readKey(k.subarray(0, cut), "band 1 key", h.levelSizes, 1, c.version), /band 1 key/);
+  for (let cut = 2; cut < f.length; cut++) assert.throws(() => readFaces(f.subarray(0, cut), "band 1 faces", h.levelSizes[1], h.triangleCount, c.version), /band 1 faces/);
+  for (let cut = 2; cut < delta.raw.length; cut++) assert.throws(() => readDelta(delta.raw.subarray(0, cut), "a delta", h.levelSizes, delta.e.band, { swaps: [], corners: [] }), /a delta/);
+  const odd = k.slice();
+  odd[1] = 2;
+  assert.throws(() => readKey(odd, "band 1 key", h.levelSizes, 1, c.version), /topology coding/);
+  // A coded Corners chunk read against the corners a level-limited player holds before it.
+  for (const level of [1, 2]) {
+    const p = new Decoder(await open(pmc), level);
+    let tried = 0;
+    for (let fr = 1; fr < h.frameCount; fr++) {
+      await p.seek(fr - 1);
+      const e = c.index.find((x) => x.kind === ChunkKind.Corners && x.frame === fr && x.band === level);
+      if (!e) continue;
+      const raw = await c.chunk(e);
+      if (raw[0] !== 0) continue;
+      const held = p.replay.corners.slice();
+      assert.ok(readCornerUpdates(raw, "c", h.levelSizes[level], held).length > 0);
+      for (let cut = 2; cut < raw.length; cut++) assert.throws(() => readCornerUpdates(raw.subarray(0, cut), "band x corners", h.levelSizes[level], held), DecodeError);
+      tried++;
+    }
+    assert.ok(tried > 0, `level ${level}: no coded Corners chunk`);
   }
 });
 

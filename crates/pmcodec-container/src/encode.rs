@@ -4,12 +4,12 @@
 use crate::ContainerError;
 use crate::format::*;
 use crate::grid::{SLACK2, choose, on_grid};
-use crate::payload;
 use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, coarse_shift, predict};
 use crate::skin::{
     JointsFrame, NodeSkin, SkinFit, SkinState, band_entries, fit_skin, has_palette_chunk, predict_skinned, write_binds, write_joints,
     write_palette,
 };
+use crate::{payload, topology};
 use glam::Vec3;
 use pmcodec_hierarchy::base::{BaseOptions, PoseSet, VertexWeights, base_quadrics};
 use pmcodec_hierarchy::progressive::{Encoder, FrameDelta, Keyframe};
@@ -122,11 +122,6 @@ fn net_moves(delta: &FrameDelta, level: usize) -> Vec<(u32, u32)> {
     let mut moves: Vec<(u32, u32)> = last_to.into_iter().filter(|(v, to)| first_from.get(v) != Some(to)).collect();
     moves.sort_unstable();
     moves
-}
-
-/// Band j's Delta payload in its shorter coding (proto/container.md, "Delta").
-fn topology_delta(h: &Hierarchy, j: usize, moves: &[(u32, u32)]) -> Vec<u8> {
-    payload::write_delta_best(moves, h.level_sizes[j], h.level_sizes.get(j + 1).copied().unwrap_or(0))
 }
 
 fn pose_name(p: PoseSet) -> String {
@@ -705,11 +700,11 @@ fn code_frames(
         // level-j client's span holds only the (smaller) faces and corners of coarser bands.
         for (j, held) in held_corners.iter_mut().enumerate().skip(1) {
             if let Some(k) = &r.key {
-                chunks.push(ChunkKind::Faces, f as u32, j as u32, payload::write_faces_best(&k.bands[j].faces, h.level_sizes[j], seq.triangles.len() as u32))?;
+                chunks.push(ChunkKind::Faces, f as u32, j as u32, topology::faces_chunk(h, j, &k.bands[j].faces, held.len()))?;
             }
             corners.clear();
             corners.extend(delta.corners.iter().filter(|c| c.level as usize == j).map(|c| (c.t, c.corners)));
-            chunks.push(ChunkKind::Corners, f as u32, j as u32, payload::write_corner_updates_best(&corners, held, h.level_sizes[j]))?;
+            chunks.push(ChunkKind::Corners, f as u32, j as u32, topology::corners_chunk(h, j, &corners, held))?;
             for &(t, c) in &corners {
                 held[t as usize] = c;
             }
@@ -720,9 +715,9 @@ fn code_frames(
         let mut mask = 0u64;
         for j in (0..levels).rev() {
             if let Some(k) = &r.key {
-                chunks.push(ChunkKind::Key, f as u32, j as u32, payload::write_key_best(&k.bands[j].parent, h.level_sizes.get(j + 1).copied().unwrap_or(0)))?;
+                chunks.push(ChunkKind::Key, f as u32, j as u32, topology::key_chunk(h, j, &k.bands[j].parent))?;
             }
-            chunks.push(ChunkKind::Delta, f as u32, j as u32, topology_delta(h, j, &net_moves(delta, j)))?;
+            chunks.push(ChunkKind::Delta, f as u32, j as u32, topology::delta_chunk(h, j, &net_moves(delta, j)))?;
             let (positions, skinned) = coder.band(j, intra, h, truth, skinning);
             mask |= (skinned as u64) << j;
             chunks.push(ChunkKind::Positions, f as u32, j as u32, positions)?;

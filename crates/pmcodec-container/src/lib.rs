@@ -20,9 +20,9 @@ pub mod predict;
 mod rans;
 mod read;
 mod skin;
-mod topology;
 #[cfg(feature = "test-support")]
 pub mod testing;
+mod topology;
 
 pub use decode::Decoder;
 pub use encode::{

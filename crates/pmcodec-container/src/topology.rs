@@ -146,6 +146,26 @@ impl BitReader<'_> {
     }
 }
 
+/// Band j's Key payload in its shorter coding (proto/container.md, "Key").
+pub(crate) fn key_chunk(h: &pmcodec_hierarchy::Hierarchy, j: usize, parent: &[u32]) -> Vec<u8> {
+    crate::payload::write_key_best(parent, h.level_sizes.get(j + 1).copied().unwrap_or(0))
+}
+
+/// Band j's Delta payload in its shorter coding (proto/container.md, "Delta").
+pub(crate) fn delta_chunk(h: &pmcodec_hierarchy::Hierarchy, j: usize, moves: &[(u32, u32)]) -> Vec<u8> {
+    crate::payload::write_delta_best(moves, h.level_sizes[j], h.level_sizes.get(j + 1).copied().unwrap_or(0))
+}
+
+/// Band j's Faces payload (of `triangles` input triangles) in its shorter coding.
+pub(crate) fn faces_chunk(h: &pmcodec_hierarchy::Hierarchy, j: usize, faces: &[(u32, [u32; 3])], triangles: usize) -> Vec<u8> {
+    crate::payload::write_faces_best(faces, h.level_sizes[j], triangles as u32)
+}
+
+/// Band j's Corners payload, against the corners a level-j reader holds, in its shorter coding.
+pub(crate) fn corners_chunk(h: &pmcodec_hierarchy::Hierarchy, j: usize, updates: &[(u32, [u32; 3])], held: &[[u32; 3]]) -> Vec<u8> {
+    crate::payload::write_corner_updates_best(updates, held, h.level_sizes[j])
+}
+
 /// The payload header of a coded chunk: a 0, then the coding.
 fn coded_start() -> BitWriter {
     let mut out = Vec::new();
@@ -163,7 +183,10 @@ pub fn coded(bytes: &[u8], what: &str) -> Result<Option<usize>, ContainerError> 
     // The coding is a one-byte varint: any other byte (another coding, or a longer varint) is
     // corrupt.
     if u32::from(bytes[1]) != CODING_BITS {
-        return Err(ContainerError::Corrupt { what: what.to_string(), detail: format!("topology coding byte {} (1: bit-coded)", bytes[1]) });
+        return Err(ContainerError::Corrupt {
+            what: what.to_string(),
+            detail: format!("topology coding byte {} (1: bit-coded)", bytes[1]),
+        });
     }
     Ok(Some(2))
 }
@@ -417,7 +440,13 @@ pub fn write_corner_updates(updates: &[(u32, [u32; 3])], before: &[[u32; 3]], si
 
 /// Reads [`write_corner_updates`]'s bit stream from `start` against the corners the reader
 /// holds: the updated triangles, ascending, with their new corners (below `size`).
-pub fn read_corner_updates(bytes: &[u8], start: usize, what: &str, size: u32, before: &[[u32; 3]]) -> Result<Vec<(u32, [u32; 3])>, ContainerError> {
+pub fn read_corner_updates(
+    bytes: &[u8],
+    start: usize,
+    what: &str,
+    size: u32,
+    before: &[[u32; 3]],
+) -> Result<Vec<(u32, [u32; 3])>, ContainerError> {
     let mut r = BitReader { bytes: &bytes[start..], bit: 0, what };
     let triangles = before.len() as u64;
     let stream_bits = ((bytes.len() - start) * 8) as u64;
