@@ -191,18 +191,40 @@ pub fn coded(bytes: &[u8], what: &str) -> Result<Option<usize>, ContainerError> 
     Ok(Some(2))
 }
 
+/// How many recently used nodes a coded Faces chunk keeps to refer back to.
+const RECENT: usize = 16;
+
+/// The nodes a Faces chunk used last, most recent first (at most [`RECENT`], distinct).
+fn touch(recent: &mut Vec<u32>, c: u32) {
+    if let Some(p) = recent.iter().position(|&x| x == c) {
+        recent.remove(p);
+    }
+    recent.insert(0, c);
+    recent.truncate(RECENT);
+}
+
 /// FACES, coding 1: the count, then per face the triangle's gap from the face before (as an
-/// ascending list) and its three corners as zigzag differences from the face before's.
+/// ascending list) and its three corners, each either one of the [`RECENT`] nodes used last
+/// (its place in that list, most recent first, plus one) or 0 and its zigzag difference from
+/// the same corner of the face before. Faces in input order walk across the surface, so most
+/// corners are nodes a face just before used (a regular mesh has about two faces per node).
 pub fn write_faces(faces: &[(u32, [u32; 3])]) -> Vec<u8> {
     let mut w = coded_start();
-    let (mut count, mut gap, mut corner) = (Context::new(), Context::new(), [Context::new(); 3]);
+    let (mut count, mut gap, mut hit, mut corner) = (Context::new(), Context::new(), Context::new(), [Context::new(); 3]);
     w.number(&mut count, faces.len() as u32);
-    let (mut prev, mut last) = (None::<u32>, [0u32; 3]);
+    let (mut prev, mut last, mut recent) = (None::<u32>, [0u32; 3], Vec::with_capacity(RECENT));
     for &(t, c) in faces {
         w.number(&mut gap, prev.map_or(t, |p| t - p - 1));
         prev = Some(t);
         for i in 0..3 {
-            w.number(&mut corner[i], zigzag(c[i].wrapping_sub(last[i]) as i32));
+            match recent.iter().position(|&x| x == c[i]) {
+                Some(p) => w.number(&mut hit, p as u32 + 1),
+                None => {
+                    w.number(&mut hit, 0);
+                    w.number(&mut corner[i], zigzag(c[i].wrapping_sub(last[i]) as i32));
+                }
+            }
+            touch(&mut recent, c[i]);
         }
         last = c;
     }
@@ -212,14 +234,14 @@ pub fn write_faces(faces: &[(u32, [u32; 3])]) -> Vec<u8> {
 /// Reads [`write_faces`]'s bit stream from `start`: faces ascending, corners below `size`.
 pub fn read_faces(bytes: &[u8], start: usize, what: &str, size: u32, triangles: u32) -> Result<Vec<(u32, [u32; 3])>, ContainerError> {
     let mut r = BitReader { bytes: &bytes[start..], bit: 0, what };
-    let (mut count, mut gap, mut corner) = (Context::new(), Context::new(), [Context::new(); 3]);
+    let (mut count, mut gap, mut hit, mut corner) = (Context::new(), Context::new(), Context::new(), [Context::new(); 3]);
     let m = r.number(&mut count)?;
     // Each face takes at least 4 bits: refuse a count the stream cannot hold before sizing.
     if m > triangles || m as usize > (bytes.len() - start) * 2 {
         return Err(r.corrupt(format!("{m} faces in {} bytes for {triangles} triangles", bytes.len() - start)));
     }
     let mut faces = Vec::with_capacity(m as usize);
-    let (mut prev, mut last) = (None::<u32>, [0u32; 3]);
+    let (mut prev, mut last, mut recent) = (None::<u32>, [0u32; 3], Vec::with_capacity(RECENT));
     for _ in 0..m {
         let d = r.number(&mut gap)? as u64;
         let t = prev.map_or(d, |p| p as u64 + d + 1);
@@ -229,10 +251,14 @@ pub fn read_faces(bytes: &[u8], start: usize, what: &str, size: u32, triangles: 
         prev = Some(t as u32);
         let mut c = [0u32; 3];
         for i in 0..3 {
-            c[i] = last[i].wrapping_add(unzigzag(r.number(&mut corner[i])?) as u32);
+            c[i] = match r.number(&mut hit)? {
+                0 => last[i].wrapping_add(unzigzag(r.number(&mut corner[i])?) as u32),
+                u => *recent.get(u as usize - 1).ok_or_else(|| r.corrupt(format!("recent node {u} of {}", recent.len())))?,
+            };
             if c[i] >= size {
                 return Err(r.corrupt(format!("corner {} out of range (< {size})", c[i])));
             }
+            touch(&mut recent, c[i]);
         }
         last = c;
         faces.push((t as u32, c));

@@ -69,13 +69,24 @@ export function coded(raw: Uint8Array, what: string): number | null {
 
 type Face = { t: number; corners: [number, number, number] };
 
-/** A coded Faces chunk: count, then per face its triangle's gap and three corner differences. */
+const RECENT = 16;
+
+/** Moves node c to the front of the recently used nodes (at most RECENT, distinct). */
+function touch(recent: number[], c: number): void {
+  const p = recent.indexOf(c);
+  if (p >= 0) recent.splice(p, 1);
+  recent.unshift(c);
+  if (recent.length > RECENT) recent.length = RECENT;
+}
+
+/** A coded Faces chunk: count, then per face its triangle's gap and three corners, each a recently used node or a difference. */
 export function readFacesCoded(raw: Uint8Array, start: number, what: string, size: number, triangles: number): Face[] {
   const r = new BitReader(raw.subarray(start), what);
-  const count = new Context(), gap = new Context(), corner = [new Context(), new Context(), new Context()];
+  const count = new Context(), gap = new Context(), hit = new Context(), corner = [new Context(), new Context(), new Context()];
   const m = r.number(count);
   if (m > triangles || m > (raw.length - start) * 2) throw new DecodeError(`${what}: ${m} faces in ${raw.length - start} bytes for ${triangles} triangles`);
   const faces: Face[] = [];
+  const recent: number[] = [];
   let prev: number | null = null;
   let last: [number, number, number] = [0, 0, 0];
   for (let i = 0; i < m; i++) {
@@ -85,8 +96,12 @@ export function readFacesCoded(raw: Uint8Array, start: number, what: string, siz
     prev = t;
     const c: [number, number, number] = [0, 0, 0];
     for (let k = 0; k < 3; k++) {
-      c[k] = (last[k] + zigzagOf(r.number(corner[k]))) >>> 0;
+      const u = r.number(hit);
+      if (u === 0) c[k] = (last[k] + zigzagOf(r.number(corner[k]))) >>> 0;
+      else if (u - 1 < recent.length) c[k] = recent[u - 1];
+      else throw new DecodeError(`${what}: recent node ${u} of ${recent.length}`);
       if (c[k] >= size) throw new DecodeError(`${what}: corner ${c[k]} out of range (< ${size})`);
+      touch(recent, c[k]);
     }
     last = c;
     faces.push({ t, corners: c });
