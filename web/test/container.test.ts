@@ -170,18 +170,23 @@ test("bit-coded topology chunks (coding 1): the tube holds them of every kind, a
   }
   for (const k of [ChunkKind.Key, ChunkKind.Delta, ChunkKind.Faces, ChunkKind.Corners]) assert.ok((coded.get(k) ?? 0) > 0, `no coded chunk of kind ${k}`);
   // Every truncation of a coded Key, Faces and Delta chunk is refused with the chunk's name.
-  const key = c.index.find((e) => e.kind === ChunkKind.Key && e.band === 1)!;
-  const faces = c.index.find((e) => e.kind === ChunkKind.Faces && e.band === 1)!;
-  const delta = (await Promise.all(c.index.filter((e) => e.kind === ChunkKind.Delta).map(async (e) => ({ e, raw: await c.chunk(e) })))).find((x) => x.raw[0] === 0 && x.raw.length > 2)!;
-  const k = await c.chunk(key), f = await c.chunk(faces);
-  assert.equal(readKey(k, "k", h.levelSizes, 1, c.version).length, h.levelSizes[1]);
-  assert.ok(readFaces(f, "f", h.levelSizes[1], h.triangleCount, c.version).length > 0);
-  for (let cut = 2; cut < k.length; cut++) assert.throws(() => readKey(k.subarray(0, cut), "band 1 key", h.levelSizes, 1, c.version), /band 1 key/);
-  for (let cut = 2; cut < f.length; cut++) assert.throws(() => readFaces(f.subarray(0, cut), "band 1 faces", h.levelSizes[1], h.triangleCount, c.version), /band 1 faces/);
+  const codedOf = async (kind: ChunkKind) => {
+    for (const e of c.index.filter((x) => x.kind === kind)) {
+      const raw = await c.chunk(e);
+      if (raw.length > 2 && raw[0] === 0) return { e, raw };
+    }
+    throw new Error(`no coded chunk of kind ${kind}`);
+  };
+  const key = await codedOf(ChunkKind.Key), faces = await codedOf(ChunkKind.Faces), delta = await codedOf(ChunkKind.Delta);
+  const [k, kb] = [key.raw, key.e.band], [f, fb] = [faces.raw, faces.e.band];
+  assert.equal(readKey(k, "k", h.levelSizes, kb, c.version).length, h.levelSizes[kb]);
+  assert.ok(readFaces(f, "f", h.levelSizes[fb], h.triangleCount, c.version).length > 0);
+  for (let cut = 2; cut < k.length; cut++) assert.throws(() => readKey(k.subarray(0, cut), "a key", h.levelSizes, kb, c.version), /a key/);
+  for (let cut = 2; cut < f.length; cut++) assert.throws(() => readFaces(f.subarray(0, cut), "some faces", h.levelSizes[fb], h.triangleCount, c.version), /some faces/);
   for (let cut = 2; cut < delta.raw.length; cut++) assert.throws(() => readDelta(delta.raw.subarray(0, cut), "a delta", h.levelSizes, delta.e.band, { swaps: [], corners: [] }), /a delta/);
   const odd = k.slice();
   odd[1] = 2;
-  assert.throws(() => readKey(odd, "band 1 key", h.levelSizes, 1, c.version), /topology coding/);
+  assert.throws(() => readKey(odd, "a key", h.levelSizes, kb, c.version), /topology coding/);
   // A coded Corners chunk read against the corners a level-limited player holds before it.
   for (const level of [1, 2]) {
     const p = new Decoder(await open(pmc), level);
