@@ -267,16 +267,25 @@ pub fn read_faces(bytes: &[u8], start: usize, what: &str, size: u32, triangles: 
     Ok(faces)
 }
 
-/// KEY, coding 1: the count, then each parent as the zigzag difference from the node before's
-/// (from 0 for the first), as the varint coding of version 7 has them: most are 0 or small, a
-/// bit or three here where a varint takes a byte.
+/// KEY, coding 1: the count, then each parent either one of the [`RECENT`] parents used last
+/// (its place, most recent first, plus one) or 0 and its zigzag difference from the node
+/// before's (from 0 for the first). Nodes near in id order often share their cluster or lie
+/// next to recent ones, whatever order the ids follow (a subdivided mesh numbers its edge
+/// vertices after the old ones).
 pub fn write_key(parent: &[u32]) -> Vec<u8> {
     let mut w = coded_start();
-    let (mut count, mut diff) = (Context::new(), Context::new());
+    let (mut count, mut hit, mut diff) = (Context::new(), Context::new(), Context::new());
     w.number(&mut count, parent.len() as u32);
-    let mut last = 0u32;
+    let (mut last, mut recent) = (0u32, Vec::with_capacity(RECENT));
     for &p in parent {
-        w.number(&mut diff, zigzag(p.wrapping_sub(last) as i32));
+        match recent.iter().position(|&x| x == p) {
+            Some(i) => w.number(&mut hit, i as u32 + 1),
+            None => {
+                w.number(&mut hit, 0);
+                w.number(&mut diff, zigzag(p.wrapping_sub(last) as i32));
+            }
+        }
+        touch(&mut recent, p);
         last = p;
     }
     w.bytes
@@ -285,19 +294,23 @@ pub fn write_key(parent: &[u32]) -> Vec<u8> {
 /// Reads [`write_key`]'s bit stream from `start`: exactly `expected` parents below `limit`.
 pub fn read_key(bytes: &[u8], start: usize, what: &str, expected: u32, limit: u32) -> Result<Vec<u32>, ContainerError> {
     let mut r = BitReader { bytes: &bytes[start..], bit: 0, what };
-    let (mut count, mut diff) = (Context::new(), Context::new());
+    let (mut count, mut hit, mut diff) = (Context::new(), Context::new(), Context::new());
     let n = r.number(&mut count)?;
     // Each parent takes at least a bit.
     if n != expected || n as usize > (bytes.len() - start) * 8 {
         return Err(r.corrupt(format!("{n} parents for {expected} nodes in {} bytes", bytes.len() - start)));
     }
     let mut parent = Vec::with_capacity(n as usize);
-    let mut last = 0u32;
+    let (mut last, mut recent) = (0u32, Vec::with_capacity(RECENT));
     for _ in 0..n {
-        let p = last.wrapping_add(unzigzag(r.number(&mut diff)?) as u32);
+        let p = match r.number(&mut hit)? {
+            0 => last.wrapping_add(unzigzag(r.number(&mut diff)?) as u32),
+            u => *recent.get(u as usize - 1).ok_or_else(|| r.corrupt(format!("recent parent {u} of {}", recent.len())))?,
+        };
         if p >= limit {
             return Err(r.corrupt(format!("parent {p} out of range (< {limit})")));
         }
+        touch(&mut recent, p);
         parent.push(p);
         last = p;
     }

@@ -191,17 +191,23 @@ export function readCornerUpdatesCoded(raw: Uint8Array, start: number, what: str
   return [...out.entries()].sort((a, b) => a[0] - b[0]).map(([t, corners]) => ({ t, corners }));
 }
 
-/** A coded Key chunk: count, then each parent as the zigzag difference from the node before's. */
+/** A coded Key chunk: count, then each parent a recently used one or a difference from the node before's. */
 export function readKeyCoded(raw: Uint8Array, start: number, what: string, expected: number, limit: number): Uint32Array {
   const r = new BitReader(raw.subarray(start), what);
-  const count = new Context(), diff = new Context();
+  const count = new Context(), hit = new Context(), diff = new Context();
   const n = r.number(count);
   if (n !== expected || n > (raw.length - start) * 8) throw new DecodeError(`${what}: ${n} parents for ${expected} nodes in ${raw.length - start} bytes`);
   const parent = new Uint32Array(n);
+  const recent: number[] = [];
   let last = 0;
   for (let i = 0; i < n; i++) {
-    const p = (last + zigzagOf(r.number(diff))) >>> 0;
+    const u = r.number(hit);
+    let p: number;
+    if (u === 0) p = (last + zigzagOf(r.number(diff))) >>> 0;
+    else if (u - 1 < recent.length) p = recent[u - 1];
+    else throw new DecodeError(`${what}: recent parent ${u} of ${recent.length}`);
     if (p >= limit) throw new DecodeError(`${what}: parent ${p} out of range (< ${limit})`);
+    touch(recent, p);
     parent[i] = p;
     last = p;
   }
