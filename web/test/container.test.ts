@@ -8,6 +8,7 @@ import { existsSync, mkdirSync, mkdtempSync, readdirSync, readFileSync, writeFil
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, dequantizeUv, readBand0Table, readTable, texturedMesh } from "../src/container/index.js";
+import { readCornerUpdates, readDelta, readFaces, readKey } from "../src/container/payload.js";
 
 const root = repoRoot();
 const bin = pmcodecBin(root);
@@ -156,6 +157,52 @@ test("level-limited players derive the same degenerate sets as a full one, frame
       }
     }
     assert.ok(alive > 0);
+  }
+});
+
+test("bit-coded topology chunks (coding 1): the tube holds them of every kind, and a damaged one is a DecodeError naming it", async () => {
+  const c = await open(pmc), h = c.header;
+  const coded = new Map<ChunkKind, number>();
+  for (const e of c.index) {
+    if (![ChunkKind.Key, ChunkKind.Delta, ChunkKind.Faces, ChunkKind.Corners].includes(e.kind)) continue;
+    const raw = await c.chunk(e);
+    if (raw.length >= 2 && raw[0] === 0) coded.set(e.kind, (coded.get(e.kind) ?? 0) + 1);
+  }
+  for (const k of [ChunkKind.Key, ChunkKind.Delta, ChunkKind.Faces, ChunkKind.Corners]) assert.ok((coded.get(k) ?? 0) > 0, `no coded chunk of kind ${k}`);
+  // Every truncation of a coded Key, Faces and Delta chunk is refused with the chunk's name.
+  const codedOf = async (kind: ChunkKind) => {
+    for (const e of c.index.filter((x) => x.kind === kind)) {
+      const raw = await c.chunk(e);
+      if (raw.length > 2 && raw[0] === 0) return { e, raw };
+    }
+    throw new Error(`no coded chunk of kind ${kind}`);
+  };
+  const key = await codedOf(ChunkKind.Key), faces = await codedOf(ChunkKind.Faces), delta = await codedOf(ChunkKind.Delta);
+  const [k, kb] = [key.raw, key.e.band], [f, fb] = [faces.raw, faces.e.band];
+  assert.equal(readKey(k, "k", h.levelSizes, kb, c.version).length, h.levelSizes[kb]);
+  assert.ok(readFaces(f, "f", h.levelSizes[fb], h.triangleCount, c.version).length > 0);
+  for (let cut = 2; cut < k.length; cut++) assert.throws(() => readKey(k.subarray(0, cut), "a key", h.levelSizes, kb, c.version), /a key/);
+  for (let cut = 2; cut < f.length; cut++) assert.throws(() => readFaces(f.subarray(0, cut), "some faces", h.levelSizes[fb], h.triangleCount, c.version), /some faces/);
+  for (let cut = 2; cut < delta.raw.length; cut++) assert.throws(() => readDelta(delta.raw.subarray(0, cut), "a delta", h.levelSizes, delta.e.band, { swaps: [], corners: [] }), /a delta/);
+  const odd = k.slice();
+  odd[1] = 2;
+  assert.throws(() => readKey(odd, "a key", h.levelSizes, kb, c.version), /topology coding/);
+  // A coded Corners chunk read against the corners a level-limited player holds before it.
+  for (const level of [1, 2]) {
+    const p = new Decoder(await open(pmc), level);
+    let tried = 0;
+    for (let fr = 1; fr < h.frameCount; fr++) {
+      await p.seek(fr - 1);
+      const e = c.index.find((x) => x.kind === ChunkKind.Corners && x.frame === fr && x.band === level);
+      if (!e) continue;
+      const raw = await c.chunk(e);
+      if (raw[0] !== 0) continue;
+      const held = p.replay.corners.slice();
+      assert.ok(readCornerUpdates(raw, "c", h.levelSizes[level], held).length > 0);
+      for (let cut = 2; cut < raw.length; cut++) assert.throws(() => readCornerUpdates(raw.subarray(0, cut), "band x corners", h.levelSizes[level], held), DecodeError);
+      tried++;
+    }
+    assert.ok(tried > 0, `level ${level}: no coded Corners chunk`);
   }
 });
 

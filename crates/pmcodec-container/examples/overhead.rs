@@ -7,6 +7,7 @@
 //! a glTF path, its animations played back to back (as the `skinned` example); with a folder,
 //! its OBJ frames (the horse, the cat).
 //! `cargo run --release -p pmcodec-container --example overhead -- [file.glb | folder]`
+//! (`PMC_K`, `PMC_SUBDIVIDE`, `PMC_FRAMES`: below).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::{ChunkKind, EncodeOptions, QuantizationChoice, Reader, encode, summary};
 use pmcodec_mesh::gltf_input::RiggedMesh;
@@ -38,6 +39,23 @@ fn main() {
             out.expect("animations")
         }
     };
+    // `PMC_SUBDIVIDE=N`: the sequence Loop-subdivided N times, every frame from that frame's
+    // positions (`pmcodec_eval::made`; the skin is dropped), so that a small model (Fox, 1,728
+    // unindexed vertices) makes the ~3,000-vertex sequence issue 17's overhead bar asks for.
+    // `PMC_FRAMES=N`: its first N frames, played again from the start when it has fewer.
+    let mut seq = seq;
+    for _ in 0..std::env::var("PMC_SUBDIVIDE").ok().and_then(|k| k.parse().ok()).unwrap_or(0u32) {
+        seq = pmcodec_eval::made::loop_subdivide(&seq);
+    }
+    if let Some(n) = std::env::var("PMC_FRAMES").ok().and_then(|k| k.parse().ok()) {
+        let had = seq.frames.len();
+        if n > had {
+            // The skin's per-frame matrices are not repeated: encoded as any other sequence.
+            seq.skin = None;
+        }
+        seq.frames = (0..n).map(|f| seq.frames[f % had].clone()).collect();
+        seq.frame_names = (0..n).map(|f| format!("frame-{f:04}")).collect();
+    }
     let (n, frames) = (seq.vertex_count(), seq.frame_count());
     let per = |bytes: u64| bytes as f64 * 8.0 / (n * frames) as f64;
     println!("{n} vertices, {frames} frames, 12-bit quantization");
@@ -79,18 +97,24 @@ fn main() {
         println!("    {:<12} {:>6}        {:>9} B {:>7.3} bits/v/f (as version 6 wrote it)", "index v6", "", v6, per(v6));
         // Bytes, chunks and items (the count each payload starts with: moves, corner updates,
         // faces) per kind and band.
-        let mut kinds: BTreeMap<(u32, u32), (usize, u64, u64)> = BTreeMap::new();
+        let mut kinds: BTreeMap<(u32, u32), (usize, u64, u64, usize)> = BTreeMap::new();
         for e in &r.index().chunks {
             let k = kinds.entry((u32::from(e.kind), e.band)).or_default();
             k.0 += 1;
             k.1 += e.stored_len as u64;
-            if matches!(e.kind, ChunkKind::Delta | ChunkKind::Corners | ChunkKind::Faces) {
+            if matches!(e.kind, ChunkKind::Key | ChunkKind::Delta | ChunkKind::Corners | ChunkKind::Faces) {
                 let raw = r.read_chunk(e).expect("chunk");
-                k.2 += pmcodec_container::payload::Cursor::new(&raw, "count").get().expect("count") as u64;
+                // A coded payload (a 0, then its coding: proto/container.md, Faces and
+                // Corners) holds its count in its bit stream: counted apart.
+                if raw.len() >= 2 && raw[0] == 0 {
+                    k.3 += 1;
+                } else {
+                    k.2 += pmcodec_container::payload::Cursor::new(&raw, "count").get().expect("count") as u64;
+                }
             }
         }
         let mut by_kind: BTreeMap<u32, (usize, u64)> = BTreeMap::new();
-        for (&(k, _), &(count, b, _)) in &kinds {
+        for (&(k, _), &(count, b, _, _)) in &kinds {
             let t = by_kind.entry(k).or_default();
             t.0 += count;
             t.1 += b;
@@ -98,10 +122,10 @@ fn main() {
         for (k, (count, b)) in by_kind {
             let name = ChunkKind::try_from(k).map_or("?", |k| k.name());
             println!("    {name:<12} {count:>6} chunks {b:>9} B {:>7.3} bits/v/f", per(b));
-            for (&(_, band), &(c, bb, items)) in kinds.range((k, 0)..(k + 1, 0)) {
-                if matches!(k, 2 | 4 | 5) {
+            for (&(_, band), &(c, bb, items, coded)) in kinds.range((k, 0)..(k + 1, 0)) {
+                if matches!(k, 1 | 2 | 4 | 5) {
                     println!(
-                        "      band {band}: {c:>5} chunks {bb:>8} B, {items:>7} items, {:.2} B per item",
+                        "      band {band}: {c:>5} chunks {bb:>8} B, {coded} bit-coded, {items:>7} items in the others, {:.2} B per item",
                         bb as f64 / items.max(1) as f64
                     );
                 }

@@ -4,12 +4,12 @@
 use crate::ContainerError;
 use crate::format::*;
 use crate::grid::{SLACK2, choose, on_grid};
-use crate::payload;
 use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, coarse_shift, predict};
 use crate::skin::{
     JointsFrame, NodeSkin, SkinFit, SkinState, band_entries, fit_skin, has_palette_chunk, predict_skinned, write_binds, write_joints,
     write_palette,
 };
+use crate::{payload, topology};
 use glam::Vec3;
 use pmcodec_hierarchy::base::{BaseOptions, PoseSet, VertexWeights, base_quadrics};
 use pmcodec_hierarchy::progressive::{Encoder, FrameDelta, Keyframe};
@@ -700,11 +700,11 @@ fn code_frames(
         // level-j client's span holds only the (smaller) faces and corners of coarser bands.
         for (j, held) in held_corners.iter_mut().enumerate().skip(1) {
             if let Some(k) = &r.key {
-                chunks.push(ChunkKind::Faces, f as u32, j as u32, payload::write_faces(&k.bands[j].faces))?;
+                chunks.push(ChunkKind::Faces, f as u32, j as u32, topology::faces_chunk(h, j, &k.bands[j].faces, held.len()))?;
             }
             corners.clear();
             corners.extend(delta.corners.iter().filter(|c| c.level as usize == j).map(|c| (c.t, c.corners)));
-            chunks.push(ChunkKind::Corners, f as u32, j as u32, payload::write_corner_updates(&corners, held))?;
+            chunks.push(ChunkKind::Corners, f as u32, j as u32, topology::corners_chunk(h, j, &corners, held))?;
             for &(t, c) in &corners {
                 held[t as usize] = c;
             }
@@ -715,9 +715,9 @@ fn code_frames(
         let mut mask = 0u64;
         for j in (0..levels).rev() {
             if let Some(k) = &r.key {
-                chunks.push(ChunkKind::Key, f as u32, j as u32, payload::write_key(&k.bands[j].parent, VERSION))?;
+                chunks.push(ChunkKind::Key, f as u32, j as u32, topology::key_chunk(h, j, &k.bands[j].parent))?;
             }
-            chunks.push(ChunkKind::Delta, f as u32, j as u32, payload::write_delta(&net_moves(delta, j)))?;
+            chunks.push(ChunkKind::Delta, f as u32, j as u32, topology::delta_chunk(h, j, &net_moves(delta, j)))?;
             let (positions, skinned) = coder.band(j, intra, h, truth, skinning);
             mask |= (skinned as u64) << j;
             chunks.push(ChunkKind::Positions, f as u32, j as u32, positions)?;

@@ -22,6 +22,7 @@ mod read;
 mod skin;
 #[cfg(feature = "test-support")]
 pub mod testing;
+mod topology;
 
 pub use decode::Decoder;
 pub use encode::{

@@ -200,8 +200,12 @@ pub fn write_key(parent: &[u32], version: u16) -> Vec<u8> {
 /// Reads a KEY chunk of a file of format `version` (see [`write_key`]) for `band`:
 /// `sizes[band]` parents below `sizes[band + 1]` (none for the top band).
 pub fn read_key(bytes: &[u8], what: &str, sizes: &[u32], band: usize, version: u16) -> Result<Vec<u32>, ContainerError> {
-    let mut c = Cursor::new(bytes, what);
     let top = sizes.len() - 1;
+    if let Some(start) = crate::topology::coded(bytes, what)? {
+        let (expected, limit) = if band < top { (sizes[band], sizes[band + 1]) } else { (0, 0) };
+        return crate::topology::read_key(bytes, start, what, expected, limit);
+    }
+    let mut c = Cursor::new(bytes, what);
     let n = c.count_within(sizes[band] as u64, 1, "parents")?;
     let expected = if band < top { sizes[band] as usize } else { 0 };
     if n != expected {
@@ -247,6 +251,9 @@ pub fn write_faces(faces: &[(u32, [u32; 3])]) -> Vec<u8> {
 /// Reads a FACES chunk; with `version` < 5, corners as plain ids, which is also how versions 3
 /// and 4 code their CORNERS chunks.
 pub fn read_faces(bytes: &[u8], what: &str, size: u32, triangles: u32, version: u16) -> Result<Vec<(u32, [u32; 3])>, ContainerError> {
+    if let Some(start) = crate::topology::coded(bytes, what)? {
+        return crate::topology::read_faces(bytes, start, what, size, triangles);
+    }
     let mut c = Cursor::new(bytes, what);
     let m = c.count_within(triangles as u64, 4, "faces")?;
     let mut faces = Vec::with_capacity(m);
@@ -304,6 +311,9 @@ pub fn write_corner_updates(updates: &[(u32, [u32; 3])], before: &[[u32; 3]]) ->
 /// Reads a version-5 CORNERS chunk against the corners the reader holds (`before`, one per
 /// triangle): the updated triangles and their new corners.
 pub fn read_corner_updates(bytes: &[u8], what: &str, size: u32, before: &[[u32; 3]]) -> Result<Vec<(u32, [u32; 3])>, ContainerError> {
+    if let Some(start) = crate::topology::coded(bytes, what)? {
+        return crate::topology::read_corner_updates(bytes, start, what, size, before);
+    }
     let mut c = Cursor::new(bytes, what);
     let triangles = before.len() as u32;
     let m = c.count_within(triangles as u64, 2, "corner updates")?;
@@ -336,6 +346,60 @@ pub fn read_corner_updates(bytes: &[u8], what: &str, size: u32, before: &[[u32; 
     Ok(updates)
 }
 
+/// What a chunk payload takes in the file: zstd-compressed or as it is, whichever is shorter
+/// (as `format::store_chunk` stores it with the *stored* flag).
+fn stored_size(raw: &[u8]) -> usize {
+    crate::format::compress(raw, crate::format::ZSTD_LEVEL).map_or(raw.len(), |z| z.len().min(raw.len()))
+}
+
+/// The FACES payload of band j (corners below `size`) in whichever coding stores shorter: the
+/// varint coding of [`write_faces`] or the bit coding (coding 1, `topology`). The bit coding is
+/// kept only when it reads back as the same faces.
+pub fn write_faces_best(faces: &[(u32, [u32; 3])], size: u32, triangles: u32) -> Vec<u8> {
+    let plain = write_faces(faces);
+    let bits = crate::topology::write_faces(faces);
+    let same = read_faces(&bits, "faces", size, triangles, crate::format::VERSION).is_ok_and(|f| f == faces);
+    if same && bits.len() <= plain.len() && stored_size(&bits) < stored_size(&plain) { bits } else { plain }
+}
+
+/// The CORNERS payload of band j in whichever coding stores shorter: the varint coding of
+/// [`write_corner_updates`] or the transitions of coding 1 (`topology`), kept only when they
+/// read back as the same updates.
+pub fn write_corner_updates_best(updates: &[(u32, [u32; 3])], before: &[[u32; 3]], size: u32) -> Vec<u8> {
+    let plain = write_corner_updates(updates, before);
+    if updates.is_empty() {
+        return plain;
+    }
+    let bits = crate::topology::write_corner_updates(updates, before, size);
+    let same = read_corner_updates(&bits, "corners", size, before).is_ok_and(|u| u == updates);
+    if same && bits.len() <= plain.len() && stored_size(&bits) < stored_size(&plain) { bits } else { plain }
+}
+
+/// The KEY payload of band j (parents below `limit`) in whichever coding stores shorter: the
+/// varint coding of [`write_key`] (version 7) or the bit coding (coding 1, `topology`).
+pub fn write_key_best(parent: &[u32], limit: u32) -> Vec<u8> {
+    let plain = write_key(parent, crate::format::VERSION);
+    if parent.is_empty() {
+        return plain;
+    }
+    let bits = crate::topology::write_key(parent);
+    let start = 2;
+    let same = crate::topology::read_key(&bits, start, "key", parent.len() as u32, limit).is_ok_and(|p| p == parent);
+    if same && bits.len() <= plain.len() && stored_size(&bits) < stored_size(&plain) { bits } else { plain }
+}
+
+/// The DELTA payload of band j (nodes below `nodes`, parents below `parents`) in whichever
+/// coding stores shorter: the varints of [`write_delta`] or the bit coding (coding 1).
+pub fn write_delta_best(moves: &[(u32, u32)], nodes: u32, parents: u32) -> Vec<u8> {
+    let plain = write_delta(moves);
+    if moves.is_empty() {
+        return plain;
+    }
+    let bits = crate::topology::write_delta(moves);
+    let same = crate::topology::read_delta(&bits, 2, "delta", nodes, parents).is_ok_and(|m| m == moves);
+    if same && bits.len() <= plain.len() && stored_size(&bits) < stored_size(&plain) { bits } else { plain }
+}
+
 /// DELTA band j: net parent changes of level-j nodes, a count then (node ascending and
 /// delta-coded, new parent) pairs. Degenerate sets are not stored: decoders derive them.
 pub fn write_delta(moves: &[(u32, u32)]) -> Vec<u8> {
@@ -351,8 +415,12 @@ pub fn write_delta(moves: &[(u32, u32)]) -> Vec<u8> {
 
 /// Reads what [`write_delta`] writes for `band`: at most `sizes[band]` moves, nodes strictly ascending, parents in level `band + 1`.
 pub fn read_delta(bytes: &[u8], what: &str, sizes: &[u32], band: usize) -> Result<Vec<(u32, u32)>, ContainerError> {
-    let mut c = Cursor::new(bytes, what);
     let top = sizes.len() - 1;
+    if let Some(start) = crate::topology::coded(bytes, what)? {
+        let (nodes, parents) = if band < top { (sizes[band], sizes[band + 1]) } else { (0, 0) };
+        return crate::topology::read_delta(bytes, start, what, nodes, parents);
+    }
+    let mut c = Cursor::new(bytes, what);
     let n = c.count_within(if band < top { sizes[band] as u64 } else { 0 }, 2, "moves")?;
     let mut moves = Vec::with_capacity(n);
     let mut prev = None;

@@ -301,7 +301,8 @@ fn raw_len_range(h: &Header, kind: ChunkKind, band: usize) -> (u64, u64) {
     let below_top = band < h.top();
     match kind {
         ChunkKind::Triangles => (1 + 3 * t, 5 + 15 * t),
-        ChunkKind::Key if below_top => (1 + n, 5 + 5 * n),
+        // A bit-coded Key chunk (coding 1) takes at least a bit per parent.
+        ChunkKind::Key if below_top => (1 + n.div_ceil(8), 5 + 5 * n),
         ChunkKind::Key => (1, 5),
         ChunkKind::Delta => (1, 5 + 10 * n),
         ChunkKind::Faces => (1, 5 + 20 * t),

@@ -217,7 +217,8 @@ function rawLenRange(h: Header, kind: ChunkKind, band: number): [number, number]
   const t = h.triangleCount, n = h.levelSizes[band] ?? 0, belowTop = band < h.levelSizes.length - 1;
   switch (kind) {
     case ChunkKind.Triangles: return [1 + 3 * t, 5 + 15 * t];
-    case ChunkKind.Key: return belowTop ? [1 + n, 5 + 5 * n] : [1, 5];
+    // A bit-coded Key chunk (coding 1) takes at least a bit per parent.
+    case ChunkKind.Key: return belowTop ? [1 + Math.ceil(n / 8), 5 + 5 * n] : [1, 5];
     case ChunkKind.Delta: return [1, 5 + 10 * n];
     case ChunkKind.Faces: return [1, 5 + 20 * t];
     case ChunkKind.Corners: return [1, 5 + 25 * t];

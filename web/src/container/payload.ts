@@ -5,6 +5,7 @@
 import { DecodeError } from "./error.js";
 import { decodeResiduals, ESCAPE, MAX_SYMBOLS, rAnsTable } from "./rans.js";
 import type { FrameDelta, KeyBand } from "./replay.js";
+import { coded, readCornerUpdatesCoded, readDeltaCoded, readFacesCoded, readKeyCoded } from "./topology.js";
 
 /** postcard's wire format, the parts the header and index use. */
 export class Postcard {
@@ -96,8 +97,10 @@ export function readTriangles(raw: Uint8Array, what: string, triangles: number, 
  * zigzag-coded difference from the node before's (32-bit wrapping).
  */
 export function readKey(raw: Uint8Array, what: string, sizes: number[], band: number, version: number): Uint32Array {
-  const c = new Cursor(raw, what);
   const top = sizes.length - 1;
+  const start = coded(raw, what);
+  if (start !== null) return readKeyCoded(raw, start, what, band < top ? sizes[band] : 0, band < top ? sizes[band + 1] : 0);
+  const c = new Cursor(raw, what);
   const n = c.count(sizes[band], "parents");
   if (n !== (band < top ? sizes[band] : 0)) throw new DecodeError(`${what}: ${n} parents`);
   const parent = new Uint32Array(n);
@@ -117,6 +120,9 @@ export function readKey(raw: Uint8Array, what: string, sizes: number[], band: nu
  * updates (frames) coded the same way.
  */
 export function readFaces(raw: Uint8Array, what: string, size: number, triangles: number, version: number): KeyBand["faces"] {
+  // A 0 followed by more bytes: the bit coding (coding 1, topology.ts).
+  const start = coded(raw, what);
+  if (start !== null) return readFacesCoded(raw, start, what, size, triangles);
   const c = new Cursor(raw, what);
   const m = c.count(triangles, "faces");
   const faces: KeyBand["faces"] = [];
@@ -142,6 +148,8 @@ export function readFaces(raw: Uint8Array, what: string, size: number, triangles
  * zigzag differences; otherwise its three new corners.
  */
 export function readCornerUpdates(raw: Uint8Array, what: string, size: number, held: Uint32Array): KeyBand["faces"] {
+  const start = coded(raw, what);
+  if (start !== null) return readCornerUpdatesCoded(raw, start, what, size, held);
   const c = new Cursor(raw, what);
   const triangles = held.length / 3;
   const m = c.count(triangles, "corner updates");
@@ -170,8 +178,13 @@ export function readCornerUpdates(raw: Uint8Array, what: string, size: number, h
 
 /** The swaps of one band of a frame (node ascending, new parent), appended to `out`. */
 export function readDelta(raw: Uint8Array, what: string, sizes: number[], band: number, out: FrameDelta): void {
-  const c = new Cursor(raw, what);
   const top = sizes.length - 1;
+  const start = coded(raw, what);
+  if (start !== null) {
+    for (const [v, to] of readDeltaCoded(raw, start, what, band < top ? sizes[band] : 0, band < top ? sizes[band + 1] : 0)) out.swaps.push({ level: band, v, to });
+    return;
+  }
+  const c = new Cursor(raw, what);
   const n = c.count(band < top ? sizes[band] : 0, "moves");
   const prev = { v: null as number | null };
   for (let i = 0; i < n; i++) {
