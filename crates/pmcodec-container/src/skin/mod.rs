@@ -13,13 +13,16 @@
 #![allow(clippy::needless_range_loop)]
 
 mod fit;
+mod hierarchy;
 mod joints;
 mod payload;
 mod rig;
 
 pub(crate) use fit::{SkinFit, fit_skin};
+pub use hierarchy::NO_REF;
+pub(crate) use hierarchy::{choose_refs, fit_frame, read_before};
 pub use joints::Rig;
-pub(crate) use joints::{JointPrediction, JointsFrame, read_joints, write_joints};
+pub(crate) use joints::{JointPrediction, JointsFrame, read_joints, write_joints, write_joints_best};
 pub(crate) use payload::{PosePrediction, read_binds, read_palette, read_pose, write_binds, write_palette};
 pub use rig::{bind_position, influences, palette_transforms};
 
@@ -116,6 +119,9 @@ pub struct SkinState {
     /// previous one (`None`: not rigid; empty where the palette is).
     pub rig: Vec<Option<Rig>>,
     pub rig_before: Vec<Option<Rig>>,
+    /// Files with Joints chunks: each entry's reference in the linked coding since the last
+    /// keyframe ([`NO_REF`]: none; empty where the palette is).
+    pub refs: Vec<u32>,
     /// The file's palettes are in Joints chunks (else Palette or Pose chunks).
     pub joints: bool,
 }
@@ -164,7 +170,7 @@ impl SkinState {
 
     /// How the next frame's Joints chunks are predicted (see [`SkinState::prediction`]).
     pub fn joint_prediction(&self, intra: bool) -> JointPrediction<'_> {
-        JointPrediction { pose: self.prediction(intra), rig: &self.rig, rig_before: &self.rig_before }
+        JointPrediction { pose: self.prediction(intra), rig: &self.rig, rig_before: &self.rig_before, refs: &self.refs }
     }
 
     /// Makes `palette` the current frame's (`intra`: a keyframe's).
@@ -177,9 +183,11 @@ impl SkinState {
         self.mask = mask;
     }
 
-    /// [`SkinState::advance`] for files with Joints chunks, with the frame's rigid parameters.
-    pub fn advance_rig(&mut self, palette: Vec<i64>, rig: Vec<Option<Rig>>, intra: bool, mask: u64) {
+    /// [`SkinState::advance`] for files with Joints chunks, with the frame's rigid parameters
+    /// and references.
+    pub fn advance_rig(&mut self, palette: Vec<i64>, (rig, refs): (Vec<Option<Rig>>, Vec<u32>), intra: bool, mask: u64) {
         self.advance(palette, intra, mask);
+        self.refs = refs;
         self.rig_before = std::mem::replace(&mut self.rig, rig);
         if intra {
             self.rig_before.clear();
