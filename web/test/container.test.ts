@@ -412,10 +412,10 @@ test("a damaged Joints chunk is refused with a DecodeError naming it", async () 
   const d = new Decoder(c, 0);
   await d.seek(0);
   const skin = (d as unknown as { skin: { readJoints: (...a: unknown[]) => bigint; bands: number[][] } }).skin;
-  const out = new BigInt64Array(c.header.skin!.paletteLen * 12), rig = new Array(c.header.skin!.paletteLen).fill(null);
-  assert.throws(() => skin.readJoints(raw.subarray(0, raw.length - 1), "frame 1 band x joints", skin.bands[e.band], c.header.levelSizes.length, false, out, rig), (err: unknown) => err instanceof DecodeError && /frame 1 band x joints: ends inside its bits/.test(String(err)));
+  const out = new BigInt64Array(c.header.skin!.paletteLen * 12), rig = new Array(c.header.skin!.paletteLen).fill(null), links = new Array(c.header.skin!.paletteLen).fill({ reference: -1, pivot: [0n, 0n, 0n] });
+  assert.throws(() => skin.readJoints(raw.subarray(0, raw.length - 1), "frame 1 band x joints", skin.bands, e.band, c.header.levelSizes.length, false, out, rig, links), (err: unknown) => err instanceof DecodeError && /frame 1 band x joints: ends inside its bits/.test(String(err)));
   const longer = new Uint8Array(raw.length + 1);
   longer.set(raw);
-  assert.throws(() => skin.readJoints(longer, "j", skin.bands[e.band], c.header.levelSizes.length, false, out, rig), /1 bytes left over/);
-  assert.equal(skin.readJoints(raw, "j", skin.bands[e.band], c.header.levelSizes.length, false, out, rig) >= 0n, true);
+  assert.throws(() => skin.readJoints(longer, "j", skin.bands, e.band, c.header.levelSizes.length, false, out, rig, links), /1 bytes left over/);
+  assert.equal(skin.readJoints(raw, "j", skin.bands, e.band, c.header.levelSizes.length, false, out, rig, links) >= 0n, true);
 });

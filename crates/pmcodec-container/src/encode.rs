@@ -750,8 +750,8 @@ fn code_frames(
                 };
                 chunks.insert(at, kind, f as u32, j as u32, raw)?;
             }
-            let JointsFrame { palette, rig, refs, .. } = std::mem::take(&mut palette);
-            held.advance_rig(palette, (rig, refs), intra, mask);
+            let JointsFrame { palette, rig, links, .. } = std::mem::take(&mut palette);
+            held.advance_rig(palette, (rig, links), intra, mask);
         }
         coder.next_frame();
         // The reclustering side may have finished: then there is nothing to refill.

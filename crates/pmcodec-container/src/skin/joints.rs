@@ -9,7 +9,7 @@
 //! Prêteux, "FAMC: the MPEG-4 standard for animated mesh compression", 2008) and of the
 //! BBA/skeleton streams it builds on.
 
-use super::hierarchy::{NO_REF, predict, read_before};
+use super::hierarchy::{Link, NO_REF, Predicted, predict, read_before};
 use super::payload::PosePrediction;
 use super::{ENTRY, LINEAR_BITS, MAX_MATRIX};
 use crate::ContainerError;
@@ -37,8 +37,8 @@ const CLASSES: usize = 4;
 /// in fewer bits), so every file written before it reads as before.
 pub const LINKED: u64 = 31;
 /// The linked coding's number classes: the plain coding's four, then the quaternions and the
-/// translations of linked entries.
-const LINKED_CLASSES: usize = 6;
+/// translations of linked entries, and pivots.
+const LINKED_CLASSES: usize = 7;
 
 /// The integer matrix `L` (row-major, 2^-15 position quanta per bind quantum) of the rotation
 /// of quaternion `q` scaled by `s / 2^8`: `L[a][c] = floor((2 s N[a][c] + 2^8 n) / (2^9 n))`,
@@ -73,8 +73,8 @@ pub struct JointPrediction<'a> {
     pub pose: PosePrediction<'a>,
     pub rig: &'a [Option<Rig>],
     pub rig_before: &'a [Option<Rig>],
-    /// Each entry's reference since the last keyframe (linked coding; [`NO_REF`]: none).
-    pub refs: &'a [u32],
+    /// Each entry's link since the last keyframe (linked coding; [`Link::NONE`]: none).
+    pub links: &'a [Link],
 }
 
 impl JointPrediction<'_> {
@@ -97,14 +97,14 @@ impl JointPrediction<'_> {
 
 /// One frame's palette as a Joints chunk codes it: the values (a rigid entry's matrix rebuilt
 /// by [`rig_matrix`]), each entry's rigid parameters (`None`: not rigid), whether the
-/// entry is the same as in the previous frame, and each entry's reference in the linked coding
-/// (empty or [`NO_REF`]: none).
+/// entry is the same as in the previous frame, and each entry's link in the linked coding
+/// (empty or [`Link::NONE`]: none).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct JointsFrame {
     pub palette: Vec<i64>,
     pub rig: Vec<Option<Rig>>,
     pub held: Vec<bool>,
-    pub refs: Vec<u32>,
+    pub links: Vec<Link>,
 }
 
 fn zigzag(v: i64) -> u64 {
@@ -294,8 +294,8 @@ fn ref_bits(n: usize) -> u32 {
 /// then its numbers, each class's 5-bit Exp-Golomb order before its first number.
 pub fn write_joints_linked(mask: u64, entries: &[u32], frame: &JointsFrame, prediction: &JointPrediction) -> Vec<u8> {
     let key = matches!(prediction.pose, PosePrediction::Key);
-    let refs = if key { frame.refs.as_slice() } else { prediction.refs };
-    let reference = |e: usize| refs.get(e).copied().unwrap_or(NO_REF);
+    let links = if key { frame.links.as_slice() } else { prediction.links };
+    let link = |e: usize| links.get(e).copied().unwrap_or(Link::NONE);
     let moved = |e: usize| key || !frame.held.get(e).copied().unwrap_or(false);
     // Per carried entry that moved: whether rigid, and its numbers (empty: exact).
     let mut coded: Vec<(bool, Vec<(usize, i64)>)> = Vec::with_capacity(entries.len());
@@ -306,14 +306,15 @@ pub fn write_joints_linked(mask: u64, entries: &[u32], frame: &JointsFrame, pred
         let mut numbers = Vec::new();
         match frame.rig.get(e).copied().flatten() {
             Some(r) => {
-                let p = predict(e, reference(e), prediction, (&frame.palette, &frame.rig));
+                let p = predict(e, link(e), prediction, (&frame.palette, &frame.rig));
                 let (q, t) = if p.linked { (4, 5) } else { (0, 2) };
                 for i in 0..4 {
                     numbers.push((q, r[i].wrapping_sub(p.rig[i])));
                 }
                 numbers.push((1, r[4].wrapping_sub(p.rig[4])));
+                let tp = rig_matrix(&r).map_or(p.t, |l| p.translation(&l));
                 for a in 0..3 {
-                    numbers.push((t, value(4 * a + 3).wrapping_sub(p.t[a])));
+                    numbers.push((t, value(4 * a + 3).wrapping_sub(tp[a])));
                 }
                 if numbers.iter().all(|n| n.1 == 0) {
                     numbers.clear();
@@ -328,11 +329,20 @@ pub fn write_joints_linked(mask: u64, entries: &[u32], frame: &JointsFrame, pred
             }
         }
     }
+    // Keyframes: each carried entry's pivot, when it has a reference.
+    let pivots: Vec<(usize, i64)> = if key {
+        entries.iter().map(|&e| link(e as usize)).filter(|l| l.reference != NO_REF).flat_map(|l| l.pivot.map(|c| (6, c))).collect()
+    } else {
+        Vec::new()
+    };
     let orders: [u32; LINKED_CLASSES] = std::array::from_fn(|c| {
         (0..=MAX_ORDER)
-            .min_by_key(|&k| coded.iter().flat_map(|x| &x.1).filter(|n| n.0 == c).map(|n| golomb_len(zigzag(n.1), k)).sum::<u64>())
+            .min_by_key(|&k| {
+                coded.iter().flat_map(|x| &x.1).chain(&pivots).filter(|n| n.0 == c).map(|n| golomb_len(zigzag(n.1), k)).sum::<u64>()
+            })
             .unwrap_or(0)
     });
+    let mut sent = [false; LINKED_CLASSES];
     let mut out = Vec::with_capacity(entries.len() * 4 + 4);
     put_mask(&mut out, mask);
     let mut bits = Bits::default();
@@ -340,14 +350,20 @@ pub fn write_joints_linked(mask: u64, entries: &[u32], frame: &JointsFrame, pred
     if key {
         let width = ref_bits(frame.palette.len() / ENTRY);
         for &e in entries {
-            let r = reference(e as usize);
-            bits.put((r != NO_REF) as u64, 1);
-            if r != NO_REF {
-                bits.put(r as u64, width);
+            let l = link(e as usize);
+            bits.put((l.reference != NO_REF) as u64, 1);
+            if l.reference != NO_REF {
+                bits.put(l.reference as u64, width);
+                for c in l.pivot {
+                    if !sent[6] {
+                        sent[6] = true;
+                        bits.put(orders[6] as u64, 5);
+                    }
+                    bits.golomb(zigzag(c), orders[6]);
+                }
             }
         }
     }
-    let mut sent = [false; LINKED_CLASSES];
     let mut next = coded.iter();
     for &e in entries {
         if !key {
@@ -379,7 +395,7 @@ pub fn write_joints_linked(mask: u64, entries: &[u32], frame: &JointsFrame, pred
 pub fn write_joints_best(mask: u64, entries: &[u32], frame: &JointsFrame, prediction: &JointPrediction) -> Vec<u8> {
     let linked = write_joints_linked(mask, entries, frame, prediction);
     if matches!(prediction.pose, PosePrediction::Key) {
-        let any = entries.iter().any(|&e| frame.refs.get(e as usize).is_some_and(|&r| r != NO_REF));
+        let any = entries.iter().any(|&e| frame.links.get(e as usize).is_some_and(|l| l.reference != NO_REF));
         return if any { linked } else { write_joints(mask, entries, frame, prediction) };
     }
     let plain = write_joints(mask, entries, frame, prediction);
@@ -387,7 +403,7 @@ pub fn write_joints_best(mask: u64, entries: &[u32], frame: &JointsFrame, predic
 }
 
 /// Reads a JOINTS payload of band `j` (carrying `bands[j]`, `bands` the entries each band
-/// carries) for a file of `levels` bands into the frame's `palette`, `rig` and `refs` (entries
+/// carries) for a file of `levels` bands into the frame's `palette`, `rig` and `links` (entries
 /// it does not carry left as they are; entries of coarser bands already read); returns the
 /// band mask. Reads either coding: the plain one, or the linked one when its first 5 bits are
 /// [`LINKED`].
@@ -397,7 +413,7 @@ pub fn read_joints(
     (bands, j): (&[Vec<u32>], usize),
     levels: usize,
     prediction: &JointPrediction,
-    (palette, rig, refs): (&mut [i64], &mut [Option<Rig>], &mut [u32]),
+    (palette, rig, links): (&mut [i64], &mut [Option<Rig>], &mut [Link]),
 ) -> Result<u64, ContainerError> {
     let corrupt = |detail: String| ContainerError::Corrupt { what: what.to_string(), detail };
     let entries: &[u32] = bands.get(j).map(Vec::as_slice).unwrap_or_default();
@@ -425,28 +441,15 @@ pub fn read_joints(
     let n = palette.len() / ENTRY;
     for &e in entries {
         let e = e as usize;
-        if e >= n || rig.len() <= e || refs.len() <= e {
+        if e >= n || rig.len() <= e || links.len() <= e {
             return Err(corrupt(format!("palette entry {e} beyond the palette of {n}")));
         }
-        // A keyframe's references come with its chunks (none in the plain coding); other
-        // frames keep the keyframe's.
-        refs[e] = if key { NO_REF } else { prediction.refs.get(e).copied().unwrap_or(NO_REF) };
+        // A keyframe's links come with its chunks (none in the plain coding); other frames keep
+        // the keyframe's.
+        links[e] = if key { Link::NONE } else { prediction.links.get(e).copied().unwrap_or(Link::NONE) };
     }
     let first = r.get(5)?;
     let linked = first == LINKED;
-    if linked && key {
-        let width = ref_bits(n);
-        for &e in entries {
-            if r.bit()? == 0 {
-                continue;
-            }
-            let p = r.get(width)?;
-            if p as usize >= n || p == e as u64 || !read_before(bands, p as u32, e) {
-                return Err(corrupt(format!("palette entry {e}: reference {p} is not an entry read before it")));
-            }
-            refs[e as usize] = p as u32;
-        }
-    }
     // Orders: the plain coding's four up front; the linked coding's each before its first number.
     let mut orders = [None::<u32>; LINKED_CLASSES];
     if !linked {
@@ -467,6 +470,26 @@ pub fn read_joints(
         };
         r.golomb(k).map(unzigzag)
     };
+    if linked && key {
+        let width = ref_bits(n);
+        for &e in entries {
+            if r.bit()? == 0 {
+                continue;
+            }
+            let p = r.get(width)?;
+            if p as usize >= n || p == e as u64 || !read_before(bands, p as u32, e) {
+                return Err(corrupt(format!("palette entry {e}: reference {p} is not an entry read before it")));
+            }
+            let mut pivot = [0i64; 3];
+            for c in &mut pivot {
+                *c = signed(&mut r, &mut orders, 6)?;
+                if c.unsigned_abs() > super::MAX_BIND as u64 {
+                    return Err(corrupt(format!("palette entry {e}: pivot coordinate {c} beyond the limit of {}", super::MAX_BIND)));
+                }
+            }
+            links[e as usize] = Link { reference: p as u32, pivot };
+        }
+    }
     for &e in entries {
         let e = e as usize;
         let base = e * ENTRY;
@@ -481,20 +504,16 @@ pub fn read_joints(
         let mut values = [0i64; ENTRY];
         if r.bit()? == 1 {
             let (p, exact) = if linked {
-                (predict(e, refs[e], prediction, (&*palette, &*rig)), r.bit()? == 1)
+                (predict(e, links[e], prediction, (&*palette, &*rig)), r.bit()? == 1)
             } else {
                 let t = [3, 7, 11].map(|i| prediction.pose.at(base + i));
-                (super::hierarchy::Predicted { rig: prediction.rig_at(e), t, linked: false }, false)
+                (Predicted { rig: prediction.rig_at(e), t, linked: false, anchor: None }, false)
             };
             let (qc, tc) = if p.linked { (4, 5) } else { (0, 2) };
             let mut q = p.rig;
-            let mut t = p.t;
             if !exact {
                 for i in 0..5 {
                     q[i] = p.rig[i].wrapping_add(signed(&mut r, &mut orders, if i < 4 { qc } else { 1 })?);
-                }
-                for a in 0..3 {
-                    t[a] = p.t[a].wrapping_add(signed(&mut r, &mut orders, tc)?);
                 }
             }
             if q[..4].iter().any(|c| c.unsigned_abs() > MAX_QUATERNION as u64) {
@@ -504,6 +523,12 @@ pub fn read_joints(
                 return Err(corrupt(format!("palette entry {e}: scale {} beyond the limit of {MAX_SCALE}", q[4])));
             }
             let Some(m) = rig_matrix(&q) else { return Err(corrupt(format!("palette entry {e}: the zero quaternion"))) };
+            let mut t = p.translation(&m);
+            if !exact {
+                for v in &mut t {
+                    *v = v.wrapping_add(signed(&mut r, &mut orders, tc)?);
+                }
+            }
             for a in 0..3 {
                 values[4 * a..4 * a + 3].copy_from_slice(&m[3 * a..3 * a + 3]);
                 values[4 * a + 3] = t[a];
@@ -636,7 +661,7 @@ mod tests {
         let entries = [0u32, 2, 3];
         let mut frames = Vec::new();
         for f in 0..4 {
-            let mut frame = JointsFrame { palette: vec![0; 4 * ENTRY], rig: vec![None; 4], held: vec![false; 4], refs: Vec::new() };
+            let mut frame = JointsFrame { palette: vec![0; 4 * ENTRY], rig: vec![None; 4], held: vec![false; 4], links: Vec::new() };
             for &e in &entries {
                 let e = e as usize;
                 let m = rotation([1.0, e as f64, 2.0], 0.1 * f as f64 + e as f64, 16000.0, [100.0 * f as f64, -3.0, 7.0 * e as f64]);
@@ -674,7 +699,7 @@ mod tests {
         assert!(frames.iter().all(|f| f.rig[0].is_some() && f.rig[2].is_some() && f.rig[3].is_none()));
         let scale = |f: usize| frames[f].rig[0].map(|r: Rig| r[4]);
         assert!(scale(0).is_some() && (1..4).all(|f| scale(f) == scale(0)), "{:?}", (0..4).map(scale).collect::<Vec<_>>());
-        let (mut palette, mut rig, mut refs) = (vec![0i64; 4 * ENTRY], vec![None; 4], vec![NO_REF; 4]);
+        let (mut palette, mut rig, mut links) = (vec![0i64; 4 * ENTRY], vec![None; 4], vec![Link::NONE; 4]);
         let bands = [vec![], entries.to_vec()];
         let (mut held, mut before): (Vec<i64>, Vec<i64>) = (Vec::new(), Vec::new());
         let (mut held_rig, mut before_rig): (Vec<Option<Rig>>, Vec<Option<Rig>>) = (Vec::new(), Vec::new());
@@ -684,9 +709,9 @@ mod tests {
                 1 => PosePrediction::Previous(&held),
                 _ => PosePrediction::Linear(&held, &before),
             };
-            let p = JointPrediction { pose, rig: &held_rig, rig_before: &before_rig, refs: &[] };
+            let p = JointPrediction { pose, rig: &held_rig, rig_before: &before_rig, links: &[] };
             let bytes = write_joints(0b10, &entries, frame, &p);
-            assert_eq!(read_joints(&bytes, "j", (&bands, 1), 2, &p, (&mut palette, &mut rig, &mut refs)).expect("joints"), 0b10);
+            assert_eq!(read_joints(&bytes, "j", (&bands, 1), 2, &p, (&mut palette, &mut rig, &mut links)).expect("joints"), 0b10);
             assert_eq!(palette, frame.palette, "frame {f}");
             assert_eq!(rig, frame.rig, "frame {f}");
             if f == 3 {
@@ -696,28 +721,138 @@ mod tests {
                     (&bands, 1),
                     2,
                     &p,
-                    (&mut palette, &mut rig, &mut refs),
+                    (&mut palette, &mut rig, &mut links),
                 )
                 .expect_err("short")
                 .to_string();
                 assert!(e.contains("frame 3 band 1 joints") && e.contains("ends inside its bits"), "{e}");
                 let mut long = bytes.clone();
                 long.push(0);
-                let e = read_joints(&long, "j", (&bands, 1), 2, &p, (&mut palette, &mut rig, &mut refs)).expect_err("long").to_string();
+                let e = read_joints(&long, "j", (&bands, 1), 2, &p, (&mut palette, &mut rig, &mut links)).expect_err("long").to_string();
                 assert!(e.contains("1 bytes left over"), "{e}");
-                let e = read_joints(&bytes, "j", (&bands, 1), 1, &p, (&mut palette, &mut rig, &mut refs)).expect_err("mask").to_string();
+                let e = read_joints(&bytes, "j", (&bands, 1), 1, &p, (&mut palette, &mut rig, &mut links)).expect_err("mask").to_string();
                 assert!(e.contains("band mask 0x2 names bands beyond the file's 1"), "{e}");
             }
             before = std::mem::replace(&mut held, frame.palette.clone());
             before_rig = std::mem::replace(&mut held_rig, frame.rig.clone());
         }
         // A zero quaternion is refused by name.
-        let zero = JointsFrame { palette: vec![0; ENTRY], rig: vec![Some([0, 0, 0, 0, 100])], held: vec![false], refs: Vec::new() };
-        let key = JointPrediction { pose: PosePrediction::Key, rig: &[], rig_before: &[], refs: &[] };
+        let zero = JointsFrame { palette: vec![0; ENTRY], rig: vec![Some([0, 0, 0, 0, 100])], held: vec![false], links: Vec::new() };
+        let key = JointPrediction { pose: PosePrediction::Key, rig: &[], rig_before: &[], links: &[] };
         let bytes = write_joints(0, &[0], &zero, &key);
-        let e = read_joints(&bytes, "j", (&[vec![0]], 0), 1, &key, (&mut palette[..ENTRY], &mut rig[..1], &mut refs[..1]))
+        let e = read_joints(&bytes, "j", (&[vec![0]], 0), 1, &key, (&mut palette[..ENTRY], &mut rig[..1], &mut links[..1]))
             .expect_err("zero")
             .to_string();
         assert!(e.contains("palette entry 0: the zero quaternion"), "{e}");
+    }
+    #[test]
+    fn linked_chunks_round_trip_and_bad_links_are_refused() {
+        use crate::skin::hierarchy::fit_frame;
+        // A chain of three joints, entry 0 the root (the top band), 1 and 2 in band 0, each
+        // turning about its own pivot relative to its parent; entry 2 holds still relative to 1.
+        let bands = vec![vec![1u32, 2], vec![0u32]];
+        let order = [0u32, 1, 2];
+        let pivots = [[0i64, 0, 0], [0, 4000, 0], [0, 8000, 0]];
+        let links = vec![Link::NONE, Link { reference: 0, pivot: pivots[1] }, Link { reference: 1, pivot: pivots[2] }];
+        let compose = |a: &[f64], b: &[f64]| -> Vec<f64> {
+            // (a b) for 3x4 affine maps in the palette's fixed point.
+            let mut out = vec![0.0; ENTRY];
+            for r in 0..3 {
+                for c in 0..4 {
+                    // Linear parts in 2^-15, translations in quarter units: T = T_a + L_a T_b / 2^15.
+                    let v: f64 = (0..3).map(|k| a[4 * r + k] * b[4 * k + c] / 32768.0).sum();
+                    out[4 * r + c] = if c == 3 { a[4 * r + 3] + v } else { v };
+                }
+            }
+            out
+        };
+        let about = |pivot: [i64; 3], angle: f64| -> Vec<f64> {
+            // A rotation about the bind point `pivot` (bind quanta to bind quanta): L = 2^15 R,
+            // T = 4 (p - R p).
+            let mut m = rotation([0.3, 0.2, 1.0], angle, 32768.0, [0.0; 3]);
+            for a in 0..3 {
+                let rp: f64 = (0..3).map(|k| m[4 * a + k] / 32768.0 * pivot[k] as f64).sum();
+                m[4 * a + 3] = 4.0 * (pivot[a] as f64 - rp);
+            }
+            m
+        };
+        let (mut held, mut held_rig, mut held_links): (Vec<i64>, Vec<Option<Rig>>, Vec<Link>) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut before, mut before_rig): (Vec<i64>, Vec<Option<Rig>>) = (Vec::new(), Vec::new());
+        for f in 0..6 {
+            let t = f as f64 * 0.1;
+            let root = rotation([0.0, 1.0, 0.2], 0.5 * t, 30000.0, [400.0 * t, 20.0, -5.0]);
+            let one = compose(&root, &about(pivots[1], 0.8 * t + 0.2));
+            let two = compose(&one, &about(pivots[2], 0.4));
+            let fixed: Vec<f64> = [root, one, two].concat();
+            let key = f % 4 == 0;
+            let pose = match f % 4 {
+                0 => PosePrediction::Key,
+                1 => PosePrediction::Previous(&held),
+                _ => PosePrediction::Linear(&held, &before),
+            };
+            let p = JointPrediction { pose, rig: &held_rig, rig_before: &before_rig, links: &held_links };
+            let frame_links = if key { links.clone() } else { held_links.clone() };
+            let frame = fit_frame(&fixed, |_| (12000.0, 4500.0), |_| false, &order, frame_links, (&p, &held, key));
+            assert!(frame.rig.iter().all(Option::is_some), "frame {f}: every entry rigid");
+            let (mut palette, mut rig, mut got) = (vec![0i64; 3 * ENTRY], vec![None; 3], vec![Link::NONE; 3]);
+            let top = write_joints_linked(0b11, &bands[1], &frame, &p);
+            let low = write_joints_linked(0b11, &bands[0], &frame, &p);
+            assert_eq!(top[1] & 31, LINKED as u8, "the tag");
+            read_joints(&top, "top", (&bands, 1), 2, &p, (&mut palette, &mut rig, &mut got)).expect("top band");
+            read_joints(&low, "low", (&bands, 0), 2, &p, (&mut palette, &mut rig, &mut got)).expect("band 0");
+            assert_eq!(palette, frame.palette, "frame {f}");
+            assert_eq!(rig, frame.rig, "frame {f}");
+            assert_eq!(got, frame.links, "frame {f}");
+            // The joint that holds still relative to its parent is sent as its prediction (its
+            // flags alone) once the frames after the keyframe show its motion.
+            if !key {
+                let predicted = crate::skin::hierarchy::predict(2, frame.links[2], &p, (&frame.palette, &frame.rig));
+                assert!(predicted.linked && frame.rig[2] == Some(predicted.rig), "frame {f}: {predicted:?} for {:?}", frame.rig[2]);
+                let l = rig_matrix(&predicted.rig).expect("matrix");
+                // Its translations follow from the pivot, within the rounding of the input's.
+                let (t, sent) = (predicted.translation(&l), [3, 7, 11].map(|i| frame.palette[2 * ENTRY + i]));
+                assert!((0..3).all(|a| (t[a] - sent[a]).abs() <= 1), "frame {f}: {t:?} for {sent:?}");
+            }
+            if key {
+                // A reference not read before its entry (2 after 1 in the same band) is refused.
+                let mut bad = frame.clone();
+                bad.links[1] = Link { reference: 2, pivot: [0; 3] };
+                let raw = write_joints_linked(0b11, &bands[0], &bad, &p);
+                let e = read_joints(&raw, "b", (&bands, 0), 2, &p, (&mut palette, &mut rig, &mut got)).expect_err("order").to_string();
+                assert!(e.contains("palette entry 1: reference 2 is not an entry read before it"), "{e}");
+                bad.links[1] = Link { reference: 0, pivot: [0, 1 << 31, 0] };
+                let raw = write_joints_linked(0b11, &bands[0], &bad, &p);
+                let e = read_joints(&raw, "b", (&bands, 0), 2, &p, (&mut palette, &mut rig, &mut got)).expect_err("pivot").to_string();
+                assert!(e.contains("pivot coordinate 2147483648 beyond the limit"), "{e}");
+                let e = read_joints(&low[..low.len() - 1], "cut", (&bands, 0), 2, &p, (&mut palette, &mut rig, &mut got))
+                    .expect_err("short")
+                    .to_string();
+                assert!(e.contains("cut: ends inside its bits"), "{e}");
+            }
+            before = std::mem::replace(&mut held, frame.palette.clone());
+            before_rig = std::mem::replace(&mut held_rig, frame.rig.clone());
+            held_links = frame.links.clone();
+            if key {
+                before.clear();
+                before_rig.clear();
+            }
+        }
+    }
+
+    #[test]
+    fn the_plain_coding_never_writes_the_linked_tag() {
+        // The largest quaternion differences there are (one component from -2^24 to 2^24 and
+        // back) still take an order below 31.
+        let big = JointsFrame {
+            palette: vec![0; ENTRY],
+            rig: vec![Some([1 << 24, -(1 << 24), 1 << 24, -(1 << 24), 1 << 30])],
+            held: vec![false],
+            links: Vec::new(),
+        };
+        let before = [Some([-(1 << 24), 1 << 24, -(1 << 24), 1 << 24, 0])];
+        let p = JointPrediction { pose: PosePrediction::Linear(&[0; ENTRY], &[0; ENTRY]), rig: &before, rig_before: &before, links: &[] };
+        let raw = write_joints(0, &[0], &big, &p);
+        assert_ne!(raw[1] & 31, LINKED as u8);
+        assert!(raw[1] & 31 < 29, "order {}", raw[1] & 31);
     }
 }
