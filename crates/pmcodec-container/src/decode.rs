@@ -14,7 +14,9 @@ use crate::skin::{
 /// A frame's pose as read, applied once the rest of the frame is: its palette, its entries'
 /// rigid parameters (files with Joints chunks; empty else), its band mask, and whether it is a
 /// keyframe's.
-type ReadPose = (Vec<i64>, (Vec<Option<Rig>>, Vec<crate::skin::Link>), u64, bool);
+/// A frame's rigid parameters and links (files with Joints chunks).
+type HeldRig = (Vec<Option<Rig>>, Vec<crate::skin::Link>);
+type ReadPose = (Vec<i64>, HeldRig, u64, bool);
 use crate::{ByteSource, ContainerError, Reader};
 use glam::Vec3;
 use pmcodec_hierarchy::CutTarget;
@@ -67,7 +69,7 @@ struct KeptKeyframe {
     /// Band 0's stencil weights from it (keyframe affine motion; empty otherwise).
     weights: StencilWeights,
     /// Its joint palette, rigid parameters and skinned bands (skinned files).
-    pose: (Vec<i64>, (Vec<Option<Rig>>, Vec<crate::skin::Link>), u64),
+    pose: (Vec<i64>, HeldRig, u64),
 }
 
 /// What meshes of one decoded frame are cut from.
