@@ -527,6 +527,17 @@ test("skinned streams' palettes: the encoder writes Joints chunks, and streams w
   assert.equal(o.flags, 0);
 });
 
+test("Joints chunks in the linked coding (a deep skeleton with rigid mesh nodes) decode as Rust decodes them", async () => {
+  const robot = join(root, "../shared/data/gltf/RobotExpressive.glb");
+  const file = join(dir, "robot-linked.pmc");
+  execFileSync(bin, ["encode", "-q", robot, "-o", file, "--animation", "0", "--fps", "10", "--keyframe-interval", "8", "--quant-bits", "12"]);
+  const c = await sameAsRust(file, "robot-linked");
+  // Keyframe chunks that link an entry start their bits with 31 after the band mask (one byte here).
+  let linked = 0;
+  for (const e of c.index.filter((x) => x.kind === ChunkKind.Joints)) if (((await c.chunk(e))[1] & 31) === 31) linked++;
+  assert.ok(linked > 0, "some Joints chunks are in the linked coding");
+});
+
 test("a damaged Joints chunk is refused with a DecodeError naming it", async () => {
   const fox = join(root, "../shared/data/gltf/Fox.glb");
   const file = join(dir, "fox-joints.pmc");
@@ -539,10 +550,10 @@ test("a damaged Joints chunk is refused with a DecodeError naming it", async () 
   const d = new Decoder(c, 0);
   await d.seek(0);
   const skin = (d as unknown as { skin: { readJoints: (...a: unknown[]) => bigint; bands: number[][] } }).skin;
-  const out = new BigInt64Array(c.header.skin!.paletteLen * 12), rig = new Array(c.header.skin!.paletteLen).fill(null);
-  assert.throws(() => skin.readJoints(raw.subarray(0, raw.length - 1), "frame 1 band x joints", skin.bands[e.band], c.header.levelSizes.length, false, out, rig), (err: unknown) => err instanceof DecodeError && /frame 1 band x joints: ends inside its bits/.test(String(err)));
+  const out = new BigInt64Array(c.header.skin!.paletteLen * 12), rig = new Array(c.header.skin!.paletteLen).fill(null), links = new Array(c.header.skin!.paletteLen).fill({ reference: -1, pivot: [0n, 0n, 0n] });
+  assert.throws(() => skin.readJoints(raw.subarray(0, raw.length - 1), "frame 1 band x joints", skin.bands, e.band, c.header.levelSizes.length, false, out, rig, links), (err: unknown) => err instanceof DecodeError && /frame 1 band x joints: ends inside its bits/.test(String(err)));
   const longer = new Uint8Array(raw.length + 1);
   longer.set(raw);
-  assert.throws(() => skin.readJoints(longer, "j", skin.bands[e.band], c.header.levelSizes.length, false, out, rig), /1 bytes left over/);
-  assert.equal(skin.readJoints(raw, "j", skin.bands[e.band], c.header.levelSizes.length, false, out, rig) >= 0n, true);
+  assert.throws(() => skin.readJoints(longer, "j", skin.bands, e.band, c.header.levelSizes.length, false, out, rig, links), /1 bytes left over/);
+  assert.equal(skin.readJoints(raw, "j", skin.bands, e.band, c.header.levelSizes.length, false, out, rig, links) >= 0n, true);
 });

@@ -51,9 +51,13 @@ fn main() {
     );
     // Without skin; skinned with the palettes in Palette chunks (as before the Joints chunk);
     // skinned as today's encoder writes it (Joints chunks).
-    for (skin, palette_coding) in
-        [(None, PaletteCoding::Joints), (Some(placement), PaletteCoding::Palette), (Some(placement), PaletteCoding::Joints)]
-    {
+    // Joints chunks in the plain coding only (as before the linked coding), then as today.
+    for (skin, palette_coding) in [
+        (None, PaletteCoding::Joints),
+        (Some(placement), PaletteCoding::Palette),
+        (Some(placement), PaletteCoding::JointsPlain),
+        (Some(placement), PaletteCoding::Joints),
+    ] {
         let opts = EncodeOptions { quantization: QuantizationChoice::Bits(12), skin, palette_coding, ..Default::default() };
         let t = std::time::Instant::now();
         let bytes = encode(&seq, &opts, |_| {}).expect("encode");

@@ -14,7 +14,9 @@ use crate::skin::{
 /// A frame's pose as read, applied once the rest of the frame is: its palette, its entries'
 /// rigid parameters (files with Joints chunks; empty else), its band mask, and whether it is a
 /// keyframe's.
-type ReadPose = (Vec<i64>, Vec<Option<Rig>>, u64, bool);
+/// A frame's rigid parameters and links (files with Joints chunks).
+type HeldRig = (Vec<Option<Rig>>, Vec<crate::skin::Link>);
+type ReadPose = (Vec<i64>, HeldRig, u64, bool);
 use crate::{ByteSource, ContainerError, Reader};
 use glam::Vec3;
 use pmcodec_hierarchy::CutTarget;
@@ -67,7 +69,7 @@ struct KeptKeyframe {
     /// Band 0's stencil weights from it (keyframe affine motion; empty otherwise).
     weights: StencilWeights,
     /// Its joint palette, rigid parameters and skinned bands (skinned files).
-    pose: (Vec<i64>, Vec<Option<Rig>>, u64),
+    pose: (Vec<i64>, HeldRig, u64),
 }
 
 /// What meshes of one decoded frame are cut from.
@@ -243,7 +245,7 @@ impl<S: ByteSource> Decoder<S> {
                 replay: replay.clone(),
                 current: self.current.clone(),
                 weights: self.weights.clone(),
-                pose: self.skin.as_ref().map(|s| (s.palette.clone(), s.rig.clone(), s.mask)).unwrap_or_default(),
+                pose: self.skin.as_ref().map(|s| (s.palette.clone(), (s.rig.clone(), s.links.clone()), s.mask)).unwrap_or_default(),
             });
         }
         Ok(())
@@ -394,17 +396,18 @@ impl<S: ByteSource> Decoder<S> {
             let raw = self.chunk(ChunkKind::Pose, frame, 0)?;
             let mut palette = Vec::new();
             let mask = read_pose(&raw, &format!("frame {frame} pose"), (sh.palette_len, levels), state.prediction(intra), &mut palette)?;
-            return Ok(Some((palette, Vec::new(), mask, intra)));
+            return Ok(Some((palette, (Vec::new(), Vec::new()), mask, intra)));
         };
         // Entries of bands this decoder does not read stay 0: none of its nodes uses them.
         let mut palette = vec![0i64; sh.palette_len as usize * crate::skin::ENTRY];
         let mut rig = if state.joints { vec![None; sh.palette_len as usize] } else { Vec::new() };
+        let mut links = if state.joints { vec![crate::skin::Link::NONE; sh.palette_len as usize] } else { Vec::new() };
         let mut mask = None;
         for j in (self.min_level..levels).rev().filter(|&j| has_palette_chunk(bands, j)) {
             let (m, what) = if state.joints {
                 let raw = self.chunk(ChunkKind::Joints, frame, j)?;
                 let what = format!("frame {frame} band {j} joints");
-                (read_joints(&raw, &what, &bands[j], levels, &state.joint_prediction(intra), (&mut palette, &mut rig))?, what)
+                (read_joints(&raw, &what, (bands, j), levels, &state.joint_prediction(intra), (&mut palette, &mut rig, &mut links))?, what)
             } else {
                 let raw = self.chunk(ChunkKind::Palette, frame, j)?;
                 let what = format!("frame {frame} band {j} palette");
@@ -415,7 +418,7 @@ impl<S: ByteSource> Decoder<S> {
             }
             mask = Some(m);
         }
-        Ok(Some((palette, rig, mask.unwrap_or(0), intra)))
+        Ok(Some((palette, (rig, links), mask.unwrap_or(0), intra)))
     }
 
     fn commit_pose(&mut self, pose: Option<ReadPose>) {

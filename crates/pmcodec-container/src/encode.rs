@@ -7,7 +7,7 @@ use crate::grid::{SLACK2, choose, on_grid};
 use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, coarse_shift, predict};
 use crate::skin::{
     JointsFrame, NodeSkin, SkinFit, SkinState, band_entries, fit_skin, has_palette_chunk, predict_skinned, write_binds, write_joints,
-    write_palette,
+    write_joints_best, write_palette,
 };
 use crate::{payload, topology};
 use glam::Vec3;
@@ -71,9 +71,14 @@ pub struct EncodeOptions {
 /// "Joints").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum PaletteCoding {
-    /// Rigid entries as quaternion, scale and translation, Exp-Golomb coded.
+    /// Rigid entries as quaternion, scale and translation, Exp-Golomb coded, each chunk in the
+    /// shorter of the plain and the linked coding (entries predicted through a reference entry,
+    /// "Linked coding").
     #[default]
     Joints,
+    /// Joints chunks in the plain coding only (as the encoder wrote them before the linked
+    /// coding; kept for comparison).
+    JointsPlain,
     /// Twelve varints per moved entry (files written before the Joints chunk).
     Palette,
 }
@@ -688,7 +693,14 @@ fn code_frames(
         }
         let intra = header.is_keyframe(f as u32);
         if let Some(fit) = &skin {
-            palette = fit.joints(f, &held, intra)?;
+            palette = match opts.palette_coding {
+                PaletteCoding::Joints => {
+                    let next = (f / header.keyframe_interval.max(1) as usize + 1) * header.keyframe_interval as usize;
+                    let until = if header.keyframe_interval == 0 { seq.frame_count() } else { next.min(seq.frame_count()) };
+                    fit.joints_linked(f, &held, intra, &bands, until)?
+                }
+                _ => fit.joints(f, &held, intra)?,
+            };
         }
         let truth = |g: usize| {
             let p = positions[g] - lo;
@@ -726,15 +738,20 @@ fn code_frames(
             // Top band first, as the bands themselves.
             for (at, j) in (pose_at..).zip((0..levels).rev().filter(|&j| has_palette_chunk(&bands, j))) {
                 let (kind, raw) = match opts.palette_coding {
-                    PaletteCoding::Joints => (ChunkKind::Joints, write_joints(mask, &bands[j], &palette, &held.joint_prediction(intra))),
+                    PaletteCoding::Joints => {
+                        (ChunkKind::Joints, write_joints_best(mask, &bands[j], &palette, &held.joint_prediction(intra)))
+                    }
+                    PaletteCoding::JointsPlain => {
+                        (ChunkKind::Joints, write_joints(mask, &bands[j], &palette, &held.joint_prediction(intra)))
+                    }
                     PaletteCoding::Palette => {
                         (ChunkKind::Palette, write_palette(mask, &bands[j], &palette.palette, held.prediction(intra)))
                     }
                 };
                 chunks.insert(at, kind, f as u32, j as u32, raw)?;
             }
-            let JointsFrame { palette, rig, .. } = std::mem::take(&mut palette);
-            held.advance_rig(palette, rig, intra, mask);
+            let JointsFrame { palette, rig, links, .. } = std::mem::take(&mut palette);
+            held.advance_rig(palette, (rig, links), intra, mask);
         }
         coder.next_frame();
         // The reclustering side may have finished: then there is nothing to refill.

@@ -9,7 +9,7 @@ import { readCornerUpdates, readDelta, readFaces, readKey, readPositions, readTr
 import { LowerNeighbours, affineMotion, keyedMotion, lowerNeighbours, stencilWeights } from "./predict.js";
 import type { Reader } from "./read.js";
 import { FrameDelta, KeyBand, Replay } from "./replay.js";
-import { Rig, SkinState, bandEntries, hasPaletteChunk, nodeSkins, readBinds } from "./skin.js";
+import { Link, NO_LINK, Rig, SkinState, bandEntries, hasPaletteChunk, nodeSkins, readBinds } from "./skin.js";
 
 /** Plays a container down to a finest level: hierarchy (Replay) and quantized node positions. */
 export class Decoder {
@@ -74,7 +74,7 @@ export class Decoder {
     }
     const pose = await this.readPose(k, true);
     this.replay.loadKeyframe(bands, this.triangles ?? undefined);
-    if (pose) this.skin!.advance(pose.palette, true, pose.mask, pose.rig);
+    if (pose) this.skin!.advance(pose.palette, true, pose.mask, pose.rig, pose.links);
     await this.decodePositions(k, true);
     if (h.motion === Motion.KeyframeAffine && this.lower) this.weights = stencilWeights(this.lower, this.current, h.vertexCount);
     this.frame = k;
@@ -96,14 +96,14 @@ export class Decoder {
       for (const u of updates) delta.corners.push({ level: L, t: u.t, corners: u.corners });
     }
     this.replay.apply(delta);
-    if (pose) this.skin!.advance(pose.palette, false, pose.mask, pose.rig);
+    if (pose) this.skin!.advance(pose.palette, false, pose.mask, pose.rig, pose.links);
     [this.previous, this.current] = [this.current, this.previous];
     await this.decodePositions(f, false);
     this.frame = f;
   }
 
   /** Frame `f`'s pose (skinned files), read and checked but not yet applied. */
-  private async readPose(f: number, intra: boolean): Promise<{ palette: BigInt64Array; mask: bigint; rig: (Rig | null)[] } | null> {
+  private async readPose(f: number, intra: boolean): Promise<{ palette: BigInt64Array; mask: bigint; rig: (Rig | null)[]; links: Link[] } | null> {
     const c = this.reader, h = c.header;
     if (!h.skin || !this.skin) return null;
     const bands = this.skin.bands, levels = h.levelSizes.length;
@@ -112,18 +112,19 @@ export class Decoder {
       const palette = new BigInt64Array(h.skin.paletteLen * 12);
       const joints = this.skin.joints;
       const rig: (Rig | null)[] = joints ? new Array(h.skin.paletteLen).fill(null) : [];
+      const links: Link[] = joints ? new Array(h.skin.paletteLen).fill(NO_LINK) : [];
       let mask: bigint | null = null;
       for (let j = levels - 1; j >= this.minLevel; j--) {
         if (!hasPaletteChunk(bands, j)) continue;
         const what = `frame ${f} band ${j} ${joints ? "joints" : "palette"}`;
         const raw = await c.chunk(c.find(joints ? ChunkKind.Joints : ChunkKind.Palette, f, j));
-        const m = joints ? this.skin.readJoints(raw, what, bands[j], levels, intra, palette, rig) : this.skin.readPalette(raw, what, bands[j], levels, intra, palette);
+        const m = joints ? this.skin.readJoints(raw, what, bands, j, levels, intra, palette, rig, links) : this.skin.readPalette(raw, what, bands[j], levels, intra, palette);
         if (mask !== null && m !== mask) throw new DecodeError(`${what}: band mask 0x${m.toString(16)} where the band above says otherwise`);
         mask = m;
       }
-      return { palette, mask: mask ?? 0n, rig };
+      return { palette, mask: mask ?? 0n, rig, links };
     }
-    return { ...this.skin.readPose(await c.chunk(c.find(ChunkKind.Pose, f, 0)), `frame ${f} pose`, h.skin.paletteLen, h.levelSizes.length, intra), rig: [] };
+    return { ...this.skin.readPose(await c.chunk(c.find(ChunkKind.Pose, f, 0)), `frame ${f} pose`, h.skin.paletteLen, h.levelSizes.length, intra), rig: [], links: [] };
   }
 
   /**

@@ -157,6 +157,88 @@ export function hasPaletteChunk(bands: number[][], j: number): boolean {
   return j + 1 === bands.length || (bands[j]?.length ?? 0) > 0;
 }
 
+/** No reference (linked Joints coding): the entry is predicted from its own previous frames. */
+export const NO_REF = -1;
+/** The first 5 bits of a Joints chunk in the linked coding. */
+const LINKED = 31;
+
+/** An entry's link (linked Joints coding): its reference entry (NO_REF: none) and pivot in bind quanta. */
+export interface Link { reference: number; pivot: bigint[] }
+export const NO_LINK: Link = { reference: NO_REF, pivot: [0n, 0n, 0n] };
+
+/**
+ * An entry's prediction: rigid parameters, translations when not linked, whether linked, and
+ * when linked the reference's linear values and translations now and the pivot.
+ */
+interface Predicted { rig: bigint[]; t: bigint[]; linked: boolean; anchor: { l: bigint[]; t: bigint[]; c: bigint[] } | null }
+
+/** The predicted translations of an entry whose linear part is `l`, as `Predicted::translation`. */
+function predictedTranslation(p: Predicted, l: bigint[]): bigint[] {
+  const an = p.anchor;
+  if (an === null) return p.t;
+  return [0, 1, 2].map((a) => {
+    let dot = 0n;
+    for (let k = 0; k < 3; k++) dot += (an.l[3 * a + k] - l[3 * a + k]) * an.c[k];
+    // BigInt >> is a floor, as Rust's on i128.
+    return wrap(an.t[a] + wrap(dot >> (LINEAR_BITS - TRANSLATION_BITS)));
+  });
+}
+
+/** Floor division `a / d` rounded half up, `d > 0`: `floor((2a + d) / 2d)`, as `hierarchy::rdiv`. */
+function rdiv(a: bigint, d: bigint): bigint {
+  const x = 2n * a + d, y = 2n * d;
+  const q = x / y;
+  return x % y < 0n ? q - 1n : q;
+}
+
+function qmul(a: bigint[], b: bigint[]): bigint[] {
+  const [aw, ax, ay, az] = a, [bw, bx, by, bz] = b;
+  return [
+    aw * bw - ax * bx - ay * by - az * bz,
+    aw * bx + ax * bw + ay * bz - az * by,
+    aw * by - ax * bz + ay * bw + az * bx,
+    aw * bz + ax * by - ay * bx + az * bw,
+  ];
+}
+const conj = (q: bigint[]): bigint[] => [q[0], -q[1], -q[2], -q[3]];
+const norm2 = (q: bigint[]): bigint => q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+
+/** Whether entry `p` is read before entry `e` (a coarser band, or the same band and a smaller index), as `hierarchy::read_before`. */
+function readBefore(bands: number[][], p: number, e: number): boolean {
+  const bp = bands.findIndex((b) => b.includes(p)), be = bands.findIndex((b) => b.includes(e));
+  return bp >= 0 && be >= 0 && (bp > be || (bp === be && p < e));
+}
+
+interface Held { palette: BigInt64Array | null; previous: BigInt64Array | null; rig: (Rig | null)[]; rigBefore: (Rig | null)[]; rigAt: (e: number) => bigint[]; predicted: (i: number) => bigint }
+
+/** Entry `e`'s prediction in the linked coding, as `hierarchy::predict` (proto/container.md, "Joints", "Linked coding"). */
+function predictLinked(e: number, link: Link, held: Held, now: BigInt64Array, nowRig: (Rig | null)[]): Predicted {
+  const base = e * ENTRY;
+  const temporal: Predicted = { rig: held.rigAt(e), t: [3, 7, 11].map((i) => held.predicted(base + i)), linked: false, anchor: null };
+  const p = link.reference;
+  if (p === NO_REF) return temporal;
+  const a = nowRig[p] ?? null;
+  if (a === null) return temporal;
+  const l: bigint[] = [];
+  for (let i = 0; i < 9; i++) l.push(now[p * ENTRY + 4 * Math.floor(i / 3) + (i % 3)] ?? 0n);
+  const anchor = { l, t: [3, 7, 11].map((i) => now[p * ENTRY + i] ?? 0n), c: link.pivot };
+  if (held.palette === null) return { rig: a.slice(), t: temporal.t, linked: true, anchor };
+  const b = held.rig[p] ?? null, c = held.rig[e] ?? null;
+  if (b === null || c === null) return temporal;
+  let r = qmul(conj(b.slice(0, 4)), c.slice(0, 4));
+  if (held.previous !== null) {
+    const b2 = held.rigBefore[p] ?? null, c2 = held.rigBefore[e] ?? null;
+    if (b2 !== null && c2 !== null) {
+      const r2 = qmul(conj(b2.slice(0, 4)), c2.slice(0, 4));
+      r = r.map((v, i) => 2n * v - r2[i]);
+    }
+  }
+  let nb = norm2(b.slice(0, 4));
+  if (nb < 1n) nb = 1n;
+  const q = qmul(a.slice(0, 4), r).map((v) => wrap(rdiv(v, nb)));
+  return { rig: [...q, temporal.rig[4]], t: temporal.t, linked: true, anchor };
+}
+
 /** The palettes a decoder holds: the current frame's, and the previous frame's unless the current is a keyframe. */
 export class SkinState {
   palette: BigInt64Array | null = null;
@@ -169,6 +251,8 @@ export class SkinState {
   /** Files with Joints chunks: each entry's rigid parameters in the current and the previous frame (null: not rigid). */
   rig: (Rig | null)[] = [];
   rigBefore: (Rig | null)[] = [];
+  /** Files with Joints chunks: each entry's link in the linked coding since the last keyframe. */
+  links: Link[] = [];
   constructor(readonly nodes: NodeSkins) {}
 
   uses(j: number): boolean { return j < 64 && ((this.mask >> BigInt(j)) & 1n) === 1n; }
@@ -230,14 +314,17 @@ export class SkinState {
   }
 
   /**
-   * Reads a Joints chunk carrying `entries` into `out` and `rig` (the frame's palette and rigid
-   * parameters; entries it does not carry left as they are), predicted from the held palettes
-   * and rigid parameters; returns the band mask (proto/container.md, "Joints").
+   * Reads band `j`'s Joints chunk (carrying `bands[j]`) into `out`, `rig` and `links` (the frame's
+   * palette, rigid parameters and links; entries it does not carry left as they are, those
+   * of coarser bands already read), predicted from the held palettes, rigid parameters and
+   * links; returns the band mask (proto/container.md, "Joints"). Reads the plain coding and
+   * the linked one (first 5 bits 31).
    */
-  readJoints(raw: Uint8Array, what: string, entries: number[], levels: number, intra: boolean, out: BigInt64Array, rig: (Rig | null)[]): bigint {
+  readJoints(raw: Uint8Array, what: string, bands: number[][], j: number, levels: number, intra: boolean, out: BigInt64Array, rig: (Rig | null)[], links: Link[]): bigint {
     const c = new Cursor64(raw, what);
     const mask = c.get();
     if (levels < 64 && mask >> BigInt(levels) !== 0n) throw c.corrupt(`band mask 0x${mask.toString(16)} names bands beyond the file's ${levels}`);
+    const entries = bands[j] ?? [];
     const p = intra ? null : this.palette, q = intra ? null : this.previous;
     const predicted = (i: number): bigint => (p === null ? 0n : q === null ? (p[i] ?? 0n) : wrap(2n * (p[i] ?? 0n) - (q[i] ?? 0n)));
     const rigAt = (e: number): bigint[] => {
@@ -246,10 +333,40 @@ export class SkinState {
       return b === null ? a : a.map((v, i) => wrap(2n * v - b[i]));
     };
     const r = new Bits(raw, c.pos, what);
-    const orders = [r.get(5), r.get(5), r.get(5), r.get(5)];
+    const n = Math.floor(out.length / ENTRY);
+    for (const e of entries) {
+      if (e >= n || e >= rig.length || e >= links.length) throw r.corrupt(`palette entry ${e} beyond the palette of ${n}`);
+      links[e] = intra ? NO_LINK : (this.links[e] ?? NO_LINK);
+    }
+    const first = r.get(5);
+    const linked = first === LINKED;
+    const orders: (number | null)[] = [null, null, null, null, null, null, null];
+    if (!linked) {
+      orders[0] = first;
+      for (let k = 1; k < 4; k++) orders[k] = r.get(5);
+    }
+    const signed = (cls: number): bigint => {
+      let k = orders[cls];
+      if (k === null) k = orders[cls] = r.get(5);
+      return r.signed(k);
+    };
+    if (linked && intra) {
+      let width = 0;
+      while (2 ** width < n) width++;
+      for (const e of entries) {
+        if (r.one() === 0) continue;
+        const x = r.get(width);
+        if (x >= n || x === e || !readBefore(bands, x, e)) throw r.corrupt(`palette entry ${e}: reference ${x} is not an entry read before it`);
+        const pivot = [0n, 0n, 0n];
+        for (let k = 0; k < 3; k++) {
+          pivot[k] = signed(6);
+          if (abs(pivot[k]) > MAX_BIND) throw r.corrupt(`palette entry ${e}: pivot coordinate ${pivot[k]} beyond the limit of ${MAX_BIND}`);
+        }
+        links[e] = { reference: x, pivot };
+      }
+    }
     for (const e of entries) {
       const base = e * ENTRY;
-      if (base + ENTRY > out.length || e >= rig.length) throw r.corrupt(`palette entry ${e} beyond the palette of ${out.length / ENTRY}`);
       if (p !== null && r.one() === 0) {
         for (let i = base; i < base + ENTRY; i++) out[i] = p[i] ?? 0n;
         rig[e] = this.rig[e] ?? null;
@@ -257,19 +374,27 @@ export class SkinState {
       }
       const values: bigint[] = new Array(ENTRY);
       if (r.one() === 1) {
-        const pr = rigAt(e);
-        const g = pr.map((v, i) => wrap(v + r.signed(orders[i < 4 ? 0 : 1])));
+        let pr: Predicted, exact = false;
+        if (linked) {
+          pr = predictLinked(e, links[e], { palette: p, previous: q, rig: this.rig, rigBefore: this.rigBefore, rigAt, predicted }, out, rig);
+          exact = r.one() === 1;
+        } else pr = { rig: rigAt(e), t: [3, 7, 11].map((i) => predicted(base + i)), linked: false, anchor: null };
+        const [qc, tc] = pr.linked ? [4, 5] : [0, 2];
+        const g = pr.rig.slice();
+        if (!exact) for (let i = 0; i < 5; i++) g[i] = wrap(pr.rig[i] + signed(i < 4 ? qc : 1));
         if (g.slice(0, 4).some((v) => abs(v) > MAX_QUATERNION)) throw r.corrupt(`palette entry ${e}: quaternion [${g.slice(0, 4).join(", ")}] beyond the limit of ${MAX_QUATERNION}`);
         if (abs(g[4]) > MAX_SCALE) throw r.corrupt(`palette entry ${e}: scale ${g[4]} beyond the limit of ${MAX_SCALE}`);
         const m = rigMatrix(g);
         if (m === null) throw r.corrupt(`palette entry ${e}: the zero quaternion`);
+        const t = predictedTranslation(pr, m).slice();
+        if (!exact) for (let a = 0; a < 3; a++) t[a] = wrap(t[a] + signed(tc));
         for (let a = 0; a < 3; a++) {
           for (let k = 0; k < 3; k++) values[4 * a + k] = m[3 * a + k];
-          values[4 * a + 3] = wrap(predicted(base + 4 * a + 3) + r.signed(orders[2]));
+          values[4 * a + 3] = t[a];
         }
         rig[e] = g;
       } else {
-        for (let i = 0; i < ENTRY; i++) values[i] = wrap(predicted(base + i) + r.signed(orders[3]));
+        for (let i = 0; i < ENTRY; i++) values[i] = wrap(predicted(base + i) + signed(3));
         rig[e] = null;
       }
       for (let i = 0; i < ENTRY; i++) {
@@ -281,7 +406,8 @@ export class SkinState {
     return mask;
   }
 
-  advance(palette: BigInt64Array, intra: boolean, mask: bigint, rig: (Rig | null)[] = []): void {
+  advance(palette: BigInt64Array, intra: boolean, mask: bigint, rig: (Rig | null)[] = [], links: Link[] = []): void {
+    this.links = links;
     this.previous = intra ? null : this.palette;
     this.palette = palette;
     this.mask = mask;

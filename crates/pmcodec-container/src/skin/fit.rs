@@ -175,7 +175,7 @@ impl SkinFit<'_> {
         let fixed = self.fixed(f)?;
         let n = fixed.len() / ENTRY;
         let prediction = held.joint_prediction(intra);
-        let mut out = JointsFrame { palette: vec![0; n * ENTRY], rig: vec![None; n], held: vec![false; n] };
+        let mut out = JointsFrame { palette: vec![0; n * ENTRY], rig: vec![None; n], held: vec![false; n], links: Vec::new() };
         let (now, before) = (self.skin.matrices.get(f), f.checked_sub(1).and_then(|b| self.skin.matrices.get(b)));
         for e in 0..n {
             let r = e * ENTRY..(e + 1) * ENTRY;
@@ -200,6 +200,44 @@ impl SkinFit<'_> {
             out.rig[e] = rig;
         }
         Ok(out)
+    }
+
+    /// Frame `f`'s palette for the linked Joints coding ([`super::hierarchy::fit_frame`]), the
+    /// entries fitted in reading order (`bands`: the entries each band carries); a keyframe
+    /// chooses every entry's reference over its frames, up to `until` (the next keyframe).
+    pub fn joints_linked(
+        &self,
+        f: usize,
+        held: &SkinState,
+        intra: bool,
+        bands: &[Vec<u32>],
+        until: usize,
+    ) -> Result<JointsFrame, ContainerError> {
+        let fixed = self.fixed(f)?;
+        let n = fixed.len() / ENTRY;
+        let order: Vec<u32> = bands.iter().rev().flatten().copied().collect();
+        let radius = |e: usize| self.radius.get(e).copied().unwrap_or(0.0);
+        let links = if intra {
+            let frames = (f..until.max(f + 1)).map(|g| self.fixed(g)).collect::<Result<Vec<_>, _>>()?;
+            super::choose_links(&frames, n, &order, radius, |p, e| super::read_before(bands, p as u32, e as u32))
+        } else {
+            let mut r = held.links.clone();
+            r.resize(n, super::Link::NONE);
+            r
+        };
+        // How far each linked entry's points lie from its pivot.
+        let mut local = vec![0.0f64; n];
+        for node in &self.nodes {
+            for (&j, &w) in node.joints.iter().zip(&node.weights) {
+                let Some(l) = links.get(j as usize).filter(|l| w > 0 && l.reference != super::NO_REF) else { continue };
+                let d = (0..3).map(|a| (node.bind[a] - l.pivot[a]) as f64).map(|v| v * v).sum::<f64>().sqrt();
+                local[j as usize] = local[j as usize].max(d);
+            }
+        }
+        let radii = |e: usize| (radius(e), local.get(e).copied().unwrap_or(0.0));
+        let (now, before) = (self.skin.matrices.get(f), f.checked_sub(1).and_then(|b| self.skin.matrices.get(b)));
+        let same = |e: usize| matches!((now.and_then(|m| m.get(e)), before.and_then(|m| m.get(e))), (Some(a), Some(b)) if a == b);
+        Ok(super::fit_frame(&fixed, radii, same, &order, links, (&held.joint_prediction(intra), &held.palette, intra)))
     }
 
     /// Frame `f`'s palette in the file's fixed point, before rounding.

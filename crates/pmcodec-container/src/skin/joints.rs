@@ -9,6 +9,7 @@
 //! Prêteux, "FAMC: the MPEG-4 standard for animated mesh compression", 2008) and of the
 //! BBA/skeleton streams it builds on.
 
+use super::hierarchy::{Link, NO_REF, Predicted, predict, read_before};
 use super::payload::PosePrediction;
 use super::{ENTRY, LINEAR_BITS, MAX_MATRIX};
 use crate::ContainerError;
@@ -31,6 +32,13 @@ const MAX_ORDER: u32 = 31;
 /// The number classes whose Exp-Golomb order a chunk states: quaternion, scale, translation,
 /// and the twelve values of entries that are not rigid.
 const CLASSES: usize = 4;
+/// The first 5 bits of a chunk in the linked coding ([`super::hierarchy`]): an order the plain
+/// coding never writes for quaternions (their differences are under 2^28, which order 27 codes
+/// in fewer bits), so every file written before it reads as before.
+pub const LINKED: u64 = 31;
+/// The linked coding's number classes: the plain coding's four, then the quaternions and the
+/// translations of linked entries, and pivots.
+const LINKED_CLASSES: usize = 7;
 
 /// The integer matrix `L` (row-major, 2^-15 position quanta per bind quantum) of the rotation
 /// of quaternion `q` scaled by `s / 2^8`: `L[a][c] = floor((2 s N[a][c] + 2^8 n) / (2^9 n))`,
@@ -65,6 +73,8 @@ pub struct JointPrediction<'a> {
     pub pose: PosePrediction<'a>,
     pub rig: &'a [Option<Rig>],
     pub rig_before: &'a [Option<Rig>],
+    /// Each entry's link since the last keyframe (linked coding; [`Link::NONE`]: none).
+    pub links: &'a [Link],
 }
 
 impl JointPrediction<'_> {
@@ -86,13 +96,15 @@ impl JointPrediction<'_> {
 }
 
 /// One frame's palette as a Joints chunk codes it: the values (a rigid entry's matrix rebuilt
-/// by [`rig_matrix`]), each entry's rigid parameters (`None`: not rigid), and whether the
-/// entry is the same as in the previous frame.
+/// by [`rig_matrix`]), each entry's rigid parameters (`None`: not rigid), whether the
+/// entry is the same as in the previous frame, and each entry's link in the linked coding
+/// (empty or [`Link::NONE`]: none).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct JointsFrame {
     pub palette: Vec<i64>,
     pub rig: Vec<Option<Rig>>,
     pub held: Vec<bool>,
+    pub links: Vec<Link>,
 }
 
 fn zigzag(v: i64) -> u64 {
@@ -234,12 +246,7 @@ pub fn write_joints(mask: u64, entries: &[u32], frame: &JointsFrame, prediction:
         (0..=MAX_ORDER).min_by_key(|&k| numbers.iter().filter(|n| n.0 == c).map(|n| golomb_len(zigzag(n.1), k)).sum::<u64>()).unwrap_or(0)
     });
     let mut out = Vec::with_capacity(entries.len() * 8 + 4);
-    let mut v = mask;
-    while v >= 0x80 {
-        out.push((v as u8) | 0x80);
-        v >>= 7;
-    }
-    out.push(v as u8);
+    put_mask(&mut out, mask);
     let mut bits = Bits::default();
     for k in orders {
         bits.put(k as u64, 5);
@@ -265,17 +272,151 @@ pub fn write_joints(mask: u64, entries: &[u32], frame: &JointsFrame, prediction:
     out
 }
 
-/// Reads a JOINTS payload carrying `entries` for a file of `levels` bands into `palette` and
-/// `rig` (entries it does not carry left as they are); returns the band mask.
+/// Writes the band mask as a varint.
+fn put_mask(out: &mut Vec<u8>, mask: u64) {
+    let mut v = mask;
+    while v >= 0x80 {
+        out.push((v as u8) | 0x80);
+        v >>= 7;
+    }
+    out.push(v as u8);
+}
+
+/// Bits of a reference in a palette of `n` entries: `ceil(log2 n)`.
+fn ref_bits(n: usize) -> u32 {
+    (n.max(1) as u64).next_power_of_two().trailing_zeros()
+}
+
+/// JOINTS in the linked coding (proto/container.md, "Joints", "Linked coding"): the band mask,
+/// then bits: 5 bits [`LINKED`]; on keyframes each carried entry's reference (a bit, and when
+/// set the entry in `ceil(log2 P)` bits); per carried entry a bit "moved" (not on keyframes),
+/// then for a moved entry a bit "rigid", for a rigid one a bit "exact" (its numbers all 0),
+/// then its numbers, each class's 5-bit Exp-Golomb order before its first number.
+pub fn write_joints_linked(mask: u64, entries: &[u32], frame: &JointsFrame, prediction: &JointPrediction) -> Vec<u8> {
+    let key = matches!(prediction.pose, PosePrediction::Key);
+    let links = if key { frame.links.as_slice() } else { prediction.links };
+    let link = |e: usize| links.get(e).copied().unwrap_or(Link::NONE);
+    let moved = |e: usize| key || !frame.held.get(e).copied().unwrap_or(false);
+    // Per carried entry that moved: whether rigid, and its numbers (empty: exact).
+    let mut coded: Vec<(bool, Vec<(usize, i64)>)> = Vec::with_capacity(entries.len());
+    for &e in entries.iter().filter(|&&e| moved(e as usize)) {
+        let e = e as usize;
+        let base = e * ENTRY;
+        let value = |i: usize| frame.palette.get(base + i).copied().unwrap_or(0);
+        let mut numbers = Vec::new();
+        match frame.rig.get(e).copied().flatten() {
+            Some(r) => {
+                let p = predict(e, link(e), prediction, (&frame.palette, &frame.rig));
+                let (q, t) = if p.linked { (4, 5) } else { (0, 2) };
+                for i in 0..4 {
+                    numbers.push((q, r[i].wrapping_sub(p.rig[i])));
+                }
+                numbers.push((1, r[4].wrapping_sub(p.rig[4])));
+                let tp = rig_matrix(&r).map_or(p.t, |l| p.translation(&l));
+                for a in 0..3 {
+                    numbers.push((t, value(4 * a + 3).wrapping_sub(tp[a])));
+                }
+                if numbers.iter().all(|n| n.1 == 0) {
+                    numbers.clear();
+                }
+                coded.push((true, numbers));
+            }
+            None => {
+                for i in 0..ENTRY {
+                    numbers.push((3, value(i).wrapping_sub(prediction.pose.at(base + i))));
+                }
+                coded.push((false, numbers));
+            }
+        }
+    }
+    // Keyframes: each carried entry's pivot, when it has a reference.
+    let pivots: Vec<(usize, i64)> = if key {
+        entries.iter().map(|&e| link(e as usize)).filter(|l| l.reference != NO_REF).flat_map(|l| l.pivot.map(|c| (6, c))).collect()
+    } else {
+        Vec::new()
+    };
+    let orders: [u32; LINKED_CLASSES] = std::array::from_fn(|c| {
+        (0..=MAX_ORDER)
+            .min_by_key(|&k| {
+                coded.iter().flat_map(|x| &x.1).chain(&pivots).filter(|n| n.0 == c).map(|n| golomb_len(zigzag(n.1), k)).sum::<u64>()
+            })
+            .unwrap_or(0)
+    });
+    let mut sent = [false; LINKED_CLASSES];
+    let mut out = Vec::with_capacity(entries.len() * 4 + 4);
+    put_mask(&mut out, mask);
+    let mut bits = Bits::default();
+    bits.put(LINKED, 5);
+    if key {
+        let width = ref_bits(frame.palette.len() / ENTRY);
+        for &e in entries {
+            let l = link(e as usize);
+            bits.put((l.reference != NO_REF) as u64, 1);
+            if l.reference != NO_REF {
+                bits.put(l.reference as u64, width);
+                for c in l.pivot {
+                    if !sent[6] {
+                        sent[6] = true;
+                        bits.put(orders[6] as u64, 5);
+                    }
+                    bits.golomb(zigzag(c), orders[6]);
+                }
+            }
+        }
+    }
+    let mut next = coded.iter();
+    for &e in entries {
+        if !key {
+            bits.put(moved(e as usize) as u64, 1);
+        }
+        if !moved(e as usize) {
+            continue;
+        }
+        let Some((rigid, numbers)) = next.next() else { break };
+        bits.put(*rigid as u64, 1);
+        if *rigid {
+            bits.put(numbers.is_empty() as u64, 1);
+        }
+        for &(class, d) in numbers {
+            if !sent[class] {
+                sent[class] = true;
+                bits.put(orders[class] as u64, 5);
+            }
+            bits.golomb(zigzag(d), orders[class]);
+        }
+    }
+    out.extend(bits.out);
+    out
+}
+
+/// The shorter of the plain and the linked coding of a frame's chunk for `entries`. On keyframes
+/// the linked coding is taken whenever an entry of the chunk has a reference, since only a
+/// keyframe's chunk sends references (the frames up to the next keyframe use them).
+pub fn write_joints_best(mask: u64, entries: &[u32], frame: &JointsFrame, prediction: &JointPrediction) -> Vec<u8> {
+    let linked = write_joints_linked(mask, entries, frame, prediction);
+    if matches!(prediction.pose, PosePrediction::Key) {
+        let any = entries.iter().any(|&e| frame.links.get(e as usize).is_some_and(|l| l.reference != NO_REF));
+        return if any { linked } else { write_joints(mask, entries, frame, prediction) };
+    }
+    let plain = write_joints(mask, entries, frame, prediction);
+    if plain.len() <= linked.len() { plain } else { linked }
+}
+
+/// Reads a JOINTS payload of band `j` (carrying `bands[j]`, `bands` the entries each band
+/// carries) for a file of `levels` bands into the frame's `palette`, `rig` and `links` (entries
+/// it does not carry left as they are; entries of coarser bands already read); returns the
+/// band mask. Reads either coding: the plain one, or the linked one when its first 5 bits are
+/// [`LINKED`].
 pub fn read_joints(
     bytes: &[u8],
     what: &str,
-    entries: &[u32],
+    (bands, j): (&[Vec<u32>], usize),
     levels: usize,
     prediction: &JointPrediction,
-    (palette, rig): (&mut [i64], &mut [Option<Rig>]),
+    (palette, rig, links): (&mut [i64], &mut [Option<Rig>], &mut [Link]),
 ) -> Result<u64, ContainerError> {
     let corrupt = |detail: String| ContainerError::Corrupt { what: what.to_string(), detail };
+    let entries: &[u32] = bands.get(j).map(Vec::as_slice).unwrap_or_default();
     let mut mask: u64 = 0;
     let mut pos = 0;
     for shift in (0..64).step_by(7) {
@@ -296,19 +437,62 @@ pub fn read_joints(
         return Err(corrupt(format!("band mask {mask:#x} names bands beyond the file's {levels}")));
     }
     let mut r = BitReader { bytes: &bytes[pos..], bit: 0, what };
-    let mut orders = [0u32; CLASSES];
-    for k in &mut orders {
-        *k = r.get(5)? as u32;
-    }
     let key = matches!(prediction.pose, PosePrediction::Key);
+    let n = palette.len() / ENTRY;
+    for &e in entries {
+        let e = e as usize;
+        if e >= n || rig.len() <= e || links.len() <= e {
+            return Err(corrupt(format!("palette entry {e} beyond the palette of {n}")));
+        }
+        // A keyframe's links come with its chunks (none in the plain coding); other frames keep
+        // the keyframe's.
+        links[e] = if key { Link::NONE } else { prediction.links.get(e).copied().unwrap_or(Link::NONE) };
+    }
+    let first = r.get(5)?;
+    let linked = first == LINKED;
+    // Orders: the plain coding's four up front; the linked coding's each before its first number.
+    let mut orders = [None::<u32>; LINKED_CLASSES];
+    if !linked {
+        orders[0] = Some(first as u32);
+        for k in &mut orders[1..CLASSES] {
+            *k = Some(r.get(5)? as u32);
+        }
+    }
     let previous = prediction.pose.previous();
-    let signed = |r: &mut BitReader, class: usize| r.golomb(orders[class]).map(unzigzag);
+    let signed = |r: &mut BitReader, orders: &mut [Option<u32>; LINKED_CLASSES], class: usize| -> Result<i64, ContainerError> {
+        let k = match orders[class] {
+            Some(k) => k,
+            None => {
+                let k = r.get(5)? as u32;
+                orders[class] = Some(k);
+                k
+            }
+        };
+        r.golomb(k).map(unzigzag)
+    };
+    if linked && key {
+        let width = ref_bits(n);
+        for &e in entries {
+            if r.bit()? == 0 {
+                continue;
+            }
+            let p = r.get(width)?;
+            if p as usize >= n || p == e as u64 || !read_before(bands, p as u32, e) {
+                return Err(corrupt(format!("palette entry {e}: reference {p} is not an entry read before it")));
+            }
+            let mut pivot = [0i64; 3];
+            for c in &mut pivot {
+                *c = signed(&mut r, &mut orders, 6)?;
+                if c.unsigned_abs() > super::MAX_BIND as u64 {
+                    return Err(corrupt(format!("palette entry {e}: pivot coordinate {c} beyond the limit of {}", super::MAX_BIND)));
+                }
+            }
+            links[e as usize] = Link { reference: p as u32, pivot };
+        }
+    }
     for &e in entries {
         let e = e as usize;
         let base = e * ENTRY;
-        if palette.len() < base + ENTRY || rig.len() <= e {
-            return Err(corrupt(format!("palette entry {e} beyond the palette of {}", palette.len() / ENTRY)));
-        }
         let moved = key || r.bit()? == 1;
         if !moved {
             for i in base..base + ENTRY {
@@ -319,10 +503,18 @@ pub fn read_joints(
         }
         let mut values = [0i64; ENTRY];
         if r.bit()? == 1 {
-            let p = prediction.rig_at(e);
-            let mut q = [0i64; 5];
-            for i in 0..5 {
-                q[i] = p[i].wrapping_add(signed(&mut r, if i < 4 { 0 } else { 1 })?);
+            let (p, exact) = if linked {
+                (predict(e, links[e], prediction, (&*palette, &*rig)), r.bit()? == 1)
+            } else {
+                let t = [3, 7, 11].map(|i| prediction.pose.at(base + i));
+                (Predicted { rig: prediction.rig_at(e), t, linked: false, anchor: None }, false)
+            };
+            let (qc, tc) = if p.linked { (4, 5) } else { (0, 2) };
+            let mut q = p.rig;
+            if !exact {
+                for i in 0..5 {
+                    q[i] = p.rig[i].wrapping_add(signed(&mut r, &mut orders, if i < 4 { qc } else { 1 })?);
+                }
             }
             if q[..4].iter().any(|c| c.unsigned_abs() > MAX_QUATERNION as u64) {
                 return Err(corrupt(format!("palette entry {e}: quaternion {:?} beyond the limit of {MAX_QUATERNION}", &q[..4])));
@@ -331,14 +523,20 @@ pub fn read_joints(
                 return Err(corrupt(format!("palette entry {e}: scale {} beyond the limit of {MAX_SCALE}", q[4])));
             }
             let Some(m) = rig_matrix(&q) else { return Err(corrupt(format!("palette entry {e}: the zero quaternion"))) };
+            let mut t = p.translation(&m);
+            if !exact {
+                for v in &mut t {
+                    *v = v.wrapping_add(signed(&mut r, &mut orders, tc)?);
+                }
+            }
             for a in 0..3 {
                 values[4 * a..4 * a + 3].copy_from_slice(&m[3 * a..3 * a + 3]);
-                values[4 * a + 3] = prediction.pose.at(base + 4 * a + 3).wrapping_add(signed(&mut r, 2)?);
+                values[4 * a + 3] = t[a];
             }
             rig[e] = Some(q);
         } else {
             for (i, v) in values.iter_mut().enumerate() {
-                *v = prediction.pose.at(base + i).wrapping_add(signed(&mut r, 3)?);
+                *v = prediction.pose.at(base + i).wrapping_add(signed(&mut r, &mut orders, 3)?);
             }
             rig[e] = None;
         }
@@ -352,6 +550,16 @@ pub fn read_joints(
     }
     r.finish()?;
     Ok(mask)
+}
+
+/// The largest move of a bind point within `radius` (per row, the L1 norm of the error times
+/// the radius), in position quanta, of the linear part `rig` rebuilds against the unrounded
+/// entry `m`; `None` for the zero quaternion.
+pub fn rig_error(m: &[f64], rig: &Rig, radius: f64) -> Option<f64> {
+    let l = |a: usize, c: usize| m.get(4 * a + c).copied().unwrap_or(0.0);
+    let rebuilt = rig_matrix(rig)?;
+    let row = (0..3).map(|a| (0..3).map(|c| (rebuilt[3 * a + c] as f64 - l(a, c)).abs()).sum::<f64>()).fold(0.0, f64::max);
+    Some(row * radius / (1u64 << LINEAR_BITS) as f64)
 }
 
 /// The encoder's choice for one entry of one frame from its unrounded fixed-point values `m`
@@ -393,13 +601,7 @@ pub fn fit_rig(m: &[f64], radius: f64, predicted: Rig, tolerance: f64) -> Option
     let dot: f64 = q.iter().zip(&predicted[..4]).map(|(a, &b)| a * b as f64).sum();
     let sign = if dot < 0.0 || (dot == 0.0 && q[0] < 0.0) { -1.0 } else { 1.0 };
     let qi = q.map(|v| (v / norm * rho * sign).round() as i64);
-    // The largest move of a bind point within `radius` (per row, the L1 norm of the error times
-    // the radius), in position quanta, of the matrix `rig` rebuilds.
-    let worst = |rig: &Rig| -> Option<f64> {
-        let rebuilt = rig_matrix(rig)?;
-        let row = (0..3).map(|a| (0..3).map(|c| (rebuilt[3 * a + c] as f64 - l(a, c)).abs()).sum::<f64>()).fold(0.0, f64::max);
-        Some(row * radius / (1u64 << LINEAR_BITS) as f64)
-    };
+    let worst = |rig: &Rig| rig_error(m, rig, radius);
     // The predicted scale where it does (a constant scale then costs nothing: the input's own
     // scale varies in its last bits from frame to frame), else the scale rounded.
     let held = [qi[0], qi[1], qi[2], qi[3], predicted[4]];
@@ -459,7 +661,7 @@ mod tests {
         let entries = [0u32, 2, 3];
         let mut frames = Vec::new();
         for f in 0..4 {
-            let mut frame = JointsFrame { palette: vec![0; 4 * ENTRY], rig: vec![None; 4], held: vec![false; 4] };
+            let mut frame = JointsFrame { palette: vec![0; 4 * ENTRY], rig: vec![None; 4], held: vec![false; 4], links: Vec::new() };
             for &e in &entries {
                 let e = e as usize;
                 let m = rotation([1.0, e as f64, 2.0], 0.1 * f as f64 + e as f64, 16000.0, [100.0 * f as f64, -3.0, 7.0 * e as f64]);
@@ -497,7 +699,8 @@ mod tests {
         assert!(frames.iter().all(|f| f.rig[0].is_some() && f.rig[2].is_some() && f.rig[3].is_none()));
         let scale = |f: usize| frames[f].rig[0].map(|r: Rig| r[4]);
         assert!(scale(0).is_some() && (1..4).all(|f| scale(f) == scale(0)), "{:?}", (0..4).map(scale).collect::<Vec<_>>());
-        let (mut palette, mut rig) = (vec![0i64; 4 * ENTRY], vec![None; 4]);
+        let (mut palette, mut rig, mut links) = (vec![0i64; 4 * ENTRY], vec![None; 4], vec![Link::NONE; 4]);
+        let bands = [vec![], entries.to_vec()];
         let (mut held, mut before): (Vec<i64>, Vec<i64>) = (Vec::new(), Vec::new());
         let (mut held_rig, mut before_rig): (Vec<Option<Rig>>, Vec<Option<Rig>>) = (Vec::new(), Vec::new());
         for (f, frame) in frames.iter().enumerate() {
@@ -506,31 +709,150 @@ mod tests {
                 1 => PosePrediction::Previous(&held),
                 _ => PosePrediction::Linear(&held, &before),
             };
-            let p = JointPrediction { pose, rig: &held_rig, rig_before: &before_rig };
+            let p = JointPrediction { pose, rig: &held_rig, rig_before: &before_rig, links: &[] };
             let bytes = write_joints(0b10, &entries, frame, &p);
-            assert_eq!(read_joints(&bytes, "j", &entries, 2, &p, (&mut palette, &mut rig)).expect("joints"), 0b10);
+            assert_eq!(read_joints(&bytes, "j", (&bands, 1), 2, &p, (&mut palette, &mut rig, &mut links)).expect("joints"), 0b10);
             assert_eq!(palette, frame.palette, "frame {f}");
             assert_eq!(rig, frame.rig, "frame {f}");
             if f == 3 {
-                let e = read_joints(&bytes[..bytes.len() - 1], "frame 3 band 1 joints", &entries, 2, &p, (&mut palette, &mut rig))
-                    .expect_err("short")
-                    .to_string();
+                let e = read_joints(
+                    &bytes[..bytes.len() - 1],
+                    "frame 3 band 1 joints",
+                    (&bands, 1),
+                    2,
+                    &p,
+                    (&mut palette, &mut rig, &mut links),
+                )
+                .expect_err("short")
+                .to_string();
                 assert!(e.contains("frame 3 band 1 joints") && e.contains("ends inside its bits"), "{e}");
                 let mut long = bytes.clone();
                 long.push(0);
-                let e = read_joints(&long, "j", &entries, 2, &p, (&mut palette, &mut rig)).expect_err("long").to_string();
+                let e = read_joints(&long, "j", (&bands, 1), 2, &p, (&mut palette, &mut rig, &mut links)).expect_err("long").to_string();
                 assert!(e.contains("1 bytes left over"), "{e}");
-                let e = read_joints(&bytes, "j", &entries, 1, &p, (&mut palette, &mut rig)).expect_err("mask").to_string();
+                let e = read_joints(&bytes, "j", (&bands, 1), 1, &p, (&mut palette, &mut rig, &mut links)).expect_err("mask").to_string();
                 assert!(e.contains("band mask 0x2 names bands beyond the file's 1"), "{e}");
             }
             before = std::mem::replace(&mut held, frame.palette.clone());
             before_rig = std::mem::replace(&mut held_rig, frame.rig.clone());
         }
         // A zero quaternion is refused by name.
-        let zero = JointsFrame { palette: vec![0; ENTRY], rig: vec![Some([0, 0, 0, 0, 100])], held: vec![false] };
-        let key = JointPrediction { pose: PosePrediction::Key, rig: &[], rig_before: &[] };
+        let zero = JointsFrame { palette: vec![0; ENTRY], rig: vec![Some([0, 0, 0, 0, 100])], held: vec![false], links: Vec::new() };
+        let key = JointPrediction { pose: PosePrediction::Key, rig: &[], rig_before: &[], links: &[] };
         let bytes = write_joints(0, &[0], &zero, &key);
-        let e = read_joints(&bytes, "j", &[0], 1, &key, (&mut palette[..ENTRY], &mut rig[..1])).expect_err("zero").to_string();
+        let e = read_joints(&bytes, "j", (&[vec![0]], 0), 1, &key, (&mut palette[..ENTRY], &mut rig[..1], &mut links[..1]))
+            .expect_err("zero")
+            .to_string();
         assert!(e.contains("palette entry 0: the zero quaternion"), "{e}");
+    }
+    #[test]
+    fn linked_chunks_round_trip_and_bad_links_are_refused() {
+        use crate::skin::hierarchy::fit_frame;
+        // A chain of three joints, entry 0 the root (the top band), 1 and 2 in band 0, each
+        // turning about its own pivot relative to its parent; entry 2 holds still relative to 1.
+        let bands = vec![vec![1u32, 2], vec![0u32]];
+        let order = [0u32, 1, 2];
+        let pivots = [[0i64, 0, 0], [0, 4000, 0], [0, 8000, 0]];
+        let links = vec![Link::NONE, Link { reference: 0, pivot: pivots[1] }, Link { reference: 1, pivot: pivots[2] }];
+        let compose = |a: &[f64], b: &[f64]| -> Vec<f64> {
+            // (a b) for 3x4 affine maps in the palette's fixed point.
+            let mut out = vec![0.0; ENTRY];
+            for r in 0..3 {
+                for c in 0..4 {
+                    // Linear parts in 2^-15, translations in quarter units: T = T_a + L_a T_b / 2^15.
+                    let v: f64 = (0..3).map(|k| a[4 * r + k] * b[4 * k + c] / 32768.0).sum();
+                    out[4 * r + c] = if c == 3 { a[4 * r + 3] + v } else { v };
+                }
+            }
+            out
+        };
+        let about = |pivot: [i64; 3], angle: f64| -> Vec<f64> {
+            // A rotation about the bind point `pivot` (bind quanta to bind quanta): L = 2^15 R,
+            // T = 4 (p - R p).
+            let mut m = rotation([0.3, 0.2, 1.0], angle, 32768.0, [0.0; 3]);
+            for a in 0..3 {
+                let rp: f64 = (0..3).map(|k| m[4 * a + k] / 32768.0 * pivot[k] as f64).sum();
+                m[4 * a + 3] = 4.0 * (pivot[a] as f64 - rp);
+            }
+            m
+        };
+        let (mut held, mut held_rig, mut held_links): (Vec<i64>, Vec<Option<Rig>>, Vec<Link>) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut before, mut before_rig): (Vec<i64>, Vec<Option<Rig>>) = (Vec::new(), Vec::new());
+        for f in 0..6 {
+            let t = f as f64 * 0.1;
+            let root = rotation([0.0, 1.0, 0.2], 0.5 * t, 30000.0, [400.0 * t, 20.0, -5.0]);
+            let one = compose(&root, &about(pivots[1], 0.8 * t + 0.2));
+            let two = compose(&one, &about(pivots[2], 0.4));
+            let fixed: Vec<f64> = [root, one, two].concat();
+            let key = f % 4 == 0;
+            let pose = match f % 4 {
+                0 => PosePrediction::Key,
+                1 => PosePrediction::Previous(&held),
+                _ => PosePrediction::Linear(&held, &before),
+            };
+            let p = JointPrediction { pose, rig: &held_rig, rig_before: &before_rig, links: &held_links };
+            let frame_links = if key { links.clone() } else { held_links.clone() };
+            let frame = fit_frame(&fixed, |_| (12000.0, 4500.0), |_| false, &order, frame_links, (&p, &held, key));
+            assert!(frame.rig.iter().all(Option::is_some), "frame {f}: every entry rigid");
+            let (mut palette, mut rig, mut got) = (vec![0i64; 3 * ENTRY], vec![None; 3], vec![Link::NONE; 3]);
+            let top = write_joints_linked(0b11, &bands[1], &frame, &p);
+            let low = write_joints_linked(0b11, &bands[0], &frame, &p);
+            assert_eq!(top[1] & 31, LINKED as u8, "the tag");
+            read_joints(&top, "top", (&bands, 1), 2, &p, (&mut palette, &mut rig, &mut got)).expect("top band");
+            read_joints(&low, "low", (&bands, 0), 2, &p, (&mut palette, &mut rig, &mut got)).expect("band 0");
+            assert_eq!(palette, frame.palette, "frame {f}");
+            assert_eq!(rig, frame.rig, "frame {f}");
+            assert_eq!(got, frame.links, "frame {f}");
+            // The joint that holds still relative to its parent is sent as its prediction (its
+            // flags alone) once the frames after the keyframe show its motion.
+            if !key {
+                let predicted = crate::skin::hierarchy::predict(2, frame.links[2], &p, (&frame.palette, &frame.rig));
+                assert!(predicted.linked && frame.rig[2] == Some(predicted.rig), "frame {f}: {predicted:?} for {:?}", frame.rig[2]);
+                let l = rig_matrix(&predicted.rig).expect("matrix");
+                // Its translations follow from the pivot, within the rounding of the input's.
+                let (t, sent) = (predicted.translation(&l), [3, 7, 11].map(|i| frame.palette[2 * ENTRY + i]));
+                assert!((0..3).all(|a| (t[a] - sent[a]).abs() <= 1), "frame {f}: {t:?} for {sent:?}");
+            }
+            if key {
+                // A reference not read before its entry (2 after 1 in the same band) is refused.
+                let mut bad = frame.clone();
+                bad.links[1] = Link { reference: 2, pivot: [0; 3] };
+                let raw = write_joints_linked(0b11, &bands[0], &bad, &p);
+                let e = read_joints(&raw, "b", (&bands, 0), 2, &p, (&mut palette, &mut rig, &mut got)).expect_err("order").to_string();
+                assert!(e.contains("palette entry 1: reference 2 is not an entry read before it"), "{e}");
+                bad.links[1] = Link { reference: 0, pivot: [0, 1 << 31, 0] };
+                let raw = write_joints_linked(0b11, &bands[0], &bad, &p);
+                let e = read_joints(&raw, "b", (&bands, 0), 2, &p, (&mut palette, &mut rig, &mut got)).expect_err("pivot").to_string();
+                assert!(e.contains("pivot coordinate 2147483648 beyond the limit"), "{e}");
+                let e = read_joints(&low[..low.len() - 1], "cut", (&bands, 0), 2, &p, (&mut palette, &mut rig, &mut got))
+                    .expect_err("short")
+                    .to_string();
+                assert!(e.contains("cut: ends inside its bits"), "{e}");
+            }
+            before = std::mem::replace(&mut held, frame.palette.clone());
+            before_rig = std::mem::replace(&mut held_rig, frame.rig.clone());
+            held_links = frame.links.clone();
+            if key {
+                before.clear();
+                before_rig.clear();
+            }
+        }
+    }
+
+    #[test]
+    fn the_plain_coding_never_writes_the_linked_tag() {
+        // The largest quaternion differences there are (one component from -2^24 to 2^24 and
+        // back) still take an order below 31.
+        let big = JointsFrame {
+            palette: vec![0; ENTRY],
+            rig: vec![Some([1 << 24, -(1 << 24), 1 << 24, -(1 << 24), 1 << 30])],
+            held: vec![false],
+            links: Vec::new(),
+        };
+        let before = [Some([-(1 << 24), 1 << 24, -(1 << 24), 1 << 24, 0])];
+        let p = JointPrediction { pose: PosePrediction::Linear(&[0; ENTRY], &[0; ENTRY]), rig: &before, rig_before: &before, links: &[] };
+        let raw = write_joints(0, &[0], &big, &p);
+        assert_ne!(raw[1] & 31, LINKED as u8);
+        assert!(raw[1] & 31 < 29, "order {}", raw[1] & 31);
     }
 }

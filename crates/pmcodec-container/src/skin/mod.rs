@@ -13,13 +13,16 @@
 #![allow(clippy::needless_range_loop)]
 
 mod fit;
+mod hierarchy;
 mod joints;
 mod payload;
 mod rig;
 
 pub(crate) use fit::{SkinFit, fit_skin};
+pub use hierarchy::{Link, NO_REF};
+pub(crate) use hierarchy::{choose_links, fit_frame, read_before};
 pub use joints::Rig;
-pub(crate) use joints::{JointPrediction, JointsFrame, read_joints, write_joints};
+pub(crate) use joints::{JointPrediction, JointsFrame, read_joints, write_joints, write_joints_best};
 pub(crate) use payload::{PosePrediction, read_binds, read_palette, read_pose, write_binds, write_palette};
 pub use rig::{bind_position, influences, palette_transforms};
 
@@ -116,6 +119,9 @@ pub struct SkinState {
     /// previous one (`None`: not rigid; empty where the palette is).
     pub rig: Vec<Option<Rig>>,
     pub rig_before: Vec<Option<Rig>>,
+    /// Files with Joints chunks: each entry's link in the linked coding since the last keyframe
+    /// ([`Link::NONE`]: none; empty where the palette is).
+    pub links: Vec<Link>,
     /// The file's palettes are in Joints chunks (else Palette or Pose chunks).
     pub joints: bool,
 }
@@ -164,7 +170,7 @@ impl SkinState {
 
     /// How the next frame's Joints chunks are predicted (see [`SkinState::prediction`]).
     pub fn joint_prediction(&self, intra: bool) -> JointPrediction<'_> {
-        JointPrediction { pose: self.prediction(intra), rig: &self.rig, rig_before: &self.rig_before }
+        JointPrediction { pose: self.prediction(intra), rig: &self.rig, rig_before: &self.rig_before, links: &self.links }
     }
 
     /// Makes `palette` the current frame's (`intra`: a keyframe's).
@@ -177,9 +183,11 @@ impl SkinState {
         self.mask = mask;
     }
 
-    /// [`SkinState::advance`] for files with Joints chunks, with the frame's rigid parameters.
-    pub fn advance_rig(&mut self, palette: Vec<i64>, rig: Vec<Option<Rig>>, intra: bool, mask: u64) {
+    /// [`SkinState::advance`] for files with Joints chunks, with the frame's rigid parameters
+    /// and links.
+    pub fn advance_rig(&mut self, palette: Vec<i64>, (rig, links): (Vec<Option<Rig>>, Vec<Link>), intra: bool, mask: u64) {
         self.advance(palette, intra, mask);
+        self.links = links;
         self.rig_before = std::mem::replace(&mut self.rig, rig);
         if intra {
             self.rig_before.clear();
@@ -222,14 +230,17 @@ pub fn check_entry(h: &crate::Header, e: &crate::ChunkEntry) -> Result<(), Strin
 /// The decompressed sizes a skin chunk may declare: a bind chunk of `n` nodes takes 4 to 101
 /// bytes per node (three coordinates, a count, four entries and three weights of up to 10
 /// bytes), a pose chunk 1 to 10 bytes per palette value and its mask, a palette chunk its
-/// mask (1 to 10 bytes), a bit per entry and up to 10 bytes per value; a joints chunk its mask
-/// and up to 20 bits of orders, 2 bits per entry and 127 bits per value.
+/// mask (1 to 10 bytes), a bit per entry and up to 10 bytes per value; a joints chunk its mask,
+/// up to 35 bits of orders, and per entry up to 4 flag bits, a reference, a pivot and twelve
+/// values of up to 127 bits each.
 pub fn raw_len_range(h: &crate::Header, kind: crate::ChunkKind, n: u64) -> (u64, u64) {
     let p = h.skin.as_ref().map_or(0, |s| s.palette_len as u64) * ENTRY as u64;
     match kind {
         crate::ChunkKind::Bind => (4 * n, 101 * n),
         crate::ChunkKind::Palette => (1, 10 + p / ENTRY as u64 / 8 + 1 + 10 * p),
-        crate::ChunkKind::Joints => (2, 10 + 3 + p / ENTRY as u64 / 4 + 1 + 16 * p),
+        // Per entry at most 4 flag bits, a reference (16 bits), a pivot and twelve values (127
+        // bits each): 241 bytes; the mask, 7 orders and the last byte 16.
+        crate::ChunkKind::Joints => (2, 16 + 241 * (p / ENTRY as u64)),
         _ => (1 + p, 10 + 10 * p),
     }
 }
