@@ -72,6 +72,8 @@ export interface PmcStats {
   shown: number; mainMs: number;
   /** Times playback waited for a frame the worker had not delivered yet. */
   stalls: number;
+  /** The worker's milliseconds (decode, fetch waits included, and cut) for the frames shown, in total. */
+  workerMs: number;
 }
 
 export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
@@ -81,7 +83,7 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
   /** Resolves when the container is open (its header and index read). */
   readonly ready: Promise<OpenedInfo>;
   info: OpenedInfo | null = null;
-  readonly stats: PmcStats = { frame: -1, triangles: 0, level: -1, decodeMs: 0, cutMs: 0, fetched: 0, requests: 0, cached: 0, shown: 0, mainMs: 0, stalls: 0 };
+  readonly stats: PmcStats = { frame: -1, triangles: 0, level: -1, decodeMs: 0, cutMs: 0, fetched: 0, requests: 0, cached: 0, shown: 0, mainMs: 0, stalls: 0, workerMs: 0 };
   loop: boolean;
   speed: number;
   morphMs: number;
@@ -431,6 +433,7 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
     const progressed = p.fetched !== this.stats.fetched;
     Object.assign(this.stats, { frame: p.frame, triangles: p.triangles, level: p.level, decodeMs: p.decodeMs, cutMs: p.cutMs, fetched: p.fetched, requests: p.requests, cached: p.cached });
     this.stats.shown++;
+    this.stats.workerMs += p.decodeMs + p.cutMs;
     this.current = p.frame;
     this.target = p.frame;
     this.send({ type: "playhead", frame: p.frame, playing: this.isPlaying });

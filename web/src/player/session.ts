@@ -60,6 +60,8 @@ export class Session {
   private skinVersion = 0;
   private offsetsVersion = 0;
   private nodeOffsets: Float32Array = new Float32Array(0);
+  /** GPU skinning: the last cut's appearance (built from bind positions), while the cut stays. */
+  private looksOf: { decoder: Decoder; shown: Uint32Array; nodes: Uint32Array; indices: Uint32Array; looks: NonNullable<ReturnType<typeof texturedCut>> } | null = null;
 
   private constructor(readonly container: Reader, cache: RangeCache, opts: SessionOptions) {
     this.cache = cache;
@@ -226,7 +228,13 @@ export class Session {
       this.fullOn = this.budget >= this.trianglesPerLevel[d.minLevel] && allExpanded(r) ? d : null;
     }
     const cutMesh = buildCutMesh(r);
-    const looks = this.textured ? texturedCut(d, all) : null;
+    // GPU skinning: a cut's appearance is built from bind positions, so the same cut (same
+    // nodes, same triangles) has the same vertices, normals and texture coordinates as in the
+    // frame before: built once per cut, not once per frame.
+    const memoLooks = this.looksOf;
+    const same = gpu && memoLooks && memoLooks.decoder === d && equal(memoLooks.shown, r.shown) && equal(memoLooks.nodes, cutMesh.nodes) && equal(memoLooks.indices, cutMesh.indices);
+    const looks = !this.textured ? null : same ? memoLooks.looks : texturedCut(d, all);
+    this.looksOf = gpu && looks ? { decoder: d, shown: Uint32Array.from(r.shown), nodes: cutMesh.nodes, indices: cutMesh.indices, looks } : null;
     const mesh = looks ? { nodes: looks.mesh.nodes, indices: looks.indices } : cutMesh;
     // The index buffer only when it changed: at full resolution it rarely does.
     let indices: Uint32Array | undefined = mesh.indices;
@@ -257,11 +265,12 @@ export class Session {
       from.frames++;
     } else this.morphFrom = null;
     let colours: Float32Array | undefined;
-    if (looks) colours = looks.mesh.colors ?? undefined;
+    // (Copies: the payload's buffers are transferred, and a kept appearance is used again.)
+    if (looks) colours = looks.mesh.colors?.slice() ?? undefined;
     else if (this.colour === "level" || this.colour === "error") colours = colourOf(this.colour, mesh.nodes, r, memo.errors ?? new Float64Array(r.nodeCount));
     let skin: SkinFrame | undefined;
     if (gpu) {
-      skin = this.skinFrame(d, gpu, mesh, indices !== undefined, looks ? looks.mesh.normals : null);
+      skin = this.skinFrame(d, gpu, mesh, indices !== undefined, looks ? looks.mesh.normals.slice() : null);
       // The geomorph blends bind positions and offsets (the shader skins the blend with the
       // vertex's own influences), from those of the node the vertex starts from, as morphStarts.
       if (this.morphFrom && this.morphFrom.frames > 0 && this.morphFrom.nodes.every((g) => g >= r.offsets[d.minLevel])) {
@@ -273,7 +282,7 @@ export class Session {
     return {
       type: "frame", seq: 0, frame: f, budget: this.budget, level: d.minLevel, triangles: mesh.indices.length / 3,
       positions, normals, indices, indexVersion: this.indexVersion, indexCount: mesh.indices.length, starts, morphId: this.morphId, colours,
-      uvs: looks?.mesh.uv0 ?? undefined, uv1: looks?.mesh.uv1 ?? undefined, uvStarts, uv1Starts, groups: looks?.groups, skin,
+      uvs: looks?.mesh.uv0?.slice() ?? undefined, uv1: looks?.mesh.uv1?.slice() ?? undefined, uvStarts, uv1Starts, groups: looks?.groups, skin,
       decodeMs, cutMs: performance.now() - t0, fetched: this.cache.fetched, requests: this.cache.requests, cached: this.cache.size,
     };
   }
@@ -370,7 +379,7 @@ function allExpanded(r: Decoder["replay"]): boolean {
   return true;
 }
 
-function equal(a: Uint32Array, b: Uint32Array): boolean {
+function equal(a: ArrayLike<number>, b: ArrayLike<number>): boolean {
   if (a.length !== b.length) return false;
   for (let i = 0; i < a.length; i++) if (a[i] !== b[i]) return false;
   return true;
