@@ -240,6 +240,8 @@ export class Session {
     let indices: Uint32Array | undefined = mesh.indices;
     if (this.lastIndices && equal(this.lastIndices, mesh.indices)) indices = undefined;
     else { this.lastIndices = mesh.indices.slice(); this.indexVersion++; }
+    // A kept appearance (GPU skinning) is used again: its buffers go out as copies.
+    if (indices && this.looksOf) indices = indices.slice();
     const n = mesh.nodes.length;
     const positions = new Float32Array(gpu ? 0 : 3 * n);
     for (let i = 0; i < (gpu ? 0 : n); i++) {
