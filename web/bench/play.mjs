@@ -8,7 +8,8 @@
 //   4. bytes per frame after lowering the budget from full to 10% during playback;
 //   5. median time from a seek to the first drawn frame of the new position, 20 random seeks.
 //   With GPUSKIN=1,0 (skinned assets), 0 and 1 before the rest: the paused draw rate and the
-//   loopback rate with the worker posing every vertex (?gpuskin=0) and with GPU skinning, in one run.
+//   loopback rate with the worker posing every vertex (?gpuskin=0) and with GPU skinning, in one run
+//   (SKIN_ONLY=1: only those).
 // Usage (from web/, after npm run build):
 //   npx tsc -p tsconfig.test.json && node bench/play.mjs ASSETS_DIR [ASSET_ID]
 // (PMCODEC_BIN: the server binary; ASSETS_DIR/ASSET_ID.pmc is read to map bytes to frames.)
@@ -113,6 +114,7 @@ try {
     console.log(`gpuskin=${mode}: paused draw rate ${(n / 5).toFixed(1)} frames/s; playing ${r.fps.toFixed(1)} frames/s (asset ${info.frame_rate}), ${r.stalls} stalls, page thread ${r.mainMsPerFrame.toFixed(2)} ms and worker ${r.workerMsPerFrame.toFixed(2)} ms per displayed frame, three.js's render call ${r.renderMs.toFixed(1)} ms per draw (${r.drawRate.toFixed(1)} draws/s), long tasks ${r.longTaskMsPerS.toFixed(0)} ms/s`);
   }
 
+  if (process.env.SKIN_ONLY) { await browser.close(); server.kill("SIGTERM"); process.exit(0); }
   // The page's draw rate while paused, for scale (software rendering: the renderer's ceiling).
   {
     const { page, context } = await openPage(`asset=${asset}&budget=${info.triangles}&frame=0`, 0);
