@@ -7,6 +7,9 @@
 //      twice, from the server's request log;
 //   4. bytes per frame after lowering the budget from full to 10% during playback;
 //   5. median time from a seek to the first drawn frame of the new position, 20 random seeks.
+//   With GPUSKIN=1,0 (skinned assets), 0 and 1 before the rest: the paused draw rate and the
+//   loopback rate with the worker posing every vertex (?gpuskin=0) and with GPU skinning, in one run
+//   (SKIN_ONLY=1: only those).
 // Usage (from web/, after npm run build):
 //   npx tsc -p tsconfig.test.json && node bench/play.mjs ASSETS_DIR [ASSET_ID]
 // (PMCODEC_BIN: the server binary; ASSETS_DIR/ASSET_ID.pmc is read to map bytes to frames.)
@@ -41,7 +44,7 @@ try {
     executablePath: "/usr/bin/chromium",
     args: ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking", "--disable-component-update", "--disable-sync"],
   });
-  const stat = (page) => page.$eval("#overlay", (e) => ({ frame: Number(e.dataset.frame), shown: Number(e.dataset.shown), mainMs: Number(e.dataset.mainMs), bytes: Number(e.dataset.bytes), requests: Number(e.dataset.requests), stalls: Number(e.dataset.stalls), renderMs: Number(e.dataset.renderMs), draws: Number(e.dataset.draws) }));
+  const stat = (page) => page.$eval("#overlay", (e) => ({ frame: Number(e.dataset.frame), shown: Number(e.dataset.shown), mainMs: Number(e.dataset.mainMs), bytes: Number(e.dataset.bytes), requests: Number(e.dataset.requests), stalls: Number(e.dataset.stalls), renderMs: Number(e.dataset.renderMs), draws: Number(e.dataset.draws), workerMs: Number(e.dataset.workerMs) }));
   async function openPage(query, latency) {
     const context = await browser.newContext({ viewport: { width: VW, height: VH } });
     const page = await context.newPage();
@@ -58,9 +61,9 @@ try {
     await page.waitForFunction(() => Number(document.getElementById("overlay")?.dataset.shown ?? 0) > 0, null, { timeout: 120_000 });
     return { page, context };
   }
-  async function rate(latency) {
+  async function rate(latency, extra = "") {
     const logStart = log.length;
-    const { page, context } = await openPage(`asset=${asset}&budget=${info.triangles}`, latency);
+    const { page, context } = await openPage(`asset=${asset}&budget=${info.triangles}${extra}`, latency);
     await sleep(1000);
     const a = await stat(page), la = await page.evaluate(() => window.__long);
     await sleep(10_000);
@@ -70,7 +73,7 @@ try {
     const loops = (await stat(page)).shown / info.frames;
     await context.close();
     const shown = b.shown - a.shown;
-    return { fps: shown / 10, mainMsPerFrame: (b.mainMs - a.mainMs) / shown, renderMs: (b.renderMs - a.renderMs) / (b.draws - a.draws), drawRate: (b.draws - a.draws) / 10, longTaskMsPerS: (lb - la) / 10, stalls: b.stalls - a.stalls, loops, bytes: b.bytes, requests: b.requests, logStart };
+    return { fps: shown / 10, mainMsPerFrame: (b.mainMs - a.mainMs) / shown, workerMsPerFrame: (b.workerMs - a.workerMs) / shown, renderMs: (b.renderMs - a.renderMs) / (b.draws - a.draws), drawRate: (b.draws - a.draws) / 10, longTaskMsPerS: (lb - la) / 10, stalls: b.stalls - a.stalls, loops, bytes: b.bytes, requests: b.requests, logStart };
   }
   // Byte ranges the server answered for the container since `from` in its log.
   function ranges(from) {
@@ -100,6 +103,18 @@ try {
     return out;
   }
 
+  // Before and after GPU skinning, in the same run (the machine's load changes between runs).
+  for (const mode of (process.env.GPUSKIN ?? "").split(",").filter((m) => m === "0" || m === "1")) {
+    const q = `&gpuskin=${mode}`;
+    const { page, context } = await openPage(`asset=${asset}&budget=${info.triangles}&frame=0${q}`, 0);
+    await sleep(1000);
+    const n = await page.evaluate(() => new Promise((res) => { let n = 0; const t0 = performance.now(); const tick = () => { n++; if (performance.now() - t0 < 5000) requestAnimationFrame(tick); else res(n); }; requestAnimationFrame(tick); }));
+    await context.close();
+    const r = await rate(0, q);
+    console.log(`gpuskin=${mode}: paused draw rate ${(n / 5).toFixed(1)} frames/s; playing ${r.fps.toFixed(1)} frames/s (asset ${info.frame_rate}), ${r.stalls} stalls, page thread ${r.mainMsPerFrame.toFixed(2)} ms and worker ${r.workerMsPerFrame.toFixed(2)} ms per displayed frame, three.js's render call ${r.renderMs.toFixed(1)} ms per draw (${r.drawRate.toFixed(1)} draws/s), long tasks ${r.longTaskMsPerS.toFixed(0)} ms/s`);
+  }
+
+  if (process.env.SKIN_ONLY) { await browser.close(); server.kill("SIGTERM"); process.exit(0); }
   // The page's draw rate while paused, for scale (software rendering: the renderer's ceiling).
   {
     const { page, context } = await openPage(`asset=${asset}&budget=${info.triangles}&frame=0`, 0);
@@ -112,7 +127,7 @@ try {
   const loop = await rate(0);
   await sleep(300);
   const rs = ranges(loop.logStart), tw = twice(rs);
-  console.log(`loopback: ${loop.fps.toFixed(1)} frames/s at full resolution (${info.triangles} triangles), ${loop.stalls} stalls, page thread ${loop.mainMsPerFrame.toFixed(2)} ms per displayed frame in the player (three.js's render call: ${loop.renderMs.toFixed(1)} ms per draw, ${loop.drawRate.toFixed(1)} draws/s), long tasks ${loop.longTaskMsPerS.toFixed(0)} ms/s`);
+  console.log(`loopback: ${loop.fps.toFixed(1)} frames/s at full resolution (${info.triangles} triangles), ${loop.stalls} stalls, page thread ${loop.mainMsPerFrame.toFixed(2)} ms per displayed frame in the player, worker ${loop.workerMsPerFrame.toFixed(2)} ms (three.js's render call: ${loop.renderMs.toFixed(1)} ms per draw, ${loop.drawRate.toFixed(1)} draws/s), long tasks ${loop.longTaskMsPerS.toFixed(0)} ms/s`);
   console.log(`bytes: ${loop.loops.toFixed(1)} loops, ${rs.length} range requests, ${tw.total} bytes of ${info.bytes}, bytes fetched more than once: ${tw.again}`);
   const slow = await rate(50);
   console.log(`50 ms latency: ${slow.fps.toFixed(1)} frames/s, ${slow.stalls} stalls, page thread ${slow.mainMsPerFrame.toFixed(2)} ms per displayed frame`);

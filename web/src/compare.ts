@@ -128,6 +128,8 @@ async function compare(pmc: string, glb: string): Promise<Record<string, string 
       materials: ourMaterials.length, textured: ourMaterials.filter((m) => (m as THREE.MeshStandardMaterial).map).length,
       referenceTextured: textured, appearance: info.appearance ? 1 : 0, animation: clip?.name ?? "",
       toggleChanged: changed, toggleBack: back,
+      // Whether the stream was drawn skinned on the GPU (a skinned stream, PmcPlayerOptions.gpuSkin).
+      gpuSkinned: (player.mesh as THREE.SkinnedMesh).isSkinnedMesh ? 1 : 0,
       ms: [t0 - tStage, tGlb - t0, tFrame - tGlb, tRender - tFrame].map((x) => x.toFixed(0)).join(" "),
     };
   } finally {

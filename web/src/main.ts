@@ -101,7 +101,9 @@ function open(id: string, at: { frame?: number | null; budget?: number | null } 
   showError("");
   const a = assets.find((x) => x.id === id);
   const budget = at.budget ?? Math.min(a?.triangles ?? 2000, Number(budgetSlider.value) || 2000);
-  const p = PmcPlayer.fromServer(location.origin, id, { budget, autoplay: at.frame === null || at.frame === undefined });
+  // ?gpuskin=0: skinned streams posed by the worker, as before GPU skinning (for comparisons).
+  const gpuSkin = new URLSearchParams(location.search).get("gpuskin") !== "0";
+  const p = PmcPlayer.fromServer(location.origin, id, { budget, autoplay: at.frame === null || at.frame === undefined, gpuSkin });
   player = p;
   p.colourMode = colourSel.value as ColourMode;
   p.wireframe = wireBox.checked;
@@ -270,6 +272,7 @@ function loop(now: number): void {
   overlay.dataset.shown = String(s?.shown ?? 0);
   overlay.dataset.mainMs = String(s?.mainMs ?? 0);
   overlay.dataset.stalls = String(s?.stalls ?? 0);
+  overlay.dataset.workerMs = String(s?.workerMs ?? 0);
   overlay.dataset.renderMs = String(renderMs);
   overlay.dataset.draws = String(++draws);
   requestAnimationFrame(loop);

@@ -399,3 +399,62 @@ test("pmcodec-three's materials: glTF's metallic-roughness materials as GLTFLoad
   assert.equal(plain.map, null);
   assert.deepEqual([plain.normalScale.x, plain.normalScale.y], [1, 1]);
 });
+
+test("GPU skinning (gpuSkin): frames carry the cut's skin with each new cut, the palette, and offsets (whole or changed) that, rebuilt as the page does and skinned in floats, pose each vertex within a quantum of its exact position", async () => {
+  const file = join(mkdtempSync(join(tmpdir(), "pmc-gpuskin-")), "fox.pmc");
+  const fox = join(root, "../shared/data/gltf/Fox.glb");
+  if (!existsSync(fox)) throw new Error(`${fox} is absent: this test reads the real models in ../shared/data beside the repository`);
+  execFileSync(bin, ["encode", "-q", fox, "-o", file, "--keyframe-interval", "8", "--quant-bits", "12"]);
+  const bytes = new Uint8Array(readFileSync(file));
+  const gpu = await Session.open(recorder(bytes).fetch, { gpuSkin: true });
+  const cpu = await Session.open(recorder(bytes).fetch);
+  const h = gpu.container.header;
+  assert.ok(gpu.info().gpuSkinJoints > 0 && cpu.info().gpuSkinJoints === 0);
+  gpu.colour = "plain";
+  // The exact positions of every node, from the default decoder.
+  const exact = new Decoder(gpu.container, 0);
+  // The page's side: skins and offsets by version, offsets given as changes applied to the last.
+  const skins = new Map<number, NonNullable<Awaited<ReturnType<Session["frame"]>>["skin"]>>(), offsets = new Map<number, Float32Array>();
+  let sparse = 0, kept = 0, skinsSent = 0, indicesSent = 0;
+  const check = async (g: Awaited<ReturnType<Session["frame"]>>, f: number, what: string) => {
+    await exact.seek(f);
+    const want = exact.positions();
+    // Each vertex's node: what the session put in the frame (its cut's nodes, in vertex order).
+    const nodes = (gpu as unknown as { skinSent: { nodes: Uint32Array } }).skinSent.nodes;
+    const k = g.skin!;
+    assert.equal(g.positions.length, 0, `${what}: no posed positions`);
+    if (k.bind) { skins.set(k.version, k); skinsSent++; }
+    if (g.indices) indicesSent++;
+    if (k.offsets) offsets.set(k.offsetsVersion, k.offsets);
+    else if (k.changed) {
+      const o = offsets.get(k.offsetsVersion - 1)!.slice();
+      k.changed.forEach((v, i) => o.set(k.values!.subarray(3 * i, 3 * i + 3), 3 * v));
+      offsets.set(k.offsetsVersion, o);
+      sparse++;
+    } else kept++;
+    const s = skins.get(k.version)!, o = offsets.get(k.offsetsVersion)!;
+    assert.equal(s.bind!.length, 3 * nodes.length, `${what}: vertices`);
+    assert.equal(g.triangles, h.triangleCount);
+    for (let v = 0; v < nodes.length; v++) {
+      for (let a = 0; a < 3; a++) {
+        let p = o[3 * v + a];
+        for (let i = 0; i < 4; i++) {
+          const w = s.weights![4 * v + i], m = 16 * s.joints![4 * v + i], b = s.bind!.subarray(3 * v, 3 * v + 3);
+          if (w > 0) p += w * (k.palette[m + a] * b[0] + k.palette[m + 4 + a] * b[1] + k.palette[m + 8 + a] * b[2] + k.palette[m + 12 + a]);
+        }
+        const q = want[3 * nodes[v] + a];
+        assert.ok(Math.abs(p - q) <= 1.001 * h.step, `${what} vertex ${v}: ${p} vs ${q}`);
+      }
+    }
+  };
+  for (let f = 0; f < h.frameCount; f++) await check(await gpu.frame(f), f, `frame ${f}`);
+  // The cut's skin goes with a new cut only (here, when its triangles change: at keyframes).
+  assert.equal(skinsSent, indicesSent, "skins sent with new index buffers");
+  assert.ok(skinsSent < h.frameCount / 4, `${skinsSent} skins sent in ${h.frameCount} frames`);
+  console.log(`fox: ${h.frameCount} frames, cut's skin sent ${skinsSent} times; offsets sent whole ${h.frameCount - sparse - kept}, as changes ${sparse}, unchanged ${kept}`);
+  // A lower budget: a new cut, whose skin is sent, and a geomorph from the old one.
+  gpu.budget = Math.round(h.triangleCount / 3);
+  const g = await gpu.frame(h.frameCount - 1);
+  assert.ok(g.skin!.bind && g.skin!.startBind && g.skin!.startOffsets, "the new cut's skin and the geomorph's starts");
+  assert.equal(g.skin!.startBind!.length, g.skin!.bind!.length);
+});

@@ -11,6 +11,20 @@ import type { Reader } from "./read.js";
 import { FrameDelta, KeyBand, Replay } from "./replay.js";
 import { Link, NO_LINK, Rig, SkinState, bandEntries, hasPaletteChunk, nodeSkins, readBinds } from "./skin.js";
 
+export interface DecoderOptions {
+  /**
+   * Skinned files: keep each node's offset from its skinned position, `o_f = pos_f - s(v, M_f)`,
+   * instead of its position, so frames whose bands are all predicted by skinning decode without
+   * any linear blend skinning on the CPU (a GPU skins the bind positions; see `skinAttributes`,
+   * `paletteMatrices`, `offsets`). Default false: `current` holds positions, bit for bit as the
+   * Rust decoder's.
+   */
+  skinOffsets?: boolean;
+}
+
+/** Per node (global id): bind position in bind quanta, up to four palette entries and weights (0: unused). */
+export interface SkinAttributes { bind: Float32Array; joints: Uint16Array; weights: Float32Array }
+
 /** Plays a container down to a finest level: hierarchy (Replay) and quantized node positions. */
 export class Decoder {
   replay: Replay;
@@ -27,10 +41,24 @@ export class Decoder {
   /** The skin of a skinned file, once its bind chunks are read. */
   private skin: SkinState | null = null;
 
-  constructor(readonly reader: Reader, readonly minLevel: number) {
+  /** See DecoderOptions.skinOffsets. */
+  readonly skinOffsets: boolean;
+  private attributes: SkinAttributes | null = null;
+  /** Frames decoded with skinning on the CPU while holding offsets (a band not predicted by skinning). */
+  exactFrames = 0;
+  /** Nodes skinned on the CPU by the decoding itself while holding offsets (`positions()` not counted). */
+  cpuSkins = 0;
+  /** With offsets held: the last keyframe's band 0 offsets and palette, until its stencil weights are computed. */
+  private keyPending: { key: Int32Array; palette: BigInt64Array | null } | null = null;
+  /** With offsets held: the bands whose `current` holds positions while a frame decodes. */
+  private exactCur: Uint8Array;
+
+  constructor(readonly reader: Reader, readonly minLevel: number, opts: DecoderOptions = {}) {
+    this.skinOffsets = opts.skinOffsets ?? false;
     const h = reader.header;
     if (minLevel >= h.levelSizes.length) throw new DecodeError(`level ${minLevel}: the file has ${h.levelSizes.length} levels`);
     this.replay = new Replay(h.levelSizes, minLevel, h.triangleCount);
+    this.exactCur = new Uint8Array(h.levelSizes.length);
     const total = h.levelSizes.reduce((a, b) => a + b, 0);
     this.current = new Int32Array(total * 3);
     this.previous = new Int32Array(total * 3);
@@ -76,7 +104,12 @@ export class Decoder {
     this.replay.loadKeyframe(bands, this.triangles ?? undefined);
     if (pose) this.skin!.advance(pose.palette, true, pose.mask, pose.rig, pose.links);
     await this.decodePositions(k, true);
-    if (h.motion === Motion.KeyframeAffine && this.lower) this.weights = stencilWeights(this.lower, this.current, h.vertexCount);
+    if (h.motion === Motion.KeyframeAffine && this.lower) {
+      // With offsets held, the stencils (which read band 0's key positions) are computed when a
+      // frame first predicts band 0 otherwise than by skinning, if one does.
+      if (this.holdsOffsets) { this.weights = null; this.keyPending = { key: this.current.slice(0, 3 * h.vertexCount), palette: this.skin!.palette }; }
+      else this.weights = stencilWeights(this.lower, this.current, h.vertexCount);
+    }
     this.frame = k;
   }
 
@@ -134,6 +167,148 @@ export class Decoder {
    * up to 10% slower (CPU time, horse, node bench).
    */
   private async decodePositions(f: number, fromKey: boolean): Promise<void> {
+    if (!this.holdsOffsets) return this.decodeExact(f, fromKey);
+    this.exactCur.fill(0);
+    await this.decodeExact(f, fromKey);
+    // Bands posed for a band that skinning did not predict go back to offsets.
+    let any = false;
+    for (let j = this.minLevel; j < this.exactCur.length; j++) if (this.exactCur[j]) { any = true; this.posedBand(this.current, j, true, -1); }
+    if (any) this.exactFrames++;
+  }
+
+  /**
+   * With offsets held: band j's node positions from offsets (pos = o + s(v, M)) with sign +1, or
+   * offsets from positions with sign -1, under this frame's palette (`now`) or the previous one.
+   */
+  private posedBand(a: Int32Array, j: number, now: boolean | BigInt64Array | null, sign: 1 | -1): void {
+    const s = this.skin!, p = new Int32Array(3);
+    const palette = (now === true ? s.palette : now === false ? s.previous : now) ?? new BigInt64Array(0);
+    this.cpuSkins += this.replay.offsets[j + 1] - this.replay.offsets[j];
+    for (let g = this.replay.offsets[j]; g < this.replay.offsets[j + 1]; g++) {
+      s.lbs(g, palette, p);
+      for (let k = 0; k < 3; k++) a[3 * g + k] = (a[3 * g + k] + sign * p[k]) | 0;
+    }
+  }
+
+  /**
+   * Before decoding band j, which skinning does not predict this frame, with offsets held: what
+   * its prediction reads, posed (proto/container.md, "Positions, band j": its own previous
+   * positions, its parents' current and previous ones, band 0's lower neighbours, which are band
+   * 0's own nodes, decoded before them). Skinned bands above stay offsets unless read so.
+   */
+  private poseFor(j: number, intra: boolean): void {
+    const top = this.reader.header.levelSizes.length - 1;
+    if (!intra) this.posedBand(this.previous, j, false, 1);
+    this.exactCur[j] = 1;
+    const pending = this.keyPending;
+    if (j === 0 && pending && this.lower) {
+      this.posedBand(pending.key, 0, pending.palette, 1);
+      this.weights = stencilWeights(this.lower, pending.key, this.reader.header.vertexCount);
+      this.keyPending = null;
+    }
+    if (j < top && !this.exactCur[j + 1]) {
+      this.posedBand(this.current, j + 1, true, 1);
+      if (!intra) this.posedBand(this.previous, j + 1, false, 1);
+      this.exactCur[j + 1] = 1;
+    }
+  }
+
+  /**
+   * Offsets of band j, which skinning predicts this frame (proto/container.md, "Skinning"): with
+   * pos_f = s_f + res on keyframes and pos_f = pos_(f-1) + s_f - s_(f-1) + res otherwise,
+   * o_f = pos_f - s_f is res, or o_(f-1) + res, in the same 32-bit wrapping arithmetic: no
+   * skinning on the CPU.
+   */
+  private offsetBand(j: number, intra: boolean, shift: number, res: Int32Array): void {
+    const cur = this.current, prev = this.previous, base = this.replay.offsets[j];
+    // Band 0's residuals come in its decoding order.
+    const sequence = j === 0 && this.lower ? this.lower.sequence : null;
+    for (let k = 0; k < this.reader.header.levelSizes[j]; k++) {
+      const g = 3 * (base + (sequence ? sequence[k] : k));
+      for (let a = 0; a < 3; a++) cur[g + a] = ((intra ? 0 : prev[g + a]) + (res[3 * k + a] << shift)) | 0;
+    }
+  }
+
+  /** Whether `current` holds offsets from skinned positions (DecoderOptions.skinOffsets on a skinned file). */
+  get holdsOffsets(): boolean { return this.skinOffsets && this.skin !== null; }
+
+  /** Whether the file is skinned (known once a frame is decoded). */
+  get skinned(): boolean { return this.skin !== null; }
+
+  /**
+   * Decoded nodes' positions from offsets `o`: s(v, M) + o with M this frame's palette (`now`)
+   * or the previous frame's, into `out` (a new array unless given).
+   */
+  private posed(o: Int32Array, now: boolean, out: Int32Array = new Int32Array(o.length)): Int32Array {
+    const s = this.skin!, palette = (now ? s.palette : s.previous) ?? new BigInt64Array(0), p = new Int32Array(3);
+    for (let g = this.replay.offsets[this.minLevel]; 3 * g < o.length; g++) {
+      s.lbs(g, palette, p);
+      for (let a = 0; a < 3; a++) out[3 * g + a] = (o[3 * g + a] + p[a]) | 0;
+    }
+    return out;
+  }
+
+  /**
+   * Every node's skin for drawing (skinned files, after the first frame): bind position in bind
+   * quanta, palette entries and weights (in units of 1; a node without influence has weights 0
+   * and its offset carries the box's minimum corner, see `offsets`).
+   */
+  skinAttributes(): SkinAttributes | null {
+    const s = this.skin;
+    if (!s) return null;
+    if (this.attributes) return this.attributes;
+    const n = s.nodes.count.length, out: SkinAttributes = { bind: new Float32Array(3 * n), joints: new Uint16Array(4 * n), weights: new Float32Array(4 * n) };
+    for (let g = 0; g < n; g++) {
+      for (let a = 0; a < 3; a++) out.bind[3 * g + a] = Number(s.nodes.bind[3 * g + a]);
+      for (let k = 0; k < s.nodes.count[g]; k++) {
+        out.joints[4 * g + k] = s.nodes.joints[4 * g + k];
+        out.weights[4 * g + k] = Number(s.nodes.weights[4 * g + k]) / 65536;
+      }
+    }
+    return (this.attributes = out);
+  }
+
+  /**
+   * The frame's palette as 4x4 matrices (16 floats per entry, column-major as three.js's
+   * Matrix4.elements) from bind quanta to the stream's coordinates: linear part
+   * step * L / 2^15, translation bbox_min + step * T / 4 (proto/container.md, "Skinning": L in
+   * 2^-15 position quanta per bind quantum, T in 2^-2 quanta from bbox_min). Skinning with them
+   * in floating point, sum over k of w_k M_k b, differs from the integer s(v, M) by under a
+   * position quantum (the integer version floors each product's low bits and rounds the sum).
+   */
+  paletteMatrices(out?: Float32Array): Float32Array {
+    const h = this.reader.header, s = this.skin;
+    const palette = s?.palette ?? new BigInt64Array(0), n = palette.length / 12;
+    const m = out && out.length >= 16 * n ? out : new Float32Array(16 * n);
+    const linear = h.step / 32768;
+    for (let e = 0; e < n; e++) {
+      const p = 12 * e, q = 16 * e;
+      for (let a = 0; a < 3; a++) {
+        for (let c = 0; c < 3; c++) m[q + 4 * c + a] = Number(palette[p + 4 * a + c]) * linear;
+        m[q + 12 + a] = h.bboxMin[a] + (Number(palette[p + 4 * a + 3]) * h.step) / 4;
+        m[q + 4 * a + 3] = 0;
+      }
+      m[q + 15] = 1;
+    }
+    return m;
+  }
+
+  /**
+   * Every node's offset in the stream's coordinates, step * o (holdsOffsets), plus bbox_min for
+   * a node without influence (it skins to 0); what a GPU adds to the skinned bind position.
+   */
+  offsets(out?: Float32Array): Float32Array {
+    const h = this.reader.header, cur = this.current, count = this.skin?.nodes.count;
+    const o = out && out.length >= cur.length ? out : new Float32Array(cur.length);
+    for (let g = 0; 3 * g < cur.length; g++) {
+      const free = count !== undefined && count[g] === 0;
+      for (let a = 0; a < 3; a++) o[3 * g + a] = cur[3 * g + a] * h.step + (free ? h.bboxMin[a] : 0);
+    }
+    return o;
+  }
+
+  /** The exact path (proto/container.md, "Positions, band j"): `current` holds positions. */
+  private async decodeExact(f: number, fromKey: boolean): Promise<void> {
     const h = this.reader.header, r = this.replay;
     const intra = fromKey || this.reader.isKeyframe(f);
     const cur = this.current, prev = this.previous;
@@ -141,6 +316,10 @@ export class Decoder {
     for (let j = top; j >= this.minLevel; j--) {
       const what = `frame ${f} band ${j} positions`;
       const { shift, res } = readPositions(await this.reader.chunk(this.reader.find(ChunkKind.Positions, f, j)), what, h.levelSizes[j]);
+      if (this.holdsOffsets) {
+        if (this.skin!.uses(j)) { this.offsetBand(j, intra, shift, res); continue; }
+        this.poseFor(j, intra);
+      }
       const lower = j === 0 ? this.lower : null;
       // Motion sums of the band's decoded nodes per parent (inter frames), exact in doubles.
       const nParents = j < top ? h.levelSizes[j + 1] : 0;
@@ -248,8 +427,10 @@ export class Decoder {
   positions(): Float32Array {
     const h = this.reader.header;
     const out = new Float32Array(this.current.length);
+    // With offsets held, the exact positions are s(v, M_f) + o: the same bits as the default path.
+    const q = this.holdsOffsets ? this.posed(this.current, true) : this.current;
     // f32 arithmetic, as the Rust decoder: lo + (q as f32) * step.
-    for (let i = 0; i < out.length; i++) out[i] = Math.fround(h.bboxMin[i % 3] + Math.fround(this.current[i] * h.step));
+    for (let i = 0; i < out.length; i++) out[i] = Math.fround(h.bboxMin[i % 3] + Math.fround(q[i] * h.step));
     return out;
   }
 

@@ -26,6 +26,7 @@ export type { LowerNeighbours } from "./predict.js";
 export { Reader } from "./read.js";
 export type { ReadAt } from "./read.js";
 export { Decoder } from "./decode.js";
+export type { DecoderOptions, SkinAttributes } from "./decode.js";
 export type { SkinHeader } from "./skin.js";
 export { BELOW, MaxHeap, NONE, Replay } from "./replay.js";
 export type { CornerUpdate, FrameDelta, KeyBand, Swap } from "./replay.js";

@@ -5,7 +5,8 @@
 
 import * as THREE from "three";
 import { buildMaterials, buildTextures, decodeImages } from "./appearance.js";
-import type { ColourMode, FramePayload, FromWorker, LooksPayload, MaterialGroup, OpenedInfo, Source, ToWorker } from "./protocol.js";
+import type { ColourMode, FramePayload, FromWorker, LooksPayload, MaterialGroup, OpenedInfo, SkinFrame, Source, ToWorker } from "./protocol.js";
+import { OFFSET, PaletteSkeleton, START_BIND, START_OFFSET, paletteMesh, patchMaterial } from "./skinning.js";
 
 export type { ColourMode, MaterialGroup, OpenedInfo as PmcInfo, Source as PmcSource } from "./protocol.js";
 export { DEFAULT_CACHE_BYTES } from "./ranges.js";
@@ -42,6 +43,13 @@ export interface PmcPlayerOptions {
   morphMs?: number;
   /** Where the worker script is, when a bundler does not resolve `new URL("./worker.js", import.meta.url)`. */
   workerUrl?: string | URL;
+  /**
+   * Skinned streams: skin on the GPU (default true). The mesh is then a THREE.SkinnedMesh whose
+   * skeleton's matrices are the stream's palette, the worker decodes residuals and swaps only,
+   * and frames carry the palette and the offsets that changed; normals are the bind pose's,
+   * skinned with the positions. False: the worker poses every vertex, as for other streams.
+   */
+  gpuSkin?: boolean;
 }
 
 export interface PmcFrameEvent { frame: number; triangles: number; level: number; budget: number }
@@ -64,15 +72,18 @@ export interface PmcStats {
   shown: number; mainMs: number;
   /** Times playback waited for a frame the worker had not delivered yet. */
   stalls: number;
+  /** The worker's milliseconds (decode, fetch waits included, and cut) for the frames shown, in total. */
+  workerMs: number;
 }
 
 export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
-  readonly mesh: THREE.Mesh;
+  /** The mesh drawn: a THREE.SkinnedMesh once a skinned stream opens with gpuSkin. */
+  mesh: THREE.Mesh;
   readonly geometry = new THREE.BufferGeometry();
   /** Resolves when the container is open (its header and index read). */
   readonly ready: Promise<OpenedInfo>;
   info: OpenedInfo | null = null;
-  readonly stats: PmcStats = { frame: -1, triangles: 0, level: -1, decodeMs: 0, cutMs: 0, fetched: 0, requests: 0, cached: 0, shown: 0, mainMs: 0, stalls: 0 };
+  readonly stats: PmcStats = { frame: -1, triangles: 0, level: -1, decodeMs: 0, cutMs: 0, fetched: 0, requests: 0, cached: 0, shown: 0, mainMs: 0, stalls: 0, workerMs: 0 };
   loop: boolean;
   speed: number;
   morphMs: number;
@@ -99,6 +110,14 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
   private disposed = false;
   private indexes = new Map<number, Uint32Array>();
   private uploadedIndex = -1;
+  /** GPU skinning: the skeleton, the cut's skins and offsets by version, what is uploaded, the geomorph. */
+  private skeleton: PaletteSkeleton | null = null;
+  private skins = new Map<number, SkinFrame>();
+  private offsetVersions = new Map<number, Float32Array>();
+  private uploadedSkin = -1;
+  private uploadedOffsets = -1;
+  private readonly morphBlend = { value: 1 };
+  private skinMorph: { start: number } | null = null;
 
   constructor(source: Source, options: PmcPlayerOptions = {}) {
     super();
@@ -139,6 +158,7 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
           this.indexes.set(m.indexVersion, m.indices);
           for (const v of this.indexes.keys()) if (this.indexes.size > 16) this.indexes.delete(v);
         }
+        if (m.skin) this.keepSkin(m.skin);
         if (m.seq === this.seq) this.queue.set(m.frame, m);
       }
       this.stats.mainMs += performance.now() - t0;
@@ -148,7 +168,7 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
       if (!this.info) failed(error);
       this.dispatchEvent({ type: "error", error });
     };
-    this.send({ type: "open", source, cacheBytes: options.cacheBytes, readAhead: options.readAhead, headers: options.headers });
+    this.send({ type: "open", source, cacheBytes: options.cacheBytes, readAhead: options.readAhead, headers: options.headers, gpuSkin: options.gpuSkin ?? true });
     this.send({ type: "colour", mode: this.mode });
     this.applyMaterial();
     if (Number.isFinite(this.triangleBudget)) this.send({ type: "budget", triangles: this.triangleBudget });
@@ -186,6 +206,18 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
     const box = new THREE.Box3(new THREE.Vector3().fromArray(info.bboxMin), new THREE.Vector3().fromArray(info.bboxMax));
     g.boundingBox = box;
     g.boundingSphere = box.getBoundingSphere(new THREE.Sphere());
+    if (info.gpuSkinJoints > 0) {
+      // Three.js skins with skinIndex and skinWeight; the patched shader adds offsets and morphs.
+      g.setAttribute("skinIndex", new THREE.BufferAttribute(new Uint16Array(4 * capacity), 4).setUsage(THREE.DynamicDrawUsage));
+      g.setAttribute("skinWeight", new THREE.BufferAttribute(new Float32Array(4 * capacity), 4).setUsage(THREE.DynamicDrawUsage));
+      for (const name of [OFFSET, START_BIND, START_OFFSET]) g.setAttribute(name, new THREE.BufferAttribute(new Float32Array(3 * capacity), 3).setUsage(THREE.DynamicDrawUsage));
+      this.skeleton = new PaletteSkeleton(info.gpuSkinJoints);
+      const mesh = paletteMesh(g, this.mesh.material, this.skeleton);
+      this.remove(this.mesh);
+      this.mesh = mesh;
+      this.add(mesh);
+      this.applyMaterial();
+    }
     if (!Number.isFinite(this.triangleBudget)) this.triangleBudget = info.triangles;
     this.target = Math.min(this.target, info.frames - 1);
     this.seq++;
@@ -285,9 +317,11 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
     g.clearGroups();
     if (this.mode === "authored" && this.authored && this.groups) {
       for (const x of this.groups) g.addGroup(x.start, x.count, Math.min(x.material, this.authored.length - 1));
+      if (this.skeleton) for (const m of this.authored) patchMaterial(m, this.morphBlend);
       this.mesh.material = this.authored;
       return;
     }
+    if (this.skeleton) patchMaterial(this.flat, this.morphBlend);
     this.mesh.material = this.flat;
     const f = this.flat as THREE.Material & { vertexColors?: boolean };
     const colours = this.mode === "level" || this.mode === "error";
@@ -329,9 +363,15 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
         this.stats.stalls++;
       }
     }
+    if (this.skinMorph) {
+      const a = this.morphMs > 0 ? Math.min(1, (now - this.skinMorph.start) / this.morphMs) : 1;
+      this.morphBlend.value = a * a * (3 - 2 * a);
+      if (a >= 1) this.skinMorph = null;
+      changed = true;
+    }
     if (this.morph) {
       const a = this.morphMs > 0 ? Math.min(1, (now - this.morph.start) / this.morphMs) : 1;
-      blendInto(this.morph.from, this.morph.to, a, this.geometry.getAttribute("position") as THREE.BufferAttribute);
+      if (this.morph.to.length > 0) blendInto(this.morph.from, this.morph.to, a, this.geometry.getAttribute("position") as THREE.BufferAttribute);
       this.morph.uv.forEach(([from, to], k) => blendInto(from, to, a, this.geometry.getAttribute(k === 0 ? "uv" : "uv1") as THREE.BufferAttribute));
       if (a >= 1) this.morph = null;
       changed = true;
@@ -348,7 +388,12 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
     const pos = g.getAttribute("position") as THREE.BufferAttribute;
     const nrm = g.getAttribute("normal") as THREE.BufferAttribute;
     const idx = g.index as THREE.BufferAttribute;
-    if (p.starts && this.morphMs > 0) {
+    if (p.skin) this.showSkin(p, p.skin, now);
+    if (p.skin && !(p.uvStarts && this.morphMs > 0)) {
+      this.morph = null;
+      this.setVertexAttribute("uv", 2, p.uvs);
+      this.setVertexAttribute("uv1", 2, p.uv1);
+    } else if ((p.starts || (p.skin && p.uvStarts)) && this.morphMs > 0) {
       // The same morph carried on to a new frame keeps its clock (even once it has ended).
       const start = this.morphClock.id === p.morphId ? this.morphClock.start : now;
       this.morphClock = { id: p.morphId, start };
@@ -356,8 +401,10 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
       const uv: [Float32Array, Float32Array][] = [];
       if (p.uvs && p.uvStarts) uv.push([p.uvStarts, p.uvs]);
       if (p.uvs && p.uvStarts && p.uv1 && p.uv1Starts) uv.push([p.uv1Starts, p.uv1]);
-      this.morph = a < 1 ? { from: p.starts, to: p.positions, uv, start, id: p.morphId } : null;
-      blendInto(p.starts, p.positions, a, pos);
+      // GPU skinning morphs positions in the shader (showSkin); only texture coordinates here.
+      const from = p.starts ?? new Float32Array(0);
+      this.morph = a < 1 ? { from, to: p.positions, uv, start, id: p.morphId } : null;
+      if (p.starts) blendInto(p.starts, p.positions, a, pos);
       this.setVertexAttribute("uv", 2, p.uvs);
       this.setVertexAttribute("uv1", 2, p.uv1);
       uv.forEach(([from, to], k) => blendInto(from, to, a, g.getAttribute(k === 0 ? "uv" : "uv1") as THREE.BufferAttribute));
@@ -367,7 +414,7 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
       this.setVertexAttribute("uv", 2, p.uvs);
       this.setVertexAttribute("uv1", 2, p.uv1);
     }
-    upload(nrm, p.normals);
+    if (!p.skin) upload(nrm, p.normals);
     if (p.indexVersion !== this.uploadedIndex) {
       const indices = this.indexes.get(p.indexVersion);
       if (indices) {
@@ -386,11 +433,74 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
     const progressed = p.fetched !== this.stats.fetched;
     Object.assign(this.stats, { frame: p.frame, triangles: p.triangles, level: p.level, decodeMs: p.decodeMs, cutMs: p.cutMs, fetched: p.fetched, requests: p.requests, cached: p.cached });
     this.stats.shown++;
+    this.stats.workerMs += p.decodeMs + p.cutMs;
     this.current = p.frame;
     this.target = p.frame;
     this.send({ type: "playhead", frame: p.frame, playing: this.isPlaying });
     this.dispatchEvent({ type: "frame", frame: p.frame, triangles: p.triangles, level: p.level, budget: p.budget });
     if (progressed && this.info) this.dispatchEvent({ type: "progress", bytes: p.fetched, requests: p.requests, cached: p.cached, total: this.info.bytes });
+  }
+
+  /**
+   * Keeps a GPU-skinned frame's versioned data as it arrives (in the order the worker made it,
+   * which offsets given as changes rely on), whether or not the frame is shown.
+   */
+  private keepSkin(k: SkinFrame): void {
+    if (k.bind) {
+      this.skins.set(k.version, k);
+      for (const v of this.skins.keys()) if (this.skins.size > 16) this.skins.delete(v);
+    }
+    let o: Float32Array | null = null;
+    if (k.offsets) o = k.offsets;
+    else if (k.changed && k.values) {
+      const base = this.offsetVersions.get(k.offsetsVersion - 1);
+      if (!base) { this.dispatchEvent({ type: "error", error: new Error(`pmcodec: offsets version ${k.offsetsVersion - 1} never arrived`) }); return; }
+      o = base.slice();
+      const c = k.changed, vals = k.values;
+      for (let i = 0; i < c.length; i++) { o[3 * c[i]] = vals[3 * i]; o[3 * c[i] + 1] = vals[3 * i + 1]; o[3 * c[i] + 2] = vals[3 * i + 2]; }
+    }
+    if (o) {
+      this.offsetVersions.set(k.offsetsVersion, o);
+      for (const v of this.offsetVersions.keys()) if (this.offsetVersions.size > 16) this.offsetVersions.delete(v);
+    }
+  }
+
+  /** Puts a GPU-skinned frame on the mesh: the cut's skin when it changed, palette, offsets, geomorph. */
+  private showSkin(p: FramePayload, k: SkinFrame, now: number): void {
+    const g = this.geometry;
+    if (k.version !== this.uploadedSkin) {
+      const s = this.skins.get(k.version);
+      if (!s || !s.bind || !s.joints || !s.weights || !s.normals) {
+        this.dispatchEvent({ type: "error", error: new Error(`pmcodec: the skin of frame ${p.frame} (version ${k.version}) never arrived`) });
+        return;
+      }
+      upload(g.getAttribute("position") as THREE.BufferAttribute, s.bind);
+      upload(g.getAttribute("normal") as THREE.BufferAttribute, s.normals);
+      upload(g.getAttribute("skinIndex") as THREE.BufferAttribute, s.joints);
+      upload(g.getAttribute("skinWeight") as THREE.BufferAttribute, s.weights);
+      this.uploadedSkin = k.version;
+      for (const v of this.skins.keys()) if (v < k.version) this.skins.delete(v);
+    }
+    this.skeleton?.setPalette(k.palette);
+    if (k.offsetsVersion !== this.uploadedOffsets) {
+      const o = this.offsetVersions.get(k.offsetsVersion);
+      if (o) { upload(g.getAttribute(OFFSET) as THREE.BufferAttribute, o); this.uploadedOffsets = k.offsetsVersion; }
+      else this.dispatchEvent({ type: "error", error: new Error(`pmcodec: the offsets of frame ${p.frame} (version ${k.offsetsVersion}) never arrived`) });
+      for (const v of this.offsetVersions.keys()) if (v < k.offsetsVersion) this.offsetVersions.delete(v);
+    }
+    if (k.startBind && k.startOffsets && this.morphMs > 0) {
+      // The same morph carried on to a new frame keeps its clock (even once it has ended).
+      const start = this.morphClock.id === p.morphId ? this.morphClock.start : now;
+      this.morphClock = { id: p.morphId, start };
+      const a = Math.min(1, (now - start) / this.morphMs);
+      upload(g.getAttribute(START_BIND) as THREE.BufferAttribute, k.startBind);
+      upload(g.getAttribute(START_OFFSET) as THREE.BufferAttribute, k.startOffsets);
+      this.morphBlend.value = a * a * (3 - 2 * a);
+      this.skinMorph = a < 1 ? { start } : null;
+    } else {
+      this.morphBlend.value = 1;
+      this.skinMorph = null;
+    }
   }
 
   /**
@@ -416,6 +526,7 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
     this.worker.terminate();
     this.queue.clear();
     this.geometry.dispose();
+    this.skeleton?.dispose();
     if (this.ownsFlat) this.flat.dispose();
     for (const m of this.authored ?? []) {
       const s = m as THREE.MeshStandardMaterial;

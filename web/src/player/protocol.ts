@@ -16,7 +16,7 @@ export interface MaterialGroup { start: number; count: number; material: number 
 export type Source = { server: string; asset: string } | { url: string };
 
 export type ToWorker =
-  | { type: "open"; source: Source; cacheBytes?: number; readAhead?: number; headers?: Record<string, string> }
+  | { type: "open"; source: Source; cacheBytes?: number; readAhead?: number; headers?: Record<string, string>; gpuSkin?: boolean }
   /** The frame the page shows now, and whether it plays (the worker decodes ahead only then). */
   | { type: "playhead"; frame: number; playing: boolean }
   /**
@@ -34,6 +34,38 @@ export interface OpenedInfo {
   bytes: number; version: number;
   /** Whether the stream carries appearance (version 6): texture coordinates, colours, materials. */
   appearance: boolean;
+  /**
+   * Skinned streams drawn by skinning on the GPU: the palette's entries (the skeleton's bones);
+   * 0 when frames carry posed positions.
+   */
+  gpuSkinJoints: number;
+}
+
+/**
+ * A skinned stream's frame when the GPU skins it (FramePayload.skin): the vertex shader draws
+ * each vertex at sum_k w_k M_k b + o, with b its bind position, (joint, weight) pairs w_k and
+ * M_k from the palette, and o its offset (the decoder's DecoderOptions.skinOffsets).
+ */
+export interface SkinFrame {
+  /**
+   * The cut's per-vertex skin: bind positions (3 floats a vertex), four palette entries and
+   * weights, and normals of the bind pose (skinned by the shader with the positions); sent when
+   * `version` changes (the cut changed), absent otherwise.
+   */
+  version: number;
+  bind?: Float32Array; joints?: Uint16Array; weights?: Float32Array; normals?: Float32Array;
+  /** The frame's palette: 16 floats per entry, column-major (three.js Matrix4 elements). */
+  palette: Float32Array;
+  /**
+   * Offsets, versioned as the index buffers: with `offsets`, version `offsetsVersion` is that
+   * array (3 floats a vertex); with `changed` and `values`, it is version `offsetsVersion - 1`
+   * with the vertices `changed` set to `values` (3 floats each); with neither, the frame uses
+   * version `offsetsVersion` as sent before. Every payload that carries offsets reaches the page.
+   */
+  offsetsVersion: number;
+  offsets?: Float32Array; changed?: Uint32Array; values?: Float32Array;
+  /** A geomorph's start: each vertex's bind position and offset blend from these to its own. */
+  startBind?: Float32Array; startOffsets?: Float32Array;
 }
 
 /** A stream's materials and images (the encoded bytes, decoded on the page). */
@@ -68,6 +100,8 @@ export interface FramePayload {
    * them; triangles sorted by material, one group per material.
    */
   uvs?: Float32Array; uv1?: Float32Array; uvStarts?: Float32Array; uv1Starts?: Float32Array; groups?: MaterialGroup[];
+  /** Skinned streams drawn by skinning on the GPU: then `positions` and `normals` are empty. */
+  skin?: SkinFrame;
   decodeMs: number; cutMs: number;
   /** Container bytes received and requests made so far, and bytes the cache holds. */
   fetched: number; requests: number; cached: number;

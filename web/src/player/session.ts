@@ -7,7 +7,7 @@
 import { ChunkEntry, ChunkKind, Decoder, Reader, attributeEntry, dequantizeUv, readAt, readMaterials, texturedMesh } from "../container/index.js";
 import { buildCutMesh, morphAttributeStarts, morphStarts } from "../geomorph.js";
 import { FetchRange, RangeCache } from "./ranges.js";
-import type { ColourMode, FramePayload, LooksPayload, MaterialGroup, OpenedInfo } from "./protocol.js";
+import type { ColourMode, FramePayload, LooksPayload, MaterialGroup, OpenedInfo, SkinFrame } from "./protocol.js";
 
 /** The first request of a container: its preamble, header and index, and usually more. */
 const FIRST_READ = 64 << 10;
@@ -26,6 +26,12 @@ export interface SessionOptions {
   readAhead?: number;
   /** Whole-mesh triangles per level, when a server says so; estimated from node counts if not. */
   trianglesPerLevel?: number[];
+  /**
+   * Skinned streams: frames carry the cut's skin, the palette and offsets (FramePayload.skin)
+   * for a vertex shader to skin, instead of posed positions and normals; the decoder then skins
+   * nothing on the CPU (DecoderOptions.skinOffsets). Default false.
+   */
+  gpuSkin?: boolean;
 }
 
 export class Session {
@@ -48,6 +54,14 @@ export class Session {
   readonly readAhead: number;
   budget: number;
   colour: ColourMode = "authored";
+  readonly gpuSkin: boolean;
+  /** What the page holds of the skin (GPU skinning): the cut's nodes, its offsets, their versions. */
+  private skinSent: { nodes: Uint32Array; offsets: Float32Array } | null = null;
+  private skinVersion = 0;
+  private offsetsVersion = 0;
+  private nodeOffsets: Float32Array = new Float32Array(0);
+  /** GPU skinning: the last cut's appearance (built from bind positions), while the cut stays. */
+  private looksOf: { decoder: Decoder; shown: Uint32Array; nodes: Uint32Array; indices: Uint32Array; looks: NonNullable<ReturnType<typeof texturedCut>> } | null = null;
 
   private constructor(readonly container: Reader, cache: RangeCache, opts: SessionOptions) {
     this.cache = cache;
@@ -56,6 +70,7 @@ export class Session {
       ? opts.trianglesPerLevel
       : h.levelSizes.map((n) => Math.round((h.triangleCount * n) / h.vertexCount));
     this.readAhead = Math.max(0, opts.readAhead ?? 8);
+    this.gpuSkin = (opts.gpuSkin ?? false) && h.skin !== null;
     this.budget = h.triangleCount;
     for (let f = 0; f < h.frameCount; f++) this.byFrame.push([]);
     for (const e of container.index) {
@@ -85,7 +100,7 @@ export class Session {
       frames: h.frameCount, frameRate: h.frameRate, vertices: h.vertexCount, triangles: h.triangleCount,
       levels: h.levelSizes.slice(), trianglesPerLevel: this.trianglesPerLevel.slice(), keyframeInterval: h.keyframeInterval,
       bboxMin: h.bboxMin.slice(), bboxMax: h.bboxMax.slice(), bytes: this.container.fileLen, version: this.container.version,
-      appearance: h.appearance !== null,
+      appearance: h.appearance !== null, gpuSkinJoints: this.gpuSkin ? h.skin!.paletteLen : 0,
     };
   }
 
@@ -140,7 +155,7 @@ export class Session {
     const key = c.keyframeBefore(f);
     let d = this.decoder;
     const continues = d !== null && d.frame >= key && d.frame <= f;
-    if (!d || want < d.minLevel || (want > d.minLevel && (!continues || f === key))) d = this.decoder = new Decoder(c, want);
+    if (!d || want < d.minLevel || (want > d.minLevel && (!continues || f === key))) d = this.decoder = new Decoder(c, want, { skinOffsets: this.gpuSkin });
     const from = d.frame >= key && d.frame <= f ? d.frame + 1 : key;
     const need: [number, number][] = [];
     if (d.minLevel === 0 && this.triangles) need.push([c.dataStart + this.triangles.offset, c.dataStart + this.triangles.offset + this.triangles.storedLen]);
@@ -174,7 +189,7 @@ export class Session {
     const d = this.decoder, key = c.keyframeBefore(f);
     if (level <= want || (d && d.frame >= key && d.frame <= f && d.minLevel <= want)) return null;
     let cd = this.coarseDecoder;
-    if (!cd || cd.minLevel !== level) cd = this.coarseDecoder = new Decoder(c, level);
+    if (!cd || cd.minLevel !== level) cd = this.coarseDecoder = new Decoder(c, level, { skinOffsets: this.gpuSkin });
     const from = cd.frame >= key && cd.frame <= f ? cd.frame + 1 : key;
     const need: [number, number][] = [];
     for (let g = from; g <= f; g++) this.spans(g, level, need);
@@ -198,9 +213,12 @@ export class Session {
     // (a delta moves nodes, never collapses them), so the cut is the replay's as it stands and
     // needs no split priorities (the two most expensive steps of a frame) unless they are shown.
     const whole = this.fullOn === d && this.budget >= this.trianglesPerLevel[d.minLevel] && r.shown.length <= this.budget && allExpanded(r);
+    // GPU skinning: the CPU has no posed positions; the cut's split priorities, normals and
+    // geomorph starts come from the bind pose (skinned by the shader with the positions).
+    const gpu = d.holdsOffsets ? d.skinAttributes() : null;
     let memo = this.errorsOf;
     if (!memo || memo.decoder !== d || memo.frame !== f) {
-      const positions = d.positions();
+      const positions = gpu ? gpu.bind : d.positions();
       const errors = whole && this.colour !== "error" ? null : r.nodeErrors(positions);
       memo = this.errorsOf = { decoder: d, frame: f, positions, errors };
     } else if (!memo.errors && (!whole || this.colour === "error")) memo.errors = r.nodeErrors(memo.positions);
@@ -210,21 +228,29 @@ export class Session {
       this.fullOn = this.budget >= this.trianglesPerLevel[d.minLevel] && allExpanded(r) ? d : null;
     }
     const cutMesh = buildCutMesh(r);
-    const looks = this.textured ? texturedCut(d, all) : null;
+    // GPU skinning: a cut's appearance is built from bind positions, so the same cut (same
+    // nodes, same triangles) has the same vertices, normals and texture coordinates as in the
+    // frame before: built once per cut, not once per frame.
+    const memoLooks = this.looksOf;
+    const same = gpu && memoLooks && memoLooks.decoder === d && equal(memoLooks.shown, r.shown) && equal(memoLooks.nodes, cutMesh.nodes) && equal(memoLooks.indices, cutMesh.indices);
+    const looks = !this.textured ? null : same ? memoLooks.looks : texturedCut(d, all);
+    this.looksOf = gpu && looks ? { decoder: d, shown: Uint32Array.from(r.shown), nodes: cutMesh.nodes, indices: cutMesh.indices, looks } : null;
     const mesh = looks ? { nodes: looks.mesh.nodes, indices: looks.indices } : cutMesh;
     // The index buffer only when it changed: at full resolution it rarely does.
     let indices: Uint32Array | undefined = mesh.indices;
     if (this.lastIndices && equal(this.lastIndices, mesh.indices)) indices = undefined;
     else { this.lastIndices = mesh.indices.slice(); this.indexVersion++; }
+    // A kept appearance (GPU skinning) is used again: its buffers go out as copies.
+    if (indices && this.looksOf) indices = indices.slice();
     const n = mesh.nodes.length;
-    const positions = new Float32Array(3 * n);
-    for (let i = 0; i < n; i++) {
+    const positions = new Float32Array(gpu ? 0 : 3 * n);
+    for (let i = 0; i < (gpu ? 0 : n); i++) {
       const g = 3 * mesh.nodes[i];
       positions[3 * i] = all[g]; positions[3 * i + 1] = all[g + 1]; positions[3 * i + 2] = all[g + 2];
     }
     // With appearance, the decoder's normals: split at seams and smoothing groups
     // (proto/container.md, "Drawing a cut's appearance"), as the server's GLB answers draw them.
-    const normals = looks ? looks.mesh.normals : vertexNormals(positions, mesh.indices);
+    const normals = gpu ? new Float32Array(0) : looks ? looks.mesh.normals : vertexNormals(positions, mesh.indices);
     // A geomorph when the cut moved for another reason than time (the budget or the level): from
     // the cut before the change, carried on over the next frames while playing (each frame's
     // starts are the old cut's nodes at that frame's positions), so the page blends on one clock.
@@ -236,20 +262,73 @@ export class Session {
     const from = this.morphFrom;
     let uvStarts: Float32Array | undefined, uv1Starts: Float32Array | undefined;
     if (from && from.frames < MORPH_FRAMES && from.nodes.every((g) => g >= r.offsets[d.minLevel])) {
-      starts = morphStarts(mesh, from.nodes, all, (g) => r.parentGlobal(g));
+      if (!gpu) starts = morphStarts(mesh, from.nodes, all, (g) => r.parentGlobal(g));
       if (looks) [uvStarts, uv1Starts] = looks.uvStarts(from.nodes);
       from.frames++;
     } else this.morphFrom = null;
     let colours: Float32Array | undefined;
-    if (looks) colours = looks.mesh.colors ?? undefined;
+    // (Copies: the payload's buffers are transferred, and a kept appearance is used again.)
+    if (looks) colours = looks.mesh.colors?.slice() ?? undefined;
     else if (this.colour === "level" || this.colour === "error") colours = colourOf(this.colour, mesh.nodes, r, memo.errors ?? new Float64Array(r.nodeCount));
+    let skin: SkinFrame | undefined;
+    if (gpu) {
+      skin = this.skinFrame(d, gpu, mesh, indices !== undefined, looks ? looks.mesh.normals.slice() : null);
+      // The geomorph blends bind positions and offsets (the shader skins the blend with the
+      // vertex's own influences), from those of the node the vertex starts from, as morphStarts.
+      if (this.morphFrom && this.morphFrom.frames > 0 && this.morphFrom.nodes.every((g) => g >= r.offsets[d.minLevel])) {
+        skin.startBind = morphStarts(mesh, this.morphFrom.nodes, gpu.bind, (g) => r.parentGlobal(g));
+        skin.startOffsets = morphStarts(mesh, this.morphFrom.nodes, this.nodeOffsets, (g) => r.parentGlobal(g));
+      }
+    }
     this.last = { nodes: cutMesh.nodes, budget: this.budget, level: d.minLevel, frame: f };
     return {
       type: "frame", seq: 0, frame: f, budget: this.budget, level: d.minLevel, triangles: mesh.indices.length / 3,
       positions, normals, indices, indexVersion: this.indexVersion, indexCount: mesh.indices.length, starts, morphId: this.morphId, colours,
-      uvs: looks?.mesh.uv0 ?? undefined, uv1: looks?.mesh.uv1 ?? undefined, uvStarts, uv1Starts, groups: looks?.groups,
+      uvs: looks?.mesh.uv0?.slice() ?? undefined, uv1: looks?.mesh.uv1?.slice() ?? undefined, uvStarts, uv1Starts, groups: looks?.groups, skin,
       decodeMs, cutMs: performance.now() - t0, fetched: this.cache.fetched, requests: this.cache.requests, cached: this.cache.size,
     };
+  }
+
+  /**
+   * A GPU-skinned frame: the cut's per-vertex skin when the cut changed (new vertices or
+   * triangles), the palette, and the offsets: all of them when the cut changed, else those that
+   * changed since the last frame (all of them when most did, none when none did).
+   */
+  private skinFrame(d: Decoder, gpu: NonNullable<ReturnType<Decoder["skinAttributes"]>>, mesh: { nodes: Uint32Array; indices: Uint32Array }, newIndices: boolean, textureNormals: Float32Array | null): SkinFrame {
+    const nodes = mesh.nodes, n = nodes.length;
+    this.nodeOffsets = d.offsets(this.nodeOffsets);
+    const all = this.nodeOffsets, o = new Float32Array(3 * n);
+    for (let i = 0; i < n; i++) { const g = 3 * nodes[i]; o[3 * i] = all[g]; o[3 * i + 1] = all[g + 1]; o[3 * i + 2] = all[g + 2]; }
+    const skin: SkinFrame = { version: this.skinVersion, palette: d.paletteMatrices(), offsetsVersion: this.offsetsVersion };
+    const sent = this.skinSent;
+    if (!sent || newIndices || !equal(sent.nodes, nodes)) {
+      skin.version = ++this.skinVersion;
+      const bind = new Float32Array(3 * n), joints = new Uint16Array(4 * n), weights = new Float32Array(4 * n);
+      for (let i = 0; i < n; i++) {
+        const g = nodes[i];
+        bind.set(gpu.bind.subarray(3 * g, 3 * g + 3), 3 * i);
+        joints.set(gpu.joints.subarray(4 * g, 4 * g + 4), 4 * i);
+        weights.set(gpu.weights.subarray(4 * g, 4 * g + 4), 4 * i);
+      }
+      Object.assign(skin, { bind, joints, weights, normals: textureNormals ?? vertexNormals(bind, mesh.indices) });
+      skin.offsetsVersion = ++this.offsetsVersion;
+      skin.offsets = o.slice();
+    } else {
+      const before = sent.offsets, changed: number[] = [];
+      for (let i = 0; i < n; i++) if (o[3 * i] !== before[3 * i] || o[3 * i + 1] !== before[3 * i + 1] || o[3 * i + 2] !== before[3 * i + 2]) changed.push(i);
+      if (changed.length > 0) {
+        skin.offsetsVersion = ++this.offsetsVersion;
+        // An index and three values per changed vertex: past 3/4 of them, the whole array is smaller.
+        if (4 * changed.length >= 3 * n) skin.offsets = o.slice();
+        else {
+          skin.changed = Uint32Array.from(changed);
+          skin.values = new Float32Array(3 * changed.length);
+          changed.forEach((i, k) => skin.values!.set(o.subarray(3 * i, 3 * i + 3), 3 * k));
+        }
+      }
+    }
+    this.skinSent = { nodes: nodes.slice(), offsets: o };
+    return skin;
   }
 }
 
@@ -302,7 +381,7 @@ function allExpanded(r: Decoder["replay"]): boolean {
   return true;
 }
 
-function equal(a: Uint32Array, b: Uint32Array): boolean {
+function equal(a: ArrayLike<number>, b: ArrayLike<number>): boolean {
   if (a.length !== b.length) return false;
   for (let i = 0; i < a.length; i++) if (a[i] !== b[i]) return false;
   return true;

@@ -45,9 +45,14 @@ async function containerUrl(source: Source, headers: Record<string, string> | un
  * (the page keeps it, and drops the frame itself).
  */
 function send(p: FramePayload, tag = seq): void {
-  if (tag !== seq && !p.indices) return;
+  // Versioned skin data (the cut's skin, offsets) reaches the page however old its seek, as
+  // index buffers do: later frames build on it.
+  // (The session keeps no reference to what it puts in a payload: the buffers are transferred.)
+  const k = p.skin;
+  if (tag !== seq && !p.indices && !(k && (k.bind || k.offsets || k.changed))) return;
   p.seq = tag;
   const transfer: Transferable[] = [p.positions.buffer, p.normals.buffer];
+  if (k) for (const a of [k.bind, k.joints, k.weights, k.normals, k.palette, k.offsets, k.changed, k.values, k.startBind, k.startOffsets]) if (a) transfer.push(a.buffer);
   if (p.indices) transfer.push(p.indices.buffer);
   if (p.starts) transfer.push(p.starts.buffer);
   if (p.colours) transfer.push(p.colours.buffer);
@@ -111,7 +116,7 @@ self.onmessage = (ev: MessageEvent<ToWorker>) => {
   switch (m.type) {
     case "open":
       containerUrl(m.source, m.headers)
-        .then(({ url, trianglesPerLevel }) => Session.open(httpRange(url, { headers: m.headers }), { cacheBytes: m.cacheBytes, readAhead: m.readAhead, trianglesPerLevel }))
+        .then(({ url, trianglesPerLevel }) => Session.open(httpRange(url, { headers: m.headers }), { cacheBytes: m.cacheBytes, readAhead: m.readAhead, trianglesPerLevel, gpuSkin: m.gpuSkin }))
         .then((s) => {
           session = s;
           if (budget !== null) s.budget = budget;
