@@ -15,12 +15,15 @@
 mod fit;
 mod joints;
 mod payload;
+mod place;
 mod rig;
 
 pub(crate) use fit::{SkinFit, fit_skin};
 pub use joints::Rig;
 pub(crate) use joints::{JointPrediction, JointsFrame, read_joints, write_joints};
 pub(crate) use payload::{PosePrediction, read_binds, read_palette, read_pose, write_binds, write_palette};
+pub(crate) use place::CoarseQuadrics;
+pub use place::SkinnedCoarse;
 pub use rig::{bind_position, influences, palette_transforms};
 
 use serde::{Deserialize, Serialize};
