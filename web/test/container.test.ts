@@ -333,12 +333,12 @@ test("a skinned glTF's stream (version 7): every frame's input vertices equal th
   assert.ok(c.header.skin !== null && c.header.skin.paletteLen > 0, "the stream carries a skin");
   // Coarse nodes sit at their skinned positions, so most coarse bands' residuals are all zero
   // and coded sparsely (coding 2: the first byte is shift + 64), which sameAsRust has read.
-  let sparse = 0, coarse = 0;
+  let sparse = 0, coarseChunks = 0;
   for (const e of c.index.filter((x) => x.kind === ChunkKind.Positions && x.band > 0)) {
-    coarse++;
+    coarseChunks++;
     if (Math.floor((await c.chunk(e))[0] / 32) === 2) sparse++;
   }
-  assert.ok(sparse > coarse / 2, `${sparse} of ${coarse} coarse positions chunks sparse`);
+  assert.ok(sparse > coarseChunks / 2, `${sparse} of ${coarseChunks} coarse positions chunks sparse`);
   // A client stopping at level 1 decodes the same positions for bands 1.. as a full one.
   const full = new Decoder(c, 0), coarse = new Decoder(c, 1);
   const from = 3 * c.header.levelSizes[0];

@@ -26,12 +26,13 @@ fn main() {
     }
     let (n, frames) = (seq.vertex_count(), seq.frame_count());
     println!("{}: {n} vertices, {frames} frames", path.display());
-    let tolerances: Vec<(&str, Option<SkinnedCoarse>)> = vec![
-        ("before", None),
-        ("after", Some(SkinnedCoarse::default())),
-        ("half", Some(SkinnedCoarse { error: 0.125, cells: 0.5, reach: 0.125 })),
-        ("double", Some(SkinnedCoarse { error: 0.5, cells: 2.0, reach: 0.5 })),
-    ];
+    // SKINNED_COARSE=error,cells,reach: the tolerance of "after" (else the default).
+    let after =
+        match std::env::var("SKINNED_COARSE").ok().map(|s| s.split(',').map(|x| x.parse::<f64>().expect("number")).collect::<Vec<_>>()) {
+            Some(t) => SkinnedCoarse { error: t[0], cells: t[1], reach: t[2] },
+            None => SkinnedCoarse::default(),
+        };
+    let tolerances: Vec<(&str, Option<SkinnedCoarse>)> = vec![("before", None), ("after", Some(after))];
     for (name, skinned_coarse) in tolerances {
         let opts = EncodeOptions { quantization: QuantizationChoice::Bits(12), skinned_coarse, ..Default::default() };
         let (bytes, report) = encode_with_report(&seq, &opts, |_| std::ops::ControlFlow::Continue(())).expect("encode");
