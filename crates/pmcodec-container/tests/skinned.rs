@@ -377,11 +377,10 @@ fn coarse_nodes_sit_at_their_skinned_positions_where_their_clusters_allow() {
         let coarse = |r: &Reader<&[u8]>| summary(r).positions_bytes[1..].iter().sum::<u64>();
         let (ca, cb) = (coarse(&ra), coarse(&rb));
         let (ea, eb) = (level_errors(&seq, &after), level_errors(&seq, &before));
-        eprintln!("{name}: zero {za:?} before {zb:?}; coarse bytes {ca} before {cb}; errors {ea:?} before {eb:?}");
-        assert!((za.1 - za.0) * 10 < (zb.1 - zb.0) * 7, "{name}: {za:?} of coarse nodes zero, {zb:?} before");
-        assert!(ca * 10 < cb * 9, "{name}: coarse bands {ca} bytes, {cb} before");
+        assert!((za.1 - za.0) * 100 < (zb.1 - zb.0) * 85, "{name}: {za:?} of coarse nodes zero, {zb:?} before");
+        assert!(ca * 100 < cb * 95, "{name}: coarse bands {ca} bytes, {cb} before");
         for l in 1..ea.len() {
-            assert!(ea[l] <= eb[l] * 1.1 + 1e-3, "{name} level {l}: RMS error {:.4}% of the diagonal, {:.4}% before", ea[l], eb[l]);
+            assert!(ea[l] <= eb[l] * 1.03 + 1e-3, "{name} level {l}: RMS error {:.4}% of the diagonal, {:.4}% before", ea[l], eb[l]);
         }
     }
 }
