@@ -597,8 +597,8 @@ mod tests {
             assert_eq!(read_positions(&bytes, "t", n as u32).unwrap(), (4, zeros));
         }
         // One node in 50 missed (the first, some inside, the last): listed after their gaps.
-        let n = 5000;
-        let r: Vec<[i32; 3]> = (0..n as i32).map(|i| if i % 50 == 0 || i == n as i32 - 1 { [i % 7 - 3, -i, 1] } else { [0; 3] }).collect();
+        let n: i32 = 5000;
+        let r: Vec<[i32; 3]> = (0..n).map(|i| if i % 50 == 0 || i == n - 1 { [i % 7 - 3, -i, 1] } else { [0; 3] }).collect();
         let bytes = write_positions(1, &r);
         assert_eq!(bytes[0], 1 + 64, "sparse coding chosen");
         assert!(bytes.len() < 101 * 7, "{} bytes", bytes.len());
