@@ -7,7 +7,7 @@ import { execFileSync } from "node:child_process";
 import { existsSync, mkdirSync, mkdtempSync, readdirSync, readFileSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
-import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, dequantizeUv, readBand0Table, readTable, texturedMesh } from "../src/container/index.js";
+import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, dequantizeUv, readBand0Table, readPositions, readTable, texturedMesh } from "../src/container/index.js";
 import { readCornerUpdates, readDelta, readFaces, readKey } from "../src/container/payload.js";
 
 const root = repoRoot();
@@ -458,6 +458,14 @@ test("a skinned glTF's stream (version 7): every frame's input vertices equal th
   const c = await sameAsRust(file, "fox");
   assert.equal(c.version, 7);
   assert.ok(c.header.skin !== null && c.header.skin.paletteLen > 0, "the stream carries a skin");
+  // Coarse nodes sit at their skinned positions, so most coarse bands' residuals are all zero
+  // and coded sparsely (coding 2: the first byte is shift + 64), which sameAsRust has read.
+  let sparse = 0, coarseChunks = 0;
+  for (const e of c.index.filter((x) => x.kind === ChunkKind.Positions && x.band > 0)) {
+    coarseChunks++;
+    if (Math.floor((await c.chunk(e))[0] / 32) === 2) sparse++;
+  }
+  assert.ok(sparse > coarseChunks / 2, `${sparse} of ${coarseChunks} coarse positions chunks sparse`);
   // A client stopping at level 1 decodes the same positions for bands 1.. as a full one.
   const full = new Decoder(c, 0), coarse = new Decoder(c, 1);
   const from = 3 * c.header.levelSizes[0];
@@ -466,6 +474,19 @@ test("a skinned glTF's stream (version 7): every frame's input vertices equal th
     await coarse.seek(f);
     assert.deepEqual(Array.from(coarse.current.subarray(from)), Array.from(full.current.subarray(from)), `frame ${f}`);
   }
+});
+
+test("sparse positions chunks: listed nodes after their gaps, the rest zero; damage is a DecodeError", () => {
+  // Shift 3, two listed nodes of five: node 1 (gap 1) with (1, -1, 0), node 4 (gap 2) with (0, 0, 64).
+  const raw = Uint8Array.from([3 + 64, 2, 1, 2, 1, 0, 2, 0, 0, 128, 1]);
+  const { shift, res } = readPositions(raw, "p", 5);
+  assert.equal(shift, 3);
+  assert.deepEqual(Array.from(res), [0, 0, 0, 1, -1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 64]);
+  assert.deepEqual(Array.from(readPositions(Uint8Array.from([64, 0]), "p", 4).res), new Array(12).fill(0));
+  assert.throws(() => readPositions(raw, "band 2 positions", 4), /band 2 positions: listed node 4 beyond the band's 4/);
+  assert.throws(() => readPositions(Uint8Array.from([64, 9, 0, 0, 0, 0]), "p", 20), /9 listed nodes in 4 bytes/);
+  assert.throws(() => readPositions(Uint8Array.from([64, 0, 0]), "p", 20), /1 bytes left over/);
+  assert.throws(() => readPositions(Uint8Array.from([96, 0]), "p", 20), /residual coding 3/);
 });
 
 test("a lenient textured mesh fills in (node, chart) entries a budget cut reaches but the tables lack, and counts them", async () => {

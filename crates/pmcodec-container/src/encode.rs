@@ -1,12 +1,15 @@
 //! Encoding a sequence: build H_0, recluster frame by frame, and write keyframes, deltas and
 //! quantized, predicted node positions by band, coarse first.
 
+mod positions;
+
+pub use positions::EncodeReport;
+
 use crate::ContainerError;
 use crate::format::*;
-use crate::grid::{SLACK2, choose, on_grid};
-use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, coarse_shift, predict};
+use crate::predict::{LowerNeighbours, coarse_shift};
 use crate::skin::{
-    JointsFrame, NodeSkin, SkinFit, SkinState, band_entries, fit_skin, has_palette_chunk, predict_skinned, write_binds, write_joints,
+    CoarseQuadrics, JointsFrame, SkinFit, SkinState, SkinnedCoarse, band_entries, fit_skin, has_palette_chunk, write_binds, write_joints,
     write_joints_best, write_palette,
 };
 use crate::{payload, topology};
@@ -14,8 +17,9 @@ use glam::Vec3;
 use pmcodec_hierarchy::base::{BaseOptions, PoseSet, VertexWeights, base_quadrics};
 use pmcodec_hierarchy::progressive::{Encoder, FrameDelta, Keyframe};
 use pmcodec_hierarchy::recluster::ReclusterOptions;
-use pmcodec_hierarchy::{BuildOptions, FineTopology, Hierarchy, build};
+use pmcodec_hierarchy::{BuildOptions, FineTopology, Hierarchy, Quadric, build};
 use pmcodec_mesh::Sequence;
+use positions::{PositionCoder, Skinning};
 use std::collections::HashMap;
 use std::ops::ControlFlow;
 use std::path::Path;
@@ -58,6 +62,11 @@ pub struct EncodeOptions {
     /// For a skinned sequence, where coarse nodes sit in bind space; `None` encodes it as any
     /// other sequence. Skinning then predicts every band whose frame it pays for.
     pub skin: Option<SkinPlacement>,
+    /// In bands skinning predicts, coarse nodes stored at their skinned positions (residual
+    /// zero) where that keeps their cluster's error within this tolerance (see
+    /// [`SkinnedCoarse`]; Houle and Poulin's coarse vertices are bind-space points). `None`
+    /// stores them near their per-frame quadric-optimal points, as files before it did.
+    pub skinned_coarse: Option<SkinnedCoarse>,
     /// The preamble flags to write with (`format::FLAGS`, the default: small chunks stored as
     /// they are, empty Delta and Corners chunks left out; 0: every chunk a zstd frame, as files
     /// before the flags, for comparison). Unknown bits are dropped.
@@ -109,6 +118,7 @@ impl Default for EncodeOptions {
             motion: Motion::KeyframeAffine,
             order: VertexOrder::BreadthFirst,
             skin: Some(SkinPlacement::default()),
+            skinned_coarse: Some(SkinnedCoarse::default()),
             chunk_flags: crate::format::FLAGS,
             palette_coding: PaletteCoding::Joints,
         }
@@ -278,125 +288,6 @@ fn assemble(header: &Header, chunks: Chunks) -> Result<Vec<u8>, ContainerError> 
     Ok(out)
 }
 
-/// The state of position coding across frames: the stored positions of the previous and
-/// current frames and the predictors' scratch, as the decoder keeps them.
-#[derive(Default)]
-struct PositionCoder {
-    motion: Motion,
-    lower: LowerNeighbours,
-    shifts: Vec<u32>,
-    previous: Vec<[i32; 3]>,
-    current: Vec<[i32; 3]>,
-    residuals: Vec<[i32; 3]>,
-    siblings: Siblings,
-    fits: AffineFits,
-    weights: StencilWeights,
-    /// A band's positions and residuals from the other predictor, while the two are compared.
-    saved: Vec<[i32; 3]>,
-    saved_residuals: Vec<[i32; 3]>,
-    report: EncodeReport,
-}
-
-/// What an encode found beside its bytes: how often skinning predicted a band and about how
-/// many bits it saved, so that a caller can tell whether a skin paid for its pose and bind
-/// chunks (a fitted skin may not).
-#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
-pub struct EncodeReport {
-    /// Bands coded (bands times frames), and how many of them skinning predicted.
-    pub bands: u64,
-    /// Of `bands`, those whose nodes skinning predicted.
-    pub skinned_bands: u64,
-    /// About the bits of every band's residuals (an Elias gamma code of each) under the default
-    /// prediction, and as stored (the smaller of the two where skinning competed).
-    pub plain_bits: u64,
-    /// The same estimate as stored; `plain_bits - stored_bits` is about what skinning saved.
-    pub stored_bits: u64,
-}
-
-/// What skinning predicts a frame's nodes from: every node's skin, and the frame's and the
-/// previous frame's palettes.
-#[derive(Clone, Copy)]
-struct Skinning<'a> {
-    nodes: &'a [NodeSkin],
-    palette: &'a [i64],
-    previous: &'a [i64],
-}
-
-/// About the bits a residual costs (an Elias gamma code of its zigzag value): enough to tell
-/// which of two predictors leaves the smaller residuals.
-fn cost(residuals: &[[i32; 3]]) -> u64 {
-    residuals.iter().flatten().map(|&r| 2 * (32 - payload::zigzag(r).leading_zeros()) as u64 + 1).sum()
-}
-
-impl PositionCoder {
-    /// Stores band `j` of a frame (`intra`: a keyframe) whose hierarchy is `h` and whose true
-    /// node positions, in quanta, `truth` gives; returns the band's positions payload and
-    /// whether skinning predicted it (when `skin` is given and leaves smaller residuals).
-    fn band(&mut self, j: usize, intra: bool, h: &Hierarchy, truth: impl Fn(usize) -> [f64; 3], skin: Option<Skinning>) -> (Vec<u8>, bool) {
-        let plain = self.code(j, intra, h, &truth, None);
-        self.report.bands += 1;
-        self.report.plain_bits += plain;
-        let mut chosen = plain;
-        let mut skinned = false;
-        if let Some(s) = skin {
-            let band = h.offsets[j] as usize..h.offsets[j + 1] as usize;
-            self.saved.clear();
-            self.saved.extend_from_slice(&self.current[band.clone()]);
-            std::mem::swap(&mut self.residuals, &mut self.saved_residuals);
-            let with_skin = self.code(j, intra, h, &truth, Some(s));
-            skinned = with_skin < plain;
-            chosen = chosen.min(with_skin);
-            self.report.skinned_bands += skinned as u64;
-            if !skinned {
-                self.current[band].copy_from_slice(&self.saved);
-                std::mem::swap(&mut self.residuals, &mut self.saved_residuals);
-            }
-        }
-        self.report.stored_bits += chosen;
-        if j == 0 && intra && self.motion == Motion::KeyframeAffine {
-            self.weights.compute(&self.lower, &self.current, h.level_sizes[0] as usize);
-        }
-        (payload::write_positions(self.shifts[j], &self.residuals), skinned)
-    }
-
-    /// Codes band `j` with skinning's prediction or the default one into `current` and
-    /// `residuals`; returns the residuals' cost.
-    fn code(&mut self, j: usize, intra: bool, h: &Hierarchy, truth: &impl Fn(usize) -> [f64; 3], skin: Option<Skinning>) -> u64 {
-        let (sizes, offsets, levels) = (&h.level_sizes, &h.offsets, h.levels());
-        self.residuals.clear();
-        let shift = self.shifts[j];
-        self.siblings.reset(if j + 1 < levels { sizes[j + 1] as usize } else { 0 });
-        let n0 = sizes[0] as usize;
-        let motion = Band0Motion::select(self.motion, j == 0 && !intra, &self.lower, &self.previous, n0, &mut self.fits, &self.weights);
-        // Band 0 in its decoding order, coarser bands in node order.
-        let sequence = (j == 0).then(|| self.lower.sequence());
-        let mut before = None;
-        for k in 0..sizes[j] as usize {
-            let v = sequence.map_or(k, |s| s[k] as usize);
-            let g = offsets[j] as usize + v;
-            let parent = (j + 1 < levels).then(|| ((offsets[j + 1] + h.parent[j][v]) as usize, h.parent[j][v] as usize));
-            let p = match skin {
-                Some(s) => predict_skinned(&s.nodes[g], s.palette, s.previous, intra, self.previous[g]),
-                None => predict(j, v, g, before, parent, &self.lower, motion, &self.siblings, intra, &self.current, &self.previous),
-            };
-            before = Some(g);
-            let t = truth(g);
-            let (q, r) = if j == 0 { choose(t, p, SLACK2) } else { on_grid(t, p, shift, SLACK2) };
-            self.current[g] = q;
-            if let Some((_, local)) = parent {
-                self.siblings.add(local, q, self.previous[g]);
-            }
-            self.residuals.push(r);
-        }
-        cost(&self.residuals)
-    }
-
-    /// Ends a frame: its positions become the previous frame's.
-    fn next_frame(&mut self) {
-        std::mem::swap(&mut self.previous, &mut self.current);
-    }
-}
-
 /// What the coding side needs of one reclustered frame: its swaps and corner updates, its
 /// keyframe on keyframes, the hierarchy H_f and every node's position. Sent from the
 /// reclustering thread to the coding thread, and sent back to be refilled (no allocation per
@@ -407,15 +298,25 @@ struct Reclustered {
     key: Option<Keyframe>,
     h: Hierarchy,
     positions: Vec<Vec3>,
+    /// The quadrics of the coarse nodes (levels 1 and up), when skinning may place them.
+    quadrics: Vec<Quadric>,
 }
 
 impl Reclustered {
     fn new(enc: &Encoder) -> Self {
-        Reclustered { frame: 0, delta: FrameDelta::default(), key: None, h: enc.hierarchy().clone(), positions: Vec::new() }
+        Reclustered {
+            frame: 0,
+            delta: FrameDelta::default(),
+            key: None,
+            h: enc.hierarchy().clone(),
+            positions: Vec::new(),
+            quadrics: Vec::new(),
+        }
     }
 
-    /// This frame's state of `enc`, into the allocations already held.
-    fn fill(&mut self, frame: usize, delta: FrameDelta, enc: &Encoder, intra: bool) {
+    /// This frame's state of `enc`, into the allocations already held (`quadrics`: with the
+    /// coarse nodes' quadrics).
+    fn fill(&mut self, frame: usize, delta: FrameDelta, enc: &Encoder, intra: bool, quadrics: bool) {
         let h = enc.hierarchy();
         self.frame = frame;
         self.delta = delta;
@@ -429,6 +330,11 @@ impl Reclustered {
         }
         self.positions.clear();
         self.positions.extend_from_slice(enc.node_positions());
+        self.quadrics.clear();
+        if quadrics {
+            let n0 = h.level_sizes.first().copied().unwrap_or(0) as usize;
+            self.quadrics.extend_from_slice(enc.nodes().quadrics.get(n0..).unwrap_or_default());
+        }
     }
 }
 
@@ -594,6 +500,7 @@ fn encode_frames<F: AsRef<[Vec3]>>(
     // as a reader does (every corner that changes on a live triangle is in the updates).
     let held_corners: Vec<Vec<[u32; 3]>> = (0..enc.hierarchy().levels()).map(|j| enc.corners_at(j).to_vec()).collect();
     let first = Reclustered::new(&enc);
+    let quadrics = head.skin.is_some() && opts.skin.is_some() && opts.skinned_coarse.is_some();
     std::thread::scope(|scope| {
         let (to_coder, reclustered) = std::sync::mpsc::sync_channel::<Reclustered>(AHEAD);
         let (recycle, recycled) = std::sync::mpsc::channel::<Reclustered>();
@@ -612,7 +519,7 @@ fn encode_frames<F: AsRef<[Vec3]>>(
                 Some(r) => r,
                 None => Reclustered::new(&enc),
             };
-            r.fill(f, delta, &enc, is_keyframe(opts, f));
+            r.fill(f, delta, &enc, is_keyframe(opts, f), quadrics);
             // A closed channel means the coding side stopped on an error, which join reports.
             if to_coder.send(r).is_err() {
                 break;
@@ -659,14 +566,12 @@ fn code_frames(
     let mut chunks = Chunks(Vec::new(), opts.chunk_flags & crate::format::FLAGS);
     chunks.push(ChunkKind::Triangles, 0, 0, payload::write_triangles(&seq.triangles, VERSION))?;
     let total = header.level_sizes.iter().map(|&n| n as usize).sum();
-    let mut coder = PositionCoder {
-        motion: opts.motion,
-        lower: LowerNeighbours::new(seq.vertex_count(), &seq.triangles, opts.order),
-        shifts: (0..levels).map(|j| coarse_shift(&header, j, opts.coarse_grid)).collect(),
-        previous: vec![[0i32; 3]; total],
-        current: vec![[0i32; 3]; total],
-        ..Default::default()
-    };
+    let mut coder = PositionCoder::new(
+        opts.motion,
+        LowerNeighbours::new(seq.vertex_count(), &seq.triangles, opts.order),
+        (0..levels).map(|j| coarse_shift(&header, j, opts.coarse_grid)).collect(),
+        total,
+    );
     let skin_input = seq.skin.as_ref().zip(opts.skin);
     let mut skin: Option<SkinFit> = None;
     // The palette entries each band's Joints chunk carries.
@@ -723,7 +628,13 @@ fn code_frames(
         }
         // The frame's pose goes before its bands, once they say which bands skinning predicts.
         let pose_at = chunks.len();
-        let skinning = skin.as_ref().map(|s| Skinning { nodes: &s.nodes, palette: &palette.palette, previous: &held.palette });
+        let coarse = opts.skinned_coarse.map(|t| CoarseQuadrics::new(&r.quadrics, h.level_sizes[0] as usize, (lo, step), t));
+        let skinning = skin.as_ref().map(|s| Skinning {
+            nodes: &s.nodes,
+            palette: &palette.palette,
+            previous: &held.palette,
+            coarse: coarse.as_ref(),
+        });
         let mut mask = 0u64;
         for j in (0..levels).rev() {
             if let Some(k) = &r.key {

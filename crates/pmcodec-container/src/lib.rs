@@ -33,7 +33,7 @@ pub use format::{ChunkEntry, ChunkKind, Header, Index, Motion, VertexOrder};
 pub use pmcodec_hierarchy::{CutTarget, Distance};
 pub use predict::coarse_shift;
 pub use read::{ByteSource, FileSource, Reader};
-pub use skin::{NodeSkin, SkinHeader, bind_position, influences, palette_transforms};
+pub use skin::{NodeSkin, SkinHeader, SkinnedCoarse, bind_position, influences, palette_transforms};
 
 use serde::Serialize;
 

@@ -439,6 +439,11 @@ pub const MAX_SHIFT: u32 = 16;
 /// versions 3 and 4 always use), 1 plain zigzag varints, three per node.
 const CODING_RANS: u32 = 0;
 const CODING_VARINTS: u32 = 1;
+/// Coding 2: only the nodes whose residuals are not all zero, each after the count of zero
+/// nodes skipped to reach it. Skinning predicts most of a skinned band exactly, so its chunk
+/// costs two bytes plus a few per node it misses instead of rANS's tables and states (23
+/// bytes for a band of zeros) or three bytes per node.
+const CODING_SPARSE: u32 = 2;
 /// Bands up to this many nodes also try plain varints.
 const SMALL_BAND: usize = 2048;
 
@@ -448,8 +453,10 @@ const SMALL_BAND: usize = 2048;
 /// `2^shift` quanta.
 pub fn write_positions(shift: u32, residuals: &[[i32; 3]]) -> Vec<u8> {
     let rans = write_positions_rans(shift, residuals);
+    let sparse = write_positions_sparse(shift, residuals);
     if residuals.len() > SMALL_BAND {
-        return rans;
+        // Neither compresses much further: the shorter as it is.
+        return if sparse.len() < rans.len() { sparse } else { rans };
     }
     // A small band's three frequency tables and rANS states cost more than its residuals
     // save: plain varints under zstd take a quarter less for the horse's bands 3 to 5. The
@@ -461,8 +468,41 @@ pub fn write_positions(shift: u32, residuals: &[[i32; 3]]) -> Vec<u8> {
             put(&mut plain, zigzag(x));
         }
     }
+    // Sparse first: `compress` remembers the last two inputs, and the chosen payload is
+    // compressed again when stored (a sparse one is short).
     let size = |b: &[u8]| crate::format::compress(b, crate::format::ZSTD_LEVEL).map_or(usize::MAX, |z| z.len());
-    if size(&plain) < size(&rans) { plain } else { rans }
+    let sparse_size = size(&sparse);
+    let (rans_size, plain_size) = (size(&rans), size(&plain));
+    if sparse_size < rans_size.min(plain_size) {
+        sparse
+    } else if plain_size < rans_size {
+        plain
+    } else {
+        rans
+    }
+}
+
+/// Coding 2 (see [`CODING_SPARSE`]): `shift + 64`, the count `k` of nodes listed, then per
+/// listed node the number of unlisted (all-zero) nodes since the previous listed one (or the
+/// band's start) and its three zigzag residuals.
+fn write_positions_sparse(shift: u32, residuals: &[[i32; 3]]) -> Vec<u8> {
+    let listed = residuals.iter().filter(|r| **r != [0; 3]).count();
+    let mut out = Vec::with_capacity(2 + listed * 5);
+    put(&mut out, shift + 32 * CODING_SPARSE);
+    put(&mut out, listed as u32);
+    let mut gap = 0u32;
+    for r in residuals {
+        if *r == [0; 3] {
+            gap += 1;
+            continue;
+        }
+        put(&mut out, gap);
+        gap = 0;
+        for &x in r {
+            put(&mut out, zigzag(x));
+        }
+    }
+    out
 }
 
 fn write_positions_rans(shift: u32, residuals: &[[i32; 3]]) -> Vec<u8> {
@@ -535,7 +575,23 @@ pub fn read_positions(bytes: &[u8], what: &str, count: u32) -> Result<(u32, Vec<
             c.finish()?;
             return Ok((shift, out));
         }
-        _ => return Err(c.corrupt(format!("residual coding {coding} (0 rANS, 1 varints)"))),
+        CODING_SPARSE => {
+            // Each listed node takes at least four bytes: checked before allocating.
+            let listed = c.count_within(count as u64, 4, "listed nodes")?;
+            let mut out = vec![[0i32; 3]; count as usize];
+            let mut next = 0u64;
+            for _ in 0..listed {
+                let v = next + c.get()? as u64;
+                let Some(slot) = out.get_mut(v as usize) else {
+                    return Err(c.corrupt(format!("listed node {v} beyond the band's {count}")));
+                };
+                *slot = [unzigzag(c.get()?), unzigzag(c.get()?), unzigzag(c.get()?)];
+                next = v + 1;
+            }
+            c.finish()?;
+            return Ok((shift, out));
+        }
+        _ => return Err(c.corrupt(format!("residual coding {coding} (0 rANS, 1 varints, 2 sparse)"))),
     }
     let mut tables = Vec::with_capacity(3);
     for _ in 0..3 {
@@ -602,10 +658,37 @@ mod tests {
         assert_eq!(read_positions(&plain, "t", 20).unwrap(), (2, small.to_vec()));
         assert!(read_positions(&plain, "t", 21).is_err());
         let mut bad = plain.clone();
-        bad[0] = 2 + 64;
-        assert!(read_positions(&bad, "t", 20).unwrap_err().to_string().contains("residual coding 2"));
+        bad[0] = 2 + 96;
+        assert!(read_positions(&bad, "t", 20).unwrap_err().to_string().contains("residual coding 3"));
         assert!(read_positions(&bytes, "t", 499).is_err());
         assert!(read_positions(&bytes[..bytes.len() - 1], "t", 500).is_err());
+    }
+
+    #[test]
+    fn zero_heavy_bands_are_listed_sparsely() {
+        // A band of zeros, small or large: the coding, the shift and a count of none.
+        for n in [7usize, 300, 5000] {
+            let zeros = vec![[0i32; 3]; n];
+            let bytes = write_positions(4, &zeros);
+            assert_eq!(bytes, [4 + 64, 0], "{n} nodes");
+            assert_eq!(read_positions(&bytes, "t", n as u32).unwrap(), (4, zeros));
+        }
+        // One node in 50 missed (the first, some inside, the last): listed after their gaps.
+        let n: i32 = 5000;
+        let r: Vec<[i32; 3]> = (0..n).map(|i| if i % 50 == 0 || i == n - 1 { [i % 7 - 3, -i, 1] } else { [0; 3] }).collect();
+        let bytes = write_positions(1, &r);
+        assert_eq!(bytes[0], 1 + 64, "sparse coding chosen");
+        assert!(bytes.len() < 101 * 7, "{} bytes", bytes.len());
+        assert_eq!(read_positions(&bytes, "t", n as u32).unwrap(), (1, r.clone()));
+        // Damage: a listed node beyond the band, more listed nodes than bytes, bytes left over.
+        let e = read_positions(&bytes, "band 3 positions", 4999).unwrap_err().to_string();
+        assert!(e.contains("band 3 positions") && e.contains("listed node 4999 beyond the band's 4999"), "{e}");
+        let e = read_positions(&[64, 9, 0, 0, 0, 0], "t", 20).unwrap_err().to_string();
+        assert!(e.contains("9 listed nodes in 4 bytes"), "{e}");
+        assert!(read_positions(&[64, 0, 0], "t", 20).unwrap_err().to_string().contains("left over"));
+        // A dense band keeps rANS: listing every node costs more.
+        let dense: Vec<[i32; 3]> = (0..3000).map(|i| [i % 5 - 2, 1, (i % 3) - 1]).collect();
+        assert_eq!(write_positions(0, &dense)[0], 0, "rANS for a dense band");
     }
 
     #[test]

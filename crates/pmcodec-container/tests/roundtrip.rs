@@ -50,12 +50,20 @@ fn round_trip(seq: &Sequence, opts: &EncodeOptions) -> Vec<u8> {
         for (v, p) in frame.iter().enumerate() {
             assert!((pos[v] - *p).length() <= bound, "frame {f} vertex {v}: {} > {bound}", (pos[v] - *p).length());
         }
-        // Coarser nodes sit on a grid of 2^shift quanta around their prediction.
+        // Coarser nodes sit on a grid of 2^shift quanta around their prediction; in a skinned
+        // file, or at their skinned position within the cluster's reach (SkinnedCoarse).
+        let skinned = h.skin.as_ref().and(opts.skinned_coarse);
         for (g, p) in pos.iter().enumerate().skip(seq.vertex_count()) {
             let (k, _) = enc.hierarchy().local(g as u32);
             let s = pmcodec_container::coarse_shift(h, k, opts.coarse_grid);
             let b = if s == 0 { bound } else { h.quantization.step * (1u32 << s) as f32 * 0.5 * 3f32.sqrt() * 1.0001 };
-            assert!((*p - enc.node_positions()[g]).length() <= b, "frame {f} node {g}");
+            let d = (*p - enc.node_positions()[g]).length();
+            let reach = skinned.map_or(0.0, |t| {
+                let area = enc.nodes().quadrics[g].area.max(0.0);
+                let grid = t.cells * h.quantization.step as f64 * (1u64 << s) as f64;
+                (t.reach * t.reach * area + grid * grid).sqrt() as f32 + h.quantization.step
+            });
+            assert!(d <= b.max(reach), "frame {f} node {g}: {d} from its optimal point (grid {b}, skinned reach {reach})");
         }
     }
     // Level 0 is the input, in input order.

@@ -200,7 +200,7 @@ export const MAX_SHIFT = 16;
 /** A positions chunk: its residual shift and 3 residuals per node (units of 2^shift quanta). */
 export function readPositions(raw: Uint8Array, what: string, count: number): { shift: number; res: Int32Array } {
   const p = new Cursor(raw, what);
-  // shift + 32 * coding: 0 rANS, 1 plain zigzag varints (small bands, version 5).
+  // shift + 32 * coding: 0 rANS, 1 plain zigzag varints (small bands, version 5), 2 sparse.
   const first = p.get(), shift = first % 32, coding = Math.floor(first / 32);
   if (shift > MAX_SHIFT) throw new DecodeError(`${what}: residual shift ${shift} beyond ${MAX_SHIFT}`);
   if (coding === 1) {
@@ -209,7 +209,22 @@ export function readPositions(raw: Uint8Array, what: string, count: number): { s
     p.finish();
     return { shift, res };
   }
-  if (coding !== 0) throw new DecodeError(`${what}: residual coding ${coding} (0 rANS, 1 varints)`);
+  if (coding === 2) {
+    // Sparse: the listed nodes, each after the count of all-zero nodes skipped to reach it.
+    const listed = p.count(count, "listed nodes");
+    if (listed * 4 > raw.length - p.pos) throw new DecodeError(`${what}: ${listed} listed nodes in ${raw.length - p.pos} bytes`);
+    const res = new Int32Array(3 * count);
+    let next = 0;
+    for (let k = 0; k < listed; k++) {
+      const v = next + p.get();
+      if (v >= count) throw new DecodeError(`${what}: listed node ${v} beyond the band's ${count}`);
+      for (let a = 0; a < 3; a++) res[3 * v + a] = p.zigzag();
+      next = v + 1;
+    }
+    p.finish();
+    return { shift, res };
+  }
+  if (coding !== 0) throw new DecodeError(`${what}: residual coding ${coding} (0 rANS, 1 varints, 2 sparse)`);
   // One frequency table per axis, then the stream; escapes follow it, read as they are met.
   const tables: Uint32Array[] = [];
   for (let a = 0; a < 3; a++) {

@@ -16,6 +16,7 @@ mod fit;
 mod hierarchy;
 mod joints;
 mod payload;
+mod place;
 mod rig;
 
 pub(crate) use fit::{SkinFit, fit_skin};
@@ -24,6 +25,8 @@ pub(crate) use hierarchy::{choose_links, fit_frame, read_before};
 pub use joints::Rig;
 pub(crate) use joints::{JointPrediction, JointsFrame, read_joints, write_joints, write_joints_best};
 pub(crate) use payload::{PosePrediction, read_binds, read_palette, read_pose, write_binds, write_palette};
+pub(crate) use place::CoarseQuadrics;
+pub use place::SkinnedCoarse;
 pub use rig::{bind_position, influences, palette_transforms};
 
 use serde::{Deserialize, Serialize};

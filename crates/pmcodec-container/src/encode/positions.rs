@@ -1,0 +1,150 @@
+//! Coding one band's node positions: the prediction (the default one, or skinning's where it
+//! leaves smaller residuals), the stored position within the bound, and the residuals.
+
+use super::Motion;
+use crate::grid::{SLACK2, choose, on_grid};
+use crate::payload;
+use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, predict};
+use crate::skin::{CoarseQuadrics, NodeSkin, predict_skinned};
+use pmcodec_hierarchy::Hierarchy;
+
+/// The state of position coding across frames: the stored positions of the previous and
+/// current frames and the predictors' scratch, as the decoder keeps them.
+#[derive(Default)]
+pub(super) struct PositionCoder {
+    motion: Motion,
+    lower: LowerNeighbours,
+    shifts: Vec<u32>,
+    previous: Vec<[i32; 3]>,
+    current: Vec<[i32; 3]>,
+    residuals: Vec<[i32; 3]>,
+    siblings: Siblings,
+    fits: AffineFits,
+    weights: StencilWeights,
+    /// A band's positions and residuals from the other predictor, while the two are compared.
+    saved: Vec<[i32; 3]>,
+    saved_residuals: Vec<[i32; 3]>,
+    pub(super) report: EncodeReport,
+}
+
+/// What an encode found beside its bytes: how often skinning predicted a band and about how
+/// many bits it saved, so that a caller can tell whether a skin paid for its pose and bind
+/// chunks (a fitted skin may not).
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct EncodeReport {
+    /// Bands coded (bands times frames), and how many of them skinning predicted.
+    pub bands: u64,
+    /// Of `bands`, those whose nodes skinning predicted.
+    pub skinned_bands: u64,
+    /// About the bits of every band's residuals (an Elias gamma code of each) under the default
+    /// prediction, and as stored (the smaller of the two where skinning competed).
+    pub plain_bits: u64,
+    /// The same estimate as stored; `plain_bits - stored_bits` is about what skinning saved.
+    pub stored_bits: u64,
+}
+
+/// What skinning predicts a frame's nodes from: every node's skin, and the frame's and the
+/// previous frame's palettes.
+#[derive(Clone, Copy)]
+pub(super) struct Skinning<'a> {
+    pub(super) nodes: &'a [NodeSkin],
+    pub(super) palette: &'a [i64],
+    pub(super) previous: &'a [i64],
+    /// The frame's coarse-node quadrics, where coarse nodes may be stored at their skinned
+    /// positions.
+    pub(super) coarse: Option<&'a CoarseQuadrics<'a>>,
+}
+
+/// About the bits a residual costs (an Elias gamma code of its zigzag value): enough to tell
+/// which of two predictors leaves the smaller residuals.
+fn cost(residuals: &[[i32; 3]]) -> u64 {
+    residuals.iter().flatten().map(|&r| 2 * (32 - payload::zigzag(r).leading_zeros()) as u64 + 1).sum()
+}
+
+impl PositionCoder {
+    /// A coder of `total` nodes whose band 0 moves by `motion` over `lower`, band j's residuals
+    /// in units of `2^shifts[j]` quanta.
+    pub(super) fn new(motion: Motion, lower: LowerNeighbours, shifts: Vec<u32>, total: usize) -> Self {
+        PositionCoder { motion, lower, shifts, previous: vec![[0; 3]; total], current: vec![[0; 3]; total], ..Default::default() }
+    }
+
+    /// Stores band `j` of a frame (`intra`: a keyframe) whose hierarchy is `h` and whose true
+    /// node positions, in quanta, `truth` gives; returns the band's positions payload and
+    /// whether skinning predicted it (when `skin` is given and leaves smaller residuals).
+    pub(super) fn band(
+        &mut self,
+        j: usize,
+        intra: bool,
+        h: &Hierarchy,
+        truth: impl Fn(usize) -> [f64; 3],
+        skin: Option<Skinning>,
+    ) -> (Vec<u8>, bool) {
+        let plain = self.code(j, intra, h, &truth, None);
+        self.report.bands += 1;
+        self.report.plain_bits += plain;
+        let mut chosen = plain;
+        let mut skinned = false;
+        if let Some(s) = skin {
+            let band = h.offsets[j] as usize..h.offsets[j + 1] as usize;
+            self.saved.clear();
+            self.saved.extend_from_slice(&self.current[band.clone()]);
+            std::mem::swap(&mut self.residuals, &mut self.saved_residuals);
+            let with_skin = self.code(j, intra, h, &truth, Some(s));
+            skinned = with_skin < plain;
+            chosen = chosen.min(with_skin);
+            self.report.skinned_bands += skinned as u64;
+            if !skinned {
+                self.current[band].copy_from_slice(&self.saved);
+                std::mem::swap(&mut self.residuals, &mut self.saved_residuals);
+            }
+        }
+        self.report.stored_bits += chosen;
+        if j == 0 && intra && self.motion == Motion::KeyframeAffine {
+            self.weights.compute(&self.lower, &self.current, h.level_sizes[0] as usize);
+        }
+        (payload::write_positions(self.shifts[j], &self.residuals), skinned)
+    }
+
+    /// Codes band `j` with skinning's prediction or the default one into `current` and
+    /// `residuals`; returns the residuals' cost.
+    fn code(&mut self, j: usize, intra: bool, h: &Hierarchy, truth: &impl Fn(usize) -> [f64; 3], skin: Option<Skinning>) -> u64 {
+        let (sizes, offsets, levels) = (&h.level_sizes, &h.offsets, h.levels());
+        self.residuals.clear();
+        let shift = self.shifts[j];
+        self.siblings.reset(if j + 1 < levels { sizes[j + 1] as usize } else { 0 });
+        let n0 = sizes[0] as usize;
+        let motion = Band0Motion::select(self.motion, j == 0 && !intra, &self.lower, &self.previous, n0, &mut self.fits, &self.weights);
+        // Band 0 in its decoding order, coarser bands in node order.
+        let sequence = (j == 0).then(|| self.lower.sequence());
+        let mut before = None;
+        for k in 0..sizes[j] as usize {
+            let v = sequence.map_or(k, |s| s[k] as usize);
+            let g = offsets[j] as usize + v;
+            let parent = (j + 1 < levels).then(|| ((offsets[j + 1] + h.parent[j][v]) as usize, h.parent[j][v] as usize));
+            let p = match skin {
+                Some(s) => predict_skinned(&s.nodes[g], s.palette, s.previous, intra, self.previous[g]),
+                None => predict(j, v, g, before, parent, &self.lower, motion, &self.siblings, intra, &self.current, &self.previous),
+            };
+            before = Some(g);
+            let t = truth(g);
+            let at_skin = j > 0 && skin.and_then(|s| s.coarse).is_some_and(|c| c.accepts(g, t, p, shift));
+            let (q, r) = match (j, at_skin) {
+                (0, _) => choose(t, p, SLACK2),
+                // The zero residual adds nothing to the prediction, whatever the band's grid.
+                (_, true) => (p, [0; 3]),
+                _ => on_grid(t, p, shift, SLACK2),
+            };
+            self.current[g] = q;
+            if let Some((_, local)) = parent {
+                self.siblings.add(local, q, self.previous[g]);
+            }
+            self.residuals.push(r);
+        }
+        cost(&self.residuals)
+    }
+
+    /// Ends a frame: its positions become the previous frame's.
+    pub(super) fn next_frame(&mut self) {
+        std::mem::swap(&mut self.previous, &mut self.current);
+    }
+}
