@@ -10,10 +10,21 @@ use glam::{DVec3, Vec3};
 /// Influences per vertex, the most linear blend skinning in glTF and in the container carries.
 pub const MAX_INFLUENCES: usize = 4;
 
-/// Each vertex's `k` candidate bones: those whose transforms of its rest position follow its
-/// trajectory over the `sample` frames most closely, best first (Le and Deng restrict each
-/// vertex to its nearest bones the same way, which keeps the weight solve small).
-pub fn candidates(rest: &[DVec3], frames: &[Vec<Vec3>], transforms: &[Rigid], bones: usize, k: usize, sample: &[usize]) -> Vec<Vec<u32>> {
+/// Each vertex's `k` candidate bones: the bones it already depends on (`keep`, so that a
+/// weight step can only lower its error), then those whose transforms of its rest position
+/// follow its trajectory over the `sample` frames most closely, best first. Le and Deng
+/// restrict each vertex to its nearest bones the same way, which keeps the weight solve small;
+/// choosing them again after every transform step lets a vertex move to a bone that has come
+/// to fit it better.
+pub fn candidates(
+    rest: &[DVec3],
+    frames: &[Vec<Vec3>],
+    transforms: &[Rigid],
+    bones: usize,
+    k: usize,
+    sample: &[usize],
+    keep: Option<&[Vec<(u32, f64)>]>,
+) -> Vec<Vec<u32>> {
     let k = k.min(bones).max(1);
     let mut out = Vec::with_capacity(rest.len());
     let mut scored: Vec<(f64, u32)> = Vec::with_capacity(bones);
@@ -24,7 +35,17 @@ pub fn candidates(rest: &[DVec3], frames: &[Vec<Vec3>], transforms: &[Rigid], bo
             scored.push((e, b as u32));
         }
         scored.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        out.push(scored.iter().take(k).map(|s| s.1).collect());
+        let mut c: Vec<u32> =
+            keep.and_then(|k| k.get(v)).map(|infl| infl.iter().filter(|p| p.1 > 0.0).map(|p| p.0).collect()).unwrap_or_default();
+        for s in &scored {
+            if c.len() >= k {
+                break;
+            }
+            if !c.contains(&s.1) {
+                c.push(s.1);
+            }
+        }
+        out.push(c);
     }
     out
 }
