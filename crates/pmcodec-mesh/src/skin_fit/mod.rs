@@ -60,7 +60,8 @@ impl Default for FitOptions {
     }
 }
 
-/// The bones a fit uses by default for `n` vertices: one per 200 vertices, from 4 to 64. On
+/// The first bone count a fit not told one tries for `n` vertices (it doubles it while more
+/// bones pay): one per 200 vertices, from 4 to 64. On
 /// the horse (8,431 vertices) that is 42, about the 30 to 60 bones Le and Deng fit to it.
 pub fn default_bones(n: usize) -> u32 {
     (n / 200).clamp(4, 64) as u32
