@@ -4,6 +4,7 @@
 //! position, with an affinity (sum to one) row weighted heavily; then only the four largest
 //! are kept and refitted on their own.
 
+use super::cluster::near_bones;
 use super::horn::Rigid;
 use glam::{DVec3, Vec3};
 
@@ -28,9 +29,13 @@ pub fn candidates(
     let k = k.min(bones).max(1);
     let mut out = Vec::with_capacity(rest.len());
     let mut scored: Vec<(f64, u32)> = Vec::with_capacity(bones);
+    // Each vertex's main bone (the clustering's label before any weights), for nearness.
+    let main: Vec<u32> = (0..rest.len()).map(|v| keep.and_then(|k| k.get(v)).and_then(|i| i.first()).map_or(0, |p| p.0)).collect();
+    let near = near_bones(rest, &main, bones);
     for (v, &p) in rest.iter().enumerate() {
         scored.clear();
-        for b in 0..bones {
+        for &b in &near[v] {
+            let b = b as usize;
             let e: f64 = sample.iter().map(|&f| transforms[f * bones + b].apply(p).distance_squared(frames[f][v].as_dvec3())).sum();
             scored.push((e, b as u32));
         }
