@@ -148,3 +148,75 @@ fn bad_input_and_options_are_refused() {
     let e = fit_skin(&Sequence::default(), &FitOptions::default()).unwrap_err();
     assert!(matches!(e, FitError::Invalid(_)), "{e}");
 }
+
+/// Two rigid parts of one surface with known motion, split at a plane: every vertex moves by
+/// one of two rigid transforms exactly.
+fn two_rigid_halves(frames: u32) -> (Sequence, Vec<bool>) {
+    let mut seq = samples::twisting_tube(10, 16, 1);
+    let rest = seq.frames[0].clone();
+    let upper: Vec<bool> = rest.iter().map(|p| p.y > 2.0).collect();
+    seq.frames = (0..frames)
+        .map(|f| {
+            let s = f as f32 / frames as f32 * std::f32::consts::TAU;
+            let a = Mat4::from_translation(Vec3::new(0.2 * s.sin(), 0.1 * s.cos() - 0.1, 0.0));
+            let pivot = Vec3::new(0.0, 2.0, 0.0);
+            let b = Mat4::from_translation(pivot + Vec3::new(0.0, 0.0, 0.3 * s.sin()))
+                * Mat4::from_quat(Quat::from_euler(glam::EulerRot::XYZ, 0.9 * s.sin(), 0.4 * s.sin(), 0.7 * (2.0 * s).sin()))
+                * Mat4::from_translation(-pivot);
+            rest.iter().zip(&upper).map(|(&p, &u)| if u { b.transform_point3(p) } else { a.transform_point3(p) }).collect()
+        })
+        .collect();
+    seq.frame_names = (0..frames).map(|f| format!("two-halves@{f}")).collect();
+    (seq, upper)
+}
+
+#[test]
+fn recovers_two_rigid_parts_with_the_default_bone_count() {
+    let (seq, upper) = two_rigid_halves(20);
+    // Not told how many bones: the default has more than the two parts need; the fit must
+    // still reproduce every vertex (spare bones are rigid copies or dropped), with one bone
+    // per vertex and no vertex of one part on a bone that also carries the other part.
+    let (skin, report) = fit_skin(&seq, &FitOptions::default()).unwrap();
+    skin.validate(seq.vertex_count(), seq.frame_count()).unwrap();
+    assert!(report.max_error < 1e-4, "{report:?}");
+    let mut part_of_bone: Vec<Option<bool>> = vec![None; skin.palette_len as usize];
+    for (v, &u) in upper.iter().enumerate() {
+        for (&j, &w) in skin.joints[v].iter().zip(&skin.weights[v]) {
+            if w > 1e-3 {
+                let seen = part_of_bone[j as usize].get_or_insert(u);
+                assert_eq!(*seen, u, "bone {j} moves vertices of both parts");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_static_sequence_fits_exactly() {
+    // Every vertex still in every frame: the identity reproduces it exactly.
+    let mut still = samples::waving_cloth(5, 4, 6);
+    let first = still.frames[0].clone();
+    for frame in &mut still.frames {
+        frame.clone_from(&first);
+    }
+    let (skin, report) = fit_skin(&still, &FitOptions::default()).unwrap();
+    skin.validate(still.vertex_count(), still.frame_count()).unwrap();
+    assert!(report.max_error < 1e-9, "{report:?}");
+}
+
+#[test]
+fn the_bone_count_is_chosen_by_cost() {
+    // Two rigid halves: the default count already reproduces every vertex, so doubling it only
+    // adds bones to pay for: the choice stays at the default (4 for so few vertices).
+    let (seq, _) = two_rigid_halves(12);
+    let (skin, report) = fit_skin(&seq, &FitOptions::default()).unwrap();
+    assert!(skin.palette_len <= 4, "{report:?}");
+    // A tube bending and twisting smoothly: no few rigid bones reproduce it, and more bones pay
+    // for themselves in residual bits, so the choice goes past the default (5 bones here).
+    let tube = samples::twisting_tube(24, 48, 16);
+    let (skin, report) = fit_skin(&tube, &FitOptions::default()).unwrap();
+    skin.validate(tube.vertex_count(), tube.frame_count()).unwrap();
+    let (_, five) = fit_skin(&tube, &FitOptions { bones: Some(5), ..Default::default() }).unwrap();
+    assert!(skin.palette_len > 5 && report.rms_error < five.rms_error, "{report:?} vs 5 bones {five:?}");
+    let e = fit_skin(&tube, &FitOptions { quant_bits: 40, ..Default::default() }).unwrap_err();
+    assert!(e.to_string().contains("quant_bits"), "{e}");
+}

@@ -89,7 +89,7 @@ pub struct EncodeArgs {
     /// Poulin), `centroid` (their cluster's rest centroid), or `none` (no skinning).
     #[arg(long, value_enum, default_value_t = SkinArg::BackPropagated)]
     pub skin: SkinArg,
-    /// Fit a skin of BONES rigid bones (default: one per 200 vertices, 4 to 64) to the
+    /// Fit a skin of BONES rigid bones (default: chosen by cost, from one per 200 vertices up) to the
     /// sequence and predict it by skinning (Le & Deng's SSDR), replacing any skin the input
     /// has; the encoder falls back to the plain file where the skin does not pay for itself.
     #[arg(long, num_args = 0..=1, default_missing_value = "auto", value_name = "BONES")]
@@ -275,7 +275,10 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
             eprintln!("warning: {}: --fit-skin replaces the input's own skin", args.input.display());
         }
         let t = Instant::now();
-        let (skin, report) = fit_skin(&seq, &FitOptions { bones, ..Default::default() })
+        // The fit weighs residuals in the quanta they will be coded in (about 12 bits under the
+        // default error bound).
+        let quant_bits = args.quant_bits.map_or(12, u32::from);
+        let (skin, report) = fit_skin(&seq, &FitOptions { bones, quant_bits, ..Default::default() })
             .map_err(|e| Exit(EXIT_BAD_INPUT, anyhow::Error::msg(e.to_string()).context(format!("encoding {}", args.input.display()))))?;
         seq.skin = Some(skin);
         fitted = Some((report, t.elapsed().as_secs_f64()));

@@ -21,6 +21,40 @@ pub fn sample_frames(frames: usize, cap: usize) -> Vec<usize> {
     out
 }
 
+/// Bones a vertex is compared with at most, in the clustering and the choice of candidates:
+/// those whose vertices' rest centroid is nearest its rest position. A bone far away in the
+/// rest pose rarely follows a vertex better than a near one, and comparing every vertex with
+/// every bone would make the cost grow with the square of the bone count.
+pub const NEAR_BONES: usize = 24;
+
+/// For every vertex, the (at most [`NEAR_BONES`]) bones whose members' rest centroid is
+/// nearest its rest position, nearest first; `labels` gives each vertex's (main) bone, and a
+/// bone without vertices is never near.
+pub fn near_bones(rest: &[DVec3], labels: &[u32], bones: usize) -> Vec<Vec<u32>> {
+    let mut sum = vec![(DVec3::ZERO, 0usize); bones];
+    for (p, &b) in rest.iter().zip(labels) {
+        if let Some(s) = sum.get_mut(b as usize) {
+            s.0 += *p;
+            s.1 += 1;
+        }
+    }
+    let centroids: Vec<(u32, DVec3)> = sum.iter().enumerate().filter(|(_, s)| s.1 > 0).map(|(b, s)| (b as u32, s.0 / s.1 as f64)).collect();
+    let mut scored: Vec<(f64, u32)> = Vec::with_capacity(centroids.len());
+    rest.iter()
+        .map(|p| {
+            scored.clear();
+            scored.extend(centroids.iter().map(|&(b, c)| (c.distance_squared(*p), b)));
+            let m = NEAR_BONES.min(scored.len());
+            if m < scored.len() {
+                scored.select_nth_unstable_by(m, |a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            }
+            let mut near = scored[..m].to_vec();
+            near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            near.into_iter().map(|s| s.1).collect()
+        })
+        .collect()
+}
+
 /// One bone label per vertex and the bones' transforms per frame (`transforms[f * bones + b]`,
 /// frame 0 the identity: the rest pose is frame 0).
 pub struct Clusters {
@@ -103,10 +137,12 @@ pub fn cluster(rest: &[DVec3], frames: &[Vec<Vec3>], bones: usize, iterations: u
         if it == iterations {
             break;
         }
-        // Every vertex to the bone that reproduces its sampled trajectory best.
+        // Every vertex to the bone that reproduces its sampled trajectory best, among its own
+        // and the bones near it.
+        let near = near_bones(rest, &labels, bones);
         for v in 0..n {
             let mut best = (f64::INFINITY, labels[v]);
-            for b in 0..bones {
+            for b in std::iter::once(labels[v] as usize).chain(near[v].iter().map(|&b| b as usize)) {
                 let mut e = 0.0;
                 for &f in sample {
                     e += transforms[f * bones + b].apply(rest[v]).distance_squared(at(f, v));

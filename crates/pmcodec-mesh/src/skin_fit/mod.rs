@@ -31,8 +31,9 @@ pub const MAX_BONES: u32 = 256;
 /// What a fit is told.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FitOptions {
-    /// Bones to fit; `None` for [`default_bones`] of the vertex count. At most the vertex
-    /// count are used.
+    /// Bones to fit; `None` to choose the count by cost: [`default_bones`] of the vertex count,
+    /// doubled while the residuals' estimated bits drop by more than the added bones cost
+    /// ([`FitOptions::bone_bits`]). At most the vertex count are used.
     pub bones: Option<u32>,
     /// Lloyd iterations of the motion clustering that places the first bones.
     pub cluster_iterations: u32,
@@ -43,15 +44,24 @@ pub struct FitOptions {
     pub candidates: u32,
     /// Frames the clustering and the choice of candidates compare (evenly spaced).
     pub sample_frames: u32,
+    /// The position quantization the skin will be coded at (bits over the bounding box's
+    /// largest extent, as `pmcodec encode --quant-bits`): the unit of the residuals whose
+    /// bits the choice of the bone count estimates.
+    pub quant_bits: u32,
+    /// What one bone costs per frame in the choice of the bone count, in bits (the container
+    /// codes a bone's frame as a quaternion, a scale and a translation predicted from the
+    /// frames before: about eight Exp-Golomb numbers).
+    pub bone_bits: u32,
 }
 
 impl Default for FitOptions {
     fn default() -> Self {
-        FitOptions { bones: None, cluster_iterations: 6, iterations: 6, candidates: 6, sample_frames: 16 }
+        FitOptions { bones: None, cluster_iterations: 6, iterations: 6, candidates: 6, sample_frames: 16, quant_bits: 12, bone_bits: 96 }
     }
 }
 
-/// The bones a fit uses by default for `n` vertices: one per 200 vertices, from 4 to 64. On
+/// The first bone count a fit not told one tries for `n` vertices (it doubles it while more
+/// bones pay): one per 200 vertices, from 4 to 64. On
 /// the horse (8,431 vertices) that is 42, about the 30 to 60 bones Le and Deng fit to it.
 pub fn default_bones(n: usize) -> u32 {
     (n / 200).clamp(4, 64) as u32
@@ -105,32 +115,119 @@ pub fn fit_skin(seq: &Sequence, opts: &FitOptions) -> Result<(SequenceSkin, FitR
     if opts.sample_frames < 2 {
         return Err(FitError::Option { name: "sample_frames", value: opts.sample_frames, why: "compare at least 2 frames" });
     }
-    let bones = (requested as usize).min(n);
+    if !(4..=24).contains(&opts.quant_bits) {
+        return Err(FitError::Option { name: "quant_bits", value: opts.quant_bits, why: "use 4 to 24 bits" });
+    }
+    let cap = (MAX_BONES as usize).min(n);
+    if opts.bones.is_none() {
+        // The bone count by cost (Le and Deng pick it by hand; a coder can count): fits at
+        // doubling counts, kept while one pays for its bones.
+        let mut best = fit_bones(seq, opts, (requested as usize).min(cap));
+        let mut best_bits = estimated_bits(seq, &best, opts);
+        let mut count = best.bones;
+        while count < cap {
+            count = (2 * count).min(cap);
+            let next = fit_bones(seq, opts, count);
+            let bits = estimated_bits(seq, &next, opts);
+            if !(bits < best_bits) {
+                break;
+            }
+            (best, best_bits) = (next, bits);
+        }
+        return Ok(to_skin(seq, &best));
+    }
+    let fit = fit_bones(seq, opts, (requested as usize).min(n));
+    Ok(to_skin(seq, &fit))
+}
+
+/// A fit with its bone count: every vertex's influences and every bone's transform per frame
+/// (`transforms[f * bones + b]`).
+struct Fit {
+    bones: usize,
+    rest: Vec<DVec3>,
+    influences: Vec<Vec<(u32, f64)>>,
+    transforms: Vec<Rigid>,
+}
+
+impl Fit {
+    /// Vertex `v` posed in frame `f`.
+    fn pose(&self, f: usize, v: usize) -> DVec3 {
+        let row = &self.transforms[f * self.bones..(f + 1) * self.bones];
+        self.influences[v].iter().map(|&(b, w)| w * row[b as usize].apply(self.rest[v])).sum()
+    }
+}
+
+/// SSDR with `bones` bones (1 to the vertex count): the motion clustering, then alternate
+/// weight and transform steps.
+fn fit_bones(seq: &Sequence, opts: &FitOptions, bones: usize) -> Fit {
     let frames = &seq.frames;
     let rest: Vec<DVec3> = frames[0].iter().map(|p| p.as_dvec3()).collect();
     let sample = cluster::sample_frames(frames.len(), opts.sample_frames as usize);
     let clusters = cluster::cluster(&rest, frames, bones, opts.cluster_iterations, &sample);
-    let mut transforms = clusters.transforms;
-    let mut influences: Vec<Vec<(u32, f64)>> = clusters.labels.iter().map(|&b| vec![(b, 1.0)]).collect();
-    let cands = weights::candidates(&rest, frames, &transforms, bones, opts.candidates as usize, &sample);
+    let mut fit =
+        Fit { bones, influences: clusters.labels.iter().map(|&b| vec![(b, 1.0)]).collect(), transforms: clusters.transforms, rest };
+    let k = opts.candidates as usize;
+    let mut last = f64::INFINITY;
     for _ in 0..opts.iterations {
+        // Candidates again after every transform step: the bones have moved since.
+        let cands = weights::candidates(&fit.rest, frames, &fit.transforms, bones, k, &sample, Some(&fit.influences));
         for (v, c) in cands.iter().enumerate() {
-            influences[v] = weights::solve_vertex(v, rest[v], frames, &transforms, bones, c);
+            fit.influences[v] = weights::solve_vertex(v, fit.rest[v], frames, &fit.transforms, bones, c);
         }
-        bones::update(&rest, frames, &influences, &mut transforms, bones);
+        bones::update(&fit.rest, frames, &fit.influences, &mut fit.transforms, bones);
+        // Stop once an alternation gains under 0.1%: the fit has converged for the coder.
+        let now = objective(seq, &fit);
+        if !(now < last * (1.0 - 1e-3)) {
+            break;
+        }
+        last = now;
     }
-    Ok(to_skin(seq, &rest, &influences, &transforms, bones))
+    fit
+}
+
+/// About the bits a coder spends on `fit`: the residuals' changes from frame to frame (what
+/// the container codes between keyframes, predicting a frame from the previous one moved by
+/// skinning) in quanta of `opts.quant_bits`, at their zeroth-order entropy, plus
+/// `opts.bone_bits` per bone per frame and 12 bits per stored influence.
+fn estimated_bits(seq: &Sequence, fit: &Fit, opts: &FitOptions) -> f64 {
+    let extent = seq.bounds().map_or(0.0, |(lo, hi)| (hi - lo).max_element() as f64);
+    let quantum = (extent / ((1u64 << opts.quant_bits) - 1) as f64).max(f64::MIN_POSITIVE);
+    let n = fit.rest.len();
+    let mut before = vec![[0i64; 3]; n];
+    let mut counts: std::collections::BTreeMap<i64, u64> = std::collections::BTreeMap::new();
+    for (f, frame) in seq.frames.iter().enumerate() {
+        for v in 0..n {
+            let e = ((frame[v].as_dvec3() - fit.pose(f, v)) / quantum).round();
+            let e = [e.x as i64, e.y as i64, e.z as i64];
+            if f > 0 {
+                for a in 0..3 {
+                    *counts.entry(e[a] - before[v][a]).or_default() += 1;
+                }
+            }
+            before[v] = e;
+        }
+    }
+    let total = counts.values().sum::<u64>() as f64;
+    let residual_bits: f64 = counts.values().map(|&c| -(c as f64) * (c as f64 / total).log2()).sum();
+    let influences: usize = fit.influences.iter().map(Vec::len).sum();
+    residual_bits + (seq.frames.len() * fit.bones * opts.bone_bits as usize) as f64 + 12.0 * influences as f64
+}
+
+/// The fit's objective, Le and Deng's: squared residuals over all vertices and frames.
+fn objective(seq: &Sequence, fit: &Fit) -> f64 {
+    let mut total = 0.0;
+    for (f, frame) in seq.frames.iter().enumerate() {
+        for (v, p) in frame.iter().enumerate() {
+            total += p.as_dvec3().distance_squared(fit.pose(f, v));
+        }
+    }
+    total
 }
 
 /// The fit as a [`SequenceSkin`]: bones no vertex depends on are dropped and the rest
 /// renumbered in order, weights sorted largest first, and the report measured.
-fn to_skin(
-    seq: &Sequence,
-    rest: &[DVec3],
-    influences: &[Vec<(u32, f64)>],
-    transforms: &[Rigid],
-    bones: usize,
-) -> (SequenceSkin, FitReport) {
+fn to_skin(seq: &Sequence, fit: &Fit) -> (SequenceSkin, FitReport) {
+    let (rest, influences, transforms, bones) = (&fit.rest[..], &fit.influences[..], &fit.transforms[..], fit.bones);
     let mut used = vec![false; bones];
     for infl in influences {
         for &(b, w) in infl {

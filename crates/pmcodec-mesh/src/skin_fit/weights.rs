@@ -4,27 +4,53 @@
 //! position, with an affinity (sum to one) row weighted heavily; then only the four largest
 //! are kept and refitted on their own.
 
+use super::cluster::near_bones;
 use super::horn::Rigid;
 use glam::{DVec3, Vec3};
 
 /// Influences per vertex, the most linear blend skinning in glTF and in the container carries.
 pub const MAX_INFLUENCES: usize = 4;
 
-/// Each vertex's `k` candidate bones: those whose transforms of its rest position follow its
-/// trajectory over the `sample` frames most closely, best first (Le and Deng restrict each
-/// vertex to its nearest bones the same way, which keeps the weight solve small).
-pub fn candidates(rest: &[DVec3], frames: &[Vec<Vec3>], transforms: &[Rigid], bones: usize, k: usize, sample: &[usize]) -> Vec<Vec<u32>> {
+/// Each vertex's `k` candidate bones: the bones it already depends on (`keep`, so that a
+/// weight step can only lower its error), then those whose transforms of its rest position
+/// follow its trajectory over the `sample` frames most closely, best first. Le and Deng
+/// restrict each vertex to its nearest bones the same way, which keeps the weight solve small;
+/// choosing them again after every transform step lets a vertex move to a bone that has come
+/// to fit it better.
+pub fn candidates(
+    rest: &[DVec3],
+    frames: &[Vec<Vec3>],
+    transforms: &[Rigid],
+    bones: usize,
+    k: usize,
+    sample: &[usize],
+    keep: Option<&[Vec<(u32, f64)>]>,
+) -> Vec<Vec<u32>> {
     let k = k.min(bones).max(1);
     let mut out = Vec::with_capacity(rest.len());
     let mut scored: Vec<(f64, u32)> = Vec::with_capacity(bones);
+    // Each vertex's main bone (the clustering's label before any weights), for nearness.
+    let main: Vec<u32> = (0..rest.len()).map(|v| keep.and_then(|k| k.get(v)).and_then(|i| i.first()).map_or(0, |p| p.0)).collect();
+    let near = near_bones(rest, &main, bones);
     for (v, &p) in rest.iter().enumerate() {
         scored.clear();
-        for b in 0..bones {
+        for &b in &near[v] {
+            let b = b as usize;
             let e: f64 = sample.iter().map(|&f| transforms[f * bones + b].apply(p).distance_squared(frames[f][v].as_dvec3())).sum();
             scored.push((e, b as u32));
         }
         scored.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        out.push(scored.iter().take(k).map(|s| s.1).collect());
+        let mut c: Vec<u32> =
+            keep.and_then(|k| k.get(v)).map(|infl| infl.iter().filter(|p| p.1 > 0.0).map(|p| p.0).collect()).unwrap_or_default();
+        for s in &scored {
+            if c.len() >= k {
+                break;
+            }
+            if !c.contains(&s.1) {
+                c.push(s.1);
+            }
+        }
+        out.push(c);
     }
     out
 }
