@@ -46,11 +46,13 @@ impl Replay {
     /// one nearly as far off, and a budget spent by it leaves the wide one coarse, although the
     /// surface error a client sees is an integral over area (what Garland & Heckbert's
     /// "Surface Simplification Using Quadric Error Metrics", 1997, sum as `Q(x)`). Ranking by
-    /// `Q(x)` itself, or by its drop per added vertex, cut more error between levels 0 and 1
-    /// but let small elongated features (a leg collapsed onto its axis: plane quadrics see the
-    /// radius, not the length) wait too long at the coarsest budgets (horse-gallop at 1% of the
-    /// vertices: 2.2x plain QEM against 1.2x); the fourth root is the compromise that measured
-    /// no worse anywhere on horse-gallop and samba-60 (`pmcodec eval --sweep 12 --frames 12`).
+    /// the drop in `Q` per added vertex cut more error between levels 0 and 1 but left small
+    /// features coarse at the coarsest budgets (horse-gallop at 1% of the vertices: 2.2x plain
+    /// QEM against 1.2x; likely elongated ones, whose plane quadrics see their radius, not
+    /// their length); ranking by `Q(x)` itself lost up to 7% at 4-8% of the vertices. The
+    /// fourth root measured within 3% of the RMS priority at every budget of horse-gallop and
+    /// samba-60, up to 8% better between levels 0 and 1 on them and 12% on cat-poses (`pmcodec
+    /// eval --sweep 12 --frames 12`); the waving cloth loses 4-12% at 35-50% (proto/container.md).
     pub fn split_benefits_into(&self, positions: &[Vec3], out: &mut Vec<f64>) {
         let q = self.cluster_quadrics(positions);
         let first_above = self.first_above();
