@@ -50,7 +50,7 @@ test("decodes the same cut and positions as the Rust decoder", async () => {
     const expected = readObj(out);
     await player.seek(frame);
     const pos = player.positions();
-    player.replay.selectTriangles(budget, player.replay.nodeErrors(pos));
+    player.replay.selectTriangles(budget, player.replay.splitBenefits(pos));
     const mesh = player.orderedMesh(pos);
     assert.deepEqual(Array.from(mesh.indices), expected.indices, `frame ${frame} budget ${budget}: triangles`);
     assert.equal(mesh.positions.length, expected.positions.length);
@@ -253,7 +253,7 @@ test("version 6 appearance: the same texture coordinates, colours, normals and m
     const glb = readGlb(out);
     await player.seek(frame);
     const pos = player.positions();
-    player.replay.selectTriangles(budget, player.replay.nodeErrors(pos));
+    player.replay.selectTriangles(budget, player.replay.splitBenefits(pos));
     const mesh = player.texturedMesh(pos);
     const prims = glb.json.meshes[0].primitives;
     const attr = prims[0].attributes;
@@ -306,7 +306,7 @@ test("appearance without texture coordinates or colours (RobotExpressive): no At
     const glb = readGlb(out);
     await player.seek(frame);
     const pos = player.positions();
-    player.replay.selectTriangles(budget, player.replay.nodeErrors(pos));
+    player.replay.selectTriangles(budget, player.replay.splitBenefits(pos));
     const mesh = player.texturedMesh(pos);
     const prims = glb.json.meshes[0].primitives;
     const what = `frame ${frame} budget ${budget}`;
@@ -350,7 +350,7 @@ test("appearance with band 0's entries derived from the triangles, values from t
       const glb = readGlb(out);
       await player.seek(frame);
       const pos = player.positions();
-      player.replay.selectTriangles(budget, player.replay.nodeErrors(pos));
+      player.replay.selectTriangles(budget, player.replay.splitBenefits(pos));
       const mesh = player.texturedMesh(pos);
       const attr = glb.json.meshes[0].primitives[0].attributes;
       const what = `${name} frame ${frame} budget ${budget}`;
@@ -501,7 +501,7 @@ test("a lenient textured mesh fills in (node, chart) entries a budget cut reache
   const pos = d.positions();
   for (const share of [1, 0.5, 0.25, 0.1]) {
     const budget = Math.round(c.header.triangleCount * share);
-    d.replay.selectTriangles(budget, d.replay.nodeErrors(pos));
+    d.replay.selectTriangles(budget, d.replay.splitBenefits(pos));
     const r = d.replay, rep = r.cutNodes(), base = r.offsets[r.minLevel];
     const shown = Uint32Array.from(r.appearing), cut = new Uint32Array(3 * shown.length);
     shown.forEach((t, i) => { for (let k = 0; k < 3; k++) cut[3 * i + k] = rep[base + r.corners[3 * t + k]]; });

@@ -78,12 +78,30 @@ struct Derived {
     /// The frame these were computed for.
     frame: Option<u32>,
     positions: Vec<Vec3>,
-    /// Whether `errors` and `order` are this frame's: a level cut needs neither, so they are
-    /// computed on the first budget or error cut of the frame only (a full-resolution player
-    /// pays for positions alone).
-    ordered: bool,
-    errors: Vec<f64>,
+    /// The split orders error bounds and budgets take prefixes of, each computed on the
+    /// frame's first cut that needs it (a full-resolution player pays for positions alone).
+    by_error: Ordered,
+    by_budget: Ordered,
+}
+
+/// One split order of a frame and the priorities it is grown by: split priorities (RMS error,
+/// so an error bound is a prefix) or budget priorities ([`Replay::split_benefits_into`]).
+#[derive(Clone, Default)]
+struct Ordered {
+    /// Whether `priorities` and `order` are this frame's.
+    ready: bool,
+    priorities: Vec<f64>,
     order: SplitOrder,
+}
+
+impl Ordered {
+    /// Of a frame's two orders, the one `target` is a prefix of (a level cut uses none; it
+    /// gets the error order, unread). Takes the fields, not [`Derived`], so that the caller
+    /// can read the positions beside.
+    fn pick<'a>(by_error: &'a mut Ordered, by_budget: &'a mut Ordered, target: CutTarget) -> (&'a [f64], &'a mut SplitOrder) {
+        let o = if matches!(target, CutTarget::Triangles(_) | CutTarget::Vertices(_)) { by_budget } else { by_error };
+        (&o.priorities, &mut o.order)
+    }
 }
 
 impl<S: ByteSource> Decoder<S> {
@@ -546,16 +564,16 @@ impl<S: ByteSource> Decoder<S> {
     /// player that cuts again and again allocates nothing for budget and error cuts once the
     /// buffers have grown.
     pub fn mesh_into(&mut self, target: CutTarget, mesh: &mut TriMesh) -> Result<(), ContainerError> {
-        let mut derived = self.take_derived(!matches!(target, CutTarget::Level(_)))?;
+        let mut derived = self.take_derived(target)?;
         let result = self.cut(target, &mut derived, mesh);
         self.derived = Some(derived);
         result
     }
 
-    /// The current frame's derived state (positions, split priorities, split order), taken
-    /// out of the decoder: kept from the last cut of this frame, or recomputed in the buffers of
-    /// the last frame's. The caller puts it back.
-    fn take_derived(&mut self, need_order: bool) -> Result<Derived, ContainerError> {
+    /// The current frame's derived state (positions, and the priorities and split order
+    /// `target` needs), taken out of the decoder: kept from the last cut of this frame, or
+    /// recomputed in the buffers of the last frame's. The caller puts it back.
+    fn take_derived(&mut self, target: CutTarget) -> Result<Derived, ContainerError> {
         let Some(replay) = self.replay.as_ref() else {
             return Err(ContainerError::Options("seek to a frame first".into()));
         };
@@ -564,15 +582,27 @@ impl<S: ByteSource> Decoder<S> {
             stale => {
                 let mut d = stale.unwrap_or_default();
                 self.positions_into(&mut d.positions);
-                d.ordered = false;
+                d.by_error.ready = false;
+                d.by_budget.ready = false;
                 d.frame = self.frame;
                 d
             }
         };
-        if need_order && !d.ordered {
-            replay.node_errors_into(&d.positions, &mut d.errors);
-            d.order.reset(replay, &d.errors);
-            d.ordered = true;
+        match target {
+            CutTarget::Level(_) => {}
+            CutTarget::MaxError(_) if !d.by_error.ready => {
+                let o = &mut d.by_error;
+                replay.node_errors_into(&d.positions, &mut o.priorities);
+                o.order.reset(replay, &o.priorities);
+                o.ready = true;
+            }
+            CutTarget::Triangles(_) | CutTarget::Vertices(_) if !d.by_budget.ready => {
+                let o = &mut d.by_budget;
+                replay.split_benefits_into(&d.positions, &mut o.priorities);
+                o.order.reset(replay, &o.priorities);
+                o.ready = true;
+            }
+            _ => {}
         }
         Ok(d)
     }
@@ -591,17 +621,18 @@ impl<S: ByteSource> Decoder<S> {
             return Err(ContainerError::Options(format!("cut triangles of level {l}: give a budget or an error")));
         }
         let diagonal = self.diagonal();
-        let mut d = self.take_derived(true)?;
+        let mut d = self.take_derived(target)?;
         let result = match self.replay.as_ref() {
             Some(replay) => {
+                let (priorities, order) = Ordered::pick(&mut d.by_error, &mut d.by_budget, target);
                 // Never `Err`: levels are refused above.
-                let k = d.order.prefix(replay, &d.errors, target, diagonal).unwrap_or_default();
+                let k = order.prefix(replay, priorities, target, diagonal).unwrap_or_default();
                 let corners = replay.corners();
-                Ok(d.order
+                Ok(order
                     .shown(k)
                     .iter()
                     .filter_map(|&t| corners.get(t as usize))
-                    .map(|c| c.map(|v| d.order.cut_node_of(replay, v, k)))
+                    .map(|c| c.map(|v| order.cut_node_of(replay, v, k)))
                     .collect())
             }
             None => Err(ContainerError::Options("seek to a frame first".into())),
@@ -617,13 +648,14 @@ impl<S: ByteSource> Decoder<S> {
     pub fn cut_clusters(&mut self, target: CutTarget) -> Result<(Vec<[u32; 3]>, Vec<u32>), ContainerError> {
         let triangles = self.cut_triangles(target)?;
         let diagonal = self.diagonal();
-        let mut d = self.take_derived(true)?;
+        let mut d = self.take_derived(target)?;
         let result = match self.replay.as_ref() {
             Some(replay) => {
+                let (priorities, order) = Ordered::pick(&mut d.by_error, &mut d.by_budget, target);
                 // Never `Err`: `cut_triangles` refused levels.
-                let k = d.order.prefix(replay, &d.errors, target, diagonal).unwrap_or_default();
+                let k = order.prefix(replay, priorities, target, diagonal).unwrap_or_default();
                 let n = replay.h.level_sizes[replay.min_level];
-                Ok((0..n).map(|v| d.order.cut_node_of(replay, v, k)).collect())
+                Ok((0..n).map(|v| order.cut_node_of(replay, v, k)).collect())
             }
             None => Err(ContainerError::Options("seek to a frame first".into())),
         };
@@ -635,8 +667,9 @@ impl<S: ByteSource> Decoder<S> {
         let diagonal = self.diagonal();
         let min_level = self.min_level;
         let replay = self.replay.as_mut().ok_or_else(|| ContainerError::Options("seek to a frame first".into()))?;
-        // Budgets and error bounds are prefixes of the split order: no change to the replay.
-        let k = match d.order.prefix(replay, &d.errors, target, diagonal) {
+        // Budgets and error bounds are prefixes of a split order: no change to the replay.
+        let (priorities, order) = Ordered::pick(&mut d.by_error, &mut d.by_budget, target);
+        let k = match order.prefix(replay, priorities, target, diagonal) {
             Ok(k) => k,
             Err(0) if min_level == 0 => {
                 let n0 = replay.h.level_sizes[0] as usize;
@@ -652,7 +685,7 @@ impl<S: ByteSource> Decoder<S> {
                 return Ok(());
             }
         };
-        d.order.mesh_into(replay, &d.positions, k, mesh);
+        order.mesh_into(replay, &d.positions, k, mesh);
         Ok(())
     }
 }

@@ -136,3 +136,41 @@ fn generated_wave_budget_cuts_are_prefixes() {
     let seq = grid(30, 20, 6);
     check_sequence(&seq, 2, &[0, 3, 40, 300, 1000, 2000]);
 }
+
+/// Budget priorities: zero at the finest level, monotone up the hierarchy, and the RMS error
+/// scaled by the fourth root of the cluster's area: scaling the surface by 4 scales split
+/// priorities (distances) by 4 and budget priorities by 4^1.5 = 8 (powers of two, so exactly up
+/// to rounding of the square roots). A priority without the area factor, or with the area
+/// itself, scales by 4 or 16 and fails.
+#[test]
+fn budget_priorities_are_monotone_and_weigh_area() {
+    let seq = grid(30, 20, 2);
+    let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
+    let q = base_quadrics(&seq, &topo, &BaseOptions::default());
+    let h = build(&topo, &q, &BuildOptions::default()).expect("build");
+    let mut enc = Encoder::new(h.clone(), topo, seq.triangles.clone(), Default::default());
+    let mut replay = Replay::new(h, &seq.triangles);
+    let (delta, _) = enc.encode_frame(&seq.frames[1]);
+    replay.apply(&delta).expect("apply");
+    let positions: Vec<Vec3> = enc.node_positions().to_vec();
+    let mut benefits = Vec::new();
+    replay.split_benefits_into(&positions, &mut benefits);
+    let errors = replay.node_errors(&positions);
+    let h = &replay.h;
+    assert_eq!(benefits.len(), h.node_count());
+    assert!(benefits[..h.level_sizes[0] as usize].iter().all(|&b| b == 0.0));
+    assert!(benefits.iter().any(|&b| b > 0.0), "a bent grid has nodes off their faces");
+    for g in 0..h.node_count() as u32 {
+        let p = h.parent_global(g);
+        assert!(p == NONE || benefits[p as usize] >= benefits[g as usize], "node {g}: parent {p} below it");
+    }
+    let scaled: Vec<Vec3> = positions.iter().map(|&p| p * 4.0).collect();
+    let mut benefits4 = Vec::new();
+    replay.split_benefits_into(&scaled, &mut benefits4);
+    let errors4 = replay.node_errors(&scaled);
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-300);
+    for g in 0..h.node_count() {
+        assert!(close(errors4[g], 4.0 * errors[g]), "node {g}: error {} -> {}", errors[g], errors4[g]);
+        assert!(close(benefits4[g], 8.0 * benefits[g]), "node {g}: benefit {} -> {}", benefits[g], benefits4[g]);
+    }
+}

@@ -272,7 +272,34 @@ export class Replay {
    * subtree. Every operation in the Rust decoder's order, in doubles, so both pick the same cut.
    */
   nodeErrors(positions: Float32Array): Float64Array {
-    const nodes = this.nodeCount, err = new Float64Array(nodes);
+    const nodes = this.nodeCount, err = new Float64Array(nodes), q = this.clusterQuadrics(positions);
+    for (let g = this.offsets[this.minLevel + 1] ?? nodes; g < nodes; g++) {
+      const e = quadricAt(q, g, positions);
+      err[g] = q[11 * g + 10] > 0 && e > 0 ? Math.sqrt(e / q[11 * g + 10]) : 0;
+    }
+    this.subtreeMax(err);
+    return err;
+  }
+
+  /**
+   * Budget priorities (proto/container.md, "Cuts"), what `selectTriangles` is given: a node's
+   * own benefit is sqrt(Q(x) / sqrt(area)), its RMS error scaled by the fourth root of its
+   * cluster's area (a wide cluster outranks a tiny one as far off), its priority the largest in
+   * its subtree. Every operation in the Rust decoder's order.
+   */
+  splitBenefits(positions: Float32Array): Float64Array {
+    const nodes = this.nodeCount, out = new Float64Array(nodes), q = this.clusterQuadrics(positions);
+    for (let g = this.offsets[this.minLevel + 1] ?? nodes; g < nodes; g++) {
+      const e = quadricAt(q, g, positions), area = q[11 * g + 10];
+      out[g] = area > 0 && e > 0 ? Math.sqrt(e / Math.sqrt(area)) : 0;
+    }
+    this.subtreeMax(out);
+    return out;
+  }
+
+  /** Plane quadrics of the level-L faces summed over clusters, 11 numbers per node. */
+  private clusterQuadrics(positions: Float32Array): Float64Array {
+    const nodes = this.nodeCount;
     // 11 per node: a00 a01 a02 a11 a12 a22 b0 b1 b2 c, area.
     const q = new Float64Array(11 * nodes);
     const base = this.offsets[this.minLevel], size = this.levelSizes[this.minLevel], cs = this.corners;
@@ -306,22 +333,18 @@ export class Replay {
         for (let i = 0; i < 11; i++) q[a + i] += q[c + i];
       }
     }
-    for (let g = this.offsets[this.minLevel + 1] ?? nodes; g < nodes; g++) {
-      const m = 11 * g, x = positions[3 * g], y = positions[3 * g + 1], z = positions[3 * g + 2];
-      const ax = q[m] * x + q[m + 1] * y + q[m + 2] * z;
-      const ay = q[m + 1] * x + q[m + 3] * y + q[m + 4] * z;
-      const az = q[m + 2] * x + q[m + 4] * y + q[m + 5] * z;
-      const e = x * ax + y * ay + z * az + 2 * (q[m + 6] * x + q[m + 7] * y + q[m + 8] * z) + q[m + 9];
-      err[g] = q[m + 10] > 0 && e > 0 ? Math.sqrt(e / q[m + 10]) : 0;
-    }
+    return q;
+  }
+
+  /** Each node's value raised to the largest in its subtree, finest level first. */
+  private subtreeMax(values: Float64Array): void {
     for (let k = this.minLevel; k < this.top; k++) {
       const p = this.parent[k];
       for (let v = 0; v < p.length; v++) {
         const c = this.offsets[k] + v, a = this.offsets[k + 1] + p[v];
-        if (err[c] > err[a]) err[a] = err[c];
+        if (values[c] > values[a]) values[a] = values[c];
       }
     }
-    return err;
   }
 
   /**
@@ -351,6 +374,15 @@ export class Replay {
       for (const c of this.children[g]) if (this.expandable(c)) heap.push(errors[c], c);
     }
   }
+}
+
+/** x^T A x + 2 b.x + c of node g's quadric at its position, in the Rust decoder's operation order. */
+function quadricAt(q: Float64Array, g: number, positions: Float32Array): number {
+  const m = 11 * g, x = positions[3 * g], y = positions[3 * g + 1], z = positions[3 * g + 2];
+  const ax = q[m] * x + q[m + 1] * y + q[m + 2] * z;
+  const ay = q[m + 1] * x + q[m + 3] * y + q[m + 4] * z;
+  const az = q[m + 2] * x + q[m + 4] * y + q[m + 5] * z;
+  return x * ax + y * ay + z * az + 2 * (q[m + 6] * x + q[m + 7] * y + q[m + 8] * z) + q[m + 9];
 }
 
 /** A binary max-heap of (key, id), ties broken by the smaller id (matching the Rust side). */

@@ -40,7 +40,7 @@ export class Session {
   private triangles: ChunkEntry | undefined;
   private decoder: Decoder | null = null;
   private coarseDecoder: Decoder | null = null;
-  private errorsOf: { decoder: Decoder; frame: number; positions: Float32Array; errors: Float64Array | null } | null = null;
+  private errorsOf: { decoder: Decoder; frame: number; positions: Float32Array; errors: Float64Array | null; benefits: Float64Array | null } | null = null;
   /** The decoder whose cut is the whole mesh of its level, every node expanded. */
   private fullOn: Decoder | null = null;
   private lastIndices: Uint32Array | null = null;
@@ -219,12 +219,14 @@ export class Session {
     let memo = this.errorsOf;
     if (!memo || memo.decoder !== d || memo.frame !== f) {
       const positions = gpu ? gpu.bind : d.positions();
-      const errors = whole && this.colour !== "error" ? null : r.nodeErrors(positions);
-      memo = this.errorsOf = { decoder: d, frame: f, positions, errors };
-    } else if (!memo.errors && (!whole || this.colour === "error")) memo.errors = r.nodeErrors(memo.positions);
+      memo = this.errorsOf = { decoder: d, frame: f, positions, errors: null, benefits: null };
+    }
+    // Budgets split by budget priorities; the error colouring shows split priorities (RMS).
+    if (!whole && !memo.benefits) memo.benefits = r.splitBenefits(memo.positions);
+    if (this.colour === "error" && !memo.errors) memo.errors = r.nodeErrors(memo.positions);
     const all = memo.positions;
     if (!whole) {
-      r.selectTriangles(this.budget, memo.errors!);
+      r.selectTriangles(this.budget, memo.benefits!);
       this.fullOn = this.budget >= this.trianglesPerLevel[d.minLevel] && allExpanded(r) ? d : null;
     }
     const cutMesh = buildCutMesh(r);

@@ -114,18 +114,19 @@ impl<S: ByteSource> Decoder<S> {
             }
         }
         let diagonal = self.diagonal();
-        let mut d = self.take_derived(!matches!(target, CutTarget::Level(_)))?;
+        let mut d = self.take_derived(target)?;
         let replay = self.replay.as_mut().ok_or_else(|| ContainerError::Options("seek to a frame first".into()))?;
         let size = replay.h.level_sizes[replay.min_level];
         let corners_of = |c: [u32; 3]| {
             if c.iter().all(|&v| v < size) { Ok(c) } else { Err(ContainerError::Options("a shown triangle without corners".into())) }
         };
         let mut shown: Vec<(u32, [u32; 3])> = Vec::new();
-        match d.order.prefix(replay, &d.errors, target, diagonal) {
+        let (priorities, order) = super::Ordered::pick(&mut d.by_error, &mut d.by_budget, target);
+        match order.prefix(replay, priorities, target, diagonal) {
             Ok(k) => {
-                for &t in d.order.shown(k) {
+                for &t in order.shown(k) {
                     let c = corners_of(replay.corners()[t as usize])?;
-                    shown.push((t, c.map(|v| d.order.cut_node_of(replay, v, k))));
+                    shown.push((t, c.map(|v| order.cut_node_of(replay, v, k))));
                 }
             }
             Err(l) => {
