@@ -49,6 +49,7 @@ fi
 # The viewer and the pmcodec-three package, one check per bug of issue 18 (uploads included).
 (cd web && PMCODEC_BIN="$PWD/../target/debug/pmcodec" node test/viewer-e2e.mjs)
 (cd web && PMCODEC_BIN="$PWD/../target/debug/pmcodec" node test/appearance-e2e.mjs) # issue 16: each shared GLB's stream vs three.js, SSIM >= 0.97
+(cd web && PMCODEC_BIN="$PWD/../target/debug/pmcodec" node test/skin-e2e.mjs) # issue 17: GPU-skinned drawing vs the worker-posed one, paused, played and after a budget change
 
 # ---- glTF validator on `pmcodec lod` output --------------------------------------------------
 # LOD chains of the built-in test rig, of a generated multi-part character (many small parts on
