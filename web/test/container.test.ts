@@ -422,7 +422,7 @@ test("entropy-coded attribute residuals (mode | 8) on generated meshes with repe
       const glb = readGlb(out);
       await player.seek(frame);
       const pos = player.positions();
-      player.replay.selectTriangles(budget, player.replay.nodeErrors(pos));
+      player.replay.selectTriangles(budget, player.replay.splitBenefits(pos));
       const mesh = player.texturedMesh(pos);
       // One primitive per material in the GLB, all over one vertex buffer.
       const attr = glb.json.meshes[0].primitives[0].attributes, what = `${name} frame ${frame} budget ${budget}`;
