@@ -366,26 +366,30 @@ pub fn read_delta(bytes: &[u8], start: usize, what: &str, nodes: u32, parents: u
 }
 
 /// The level-j mesh the reader holds: for each node, the triangles alive at j with a corner
-/// there (ascending) and its neighbours (the other corners of those triangles, ascending,
-/// distinct), in compressed rows.
-struct Held {
+/// there (ascending), in compressed rows; a node's neighbours (the other corners of those
+/// triangles, ascending, distinct) are gathered only for the nodes a chunk names, since a
+/// frame's transitions touch a few nodes of the level and rows for all of them cost the
+/// encoder a seventh of its time.
+struct Held<'a> {
+    before: &'a [[u32; 3]],
     tri_start: Vec<u32>,
     tris: Vec<u32>,
-    nb_start: Vec<u32>,
-    nbs: Vec<u32>,
 }
 
 fn alive(c: &[u32; 3]) -> bool {
     c[0] != c[1] && c[1] != c[2] && c[0] != c[2]
 }
 
-impl Held {
-    fn new(before: &[[u32; 3]], size: u32) -> Self {
+impl<'a> Held<'a> {
+    /// Rows for every node, or (`wanted`) only for the nodes marked: the writer knows which
+    /// nodes its transitions leave, a reader does not.
+    fn new(before: &'a [[u32; 3]], size: u32, wanted: Option<&[bool]>) -> Self {
         let n = size as usize;
         let usable = |c: &[u32; 3]| alive(c) && c.iter().all(|&x| x < size);
+        let kept = |x: u32| wanted.is_none_or(|w| w[x as usize]);
         let mut tri_start = vec![0u32; n + 1];
         for c in before.iter().filter(|c| usable(c)) {
-            for &x in c {
+            for &x in c.iter().filter(|&&x| kept(x)) {
                 tri_start[x as usize + 1] += 1;
             }
         }
@@ -395,33 +399,27 @@ impl Held {
         let mut fill = tri_start.clone();
         let mut tris = vec![0u32; tri_start[n] as usize];
         for (t, c) in before.iter().enumerate().filter(|(_, c)| usable(c)) {
-            for &x in c {
+            for &x in c.iter().filter(|&&x| kept(x)) {
                 tris[fill[x as usize] as usize] = t as u32;
                 fill[x as usize] += 1;
             }
         }
-        let mut nb_start = vec![0u32; n + 1];
-        let mut nbs = Vec::with_capacity(tris.len() * 2);
-        let mut row = Vec::new();
-        for x in 0..n {
-            row.clear();
-            for &t in &tris[tri_start[x] as usize..tri_start[x + 1] as usize] {
-                row.extend(before[t as usize].iter().copied().filter(|&y| y != x as u32));
-            }
-            row.sort_unstable();
-            row.dedup();
-            nbs.extend_from_slice(&row);
-            nb_start[x + 1] = nbs.len() as u32;
-        }
-        Held { tri_start, tris, nb_start, nbs }
+        Held { before, tri_start, tris }
     }
 
     fn triangles(&self, x: u32) -> &[u32] {
         &self.tris[self.tri_start[x as usize] as usize..self.tri_start[x as usize + 1] as usize]
     }
 
-    fn neighbours(&self, x: u32) -> &[u32] {
-        &self.nbs[self.nb_start[x as usize] as usize..self.nb_start[x as usize + 1] as usize]
+    /// Node `x`'s neighbours, ascending and distinct, into `row`.
+    fn neighbours<'r>(&self, x: u32, row: &'r mut Vec<u32>) -> &'r [u32] {
+        row.clear();
+        for &t in self.triangles(x) {
+            row.extend(self.before[t as usize].iter().copied().filter(|&y| y != x));
+        }
+        row.sort_unstable();
+        row.dedup();
+        row
     }
 }
 
@@ -434,7 +432,6 @@ impl Held {
 /// corners are no reference.
 /// `updates` is ascending by triangle, as `payload::write_corner_updates` takes it.
 pub fn write_corner_updates(updates: &[(u32, [u32; 3])], before: &[[u32; 3]], size: u32) -> Vec<u8> {
-    let held = Held::new(before, size);
     // (X, Y) -> triangles, in (X, Y) order.
     let mut transitions: std::collections::BTreeMap<(u32, u32), Vec<u32>> = std::collections::BTreeMap::new();
     let mut others = Vec::new();
@@ -448,6 +445,12 @@ pub fn write_corner_updates(updates: &[(u32, [u32; 3])], before: &[[u32; 3]], si
             _ => others.push((t, c)),
         }
     }
+    let mut wanted = vec![false; size as usize];
+    for &(x, _) in transitions.keys() {
+        wanted[x as usize] = true;
+    }
+    let held = Held::new(before, size, Some(&wanted));
+    let mut row = Vec::new();
     let mut w = coded_start();
     let (mut count, mut gap, mut to, mut diff) = (Context::new(), Context::new(), Context::new(), Context::new());
     w.number(&mut count, transitions.len() as u32);
@@ -455,7 +458,7 @@ pub fn write_corner_updates(updates: &[(u32, [u32; 3])], before: &[[u32; 3]], si
     for (&(x, y), tris) in &transitions {
         w.number(&mut gap, x - last_x);
         last_x = x;
-        let nb = held.neighbours(x);
+        let nb = held.neighbours(x, &mut row);
         match nb.binary_search(&y) {
             Ok(i) => w.number(&mut to, i as u32),
             Err(_) => w.number(&mut to, (nb.len() as u32).wrapping_add(zigzag(y.wrapping_sub(x) as i32))),
@@ -495,7 +498,8 @@ pub fn read_corner_updates(
     if n * 3 > stream_bits {
         return Err(r.corrupt(format!("{n} transitions in {} bytes", bytes.len() - start)));
     }
-    let held = Held::new(before, size);
+    let held = Held::new(before, size, None);
+    let mut row = Vec::new();
     let mut new: std::collections::BTreeMap<u32, [u32; 3]> = std::collections::BTreeMap::new();
     let mut last_x = 0u64;
     for _ in 0..n {
@@ -505,7 +509,7 @@ pub fn read_corner_updates(
         }
         last_x = x;
         let x = x as u32;
-        let nb = held.neighbours(x);
+        let nb = held.neighbours(x, &mut row);
         let u = r.number(&mut to)?;
         let y = match nb.get(u as usize) {
             Some(&y) => y,
