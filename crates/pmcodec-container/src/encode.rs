@@ -648,17 +648,7 @@ fn code_frames(
         if skin.is_some() {
             // Top band first, as the bands themselves.
             for (at, j) in (pose_at..).zip((0..levels).rev().filter(|&j| has_palette_chunk(&bands, j))) {
-                let (kind, raw) = match opts.palette_coding {
-                    PaletteCoding::Joints => {
-                        (ChunkKind::Joints, write_joints_best(mask, &bands[j], &palette, &held.joint_prediction(intra)))
-                    }
-                    PaletteCoding::JointsPlain => {
-                        (ChunkKind::Joints, write_joints(mask, &bands[j], &palette, &held.joint_prediction(intra)))
-                    }
-                    PaletteCoding::Palette => {
-                        (ChunkKind::Palette, write_palette(mask, &bands[j], &palette.palette, held.prediction(intra)))
-                    }
-                };
+                let (kind, raw) = pose_chunk(opts.palette_coding, mask, &bands[j], &palette, (&held, intra));
                 chunks.insert(at, kind, f as u32, j as u32, raw)?;
             }
             let JointsFrame { palette, rig, links, .. } = std::mem::take(&mut palette);
@@ -676,6 +666,22 @@ fn code_frames(
         chunks.0.append(&mut after);
     }
     Ok((assemble(&header, chunks)?, std::mem::take(&mut coder.report)))
+}
+
+/// Band j's pose chunk (carrying palette `entries`) in the coding the options ask for, against
+/// the palettes the decoder holds.
+fn pose_chunk(
+    coding: PaletteCoding,
+    mask: u64,
+    entries: &[u32],
+    palette: &JointsFrame,
+    (held, intra): (&SkinState, bool),
+) -> (ChunkKind, Vec<u8>) {
+    match coding {
+        PaletteCoding::Joints => (ChunkKind::Joints, write_joints_best(mask, entries, palette, &held.joint_prediction(intra))),
+        PaletteCoding::JointsPlain => (ChunkKind::Joints, write_joints(mask, entries, palette, &held.joint_prediction(intra))),
+        PaletteCoding::Palette => (ChunkKind::Palette, write_palette(mask, entries, &palette.palette, held.prediction(intra))),
+    }
 }
 
 /// Writes a file through a temporary file in the same folder and a rename, so a failed or

@@ -402,6 +402,47 @@ pub fn write_joints_best(mask: u64, entries: &[u32], frame: &JointsFrame, predic
     if plain.len() <= linked.len() { plain } else { linked }
 }
 
+/// A Joints payload's band mask (a varint of at most 64 bits naming bands below `levels`) and
+/// the byte after it; the error says what is wrong, for the caller to name the chunk.
+fn read_band_mask(bytes: &[u8], levels: usize) -> Result<(u64, usize), String> {
+    let mut mask: u64 = 0;
+    let mut pos = 0;
+    for shift in (0..64).step_by(7) {
+        let Some(&b) = bytes.get(pos) else { return Err("ends inside its band mask".into()) };
+        pos += 1;
+        if shift == 63 && b > 1 {
+            return Err("band mask beyond 64 bits".into());
+        }
+        mask |= ((b & 0x7f) as u64) << shift;
+        if b & 0x80 == 0 {
+            break;
+        }
+        if shift == 63 {
+            return Err("band mask longer than 10 bytes".into());
+        }
+    }
+    if levels < 64 && mask >> levels != 0 {
+        return Err(format!("band mask {mask:#x} names bands beyond the file's {levels}"));
+    }
+    Ok((mask, pos))
+}
+
+/// A link's pivot (three signed numbers read by `signed`), each within the bind limit.
+fn read_pivot(
+    r: &mut BitReader,
+    e: u32,
+    mut signed: impl FnMut(&mut BitReader) -> Result<i64, ContainerError>,
+) -> Result<[i64; 3], ContainerError> {
+    let mut pivot = [0i64; 3];
+    for c in &mut pivot {
+        *c = signed(r)?;
+        if c.unsigned_abs() > super::MAX_BIND as u64 {
+            return Err(r.corrupt(format!("palette entry {e}: pivot coordinate {c} beyond the limit of {}", super::MAX_BIND)));
+        }
+    }
+    Ok(pivot)
+}
+
 /// Reads a JOINTS payload of band `j` (carrying `bands[j]`, `bands` the entries each band
 /// carries) for a file of `levels` bands into the frame's `palette`, `rig` and `links` (entries
 /// it does not carry left as they are; entries of coarser bands already read); returns the
@@ -417,25 +458,7 @@ pub fn read_joints(
 ) -> Result<u64, ContainerError> {
     let corrupt = |detail: String| ContainerError::Corrupt { what: what.to_string(), detail };
     let entries: &[u32] = bands.get(j).map(Vec::as_slice).unwrap_or_default();
-    let mut mask: u64 = 0;
-    let mut pos = 0;
-    for shift in (0..64).step_by(7) {
-        let Some(&b) = bytes.get(pos) else { return Err(corrupt("ends inside its band mask".into())) };
-        pos += 1;
-        if shift == 63 && b > 1 {
-            return Err(corrupt("band mask beyond 64 bits".into()));
-        }
-        mask |= ((b & 0x7f) as u64) << shift;
-        if b & 0x80 == 0 {
-            break;
-        }
-        if shift == 63 {
-            return Err(corrupt("band mask longer than 10 bytes".into()));
-        }
-    }
-    if levels < 64 && mask >> levels != 0 {
-        return Err(corrupt(format!("band mask {mask:#x} names bands beyond the file's {levels}")));
-    }
+    let (mask, pos) = read_band_mask(bytes, levels).map_err(corrupt)?;
     let mut r = BitReader { bytes: &bytes[pos..], bit: 0, what };
     let key = matches!(prediction.pose, PosePrediction::Key);
     let n = palette.len() / ENTRY;
@@ -473,21 +496,14 @@ pub fn read_joints(
     if linked && key {
         let width = ref_bits(n);
         for &e in entries {
-            if r.bit()? == 0 {
-                continue;
-            }
-            let p = r.get(width)?;
-            if p as usize >= n || p == e as u64 || !read_before(bands, p as u32, e) {
-                return Err(corrupt(format!("palette entry {e}: reference {p} is not an entry read before it")));
-            }
-            let mut pivot = [0i64; 3];
-            for c in &mut pivot {
-                *c = signed(&mut r, &mut orders, 6)?;
-                if c.unsigned_abs() > super::MAX_BIND as u64 {
-                    return Err(corrupt(format!("palette entry {e}: pivot coordinate {c} beyond the limit of {}", super::MAX_BIND)));
+            if r.bit()? == 1 {
+                let p = r.get(width)?;
+                if p as usize >= n || p == e as u64 || !read_before(bands, p as u32, e) {
+                    return Err(corrupt(format!("palette entry {e}: reference {p} is not an entry read before it")));
                 }
+                let pivot = read_pivot(&mut r, e, |r| signed(r, &mut orders, 6))?;
+                links[e as usize] = Link { reference: p as u32, pivot };
             }
-            links[e as usize] = Link { reference: p as u32, pivot };
         }
     }
     for &e in entries {
