@@ -476,6 +476,14 @@ test("a skinned glTF's stream (version 7): every frame's input vertices equal th
   }
 });
 
+test("a fitted skin (encode --fit-skin --keep-skin on an OBJ sequence, issue 19): every frame's input vertices equal the Rust decoder's", async () => {
+  const file = join(dir, "tube-fitted.pmc");
+  execFileSync(bin, ["encode", "-q", join(dir, "frames"), "-o", file, "--keyframe-interval", "8", "--quant-bits", "12", "--fit-skin", "--keep-skin"]);
+  const c = await sameAsRust(file, "fitted");
+  assert.ok(c.header.skin !== null && c.header.skin.paletteLen > 1, "the stream carries the fitted bones");
+  assert.ok(c.index.some((e) => e.kind === ChunkKind.Joints), "the fitted bones' poses go in Joints chunks");
+});
+
 test("sparse positions chunks: listed nodes after their gaps, the rest zero; damage is a DecodeError", () => {
   // Shift 3, two listed nodes of five: node 1 (gap 1) with (1, -1, 0), node 4 (gap 2) with (0, 0, 64).
   const raw = Uint8Array.from([3 + 64, 2, 1, 2, 1, 0, 2, 0, 0, 128, 1]);
