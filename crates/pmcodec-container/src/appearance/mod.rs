@@ -9,6 +9,7 @@
 //! - [`mod@format`]: the raw serialized types (header field, Materials chunk).
 
 pub(crate) mod charts;
+mod codes;
 pub(crate) mod cut;
 pub mod export;
 pub mod format;

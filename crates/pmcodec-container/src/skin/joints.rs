@@ -9,6 +9,7 @@
 //! Prêteux, "FAMC: the MPEG-4 standard for animated mesh compression", 2008) and of the
 //! BBA/skeleton streams it builds on.
 
+use super::bits::{BitReader, Bits, golomb_len, unzigzag, zigzag};
 use super::hierarchy::{Link, NO_REF, Predicted, predict, read_before};
 use super::payload::PosePrediction;
 use super::{ENTRY, LINEAR_BITS, MAX_MATRIX};
@@ -105,107 +106,6 @@ pub struct JointsFrame {
     pub rig: Vec<Option<Rig>>,
     pub held: Vec<bool>,
     pub links: Vec<Link>,
-}
-
-fn zigzag(v: i64) -> u64 {
-    ((v << 1) ^ (v >> 63)) as u64
-}
-
-fn unzigzag(v: u64) -> i64 {
-    ((v >> 1) as i64) ^ -((v & 1) as i64)
-}
-
-/// Bits, least significant first within each byte.
-#[derive(Default)]
-struct Bits {
-    out: Vec<u8>,
-    used: u32,
-}
-
-impl Bits {
-    fn put(&mut self, v: u64, n: u32) {
-        for i in 0..n {
-            if self.used == 0 {
-                self.out.push(0);
-            }
-            if let Some(last) = self.out.last_mut() {
-                *last |= ((v >> i & 1) as u8) << self.used;
-            }
-            self.used = (self.used + 1) % 8;
-        }
-    }
-
-    /// Exp-Golomb of order k: `u + 2^k` in `m` bits after `m - 1 - k` zeros.
-    fn golomb(&mut self, u: u64, k: u32) {
-        let v = u as u128 + (1u128 << k);
-        let m = 128 - v.leading_zeros();
-        self.put(0, m - 1 - k);
-        for i in (0..m).rev() {
-            self.put((v >> i) as u64 & 1, 1);
-        }
-    }
-}
-
-/// Bits of the Exp-Golomb code of order `k` of `u`.
-fn golomb_len(u: u64, k: u32) -> u64 {
-    let v = u as u128 + (1u128 << k);
-    (2 * (128 - v.leading_zeros()) - 1 - k) as u64
-}
-
-struct BitReader<'a> {
-    bytes: &'a [u8],
-    bit: usize,
-    what: &'a str,
-}
-
-impl BitReader<'_> {
-    fn corrupt(&self, detail: impl Into<String>) -> ContainerError {
-        ContainerError::Corrupt { what: self.what.to_string(), detail: detail.into() }
-    }
-
-    fn bit(&mut self) -> Result<u64, ContainerError> {
-        let Some(&b) = self.bytes.get(self.bit / 8) else {
-            return Err(self.corrupt(format!("ends inside its bits at byte {}", self.bytes.len())));
-        };
-        let v = (b >> (self.bit % 8) & 1) as u64;
-        self.bit += 1;
-        Ok(v)
-    }
-
-    fn get(&mut self, n: u32) -> Result<u64, ContainerError> {
-        let mut v = 0;
-        for i in 0..n {
-            v |= self.bit()? << i;
-        }
-        Ok(v)
-    }
-
-    fn golomb(&mut self, k: u32) -> Result<u64, ContainerError> {
-        let mut zeros = 0u32;
-        while self.bit()? == 0 {
-            zeros += 1;
-            if zeros + k >= 64 {
-                return Err(self.corrupt("a number beyond 64 bits"));
-            }
-        }
-        let mut v: u64 = 1;
-        for _ in 0..zeros + k {
-            v = v << 1 | self.bit()?;
-        }
-        Ok(v - (1u64 << k))
-    }
-
-    /// The payload ends in this byte, with its unused bits 0.
-    fn finish(&self) -> Result<(), ContainerError> {
-        let end = self.bit.div_ceil(8);
-        if end != self.bytes.len() {
-            return Err(self.corrupt(format!("{} bytes left over", self.bytes.len() - end)));
-        }
-        if !self.bit.is_multiple_of(8) && self.bytes[end - 1] >> (self.bit % 8) != 0 {
-            return Err(self.corrupt("bits set after its last number"));
-        }
-        Ok(())
-    }
 }
 
 /// The coded numbers of one entry: (class, difference from the prediction).

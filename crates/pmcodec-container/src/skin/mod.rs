@@ -12,6 +12,7 @@
 // Per-axis and per-node loops index several parallel arrays at once, as the spec states them.
 #![allow(clippy::needless_range_loop)]
 
+mod bits;
 mod fit;
 mod hierarchy;
 mod joints;
