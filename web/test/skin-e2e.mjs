@@ -4,7 +4,7 @@
 // (the per-frame palette and offset changes applied on the page one after another), and
 // (3) after the budget dropped to a third and rose back during playback (new cuts, their skins,
 // geomorphs), each time with GPU skinning (?gpuskin=1) and with the worker posing every vertex
-// (?gpuskin=0) at the same frame: the two pictures must agree (SSIM >= 0.98 over the model; they
+// (?gpuskin=0) at the same frame: the two pictures must agree (SSIM >= 0.96 over the model; they
 // differ in normals: the GPU skins the bind pose's, as GLTFLoader's drawing does, the worker
 // recomputes them from posed positions). A control: the drawing against the worker's two frames
 // later must fall below the bar, so the bar tells a pose from its neighbour.
@@ -22,7 +22,10 @@ import { luminance, ssim } from "./image-lib.mjs";
 const root = new URL("../..", import.meta.url).pathname;
 const bin = process.env.PMCODEC_BIN ?? `${root}/target/debug/pmcodec`;
 const names = process.argv.slice(2).length ? process.argv.slice(2) : ["Fox", "RobotExpressive"];
-const BAR = 0.98;
+// Fox's faceted shading differs most between the two normals (0.977-0.985 by frame, and the
+// frame playback pauses at varies from run to run); a neighbouring pose scores 0.53 (Fox) and
+// 0.88 (RobotExpressive), so 0.96 still tells a pose from its neighbour.
+const BAR = 0.96;
 const work = mkdtempSync(join(tmpdir(), "pmc-skin-e2e-"));
 for (const n of names) execFileSync(bin, ["encode", "-q", join(root, "../shared/data/gltf", `${n}.glb`), "-o", join(work, `${n.toLowerCase()}.pmc`), "--keyframe-interval", "8"]);
 const port = 17000 + Math.floor(Math.random() * 1000);
