@@ -13,37 +13,23 @@
 // Usage (from web/, after npm run build):
 //   npx tsc -p tsconfig.test.json && node bench/play.mjs ASSETS_DIR [ASSET_ID]
 // (PMCODEC_BIN: the server binary; ASSETS_DIR/ASSET_ID.pmc is read to map bytes to frames.)
-import { chromium } from "playwright-core";
-import { spawn } from "node:child_process";
 import { readFileSync } from "node:fs";
 import { Reader } from "../build-test/src/container/index.js";
+import { launch, ready, root, serve, sleep } from "../test/harness.mjs";
 
-const root = new URL("../..", import.meta.url).pathname;
 const dir = process.argv[2];
 const asset = process.argv[3] ?? "horse-gallop";
 if (!dir) { console.error("usage: node bench/play.mjs ASSETS_DIR [ASSET_ID]"); process.exit(2); }
 const bin = process.env.PMCODEC_BIN ?? `${root}/target/release/pmcodec`;
-const port = 19000 + Math.floor(Math.random() * 1000);
-const server = spawn(bin, ["serve", "--listen", `127.0.0.1:${port}`, "--assets", dir, "--viewer", `${root}/web/dist`], { stdio: ["ignore", "pipe", "pipe"] });
-let log = "";
-server.stdout.on("data", (d) => { log += d; });
-server.stderr.on("data", (d) => { log += d; });
-const base = `http://127.0.0.1:${port}`;
+const host = serve(bin, ["--assets", dir, "--viewer", `${root}/web/dist`], { from: 19000, capture: true });
+const { server, base } = host;
 // VIEWPORT=WxH (default 960x640): a small one shows the rate when software rasterization is cheap.
 const [VW, VH] = (process.env.VIEWPORT ?? "960x640").split("x").map(Number);
-const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 let browser;
 try {
-  for (let i = 0; ; i++) {
-    try { if ((await fetch(`${base}/readyz`)).ok) break; } catch {}
-    if (i > 400) throw new Error("server did not start");
-    await sleep(250);
-  }
+  await ready(base, 100_000);
   const info = await (await fetch(`${base}/v1/assets/${asset}`)).json();
-  browser = await chromium.launch({
-    executablePath: "/usr/bin/chromium",
-    args: ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking", "--disable-component-update", "--disable-sync"],
-  });
+  browser = await launch();
   const stat = (page) => page.$eval("#overlay", (e) => ({ frame: Number(e.dataset.frame), shown: Number(e.dataset.shown), mainMs: Number(e.dataset.mainMs), bytes: Number(e.dataset.bytes), requests: Number(e.dataset.requests), stalls: Number(e.dataset.stalls), renderMs: Number(e.dataset.renderMs), draws: Number(e.dataset.draws), workerMs: Number(e.dataset.workerMs) }));
   async function openPage(query, latency) {
     const context = await browser.newContext({ viewport: { width: VW, height: VH } });
@@ -62,7 +48,7 @@ try {
     return { page, context };
   }
   async function rate(latency, extra = "") {
-    const logStart = log.length;
+    const logStart = host.log.length;
     const { page, context } = await openPage(`asset=${asset}&budget=${info.triangles}${extra}`, latency);
     await sleep(1000);
     const a = await stat(page), la = await page.evaluate(() => window.__long);
@@ -78,7 +64,7 @@ try {
   // Byte ranges the server answered for the container since `from` in its log.
   function ranges(from) {
     const out = [];
-    for (const line of log.slice(from).split("\n")) {
+    for (const line of host.log.slice(from).split("\n")) {
       const m = /\/v\/[0-9a-f]+\/file range=bytes=(\d+)-(\d+) status=206/.exec(line);
       if (m) out.push([Number(m[1]), Math.min(Number(m[2]) + 1, info.bytes)]);
     }
@@ -137,7 +123,7 @@ try {
   // frames at full resolution (the first run's fetches), both from the server's log mapped to
   // frames through the container's index.
   const full = perFrame(rs);
-  const from = log.length;
+  const from = host.log.length;
   const { page: bp, context: bc } = await openPage(`asset=${asset}&budget=${info.triangles}`, 0);
   // The frame on screen when the budget drops, read in the same task that drops it.
   const dropAt = await bp.$eval("#budget", (e, v) => { e.value = String(v); e.dispatchEvent(new Event("input")); return Number(document.getElementById("overlay").dataset.frame); }, Math.round(info.triangles / 10));

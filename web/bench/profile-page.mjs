@@ -4,15 +4,12 @@
 // Works against any build of the viewer that shows #overlay with data-frame (this one, and the
 // viewer before issue 18). Against a running server (e.g. pmcodec serve --assets DIR):
 //   node bench/profile-page.mjs http://127.0.0.1:8080 horse-gallop
-import { chromium } from "playwright-core";
+import { launch } from "../test/harness.mjs";
 
 const [base, asset = "horse-gallop"] = process.argv.slice(2);
 if (!base) { console.error("usage: node bench/profile-page.mjs BASE_URL [ASSET_ID]"); process.exit(2); }
 const info = await (await fetch(`${base}/v1/assets/${asset}`)).json();
-const browser = await chromium.launch({
-  executablePath: "/usr/bin/chromium",
-  args: ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking", "--disable-component-update", "--disable-sync"],
-});
+const browser = await launch();
 try {
   const page = await browser.newPage({ viewport: { width: 960, height: 640 } });
   let requests = 0;

@@ -8,15 +8,14 @@
 // Usage: node test/appearance-e2e.mjs [Model ...]   (default: every .glb in ../shared/data/gltf)
 // Needs: web/dist (npm run build), the pmcodec binary (PMCODEC_BIN, default target/debug/pmcodec),
 // Debian's chromium at /usr/bin/chromium.
-import { chromium } from "playwright-core";
 import { execFileSync } from "node:child_process";
 import { mkdirSync, mkdtempSync, readdirSync, rmSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 import assert from "node:assert/strict";
+import { launch, root } from "./harness.mjs";
 import { host, luminance, ssim } from "./image-lib.mjs";
 
-const root = new URL("../..", import.meta.url).pathname;
 const bin = process.env.PMCODEC_BIN ?? `${root}/target/debug/pmcodec`;
 const models = join(root, "../shared/data/gltf");
 const SIZE = 256;
@@ -37,10 +36,7 @@ const base = `http://127.0.0.1:${server.address().port}`;
 let browser;
 const results = [];
 try {
-  browser = await chromium.launch({
-    executablePath: "/usr/bin/chromium",
-    args: ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking", "--disable-component-update", "--disable-sync"],
-  });
+  browser = await launch();
   // One page for every model: three.js compiles the materials' shaders once per renderer.
   const page = await browser.newPage({ viewport: { width: 2 * SIZE + 40, height: SIZE + 120 } });
   const errors = [];

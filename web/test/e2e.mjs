@@ -3,33 +3,19 @@
 // changes the triangle count. Saves a screenshot to web/test-artifacts/viewer.png.
 // Needs: the release binary (cargo build --release -p pmcodec), web/dist (npm run build),
 // Debian's chromium at /usr/bin/chromium.
-import { chromium } from "playwright-core";
-import { spawn } from "node:child_process";
 import { mkdirSync } from "node:fs";
 import assert from "node:assert/strict";
+import { launch, ready, root, serve } from "./harness.mjs";
 
-const root = new URL("../..", import.meta.url).pathname;
-const port = 18000 + Math.floor(Math.random() * 1000);
 const bin = process.env.PMCODEC_BIN ?? `${root}/target/release/pmcodec`;
-const server = spawn(bin, ["serve", "--listen", `127.0.0.1:${port}`, "--viewer", `${root}/web/dist`], { stdio: ["ignore", "pipe", "pipe"] });
-// The server's request log (one line per request on stderr).
-let serverLog = "";
-server.stdout.on("data", (d) => { serverLog += d; });
-server.stderr.on("data", (d) => { serverLog += d; });
-const base = `http://127.0.0.1:${port}`;
+// The server's request log (one line per request on stderr) collects in `host.log`.
+const host = serve(bin, ["--viewer", `${root}/web/dist`], { capture: true });
+const { server, base } = host;
 let browser;
-const deadline = Date.now() + 300_000;
 try {
-  // Wait for the server (it encodes its samples at start).
-  for (;;) {
-    try { if ((await fetch(`${base}/readyz`)).ok) break; } catch {}
-    if (Date.now() > deadline) throw new Error("server did not start");
-    await new Promise((r) => setTimeout(r, 250));
-  }
-  browser = await chromium.launch({
-    executablePath: "/usr/bin/chromium",
-    args: ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking", "--disable-component-update", "--disable-sync"],
-  });
+  // The server encodes its samples at start.
+  await ready(base);
+  browser = await launch();
   const page = await browser.newPage({ viewport: { width: 960, height: 640 } });
   const fileRequests = [];
   page.on("request", (r) => { if (r.url().includes("/v/")) fileRequests.push(r.headers()["range"] ?? "all"); });
@@ -63,14 +49,14 @@ try {
   assert.ok(after <= 200 && after < before, `budget 200 shows ${after} (was ${before})`);
   const levelBefore = await page.$eval("#overlay", (e) => Number(e.dataset.level));
   const requestsBefore = fileRequests.length;
-  const logBefore = serverLog.length;
+  const logBefore = host.log.length;
   await page.$eval("#budget", (e) => { e.value = e.max; e.dispatchEvent(new Event("input")); });
   await page.waitForFunction((l) => Number(document.getElementById("overlay")?.dataset.level) < l, levelBefore, { timeout: 60_000 });
   await page.waitForFunction((a) => Number(document.getElementById("overlay")?.dataset.triangles ?? 0) > a, after, { timeout: 60_000 });
   const big = await trianglesOf();
   assert.ok(fileRequests.length > requestsBefore, "raising the budget fetched more of the container");
   assert.ok(fileRequests.every((r) => r.startsWith("bytes=")), "every container read is a range request");
-  const newLines = serverLog.slice(logBefore).split("\n").filter((l) => l.includes("/v/") && l.includes("range=bytes=") && l.includes("status=206"));
+  const newLines = host.log.slice(logBefore).split("\n").filter((l) => l.includes("/v/") && l.includes("range=bytes=") && l.includes("status=206"));
   assert.ok(newLines.length > 0, "the server's request log shows the finer bands being fetched");
   // Let a geomorph finish before the screenshot.
   await page.waitForTimeout(400);

@@ -6,35 +6,23 @@
 // Usage: node test/lod-e2e.mjs A-lod.glb [B-lod.glb ...]
 // Needs: a pmcodec binary (PMCODEC_BIN, default target/release/pmcodec) to serve web/dist,
 // web/dist (npm run build), Debian's chromium at /usr/bin/chromium.
-import { chromium } from "playwright-core";
-import { spawn } from "node:child_process";
 import { mkdirSync, readFileSync } from "node:fs";
 import { basename } from "node:path";
 import assert from "node:assert/strict";
+import { launch, ready, root, serve } from "./harness.mjs";
 
 const files = process.argv.slice(2);
 if (files.length === 0) throw new Error("usage: node test/lod-e2e.mjs FILE.glb ...");
-const root = new URL("../..", import.meta.url).pathname;
-const port = 19000 + Math.floor(Math.random() * 1000);
 const bin = process.env.PMCODEC_BIN ?? `${root}/target/release/pmcodec`;
 // An empty asset folder: the page and its bundle are all this test needs from the server.
 const assets = `${root}/target/lod-e2e-assets`;
 mkdirSync(assets, { recursive: true });
-const server = spawn(bin, ["serve", "--assets", assets, "--listen", `127.0.0.1:${port}`, "--viewer", `${root}/web/dist`, "--quiet"], { stdio: "ignore" });
-const base = `http://127.0.0.1:${port}`;
+const { server, base } = serve(bin, ["--assets", assets, "--viewer", `${root}/web/dist`, "--quiet"], { from: 19000 });
 let browser;
 let checked = 0;
 try {
-  const deadline = Date.now() + 60_000;
-  for (;;) {
-    try { if ((await fetch(`${base}/readyz`)).ok) break; } catch {}
-    if (Date.now() > deadline) throw new Error("server did not start");
-    await new Promise((r) => setTimeout(r, 200));
-  }
-  browser = await chromium.launch({
-    executablePath: "/usr/bin/chromium",
-    args: ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking", "--disable-component-update", "--disable-sync"],
-  });
+  await ready(base, 60_000);
+  browser = await launch();
   mkdirSync(`${root}/web/test-artifacts`, { recursive: true });
   for (const file of files) {
     const bytes = readFileSync(file);

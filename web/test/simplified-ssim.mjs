@@ -9,14 +9,13 @@
 //   ANIMATIONS (at most this many per model, default all), PMCODEC_BIN, SIZE (default 256).
 // Needs: web/dist (npm run build), the pmcodec binary, Debian's chromium at /usr/bin/chromium.
 // Images of the first frame of each animation: web/test-artifacts/simplified/.
-import { chromium } from "playwright-core";
 import { execFileSync } from "node:child_process";
 import { mkdirSync, mkdtempSync, readdirSync, readFileSync, rmSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
+import { launch, root } from "./harness.mjs";
 import { host, luminance, ssim } from "./image-lib.mjs";
 
-const root = new URL("../..", import.meta.url).pathname;
 const bin = process.env.PMCODEC_BIN ?? `${root}/target/debug/pmcodec`;
 const models = join(root, "../shared/data/gltf");
 const SIZE = Number(process.env.SIZE ?? 256);
@@ -74,7 +73,7 @@ const base = `http://127.0.0.1:${server.address().port}`;
 const rows = [];
 let browser;
 try {
-  browser = await chromium.launch({ executablePath: "/usr/bin/chromium", args: ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking", "--disable-component-update", "--disable-sync"] });
+  browser = await launch();
   const page = await browser.newPage({ viewport: { width: 2 * SIZE + 40, height: SIZE + 120 } });
   page.on("pageerror", (e) => console.log(`  [page error] ${e}`));
   await page.goto(`${base}/compare.html?size=${SIZE}`, { waitUntil: "commit" });

@@ -11,15 +11,14 @@
 // Usage: node test/skin-e2e.mjs [Model ...]   (default: Fox RobotExpressive)
 // Needs: web/dist (npm run build), the pmcodec binary (PMCODEC_BIN, default target/debug/pmcodec),
 // Debian's chromium at /usr/bin/chromium.
-import { chromium } from "playwright-core";
-import { execFileSync, spawn } from "node:child_process";
+import { execFileSync } from "node:child_process";
 import { mkdtempSync, rmSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 import assert from "node:assert/strict";
+import { launch, ready, root, serve, sleep } from "./harness.mjs";
 import { luminance, ssim } from "./image-lib.mjs";
 
-const root = new URL("../..", import.meta.url).pathname;
 const bin = process.env.PMCODEC_BIN ?? `${root}/target/debug/pmcodec`;
 const names = process.argv.slice(2).length ? process.argv.slice(2) : ["Fox", "RobotExpressive"];
 // Fox's faceted shading differs most between the two normals (0.977-0.985 by frame, and the
@@ -28,19 +27,12 @@ const names = process.argv.slice(2).length ? process.argv.slice(2) : ["Fox", "Ro
 const BAR = 0.96;
 const work = mkdtempSync(join(tmpdir(), "pmc-skin-e2e-"));
 for (const n of names) execFileSync(bin, ["encode", "-q", join(root, "../shared/data/gltf", `${n}.glb`), "-o", join(work, `${n.toLowerCase()}.pmc`), "--keyframe-interval", "8"]);
-const port = 17000 + Math.floor(Math.random() * 1000);
-const server = spawn(bin, ["serve", "--listen", `127.0.0.1:${port}`, "--assets", work, "--viewer", `${root}/web/dist`], { stdio: "ignore" });
-const base = `http://127.0.0.1:${port}`;
-const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+const { server, base } = serve(bin, ["--assets", work, "--viewer", `${root}/web/dist`], { from: 17000 });
 const results = [];
 let browser;
 try {
-  for (let i = 0; ; i++) {
-    try { if ((await fetch(`${base}/readyz`)).ok) break; } catch {}
-    if (i > 400) throw new Error("server did not start");
-    await sleep(250);
-  }
-  browser = await chromium.launch({ executablePath: "/usr/bin/chromium", args: ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking", "--disable-component-update", "--disable-sync"] });
+  await ready(base, 100_000);
+  browser = await launch();
   const W = 320, H = 320;
   async function open(query) {
     const context = await browser.newContext({ viewport: { width: W, height: H } });

@@ -3,27 +3,18 @@
 // of issue 18; none is timed (the CI machine is busy): they count requests and bytes, read
 // state, and compare pixels. Needs web/dist (npm run build), the pmcodec binary (PMCODEC_BIN),
 // Debian's chromium at /usr/bin/chromium.
-import { chromium } from "playwright-core";
-import { execFileSync, spawn } from "node:child_process";
+import { execFileSync } from "node:child_process";
 import { mkdtempSync, readdirSync, readFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 import assert from "node:assert/strict";
+import { launch, ready, root, serve, sleep } from "./harness.mjs";
 
-const root = new URL("../..", import.meta.url).pathname;
 const bin = process.env.PMCODEC_BIN ?? `${root}/target/release/pmcodec`;
-const port = 18000 + Math.floor(Math.random() * 1000);
 const TOKEN = "e2e-write-token";
 // PMCODEC_VIEWER_DIST: another build of the viewer (to check that these checks fail on an old one).
-const server = spawn(bin, ["serve", "--listen", `127.0.0.1:${port}`, "--viewer", process.env.PMCODEC_VIEWER_DIST ?? `${root}/web/dist`], {
-  stdio: ["ignore", "pipe", "pipe"],
-  env: { ...process.env, PMCODEC_WRITE_TOKEN: TOKEN },
-});
-let log = "";
-server.stdout.on("data", (d) => { log += d; });
-server.stderr.on("data", (d) => { log += d; });
-const base = `http://127.0.0.1:${port}`;
-const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+const host = serve(bin, ["--viewer", process.env.PMCODEC_VIEWER_DIST ?? `${root}/web/dist`], { capture: true, env: { ...process.env, PMCODEC_WRITE_TOKEN: TOKEN } });
+const { server, base } = host;
 const results = [];
 let browser;
 
@@ -54,7 +45,7 @@ const shown = (page) => waitFor(page, () => Number(document.getElementById("over
 /** Byte ranges of container files the server answered since `from` in its log. */
 function ranges(from) {
   const out = [];
-  for (const line of log.slice(from).split("\n")) {
+  for (const line of host.log.slice(from).split("\n")) {
     const m = /GET (\/v1\/assets\/[^ ]+\/v\/[0-9a-f]+\/file) range=bytes=(\d+)-(\d+) status=206/.exec(line);
     if (m) out.push([m[1], Number(m[2]), Number(m[3]) + 1]);
   }
@@ -83,22 +74,15 @@ function zip(files) {
 }
 
 try {
-  for (let i = 0; ; i++) {
-    try { if ((await fetch(`${base}/readyz`)).ok) break; } catch {}
-    if (i > 1200) throw new Error("server did not start");
-    await sleep(250);
-  }
+  await ready(base);
   const assets = (await (await fetch(`${base}/v1/assets`)).json()).assets;
   const infos = Object.fromEntries(await Promise.all(assets.map(async (a) => [a.id, await (await fetch(`${base}/v1/assets/${a.id}`)).json()])));
   const [first, second] = assets.map((a) => a.id);
-  browser = await chromium.launch({
-    executablePath: "/usr/bin/chromium",
-    args: ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking", "--disable-component-update", "--disable-sync"],
-  });
+  browser = await launch();
 
   await check("full resolution: about one range request per frame (not one per chunk, awaited in turn), from a worker, never twice over loops", async (page) => {
     const info = infos[first];
-    const from = log.length;
+    const from = host.log.length;
     await page.goto(`${base}/?asset=${first}&budget=${info.triangles}`);
     await shown(page);
     // Two and a half loops.
@@ -248,7 +232,7 @@ try {
   });
 
   await check("the package plays a .pmc from its URL alone (range requests only)", async (page) => {
-    const from = log.length;
+    const from = host.log.length;
     const requests = [];
     page.on("request", (r) => { if (r.url().includes("/v/")) requests.push(r.headers()["range"] ?? "none"); });
     await page.goto(`${base}/example.html?url=${encodeURIComponent(infos[first].file)}`);
@@ -256,7 +240,7 @@ try {
     const f0 = await page.$eval("#status", (e) => e.dataset.frame);
     await waitFor(page, (f) => document.getElementById("status").dataset.frame !== f, f0);
     assert.ok(requests.length > 0 && requests.every((r) => r.startsWith("bytes=")), `container requests without a range: ${requests}`);
-    assert.ok(!log.slice(from).includes(`GET /v1/assets/${first} `), "the asset's metadata was asked for");
+    assert.ok(!host.log.slice(from).includes(`GET /v1/assets/${first} `), "the asset's metadata was asked for");
   });
 
   await check("a zip of OBJ frames dropped on the page is uploaded, its job followed, and the new asset plays", async (page) => {
