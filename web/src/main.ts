@@ -31,7 +31,9 @@ const camera = new THREE.PerspectiveCamera(40, 1, 0.01, 1000);
 const controls = new OrbitControls(camera, canvas);
 // An environment light for the streams' own PBR materials (metallic surfaces render black
 // without one), used only while they are drawn: flat colours keep the lights they were tuned with.
-const environment = roomEnvironment(renderer);
+// Made on first use (prefiltering it blocks the page a moment): streams without materials never
+// need it.
+let environment: THREE.Texture | null = null;
 const hemisphere = new THREE.HemisphereLight(0xffffff, 0x404050, 1.2);
 scene.add(hemisphere);
 const sun = new THREE.DirectionalLight(0xffffff, 1.5);
@@ -43,7 +45,9 @@ let player: PmcPlayer | null = null;
 /** The environment light while the player draws a stream's materials. */
 function updateEnvironment(): void {
   const p = player;
-  scene.environment = p && p.info?.appearance && p.colourMode === "authored" ? environment : null;
+  const wanted = p !== null && p.info?.appearance != null && p.colourMode === "authored";
+  if (wanted && environment === null) environment = roomEnvironment(renderer);
+  scene.environment = wanted ? environment : null;
   // The environment is the ambient light then (as on web/compare.html, where streams are
   // checked against three.js's own drawing of their GLB): the hemisphere would add to it.
   hemisphere.visible = scene.environment === null;
