@@ -97,14 +97,30 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
             // same table).
             // Each also with its value residuals entropy-coded (rANS over their bit lengths),
             // which pays once a band has a few hundred values.
+            // With the band above, its representatives' values need no residual at all
+            // (`tables` made every coarse value one of its children's).
             let mut codings = vec![payload::write_table(t, channels), payload::write_table_rans(t, channels)];
+            let chart_of = &builder.charts().triangle_chart;
             for rans in [false, true] {
                 codings.push(payload::write_table_chartwise(t, channels, rans));
                 if j == 0 {
-                    codings.push(payload::write_table_derived(t, channels, builder.triangles(), &builder.charts().triangle_chart, rans));
+                    codings.push(payload::write_table_derived(t, channels, builder.triangles(), chart_of, rans));
                 }
                 if let (Some(parent), Some(above)) = (builder.first_parent(j), tables.get(j + 1)) {
-                    codings.push(payload::write_table_from_above(t, channels, parent, &above.to_table(), rans));
+                    let above = above.to_table();
+                    codings.push(payload::write_table_from_above(t, channels, parent, &above, rans));
+                    codings.extend(payload::write_table_represented(t, channels, parent, &above, rans));
+                    if j == 0 {
+                        codings.extend(payload::write_table_derived_represented(
+                            t,
+                            channels,
+                            builder.triangles(),
+                            chart_of,
+                            parent,
+                            &above,
+                            rans,
+                        ));
+                    }
                 }
             }
             let raw = codings.into_iter().min_by_key(size).unwrap_or_default();

@@ -202,6 +202,54 @@ pub fn write_table_from_above(t: &QuantizedTable, channels: usize, parent: &[u32
     out
 }
 
+/// ATTRIBUTES of a band j below the top with *represented values*: `0`, `3 | 16` (with `rans`,
+/// `3 | 16 | 8`), then the layout of [`write_table_from_above`] but without a residual for an
+/// entry that is its parent entry's *representative* ([`representatives`]): its value is that
+/// parent entry's, which the encoder made so (each coarse value is one of its descendants'
+/// input values, see `tables`), so every distinct value is sent once, coarse first. `None`
+/// when a representative's value differs from its parent entry's (the coding would lose it).
+pub fn write_table_represented(t: &QuantizedTable, channels: usize, parent: &[u32], above: &Table, rans: bool) -> Option<Vec<u8>> {
+    let nodes = t.entries.last().map_or(0, |e| e.0 + 1);
+    let reps = representatives(&Table::index(&t.entries, nodes), parent, above);
+    if !represented_agree(&reps, &t.values, &above.values, channels) {
+        return None;
+    }
+    let mut out = Vec::new();
+    put(&mut out, 0);
+    put(&mut out, FROM_ABOVE | REPRESENTED | if rans { RANS_VALUES } else { 0 });
+    write_listed_with(&mut out, t, channels, true, Some((parent, above)), rans, &reps);
+    Some(out)
+}
+
+/// Whether every represented entry's values equal its parent entry's.
+fn represented_agree(reps: &[Option<u32>], values: &[i32], above: &[i32], channels: usize) -> bool {
+    reps.iter().enumerate().all(|(e, r)| {
+        r.is_none_or(|a| values.get(e * channels..(e + 1) * channels) == above.get(a as usize * channels..(a as usize + 1) * channels))
+    })
+}
+
+/// Per entry of a band's table (ascending by (node, chart)), the entry of the band above it
+/// copies, if it is a *representative*: the first entry, in table order, whose node's parent
+/// (`parent`, frame 0's hierarchy) has an entry of the same chart in `above`, each entry above
+/// represented once. So a coarse (node, chart) value is that of its smallest child node with
+/// an entry in the chart, a rule the decoder follows from the entries alone (Hoppe,
+/// "Progressive meshes", 1996, keeps a vertex's attributes through its collapses the same way:
+/// a coarse vertex's wedge is one of its children's, not new data).
+pub fn representatives(table: &Table, parent: &[u32], above: &Table) -> Vec<Option<u32>> {
+    let mut claimed = vec![false; above.len()];
+    let mut out = vec![None; table.len()];
+    for node in 0..table.first.len().saturating_sub(1) {
+        let Some(&p) = parent.get(node) else { break };
+        for e in table.first[node] as usize..table.first[node + 1] as usize {
+            if let Some(a) = above.find(p, table.charts[e]).filter(|&a| !claimed[a]) {
+                claimed[a] = true;
+                out[e] = Some(a as u32);
+            }
+        }
+    }
+    out
+}
+
 impl QuantizedTable {
     /// As a decoded [`Table`] (for predicting the band below it).
     pub fn to_table(&self) -> Table {
@@ -221,6 +269,20 @@ fn from_above(above: Option<(&[u32], &Table)>, node: u32, chart: u32, channels: 
 }
 
 fn write_listed(out: &mut Vec<u8>, t: &QuantizedTable, channels: usize, chartwise: bool, above: Option<(&[u32], &Table)>, rans: bool) {
+    write_listed_with(out, t, channels, chartwise, above, rans, &[]);
+}
+
+/// [`write_listed`] without a residual for the entries `reps` names (their values are their
+/// parent entries').
+fn write_listed_with(
+    out: &mut Vec<u8>,
+    t: &QuantizedTable,
+    channels: usize,
+    chartwise: bool,
+    above: Option<(&[u32], &Table)>,
+    rans: bool,
+    reps: &[Option<u32>],
+) {
     put(out, t.entries.len() as u32);
     let mut prev: Option<(u32, u32)> = None;
     for &(node, chart) in &t.entries {
@@ -248,17 +310,24 @@ fn write_listed(out: &mut Vec<u8>, t: &QuantizedTable, channels: usize, chartwis
         for (e, &(node, chart)) in t.entries.iter().enumerate() {
             let slot = if chartwise { chart as usize } else { 0 };
             let q = t.values[e * channels + k];
-            let pred = from_above(above, node, chart, channels, k).unwrap_or(last[slot]);
-            codes.push(zigzag(q.wrapping_sub(pred)));
+            if reps.get(e).is_none_or(Option::is_none) {
+                let pred = from_above(above, node, chart, channels, k).unwrap_or(last[slot]);
+                codes.push(zigzag(q.wrapping_sub(pred)));
+            }
             last[slot] = q;
         }
     }
-    put_codes(out, &codes, t.entries.len(), channels, rans);
+    let coded = t.entries.len() - reps.iter().filter(|r| r.is_some()).count();
+    put_codes(out, &codes, coded, channels, rans);
 }
 
 /// Set in a table's mode (after its first byte 0): the value residuals are a rANS section
 /// ([`put_codes`]) rather than varints. Files before it never set it.
 const RANS_VALUES: u32 = 8;
+/// Set in a table's mode with [`FROM_ABOVE`] or [`DERIVED_ENTRIES`]: representatives
+/// ([`representatives`]) take their parent entry's values and have no residual. Files before
+/// it never set it.
+const REPRESENTED: u32 = 16;
 /// A decoded attribute table, indexed by node: entries of node n are `first[n]..first[n+1]`.
 #[derive(Clone, Debug, Default)]
 pub struct Table {
@@ -285,7 +354,7 @@ impl Table {
     }
 
     /// The index of entries ascending by (node, chart), without values.
-    fn index(entries: &[(u32, u32)], nodes: u32) -> Table {
+    pub(crate) fn index(entries: &[(u32, u32)], nodes: u32) -> Table {
         let mut first = vec![0u32; nodes as usize + 1];
         for &(n, _) in entries {
             first[n as usize + 1] += 1;
@@ -325,6 +394,8 @@ const CHARTWISE: u32 = 2;
 /// The coding of a listed table with values predicted from the band above
 /// ([`write_table_from_above`]).
 const FROM_ABOVE: u32 = 3;
+/// [`FROM_ABOVE`] with [`REPRESENTED`] ([`write_table_represented`]).
+const REPRESENTED_ABOVE: u32 = FROM_ABOVE | REPRESENTED;
 
 /// Band 0's traversal (proto/container.md, "Attributes, band 0 with derived entries"): the
 /// triangles in input order, each one's corners in order; a corner whose entry is not yet
@@ -335,17 +406,21 @@ const FROM_ABOVE: u32 = 3;
 /// of the chart shares their edge: `a + b - o`, o that triangle's third corner; else the mean
 /// of the two known corners, the one known corner, the last entry made known in the
 /// triangle's chart, or the last entry made known (zeros at first). Arithmetic wraps in 32 bits, the mean is `(a + b) >> 1` (arithmetic shift).
+/// Entries `known` at the start (the representatives of a represented table, their values in
+/// `values`) are never visited; the others see them as known corners.
+#[allow(clippy::too_many_arguments)]
 fn traverse(
     table: &Table,
     triangles: &[[u32; 3]],
     triangle_chart: &[u32],
     channels: usize,
     values: &mut [i32],
+    mut known: Vec<bool>,
     mut visit: impl FnMut(&[i32], &mut [i32]) -> Result<(), ContainerError>,
     what: &str,
 ) -> Result<(), ContainerError> {
     let c = channels;
-    let mut known = vec![false; table.len()];
+    known.resize(table.len(), false);
     // Edge (entry a, entry b), a < b, of an earlier triangle -> that triangle's third entry.
     let mut opposite: std::collections::HashMap<u64, u32> = std::collections::HashMap::new();
     let key = |a: usize, b: usize| ((a.min(b) as u64) << 32) | a.max(b) as u64;
@@ -402,8 +477,45 @@ fn traverse(
 /// entries. `t`'s entries must be [`band0_entries`] of the same triangles and charts.
 /// With `rans`, the mode is `1 | 8` and the residuals a [`put_codes`] rANS section.
 pub fn write_table_derived(t: &QuantizedTable, channels: usize, triangles: &[[u32; 3]], triangle_chart: &[u32], rans: bool) -> Vec<u8> {
+    write_derived(t, channels, triangles, triangle_chart, None, rans).unwrap_or_else(|| write_table(t, channels))
+}
+
+/// ATTRIBUTES, band 0 with derived entries and *represented values*: `0`, `1 | 16` (with
+/// `rans`, `1 | 16 | 8`), then the residuals of [`write_table_derived`] for the entries that
+/// are not representatives ([`representatives`] of band 0's entries under `parent` in
+/// `above`, band 1's table): those take their parent entry's values before the traversal
+/// starts, are known corners to it and have no residual. `None` when a representative's value
+/// differs from its parent entry's, or the triangles miss an entry.
+pub fn write_table_derived_represented(
+    t: &QuantizedTable,
+    channels: usize,
+    triangles: &[[u32; 3]],
+    triangle_chart: &[u32],
+    parent: &[u32],
+    above: &Table,
+    rans: bool,
+) -> Option<Vec<u8>> {
+    write_derived(t, channels, triangles, triangle_chart, Some((parent, above)), rans)
+}
+
+fn write_derived(
+    t: &QuantizedTable,
+    channels: usize,
+    triangles: &[[u32; 3]],
+    triangle_chart: &[u32],
+    above: Option<(&[u32], &Table)>,
+    rans: bool,
+) -> Option<Vec<u8>> {
     let nodes = t.entries.last().map_or(0, |e| e.0 + 1);
     let table = Table::index(&t.entries, nodes);
+    let reps = above.map(|(parent, above)| representatives(&table, parent, above)).unwrap_or_default();
+    if let Some((_, above)) = above
+        && !represented_agree(&reps, &t.values, &above.values, channels)
+    {
+        return None;
+    }
+    let known: Vec<bool> = reps.iter().map(Option::is_some).collect();
+    let coded = t.entries.len() - known.iter().filter(|&&k| k).count();
     let mut values = t.values.clone();
     let mut residuals: Vec<Vec<u32>> = vec![Vec::with_capacity(t.entries.len()); channels];
     let visit = |pred: &[i32], v: &mut [i32]| {
@@ -414,13 +526,11 @@ pub fn write_table_derived(t: &QuantizedTable, channels: usize, triangles: &[[u3
     };
     let mut out = Vec::new();
     put(&mut out, 0);
-    put(&mut out, DERIVED_ENTRIES | if rans { RANS_VALUES } else { 0 });
+    put(&mut out, DERIVED_ENTRIES | if above.is_some() { REPRESENTED } else { 0 } | if rans { RANS_VALUES } else { 0 });
     // The entries are the triangles' own: the traversal cannot miss one.
-    if traverse(&table, triangles, triangle_chart, channels, &mut values, visit, "band 0 attributes").is_err() {
-        return write_table(t, channels);
-    }
-    put_codes(&mut out, &residuals.concat(), t.entries.len(), channels, rans);
-    out
+    traverse(&table, triangles, triangle_chart, channels, &mut values, known, visit, "band 0 attributes").ok()?;
+    put_codes(&mut out, &residuals.concat(), coded, channels, rans);
+    Some(out)
 }
 
 /// Reads band j's table: `nodes` = `level_sizes[j]`; at most three entries per triangle.
@@ -433,14 +543,35 @@ pub fn read_table_with(
     triangles: u32,
     band0: Option<(&[[u32; 3]], &[u32])>,
 ) -> Result<Table, ContainerError> {
-    if bytes.first() != Some(&0) || bytes.len() < 2 || bytes[1] & !(RANS_VALUES as u8) != DERIVED_ENTRIES as u8 {
-        return read_table(bytes, what, nodes, info, triangles);
+    read_band(bytes, what, nodes, info, triangles, band0, None)
+}
+
+/// Reads band j's table, whichever its coding: `band0` gives band 0's triangles and their
+/// charts (a table with derived entries needs them), `above` frame 0's parents of this band's
+/// nodes and the band above's table (a table predicted from it or with represented values
+/// needs them; [`needs_above`] says whether).
+pub fn read_band(
+    bytes: &[u8],
+    what: &str,
+    nodes: u32,
+    info: &AppearanceInfo,
+    triangles: u32,
+    band0: Option<(&[[u32; 3]], &[u32])>,
+    above: Option<(&[u32], &Table)>,
+) -> Result<Table, ContainerError> {
+    let flags = (RANS_VALUES | REPRESENTED) as u8;
+    if bytes.first() != Some(&0) || bytes.len() < 2 || bytes[1] & !flags != DERIVED_ENTRIES as u8 {
+        return read_table_above(bytes, what, nodes, info, triangles, above);
     }
     let channels = info.channels();
     let mut c = Cursor::new(bytes, what);
     c.get()?;
-    let rans = c.get()? & RANS_VALUES != 0;
+    let mode = c.get()?;
+    let rans = mode & RANS_VALUES != 0;
     let corrupt = |detail: String| ContainerError::Corrupt { what: what.into(), detail };
+    if mode & !(RANS_VALUES | REPRESENTED) != DERIVED_ENTRIES {
+        return Err(corrupt(format!("table coding {mode} unknown")));
+    }
     let Some((tris, chart_of)) = band0 else {
         return Err(corrupt("derived entries outside band 0".into()));
     };
@@ -453,18 +584,33 @@ pub fn read_table_with(
     }
     let m = entries.len();
     let mut table = Table::index(&entries, nodes);
-    let residuals: Vec<i32> = read_codes(&mut c, m, channels, rans)?.into_iter().map(unzigzag).collect();
-    c.finish()?;
     let mut values = vec![0i32; m * channels];
+    let mut known = vec![false; m];
+    if mode & REPRESENTED != 0 {
+        let Some((parent, above)) = above else {
+            return Err(corrupt("represented values without the band above".into()));
+        };
+        for (e, r) in representatives(&table, parent, above).into_iter().enumerate() {
+            if let Some(a) = r {
+                let a = a as usize;
+                let from = above.values.get(a * channels..(a + 1) * channels).ok_or_else(|| corrupt("band above without values".into()))?;
+                values[e * channels..(e + 1) * channels].copy_from_slice(from);
+                known[e] = true;
+            }
+        }
+    }
+    let coded = m - known.iter().filter(|&&k| k).count();
+    let residuals: Vec<i32> = read_codes(&mut c, coded, channels, rans)?.into_iter().map(unzigzag).collect();
+    c.finish()?;
     let mut k = 0;
     let visit = |pred: &[i32], v: &mut [i32]| {
         for q in 0..channels {
-            v[q] = pred[q].wrapping_add(residuals[q * m + k]);
+            v[q] = pred[q].wrapping_add(*residuals.get(q * coded + k).ok_or_else(|| corrupt("fewer residuals than entries".into()))?);
         }
         k += 1;
         Ok(())
     };
-    traverse(&table, tris, chart_of, channels, &mut values, visit, what)?;
+    traverse(&table, tris, chart_of, channels, &mut values, known, visit, what)?;
     table.values = values;
     Ok(table)
 }
@@ -477,7 +623,7 @@ pub fn read_table(bytes: &[u8], what: &str, nodes: u32, info: &AppearanceInfo, t
 /// Whether a table's payload predicts its values from the band above (it then needs the
 /// parents of frame 0's hierarchy and that band's table).
 pub fn needs_above(bytes: &[u8]) -> bool {
-    bytes.len() > 1 && bytes[0] == 0 && bytes[1] & !(RANS_VALUES as u8) == FROM_ABOVE as u8
+    bytes.len() > 1 && bytes[0] == 0 && (bytes[1] & !(RANS_VALUES as u8) == FROM_ABOVE as u8 || bytes[1] & REPRESENTED as u8 != 0)
 }
 
 /// [`read_table`] with `above`: frame 0's parents of this band's nodes and the band above's
@@ -494,14 +640,16 @@ pub fn read_table_above(
     let mut chartwise = false;
     let mut predicted = None;
     let mut rans = false;
+    let mut represented = false;
     if bytes.first() == Some(&0) && bytes.len() > 1 {
         c.get()?;
         let mode = c.get()?;
         rans = mode & RANS_VALUES != 0;
+        represented = mode & REPRESENTED != 0;
         match mode & !RANS_VALUES {
             0 if rans => {}
             CHARTWISE => chartwise = true,
-            FROM_ABOVE => {
+            FROM_ABOVE | REPRESENTED_ABOVE => {
                 chartwise = true;
                 predicted = Some(above.ok_or_else(|| ContainerError::Corrupt {
                     what: what.into(),
@@ -514,7 +662,7 @@ pub fn read_table_above(
     }
     let channels = info.channels();
     // Entries take two bytes at least; varint values one more each (rANS values may take less).
-    let min_bytes = if rans { 2 } else { 2 + channels };
+    let min_bytes = if rans || represented { 2 } else { 2 + channels };
     let m = c.count_within((nodes as u64 * info.charts as u64).min(3 * triangles as u64), min_bytes, "entries")?;
     let mut table = Table { first: vec![0; nodes as usize + 1], charts: Vec::with_capacity(m), values: Vec::with_capacity(m * channels) };
     let mut prev: Option<(u32, u32)> = None;
@@ -542,14 +690,26 @@ pub fn read_table_above(
         table.first[n + 1] += table.first[n];
     }
     table.values.resize(m * channels, 0);
-    let codes = read_codes(&mut c, m, channels, rans)?;
+    let reps = match predicted {
+        Some((parent, above)) if represented => representatives(&table, parent, above),
+        _ => Vec::new(),
+    };
+    let coded = m - reps.iter().filter(|r| r.is_some()).count();
+    let codes = read_codes(&mut c, coded, channels, rans)?;
     for k in 0..channels {
         let mut last = vec![0i32; if chartwise { info.charts as usize } else { 1 }];
+        let mut at = k * coded;
         for (e, &node) in node_of.iter().enumerate() {
             let chart = table.charts[e];
             let slot = if chartwise { chart as usize } else { 0 };
-            let pred = from_above(predicted, node, chart, channels, k).unwrap_or(last[slot]);
-            let q = pred.wrapping_add(unzigzag(codes[k * m + e]));
+            let q = match (reps.get(e).copied().flatten(), predicted) {
+                (Some(a), Some((_, above))) => above.values.get(a as usize * channels + k).copied().unwrap_or(0),
+                _ => {
+                    let pred = from_above(predicted, node, chart, channels, k).unwrap_or(last[slot]);
+                    at += 1;
+                    pred.wrapping_add(unzigzag(codes[at - 1]))
+                }
+            };
             table.values[e * channels + k] = q;
             last[slot] = q;
         }
@@ -705,6 +865,85 @@ mod tests {
         assert!(coded.len() < varints.len(), "{} vs {}", coded.len(), varints.len());
         // "0, 0" is no coding: mode 0 only with the rANS flag.
         assert!(read_table(&[0, 0, 0], "t", 300, &info, 298).is_err());
+    }
+
+    #[test]
+    fn represented_values_round_trip_and_fail_cleanly() {
+        let mut seed = 0x51ED_270Bu32;
+        let mut rnd = move |m: u32| {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed % m
+        };
+        let info = AppearanceInfo { charts: 5, ..info() };
+        let palette = [[0, 0], [4095, 17], [1024, 2048], [3, 3000]];
+        let mut p = |e: usize, k: usize| palette[(e * 5 + e / 7) % palette.len()][k];
+        let mut distinct = |e: usize, k: usize| (e as i32) * 13 + k as i32 * 50_000;
+        let mut wild = |e: usize, k: usize| if (e + k).is_multiple_of(4) { i32::MAX - rnd(5) as i32 } else { rnd(4096) as i32 };
+        let values: [&mut dyn FnMut(usize, usize) -> i32; 3] = [&mut p, &mut distinct, &mut wild];
+        for (case, value) in values.into_iter().enumerate() {
+            let (triangles, chart_of, t) = seamed(300, 5, value);
+            // The band above: nodes v / 3, its value of (v / 3, chart) the representative's
+            // (the first of the chart's entries under it), as the encoder's tables make it.
+            let parent: Vec<u32> = (0..300).map(|v| v / 3).collect();
+            let mut above_entries: Vec<(u32, u32)> = t.entries.iter().map(|&(n, k)| (n / 3, k)).collect();
+            above_entries.sort_unstable();
+            above_entries.dedup();
+            let mut above = QuantizedTable { entries: above_entries, values: Vec::new() }.to_table();
+            above.values = vec![0; above.len() * 2];
+            let below = QuantizedTable { entries: t.entries.clone(), values: Vec::new() }.to_table();
+            let reps = representatives(&below, &parent, &above);
+            assert_eq!(reps.iter().filter(|r| r.is_some()).count(), above.len(), "case {case}: every entry above represented once");
+            for (e, r) in reps.iter().enumerate() {
+                if let Some(a) = r {
+                    let a = *a as usize;
+                    above.values[2 * a..2 * a + 2].copy_from_slice(&t.values[2 * e..2 * e + 2]);
+                }
+            }
+            let ab = Some((&parent[..], &above));
+            for rans in [false, true] {
+                let listed = write_table_represented(&t, 2, &parent, &above, rans).unwrap();
+                let derived = write_table_derived_represented(&t, 2, &triangles, &chart_of, &parent, &above, rans).unwrap();
+                let flag = if rans { 8 } else { 0 };
+                assert_eq!((listed[1], derived[1]), (19 | flag, 17 | flag), "case {case}");
+                assert!(needs_above(&listed) && needs_above(&derived));
+                let back = read_band(&listed, "t", 300, &info, 298, None, ab).unwrap();
+                assert_eq!((&back.values, &back.charts), (&t.values, &below.charts), "case {case} rans {rans}");
+                let back = read_band(&derived, "t", 300, &info, 298, Some((&triangles, &chart_of)), ab).unwrap();
+                assert_eq!(back.values, t.values, "case {case} rans {rans}");
+                // Fewer residuals than the plain codings: a representative costs nothing.
+                let plain = write_table_derived(&t, 2, &triangles, &chart_of, rans);
+                assert!(derived.len() < plain.len(), "case {case}: {} vs {}", derived.len(), plain.len());
+                // Without the band above, cut short, or damaged: errors (or other values), no panic.
+                assert!(read_band(&listed, "t", 300, &info, 298, None, None).is_err());
+                assert!(read_band(&derived, "t", 300, &info, 298, Some((&triangles, &chart_of)), None).is_err());
+                for raw in [&listed, &derived] {
+                    for cut in [2, raw.len() / 2, raw.len() - 1] {
+                        assert!(read_band(&raw[..cut], "t", 300, &info, 298, Some((&triangles, &chart_of)), ab).is_err(), "cut {cut}");
+                    }
+                    for at in 1..raw.len() {
+                        let mut bad = raw.clone();
+                        bad[at] ^= 0x5A;
+                        let _ = read_band(&bad, "t", 300, &info, 298, Some((&triangles, &chart_of)), ab);
+                    }
+                }
+                // A band above short of values, or parents for fewer nodes: no panic.
+                let _ = read_band(&derived, "t", 300, &info, 298, Some((&triangles, &chart_of)), Some((&parent[..40], &above)));
+                let short = Table { values: above.values[..10].to_vec(), ..above.clone() };
+                let _ = read_band(&listed, "t", 300, &info, 298, None, Some((&parent[..], &short)));
+                let _ = read_band(&derived, "t", 300, &info, 298, Some((&triangles, &chart_of)), Some((&parent[..], &short)));
+            }
+            // A representative whose value is not its parent entry's: the coding does not apply.
+            let mut odd = t.clone();
+            let first = reps.iter().position(Option::is_some).unwrap();
+            odd.values[2 * first] ^= 1;
+            assert!(write_table_represented(&odd, 2, &parent, &above, true).is_none());
+            assert!(write_table_derived_represented(&odd, 2, &triangles, &chart_of, &parent, &above, true).is_none());
+        }
+        // Mode 16 alone, or with chart-wise differences, is no coding.
+        assert!(read_band(&[0, 16, 0], "t", 300, &info, 298, None, None).is_err());
+        assert!(read_band(&[0, 18, 0], "t", 300, &info, 298, None, None).is_err());
     }
 
     #[test]
