@@ -483,14 +483,14 @@ function cylinderObjSequence(out: string, seg: number, rings: number): void {
   }
 }
 
-test("represented attribute values (mode | 16) on a seamed cylinder, seamed grids with repeated and distinct values and a mesh with colours: every level's tables and a cut's texture coordinates and colours as the Rust decoder's, bit for bit", async () => {
+test("represented attribute values (mode | 16) and entries from the band above (mode | 32) on a seamed cylinder, seamed grids with repeated and distinct values and a mesh with colours: every level's tables and a cut's texture coordinates and colours as the Rust decoder's, bit for bit", async () => {
   const horse = join(root, "../shared/data/gltf/Horse.glb");
   if (!existsSync(horse)) throw new Error(`${horse} is absent: this test reads the real models in ../shared/data beside the repository`);
   const cylinder = join(dir, "obj-cylinder"), palette = join(dir, "obj-rep-palette"), distinct = join(dir, "obj-rep-distinct");
   cylinderObjSequence(cylinder, 32, 24);
   texturedObjSequence(palette, 24, 16, true, 5);
   texturedObjSequence(distinct, 24, 16, false, 9);
-  let represented = 0;
+  let represented = 0, entriesAbove = 0;
   for (const [name, input] of [["cylinder", cylinder], ["palette", palette], ["distinct", distinct], ["horse", horse]]) {
     const file = join(dir, `rep-${name}.pmc`);
     execFileSync(bin, ["encode", "-q", input, "-o", file]);
@@ -499,6 +499,7 @@ test("represented attribute values (mode | 16) on a seamed cylinder, seamed grid
     for (let j = 0; j < levels; j++) raws.push(await c.chunk(c.find(ChunkKind.Attributes, 0, j)));
     const modes = raws.map((b) => (b[0] === 0 && b.length > 1 ? b[1] : 0));
     if (modes.some((m) => (m & 16) !== 0)) represented++;
+    if (modes.some((m) => (m & 32) !== 0)) entriesAbove++;
     const player = new Decoder(c, 0);
     await player.loadAppearance();
     for (const [frame, budget] of [[0, 100000], [1, 400], [2, 80]]) {
@@ -532,6 +533,7 @@ test("represented attribute values (mode | 16) on a seamed cylinder, seamed grid
     }
   }
   assert.ok(represented >= 3, `only ${represented} of 4 inputs took represented values`);
+  assert.ok(entriesAbove >= 2, `only ${entriesAbove} of 4 inputs took entries from the band above (mode | 32)`);
 });
 
 test("a skinned glTF's stream (version 7): every frame's input vertices equal the Rust decoder's, and coarse clients agree", async () => {

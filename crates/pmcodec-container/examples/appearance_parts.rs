@@ -113,13 +113,15 @@ fn main() {
             total += s;
             let raw = reader.read_chunk(e).unwrap();
             // The coding mode after a first byte 0: 1 derived entries, 2 chart-wise, 3 from the
-            // band above; | 8 value residuals rANS-coded; | 16 represented values.
+            // band above; | 8 value residuals rANS-coded; | 16 represented values; | 32 entries
+            // coded from the band above's.
             let mode = if raw.len() > 1 && raw[0] == 0 { raw[1] } else { 0 };
             let coded = if mode & 8 != 0 { "rANS-coded" } else { "varints" };
-            let kind = match mode & 7 {
-                1 => "entries derived from the triangles",
-                2 => "listed, chart-wise values",
-                3 => "listed, values from the band above",
+            let kind = match (mode & 7, mode & 32 != 0) {
+                (1, _) => "entries derived from the triangles",
+                (2, _) => "listed, chart-wise values",
+                (3, false) => "listed, values from the band above",
+                (3, true) => "entries and values from the band above",
                 _ => "listed",
             };
             let parent = needs_above(&raw).then(|| {
@@ -157,7 +159,7 @@ fn main() {
                 _ => 0,
             };
             println!(
-                "  band {j}: {s} B stored ({} raw; {kind}, {coded}), {} entries of {} nodes, {reps} represented (no residual); entries as listed {} B{}",
+                "  band {j}: {s} B stored ({} raw; mode {mode}: {kind}, {coded}), {} entries of {} nodes, {reps} represented (no residual); entries as listed {} B{}",
                 raw.len(),
                 t.len(),
                 h.level_sizes[j as usize],

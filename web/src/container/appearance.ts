@@ -147,9 +147,64 @@ export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number
   return { triangleChart, triangleGroup, chartMaterial };
 }
 
-/** Whether a table's payload needs the band above: values from it (mode 3) or represented (| 16). */
+/** Set with mode 3: the entries coded from the band above's (`readEntriesAbove`). */
+const ENTRIES_ABOVE = 32;
+
+/** `m` entries listed (node differences, charts as is or as differences within a node), ascending. */
+function readEntries(c: Cursor, m: number, nodes: number, nCharts: number, what: string): [number, number][] {
+  const out: [number, number][] = [];
+  let pn = -1, pc = -1;
+  for (let e = 0; e < m; e++) {
+    const d = c.get(), rc = c.get();
+    let node: number, chart: number;
+    if (pn >= 0 && d === 0) { node = pn; chart = pc + rc + 1; } else if (pn >= 0) { node = pn + d; chart = rc; } else { node = d; chart = rc; }
+    if (node >= nodes || chart >= nCharts) throw new DecodeError(`${what}: entry (node ${node}, chart ${chart}) out of range`);
+    pn = node; pc = chart;
+    out.push([node, chart]);
+  }
+  return out;
+}
+
+/** The charts of the band above's entries of node's parent (first and end into its table), or none. */
+function candidates(above: Above, node: number): [number, number] {
+  if (node >= above.parent.length) return [0, 0];
+  const p = above.parent[node], t = above.table;
+  return p + 1 < t.first.length ? [t.first[p], t.first[p + 1]] : [0, 0];
+}
+
+/**
+ * ENTRIES FROM ABOVE (the Rust `put_entries_above`): `n`, a bit per (node c < n, chart of an
+ * entry of c's parent above), then the entries in charts their parent has none in, listed.
+ */
+function readEntriesAbove(c: Cursor, raw: Uint8Array, nodes: number, nCharts: number, limit: number, above: Above, what: string): [number, number][] {
+  const n = c.get();
+  if (n > nodes) throw new DecodeError(`${what}: entries of ${n} nodes where the band has ${nodes}`);
+  let total = 0;
+  for (let node = 0; node < n; node++) { const [lo, hi] = candidates(above, node); total += hi - lo; }
+  const len = Math.ceil(total / 8);
+  if (c.pos + len > raw.length) throw new DecodeError(`${what}: ${len} bytes wanted at byte ${c.pos} of ${raw.length}`);
+  const bits = raw.subarray(c.pos, c.pos + len);
+  c.pos += len;
+  const out: [number, number][] = [];
+  let at = 0;
+  for (let node = 0; node < n; node++) {
+    const [lo, hi] = candidates(above, node);
+    for (let x = lo; x < hi; x++, at++) if ((bits[at >> 3] >> (at & 7)) & 1) out.push([node, above.table.charts[x]]);
+  }
+  if (at % 8 !== 0 && bits[len - 1] >> (at % 8) !== 0) throw new DecodeError(`${what}: bits set beyond the candidates`);
+  const x = c.count(limit, "listed entries");
+  if (2 * x > raw.length - c.pos) throw new DecodeError(`${what}: ${x} listed entries in ${raw.length - c.pos} bytes`);
+  const extras = readEntries(c, x, n, nCharts, what);
+  if (out.length + x > limit) throw new DecodeError(`${what}: ${out.length + x} entries, more than ${limit}`);
+  out.push(...extras);
+  out.sort((p, q) => p[0] - q[0] || p[1] - q[1]);
+  for (let e = 1; e < out.length; e++) if (out[e][0] === out[e - 1][0] && out[e][1] === out[e - 1][1]) throw new DecodeError(`${what}: an entry both in its parent's charts and listed`);
+  return out;
+}
+
+/** Whether a table's payload needs the band above: values from it (mode 3), represented (| 16) or entries from it (| 32). */
 export function needsAbove(raw: Uint8Array): boolean {
-  return raw.length > 1 && raw[0] === 0 && ((raw[1] & ~RANS_VALUES) === 3 || (raw[1] & REPRESENTED) !== 0);
+  return raw.length > 1 && raw[0] === 0 && ((raw[1] & ~RANS_VALUES) === 3 || (raw[1] & (REPRESENTED | ENTRIES_ABOVE)) !== 0);
 }
 
 /**
@@ -160,31 +215,33 @@ export function readTable(raw: Uint8Array, what: string, nodes: number, a: Appea
   const ch = channels(a), c = new Cursor(raw, what);
   // A first byte 0 with more after it: a coding mode (2: values chart-wise; 3: from the band
   // above, else chart-wise, | 16 with represented values; 1 is band 0's).
-  let chartwise = false, rans = false, represented = false, fromAbove: Above | null = null;
+  let chartwise = false, rans = false, represented = false, entriesAbove = false, fromAbove: Above | null = null;
   if (raw.length > 1 && raw[0] === 0) {
     c.get();
-    const coding = c.get(), mode = coding & ~RANS_VALUES;
+    const coding = c.get();
     rans = (coding & RANS_VALUES) !== 0;
-    if ((mode & ~REPRESENTED) === 1) throw new DecodeError(`${what}: derived entries outside band 0`);
-    if (mode !== 2 && mode !== 3 && mode !== (3 | REPRESENTED) && !(mode === 0 && rans)) throw new DecodeError(`${what}: table coding ${coding} unknown`);
+    entriesAbove = (coding & ENTRIES_ABOVE) !== 0;
+    const mode = coding & ~(RANS_VALUES | ENTRIES_ABOVE);
+    if ((mode & ~REPRESENTED) === 1 && !entriesAbove) throw new DecodeError(`${what}: derived entries outside band 0`);
+    const known = entriesAbove ? mode === 3 || mode === (3 | REPRESENTED) : mode === 2 || mode === 3 || mode === (3 | REPRESENTED) || (mode === 0 && rans);
+    if (!known) throw new DecodeError(`${what}: table coding ${coding} unknown`);
     if ((mode & 3) === 3 && !above) throw new DecodeError(`${what}: values from the band above, at the top or without it`);
     chartwise = mode !== 0;
     represented = (mode & REPRESENTED) !== 0;
     if ((mode & 3) === 3) fromAbove = above;
   }
-  const m = c.count(Math.min(nodes * a.charts, 3 * triangles), "entries");
-  // Entries take two bytes at least; varint values one more each (rANS or represented values may take less).
-  if (m * (rans || represented ? 2 : 2 + ch) > raw.length) throw new DecodeError(`${what}: ${m} entries in ${raw.length} bytes`);
-  const first = new Uint32Array(nodes + 1), charts = new Uint32Array(m), nodeOf = new Uint32Array(m);
-  let pn = -1, pc = -1;
-  for (let e = 0; e < m; e++) {
-    const d = c.get(), rc = c.get();
-    let node: number, chart: number;
-    if (pn >= 0 && d === 0) { node = pn; chart = pc + rc + 1; } else if (pn >= 0) { node = pn + d; chart = rc; } else { node = d; chart = rc; }
-    if (node >= nodes || chart >= a.charts) throw new DecodeError(`${what}: entry (node ${node}, chart ${chart}) out of range`);
-    pn = node; pc = chart;
-    nodeOf[e] = node; charts[e] = chart; first[node + 1]++;
+  const limit = Math.min(nodes * a.charts, 3 * triangles);
+  let list: [number, number][];
+  if (entriesAbove && fromAbove) list = readEntriesAbove(c, raw, nodes, a.charts, limit, fromAbove, what);
+  else {
+    const count = c.count(limit, "entries");
+    // Entries take two bytes at least; varint values one more each (rANS or represented values may take less).
+    if (count * (rans || represented ? 2 : 2 + ch) > raw.length) throw new DecodeError(`${what}: ${count} entries in ${raw.length} bytes`);
+    list = readEntries(c, count, nodes, a.charts, what);
   }
+  const m = list.length;
+  const first = new Uint32Array(nodes + 1), charts = new Uint32Array(m), nodeOf = new Uint32Array(m);
+  list.forEach(([node, chart], e) => { nodeOf[e] = node; charts[e] = chart; first[node + 1]++; });
   for (let n = 0; n < nodes; n++) first[n + 1] += first[n];
   const reps = represented && fromAbove ? representatives(first, charts, fromAbove) : new Int32Array(m).fill(-1);
   let coded = m;

@@ -110,6 +110,10 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
                     let above = above.to_table();
                     codings.push(payload::write_table_from_above(t, channels, parent, &above, rans));
                     codings.extend(payload::write_table_represented(t, channels, parent, &above, rans));
+                    // And the entries themselves as bits over their parents' charts.
+                    for represented in [false, true] {
+                        codings.extend(payload::write_table_entries_above(t, channels, parent, &above, rans, represented));
+                    }
                     if j == 0 {
                         codings.extend(payload::write_table_derived_represented(
                             t,

@@ -221,6 +221,169 @@ pub fn write_table_represented(t: &QuantizedTable, channels: usize, parent: &[u3
     Some(out)
 }
 
+/// ATTRIBUTES of a band j below the top with *entries from the band above*: `0`, `3 | 32` (with
+/// `represented`, `| 16`; with `rans`, `| 8`), then the layout of [`write_table_from_above`]
+/// (or [`write_table_represented`]) but the entries as [`put_entries_above`] writes them: a
+/// bit per chart of the node's parent entries, the rest listed. `None` where the represented
+/// coding does not apply.
+pub fn write_table_entries_above(
+    t: &QuantizedTable,
+    channels: usize,
+    parent: &[u32],
+    above: &Table,
+    rans: bool,
+    represented: bool,
+) -> Option<Vec<u8>> {
+    let nodes = t.entries.last().map_or(0, |e| e.0 + 1);
+    let reps = if represented { representatives(&Table::index(&t.entries, nodes), parent, above) } else { Vec::new() };
+    if !represented_agree(&reps, &t.values, &above.values, channels) {
+        return None;
+    }
+    let mut out = Vec::new();
+    put(&mut out, 0);
+    put(&mut out, FROM_ABOVE | ENTRIES_ABOVE | if represented { REPRESENTED } else { 0 } | if rans { RANS_VALUES } else { 0 });
+    put_entries_above(&mut out, &t.entries, parent, above);
+    write_values(&mut out, t, channels, true, Some((parent, above)), rans, &reps);
+    Some(out)
+}
+
+/// ENTRIES FROM ABOVE: `n` (the entries' nodes are below it), then for each node c < n and each
+/// entry (P[c], k) of the band above in its order, one bit: whether (c, k) is an entry (packed
+/// from bit 0 of byte 0 upward, the bytes the bits need); then `x` and the x entries whose
+/// chart the parent has no entry in, listed as [`write_table`] lists entries. A node's entries
+/// mostly lie in its parent's charts (the parent's are their union in frame 0), so a bit each
+/// replaces two varints (Fox's band 1: 159 B of listed entries).
+fn put_entries_above(out: &mut Vec<u8>, entries: &[(u32, u32)], parent: &[u32], above: &Table) {
+    let n = entries.last().map_or(0, |e| e.0 + 1);
+    put(out, n);
+    let mut bits: Vec<u8> = Vec::new();
+    let mut at = 0usize;
+    let mut extras = Vec::new();
+    let mut e = 0;
+    for node in 0..n {
+        let start = e;
+        while e < entries.len() && entries[e].0 == node {
+            e += 1;
+        }
+        let mine = &entries[start..e];
+        let theirs = candidates(parent, above, node);
+        for &k in theirs {
+            if at.is_multiple_of(8) {
+                bits.push(0);
+            }
+            if mine.iter().any(|x| x.1 == k) {
+                bits[at / 8] |= 1 << (at % 8);
+            }
+            at += 1;
+        }
+        extras.extend(mine.iter().filter(|x| !theirs.contains(&x.1)));
+    }
+    out.extend_from_slice(&bits);
+    put_entries(out, &extras);
+}
+
+/// The charts of the band above's entries of `node`'s parent, ascending (none when the node
+/// has no parent there).
+fn candidates<'t>(parent: &[u32], above: &'t Table, node: u32) -> &'t [u32] {
+    let Some(&p) = parent.get(node as usize) else { return &[] };
+    match (above.first.get(p as usize), above.first.get(p as usize + 1)) {
+        (Some(&lo), Some(&hi)) => above.charts.get(lo as usize..hi as usize).unwrap_or(&[]),
+        _ => &[],
+    }
+}
+
+/// Reads [`put_entries_above`]'s entries, ascending by (node, chart); at most `limit`.
+fn read_entries_above(
+    c: &mut Cursor<'_>,
+    nodes: u32,
+    charts: u32,
+    limit: u64,
+    parent: &[u32],
+    above: &Table,
+) -> Result<Vec<(u32, u32)>, ContainerError> {
+    let corrupt = |detail: String| ContainerError::Corrupt { what: "attribute entries".into(), detail };
+    let n = c.get()?;
+    if n > nodes {
+        return Err(corrupt(format!("entries of {n} nodes where the band has {nodes}")));
+    }
+    let total: u64 = (0..n).map(|node| candidates(parent, above, node).len() as u64).sum();
+    let bits = c.take(total.div_ceil(8) as usize)?;
+    let mut entries = Vec::new();
+    let mut at = 0usize;
+    for node in 0..n {
+        for &k in candidates(parent, above, node) {
+            if (bits[at / 8] >> (at % 8)) & 1 == 1 {
+                entries.push((node, k));
+            }
+            at += 1;
+        }
+    }
+    if !at.is_multiple_of(8) && bits.last().is_some_and(|&b| b >> (at % 8) != 0) {
+        return Err(corrupt("bits set beyond the candidates".into()));
+    }
+    let x = c.count_within(limit, 2, "listed entries")?;
+    let extras = read_entries(c, x, n, charts)?;
+    if entries.len() as u64 + x as u64 > limit {
+        return Err(corrupt(format!("{} entries, more than {limit}", entries.len() + x)));
+    }
+    entries.extend(extras);
+    entries.sort_unstable();
+    if entries.windows(2).any(|w| w[0] == w[1]) {
+        return Err(corrupt("an entry both in its parent's charts and listed".into()));
+    }
+    Ok(entries)
+}
+
+/// Entries ascending by (node, chart) as listed tables list them: the node as its difference
+/// from the previous entry's (the first as is), the chart as is when the node differs, else as
+/// `chart - previous chart - 1`.
+fn put_entries(out: &mut Vec<u8>, entries: &[(u32, u32)]) {
+    put(out, entries.len() as u32);
+    let mut prev: Option<(u32, u32)> = None;
+    for &(node, chart) in entries {
+        match prev {
+            Some((pn, pc)) if pn == node => {
+                put(out, 0);
+                put(out, chart - pc - 1);
+            }
+            Some((pn, _)) => {
+                put(out, node - pn);
+                put(out, chart);
+            }
+            None => {
+                put(out, node);
+                put(out, chart);
+            }
+        }
+        prev = Some((node, chart));
+    }
+}
+
+/// Reads `m` entries as [`put_entries`] lists them (after their count), each node below `nodes`
+/// and chart below `charts`.
+fn read_entries(c: &mut Cursor<'_>, m: usize, nodes: u32, charts: u32) -> Result<Vec<(u32, u32)>, ContainerError> {
+    let mut out = Vec::with_capacity(m);
+    let mut prev: Option<(u32, u32)> = None;
+    for _ in 0..m {
+        let d = c.get()?;
+        let raw_chart = c.get()?;
+        let (node, chart) = match prev {
+            Some((pn, pc)) if d == 0 => (pn as u64, pc as u64 + raw_chart as u64 + 1),
+            Some((pn, _)) => (pn as u64 + d as u64, raw_chart as u64),
+            None => (d as u64, raw_chart as u64),
+        };
+        if node >= nodes as u64 || chart >= charts as u64 {
+            return Err(ContainerError::Corrupt {
+                what: "attribute entries".into(),
+                detail: format!("entry (node {node}, chart {chart}) out of range (< {nodes}, < {charts})"),
+            });
+        }
+        prev = Some((node as u32, chart as u32));
+        out.push((node as u32, chart as u32));
+    }
+    Ok(out)
+}
+
 /// Whether every represented entry's values equal its parent entry's.
 fn represented_agree(reps: &[Option<u32>], values: &[i32], above: &[i32], channels: usize) -> bool {
     reps.iter().enumerate().all(|(e, r)| {
@@ -240,10 +403,11 @@ pub fn representatives(table: &Table, parent: &[u32], above: &Table) -> Vec<Opti
     let mut out = vec![None; table.len()];
     for node in 0..table.first.len().saturating_sub(1) {
         let Some(&p) = parent.get(node) else { break };
-        for e in table.first[node] as usize..table.first[node + 1] as usize {
-            if let Some(a) = above.find(p, table.charts[e]).filter(|&a| !claimed[a]) {
+        let (lo, hi) = (table.first[node] as usize, table.first[node + 1] as usize);
+        for (slot, &chart) in out[lo..hi].iter_mut().zip(&table.charts[lo..hi]) {
+            if let Some(a) = above.find(p, chart).filter(|&a| !claimed[a]) {
                 claimed[a] = true;
-                out[e] = Some(a as u32);
+                *slot = Some(a as u32);
             }
         }
     }
@@ -283,25 +447,20 @@ fn write_listed_with(
     rans: bool,
     reps: &[Option<u32>],
 ) {
-    put(out, t.entries.len() as u32);
-    let mut prev: Option<(u32, u32)> = None;
-    for &(node, chart) in &t.entries {
-        match prev {
-            Some((pn, pc)) if pn == node => {
-                put(out, 0);
-                put(out, chart - pc - 1);
-            }
-            Some((pn, _)) => {
-                put(out, node - pn);
-                put(out, chart);
-            }
-            None => {
-                put(out, node);
-                put(out, chart);
-            }
-        }
-        prev = Some((node, chart));
-    }
+    put_entries(out, &t.entries);
+    write_values(out, t, channels, chartwise, above, rans, reps);
+}
+
+/// A listed table's values, channel by channel, as residuals from their predictions.
+fn write_values(
+    out: &mut Vec<u8>,
+    t: &QuantizedTable,
+    channels: usize,
+    chartwise: bool,
+    above: Option<(&[u32], &Table)>,
+    rans: bool,
+    reps: &[Option<u32>],
+) {
     let charts = t.entries.iter().map(|e| e.1 as usize + 1).max().unwrap_or(0);
     let mut codes = Vec::with_capacity(t.values.len());
     for k in 0..channels {
@@ -396,6 +555,9 @@ const CHARTWISE: u32 = 2;
 const FROM_ABOVE: u32 = 3;
 /// [`FROM_ABOVE`] with [`REPRESENTED`] ([`write_table_represented`]).
 const REPRESENTED_ABOVE: u32 = FROM_ABOVE | REPRESENTED;
+/// Set with [`FROM_ABOVE`]: the entries are coded from the band above's
+/// ([`put_entries_above`]). Files before it never set it.
+const ENTRIES_ABOVE: u32 = 32;
 
 /// Band 0's traversal (proto/container.md, "Attributes, band 0 with derived entries"): the
 /// triangles in input order, each one's corners in order; a corner whose entry is not yet
@@ -623,7 +785,9 @@ pub fn read_table(bytes: &[u8], what: &str, nodes: u32, info: &AppearanceInfo, t
 /// Whether a table's payload predicts its values from the band above (it then needs the
 /// parents of frame 0's hierarchy and that band's table).
 pub fn needs_above(bytes: &[u8]) -> bool {
-    bytes.len() > 1 && bytes[0] == 0 && (bytes[1] & !(RANS_VALUES as u8) == FROM_ABOVE as u8 || bytes[1] & REPRESENTED as u8 != 0)
+    bytes.len() > 1
+        && bytes[0] == 0
+        && (bytes[1] & !(RANS_VALUES as u8) == FROM_ABOVE as u8 || bytes[1] & (REPRESENTED | ENTRIES_ABOVE) as u8 != 0)
 }
 
 /// [`read_table`] with `above`: frame 0's parents of this band's nodes and the band above's
@@ -641,14 +805,16 @@ pub fn read_table_above(
     let mut predicted = None;
     let mut rans = false;
     let mut represented = false;
+    let mut entries_above = false;
     if bytes.first() == Some(&0) && bytes.len() > 1 {
         c.get()?;
         let mode = c.get()?;
         rans = mode & RANS_VALUES != 0;
         represented = mode & REPRESENTED != 0;
-        match mode & !RANS_VALUES {
-            0 if rans => {}
-            CHARTWISE => chartwise = true,
+        entries_above = mode & ENTRIES_ABOVE != 0;
+        match mode & !(RANS_VALUES | if entries_above { ENTRIES_ABOVE } else { 0 }) {
+            0 if rans && !entries_above => {}
+            CHARTWISE if !entries_above => chartwise = true,
             FROM_ABOVE | REPRESENTED_ABOVE => {
                 chartwise = true;
                 predicted = Some(above.ok_or_else(|| ContainerError::Corrupt {
@@ -663,27 +829,24 @@ pub fn read_table_above(
     let channels = info.channels();
     // Entries take two bytes at least; varint values one more each (rANS values may take less).
     let min_bytes = if rans || represented { 2 } else { 2 + channels };
-    let m = c.count_within((nodes as u64 * info.charts as u64).min(3 * triangles as u64), min_bytes, "entries")?;
-    let mut table = Table { first: vec![0; nodes as usize + 1], charts: Vec::with_capacity(m), values: Vec::with_capacity(m * channels) };
-    let mut prev: Option<(u32, u32)> = None;
-    let mut node_of = Vec::with_capacity(m);
-    for _ in 0..m {
-        let d = c.get()?;
-        let raw_chart = c.get()?;
-        let (node, chart) = match prev {
-            Some((pn, pc)) if d == 0 => (pn as u64, pc as u64 + raw_chart as u64 + 1),
-            Some((pn, _)) => (pn as u64 + d as u64, raw_chart as u64),
-            None => (d as u64, raw_chart as u64),
-        };
-        if node >= nodes as u64 || chart >= info.charts as u64 {
-            return Err(ContainerError::Corrupt {
-                what: what.into(),
-                detail: format!("entry (node {node}, chart {chart}) out of range (< {nodes}, < {})", info.charts),
-            });
+    let limit = (nodes as u64 * info.charts as u64).min(3 * triangles as u64);
+    let named = |e: ContainerError| match e {
+        ContainerError::Corrupt { what: w, detail } if w == "attribute entries" => ContainerError::Corrupt { what: what.into(), detail },
+        e => e,
+    };
+    let entries = match predicted {
+        Some((parent, above)) if entries_above => read_entries_above(&mut c, nodes, info.charts, limit, parent, above).map_err(named)?,
+        _ => {
+            let m = c.count_within(limit, min_bytes, "entries")?;
+            read_entries(&mut c, m, nodes, info.charts).map_err(named)?
         }
-        prev = Some((node as u32, chart as u32));
-        node_of.push(node as u32);
-        table.charts.push(chart as u32);
+    };
+    let m = entries.len();
+    let mut table = Table { first: vec![0; nodes as usize + 1], charts: Vec::with_capacity(m), values: Vec::with_capacity(m * channels) };
+    let mut node_of = Vec::with_capacity(m);
+    for &(node, chart) in &entries {
+        node_of.push(node);
+        table.charts.push(chart);
         table.first[node as usize + 1] += 1;
     }
     for n in 0..nodes as usize {
@@ -890,7 +1053,7 @@ mod tests {
             let mut above_entries: Vec<(u32, u32)> = t.entries.iter().map(|&(n, k)| (n / 3, k)).collect();
             above_entries.sort_unstable();
             above_entries.dedup();
-            let mut above = QuantizedTable { entries: above_entries, values: Vec::new() }.to_table();
+            let mut above = QuantizedTable { entries: above_entries.clone(), values: Vec::new() }.to_table();
             above.values = vec![0; above.len() * 2];
             let below = QuantizedTable { entries: t.entries.clone(), values: Vec::new() }.to_table();
             let reps = representatives(&below, &parent, &above);
@@ -934,6 +1097,35 @@ mod tests {
                 let _ = read_band(&listed, "t", 300, &info, 298, None, Some((&parent[..], &short)));
                 let _ = read_band(&derived, "t", 300, &info, 298, Some((&triangles, &chart_of)), Some((&parent[..], &short)));
             }
+            // Entries from the band above (mode | 32): a bit per parent chart, the rest listed;
+            // with a band above missing every fourth entry, some of this band's are listed.
+            let mut sparse = QuantizedTable { entries: Vec::new(), values: Vec::new() };
+            for (i, &(n, k)) in above_entries.iter().enumerate().filter(|(i, _)| i % 4 != 1) {
+                sparse.entries.push((n, k));
+                sparse.values.extend_from_slice(&above.values[2 * i..2 * i + 2]);
+            }
+            let sparse = sparse.to_table();
+            for (up, represented) in [(&above, true), (&above, false), (&sparse, false)] {
+                let ab = Some((&parent[..], up));
+                let coded = write_table_entries_above(&t, 2, &parent, up, true, represented).unwrap();
+                assert_eq!(coded[1], 3 | 32 | 8 | if represented { 16 } else { 0 });
+                assert!(needs_above(&coded));
+                let back = read_band(&coded, "t", 300, &info, 298, None, ab).unwrap();
+                assert_eq!((&back.values, &back.charts, &back.first), (&t.values, &below.charts, &below.first), "case {case}");
+                let listed = write_table_represented(&t, 2, &parent, &above, true).unwrap();
+                if represented {
+                    assert!(coded.len() < listed.len(), "case {case}: {} vs {} listed", coded.len(), listed.len());
+                }
+                assert!(read_band(&coded, "t", 300, &info, 298, None, None).is_err());
+                for cut in [2, 3, coded.len() / 2, coded.len() - 1] {
+                    assert!(read_band(&coded[..cut], "t", 300, &info, 298, None, ab).is_err(), "cut {cut}");
+                }
+                for at in 2..coded.len() {
+                    let mut bad = coded.clone();
+                    bad[at] ^= 0x5A;
+                    let _ = read_band(&bad, "t", 300, &info, 298, None, ab);
+                }
+            }
             // A representative whose value is not its parent entry's: the coding does not apply.
             let mut odd = t.clone();
             let first = reps.iter().position(Option::is_some).unwrap();
@@ -941,9 +1133,10 @@ mod tests {
             assert!(write_table_represented(&odd, 2, &parent, &above, true).is_none());
             assert!(write_table_derived_represented(&odd, 2, &triangles, &chart_of, &parent, &above, true).is_none());
         }
-        // Mode 16 alone, or with chart-wise differences, is no coding.
-        assert!(read_band(&[0, 16, 0], "t", 300, &info, 298, None, None).is_err());
-        assert!(read_band(&[0, 18, 0], "t", 300, &info, 298, None, None).is_err());
+        // Mode 16 alone, or with chart-wise differences; 32 but with mode 3: no coding.
+        for mode in [16, 18, 32, 34, 40, 33] {
+            assert!(read_band(&[0, mode, 0], "t", 300, &info, 298, None, None).is_err(), "mode {mode}");
+        }
     }
 
     #[test]
