@@ -322,7 +322,7 @@ test("appearance without texture coordinates or colours (RobotExpressive): no At
   }
 });
 
-test("appearance with band 0's entries derived from the triangles, values from the band above and new-chart runs (Fox, Horse): the same texture coordinates, colours and normals as the Rust decoder", async () => {
+test("appearance with band 0's entries derived from the triangles, values from the band above and recent-chart runs (Fox, Horse): the same texture coordinates, colours and normals as the Rust decoder", async () => {
   for (const name of ["Fox", "Horse"]) {
     const glbIn = join(root, `../shared/data/gltf/${name}.glb`);
     if (!existsSync(glbIn)) throw new Error(`${glbIn} is absent: this test reads the real models in ../shared/data beside the repository`);
@@ -336,7 +336,13 @@ test("appearance with band 0's entries derived from the triangles, values from t
     assert.ok((band0[1] & 8) !== 0, `${name}: band 0's residuals are not rANS-coded`);
     // Band 1's values are chart-wise differences (mode 2): the cuts below read that coding too.
     const chartsRaw = await c.chunk(c.find(ChunkKind.Charts, 0, 0));
-    assert.ok(chartsRaw[0] === 0 && chartsRaw[1] === 1, `${name}: the charts are not new-chart runs`);
+    assert.ok(chartsRaw[0] === 0 && chartsRaw[1] === 2, `${name}: the charts are not recent-chart runs`);
+    // Recent-chart runs cut short or damaged: a DecodeError, never a crash.
+    const { readCharts } = await import("../src/container/index.js");
+    assert.throws(() => readCharts(chartsRaw.subarray(0, chartsRaw.length - 1), a, c.header.triangleCount), DecodeError);
+    for (let at = 2; at < chartsRaw.length; at += Math.max(1, chartsRaw.length >> 5)) {
+      try { readCharts(Uint8Array.from(chartsRaw, (b, i) => (i === at ? b ^ 0x5a : b)), a, c.header.triangleCount); } catch (e) { assert.ok(e instanceof DecodeError, `${name} charts byte ${at}: ${e}`); }
+    }
     // Bands above 0 predict their values from the band above (mode 3) or chart-wise (mode 2):
     // the cuts below read those codings too.
     const modes: number[] = [];

@@ -67,6 +67,11 @@ fn main() {
             put(&mut group_runs, n);
             last = g;
         }
+        if let Ok(dump) = std::env::var("DUMP_CHARTS") {
+            // Each triangle's chart, one a line, for offline experiments.
+            let lines: Vec<String> = charts.triangle_chart.iter().map(u32::to_string).collect();
+            std::fs::write(&dump, lines.join("\n")).unwrap();
+        }
         if std::env::var("EXPERIMENT").is_ok() {
             // Alternative chart-run codings: 0 = the next new chart, else chart + 1.
             let mut alt = Vec::new();

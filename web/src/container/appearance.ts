@@ -115,23 +115,51 @@ function runs(c: Cursor, triangles: number, out: Uint32Array, value: () => numbe
   if (at !== triangles) throw new DecodeError(`${what}: runs cover ${at} of ${triangles} triangles`);
 }
 
+/**
+ * Recent-chart runs (the Rust `write_charts_recent`): R, then a RESIDUALS section of 2 R codes,
+ * per run its chart (0 the next new one, else its position among the charts seen, most recent
+ * first) and its length minus 1.
+ */
+function recentRuns(c: Cursor, raw: Uint8Array, a: AppearanceInfo, triangles: number, out: Uint32Array, what: string): void {
+  const n = c.count(triangles, "chart runs"), codes = readCodes(c, raw, n, 2, true, what), recent: number[] = [];
+  let next = 0, at = 0;
+  for (let i = 0; i < n; i++) {
+    const s = codes[i];
+    let chart: number;
+    if (s === 0) chart = next++;
+    else if (s < recent.length) chart = recent.splice(s, 1)[0];
+    else throw new DecodeError(`${what}: recent chart ${s} of ${recent.length}`);
+    if (chart >= a.charts) throw new DecodeError(`${what}: chart ${chart} out of range`);
+    recent.unshift(chart);
+    const len = codes[n + i] + 1;
+    if (at + len > triangles) throw new DecodeError(`${what}: a run of ${len} triangles after ${at} of ${triangles}`);
+    out.fill(chart, at, at + len);
+    at += len;
+  }
+  if (at !== triangles) throw new DecodeError(`${what}: runs cover ${at} of ${triangles} triangles`);
+}
+
 /** The Charts chunk. */
 export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number): Charts {
   const what = "charts chunk", c = new Cursor(raw, what);
-  // A first byte 0 (a count of charts is at least 1): a coding mode, 1 = new-chart runs.
-  const newRuns = raw.length > 0 && raw[0] === 0;
-  if (newRuns) {
+  // A first byte 0 (a count of charts is at least 1): a coding mode, 1 = new-chart runs,
+  // 2 = recent-chart runs.
+  const coded = raw.length > 0 && raw[0] === 0;
+  let mode = 0;
+  if (coded) {
     c.get();
-    const mode = c.get();
-    if (mode !== 1) throw new DecodeError(`${what}: charts coding ${mode} unknown`);
+    mode = c.get();
+    if (mode !== 1 && mode !== 2) throw new DecodeError(`${what}: charts coding ${mode} unknown`);
   }
+  const newRuns = mode === 1;
   const n = c.count(a.charts, "charts");
   if (n !== a.charts || n > raw.length) throw new DecodeError(`${what}: ${n} charts where the header says ${a.charts}`);
   const chartMaterial = new Uint32Array(n);
   for (let i = 0; i < n; i++) chartMaterial[i] = c.id(Math.max(a.materials, 1), "material");
   const triangleChart = new Uint32Array(triangles), triangleGroup = new Uint32Array(triangles);
   let next = 0;
-  runs(c, triangles, triangleChart, () => {
+  if (mode === 2) recentRuns(c, raw, a, triangles, triangleChart, what);
+  else runs(c, triangles, triangleChart, () => {
     if (!newRuns) return c.id(a.charts, "chart");
     const x = c.get(), chart = x === 0 ? next++ : x - 1;
     if (chart >= a.charts) throw new DecodeError(`${what}: chart ${chart} out of range`);

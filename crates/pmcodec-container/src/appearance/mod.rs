@@ -79,9 +79,10 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
     let materials = postcard::to_stdvec(&MaterialsChunk::from_appearance(app))
         .map_err(|e| crate::ContainerError::Io(format!("materials chunk: {e}")))?;
     let size = |b: &Vec<u8>| zstd::bulk::compress(b, crate::format::ZSTD_LEVEL).map_or(usize::MAX, |z| z.len());
-    // The charts as plain or new-chart runs, whichever zstd makes shorter.
+    // The charts as plain, new-chart or recent-chart runs, whichever zstd makes shortest.
     let charts = [payload::write_charts(builder.charts()), payload::write_charts_new_runs(builder.charts())]
         .into_iter()
+        .chain(payload::write_charts_recent(builder.charts()))
         .min_by_key(size)
         .unwrap_or_default();
     let mut out = vec![(ChunkKind::Charts, 0, charts), (ChunkKind::Materials, 0, materials)];
