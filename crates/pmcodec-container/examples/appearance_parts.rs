@@ -3,6 +3,11 @@
 //! into its (node, chart) entries and its values, every part zstd-compressed on its own (level
 //! 19, as the encoder) so the parts are comparable with the chunks' stored bytes.
 //!
+//! Per band: its coding mode (1 derived entries, 2 chart-wise, 3 from the band above; | 8
+//! rANS-coded residuals, | 16 represented values, | 32 entries from the band above), its
+//! entries and how many of them are representatives (no residual), and what its entries would
+//! take listed. `DUMP_CHARTS=FILE` writes each triangle's chart, one a line, for experiments.
+//!
 //! `cargo build --release -p pmcodec && target/release/pmcodec encode -q IN.glb -o /tmp/a.pmc &&
 //!  cargo run --release -p pmcodec-container --example appearance_parts -- /tmp/a.pmc`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
