@@ -176,6 +176,26 @@ fn main() {
                 z(&ent),
                 if mode & 7 == 1 { " (not stored)" } else { "" }
             );
+            if let (Ok(_), Some(p), Some(a)) = (std::env::var("EXPERIMENT"), &parent, &above) {
+                // Bit lengths of the non-representatives' residuals against their parent entries.
+                let ch = info.channels();
+                let reps = representatives(&t, p, a);
+                let mut hist = [0usize; 33];
+                let mut orphans = 0;
+                for (n, &pn) in p.iter().enumerate().take(t.first.len() - 1) {
+                    for e in t.first[n] as usize..t.first[n + 1] as usize {
+                        if reps[e].is_some() {
+                            continue;
+                        }
+                        match a.get(pn, t.charts[e], ch) {
+                            Some(v) => (0..ch)
+                                .for_each(|k| hist[32 - zigzag(t.values[e * ch + k].wrapping_sub(v[k])).leading_zeros() as usize] += 1),
+                            None => orphans += 1,
+                        }
+                    }
+                }
+                println!("  EXP band {j}: residual bit lengths vs parent {:?}, {orphans} entries without a parent entry", &hist[..16]);
+            }
             above = Some(t);
         }
         println!("  appearance total (charts + attributes, stored): {total} B");

@@ -4,13 +4,16 @@
 //!
 //! - `charts`: the charts and smoothing groups of the input triangles.
 //! - `tables`: the encoder's per-level (node, chart) attribute tables.
-//! - `payload`: the Charts and Attributes chunk payloads.
+//! - `payload`: the Attributes chunk payloads (and the Charts chunk's, from `chart_runs`);
+//!   `entries`: a table's entries, listed or from the band above.
 //! - `cut`: a decoded cut's per-corner attributes and normals.
 //! - [`mod@format`]: the raw serialized types (header field, Materials chunk).
 
+mod chart_runs;
 pub(crate) mod charts;
 mod codes;
 pub(crate) mod cut;
+mod entries;
 pub mod export;
 pub mod format;
 pub mod payload;
