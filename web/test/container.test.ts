@@ -322,7 +322,7 @@ test("appearance without texture coordinates or colours (RobotExpressive): no At
   }
 });
 
-test("appearance with band 0's entries derived from the triangles, values from the band above and new-chart runs (Fox, Horse): the same texture coordinates, colours and normals as the Rust decoder", async () => {
+test("appearance with band 0's entries derived from the triangles, values from the band above and recent-chart runs (Fox, Horse): the same texture coordinates, colours and normals as the Rust decoder", async () => {
   for (const name of ["Fox", "Horse"]) {
     const glbIn = join(root, `../shared/data/gltf/${name}.glb`);
     if (!existsSync(glbIn)) throw new Error(`${glbIn} is absent: this test reads the real models in ../shared/data beside the repository`);
@@ -333,10 +333,16 @@ test("appearance with band 0's entries derived from the triangles, values from t
     const band0 = await c.chunk(c.find(ChunkKind.Attributes, 0, 0));
     // Mode 1, or 1 | 8 with its residuals entropy-coded (rANS over their bit lengths).
     assert.ok(band0.length > 1 && band0[0] === 0 && (band0[1] & 7) === 1, `${name}: band 0 is not coded with derived entries`);
-    assert.ok(band0[1] === 9, `${name}: band 0's residuals are not rANS-coded`);
+    assert.ok((band0[1] & 8) !== 0, `${name}: band 0's residuals are not rANS-coded`);
     // Band 1's values are chart-wise differences (mode 2): the cuts below read that coding too.
     const chartsRaw = await c.chunk(c.find(ChunkKind.Charts, 0, 0));
-    assert.ok(chartsRaw[0] === 0 && chartsRaw[1] === 1, `${name}: the charts are not new-chart runs`);
+    assert.ok(chartsRaw[0] === 0 && chartsRaw[1] === 2, `${name}: the charts are not recent-chart runs`);
+    // Recent-chart runs cut short or damaged: a DecodeError, never a crash.
+    const { readCharts } = await import("../src/container/index.js");
+    assert.throws(() => readCharts(chartsRaw.subarray(0, chartsRaw.length - 1), a, c.header.triangleCount), DecodeError);
+    for (let at = 2; at < chartsRaw.length; at += Math.max(1, chartsRaw.length >> 5)) {
+      try { readCharts(Uint8Array.from(chartsRaw, (b, i) => (i === at ? b ^ 0x5a : b)), a, c.header.triangleCount); } catch (e) { assert.ok(e instanceof DecodeError, `${name} charts byte ${at}: ${e}`); }
+    }
     // Bands above 0 predict their values from the band above (mode 3) or chart-wise (mode 2):
     // the cuts below read those codings too.
     const modes: number[] = [];
@@ -362,13 +368,15 @@ test("appearance with band 0's entries derived from the triangles, values from t
     // A damaged residual stream is an error, not a crash: the payload cut short.
     const { readBand0Table } = await import("../src/container/index.js");
     const tris = (player as unknown as { triangles: Uint32Array }).triangles, chartOf = player.looks!.charts.triangleChart;
-    const whole = readBand0Table(band0, "band 0", c.header.levelSizes[0], a, tris, chartOf);
+    // With represented values (mode | 16), band 0 reads band 1's table through frame 0's parents.
+    const above = { parent: readKey(await c.chunk(c.find(ChunkKind.Key, 0, 0)), "k", c.header.levelSizes, 0, c.version), table: player.looks!.tables[1]! };
+    const whole = readBand0Table(band0, "band 0", c.header.levelSizes[0], a, tris, chartOf, above);
     assert.deepEqual(Array.from(whole.values), Array.from(player.looks!.tables[0]!.values));
-    assert.throws(() => readBand0Table(band0.subarray(0, band0.length - 1), "band 0", c.header.levelSizes[0], a, tris, chartOf), DecodeError);
+    assert.throws(() => readBand0Table(band0.subarray(0, band0.length - 1), "band 0", c.header.levelSizes[0], a, tris, chartOf, above), DecodeError);
     // An unknown coding mode is an error too.
     const odd = band0.slice();
     odd[1] = 7;
-    assert.throws(() => readBand0Table(odd, "band 0", c.header.levelSizes[0], a, tris, chartOf), /coding 7 unknown/);
+    assert.throws(() => readBand0Table(odd, "band 0", c.header.levelSizes[0], a, tris, chartOf, above), /coding 7 unknown/);
   }
 });
 
@@ -404,6 +412,7 @@ function texturedObjSequence(out: string, w: number, h: number, palette: boolean
 }
 
 test("entropy-coded attribute residuals (mode | 8) on generated meshes with repeated and with all-distinct texture coordinates, seams and three materials: the same texture coordinates as the Rust decoder, bit for bit", async () => {
+  let withRans = 0, checked = 0;
   for (const palette of [true, false]) {
     const name = palette ? "palette" : "distinct", frames = join(dir, `obj-${name}`), file = join(dir, `obj-${name}.pmc`);
     texturedObjSequence(frames, 30, 20, palette, palette ? 7 : 11);
@@ -413,7 +422,8 @@ test("entropy-coded attribute residuals (mode | 8) on generated meshes with repe
     assert.equal(a.materials, 3);
     const modes: number[] = [];
     for (let j = 0; j < c.header.levelSizes.length; j++) { const b = await c.chunk(c.find(ChunkKind.Attributes, 0, j)); modes.push(b[0] === 0 && b.length > 1 ? b[1] : 0); }
-    assert.ok(modes.some((m) => (m & 8) !== 0), `${name}: no band with rANS-coded residuals (${modes})`);
+    // (Represented values, mode | 16, may leave one input's tables all varints.)
+    if (modes.some((m) => (m & 8) !== 0)) withRans++;
     const player = new Decoder(c, 0);
     await player.loadAppearance();
     for (const [frame, budget] of [[0, 100000], [1, 500], [2, 120]]) {
@@ -430,11 +440,11 @@ test("entropy-coded attribute residuals (mode | 8) on generated meshes with repe
       assert.deepEqual(Array.from(mesh.uv0!), Array.from(accessor(glb, attr.TEXCOORD_0)), `${what}: texture coordinates`);
     }
     // Every band's table cut short or with a flipped byte in its residuals: an error, never a crash.
-    let checked = 0;
     for (let j = 0; j < c.header.levelSizes.length; j++) {
       const raw = await c.chunk(c.find(ChunkKind.Attributes, 0, j));
-      // (Tables predicted from the band above need that band and frame 0's parents: skipped.)
-      if (!(raw[0] === 0 && (raw[1] & 8)) || (raw[1] & 7) === 3) continue;
+      // (Tables predicted from the band above or with represented values need that band and
+      // frame 0's parents: skipped here, read by the represented-values test.)
+      if (!(raw[0] === 0 && (raw[1] & 8)) || (raw[1] & 7) === 3 || (raw[1] & 16)) continue;
       const tris = (player as unknown as { triangles: Uint32Array }).triangles, chartOf = player.looks!.charts.triangleChart;
       const read = (b: Uint8Array): unknown => j === 0
         ? readBand0Table(b, "band 0", c.header.levelSizes[0], a, tris, chartOf)
@@ -446,8 +456,90 @@ test("entropy-coded attribute residuals (mode | 8) on generated meshes with repe
       }
       checked++;
     }
-    assert.ok(checked > 0, `${name}: no rANS-coded table read alone (${modes})`);
   }
+  assert.ok(withRans > 0 && checked > 0, `${withRans} inputs with rANS-coded residuals, ${checked} such tables read alone`);
+});
+
+/**
+ * A generated OBJ sequence of a UV-mapped cylinder: `seg` x `rings` vertices, its side
+ * unrolled with a seam where u wraps from 1 back to 0 (the seam column's own `vt`), bending a
+ * little from frame to frame. Deterministic.
+ */
+function cylinderObjSequence(out: string, seg: number, rings: number): void {
+  mkdirSync(out, { recursive: true });
+  const vts: string[] = [];
+  for (let r = 0; r < rings; r++) for (let s = 0; s <= seg; s++) vts.push(`vt ${s / seg} ${r / (rings - 1)}`);
+  for (let f = 0; f < 3; f++) {
+    const lines: string[] = [];
+    for (let r = 0; r < rings; r++) {
+      for (let s = 0; s < seg; s++) {
+        const a = (2 * Math.PI * s) / seg, y = r * 0.1;
+        lines.push(`v ${Math.cos(a) * 0.5 + 0.05 * f * Math.sin(y)} ${y} ${Math.sin(a) * 0.5}`);
+      }
+    }
+    lines.push(...vts);
+    for (let r = 0; r + 1 < rings; r++) {
+      for (let s = 0; s < seg; s++) {
+        const v = (rr: number, ss: number): number => rr * seg + (ss % seg) + 1, t = (rr: number, ss: number): number => rr * (seg + 1) + ss + 1;
+        lines.push(`f ${v(r, s)}/${t(r, s)} ${v(r, s + 1)}/${t(r, s + 1)} ${v(r + 1, s + 1)}/${t(r + 1, s + 1)}`);
+        lines.push(`f ${v(r, s)}/${t(r, s)} ${v(r + 1, s + 1)}/${t(r + 1, s + 1)} ${v(r + 1, s)}/${t(r + 1, s)}`);
+      }
+    }
+    writeFileSync(join(out, `f${String(f).padStart(3, "0")}.obj`), lines.join("\n") + "\n");
+  }
+}
+
+test("represented attribute values (mode | 16) and entries from the band above (mode | 32) on a seamed cylinder, seamed grids with repeated and distinct values and a mesh with colours: every level's tables and a cut's texture coordinates and colours as the Rust decoder's, bit for bit", async () => {
+  const horse = join(root, "../shared/data/gltf/Horse.glb");
+  if (!existsSync(horse)) throw new Error(`${horse} is absent: this test reads the real models in ../shared/data beside the repository`);
+  const cylinder = join(dir, "obj-cylinder"), palette = join(dir, "obj-rep-palette"), distinct = join(dir, "obj-rep-distinct");
+  cylinderObjSequence(cylinder, 32, 24);
+  texturedObjSequence(palette, 24, 16, true, 5);
+  texturedObjSequence(distinct, 24, 16, false, 9);
+  let represented = 0, entriesAbove = 0;
+  for (const [name, input] of [["cylinder", cylinder], ["palette", palette], ["distinct", distinct], ["horse", horse]]) {
+    const file = join(dir, `rep-${name}.pmc`);
+    execFileSync(bin, ["encode", "-q", input, "-o", file]);
+    const c = await open(file), a = c.header.appearance!, levels = c.header.levelSizes.length;
+    const raws: Uint8Array[] = [];
+    for (let j = 0; j < levels; j++) raws.push(await c.chunk(c.find(ChunkKind.Attributes, 0, j)));
+    const modes = raws.map((b) => (b[0] === 0 && b.length > 1 ? b[1] : 0));
+    if (modes.some((m) => (m & 16) !== 0)) represented++;
+    if (modes.some((m) => (m & 32) !== 0)) entriesAbove++;
+    const player = new Decoder(c, 0);
+    await player.loadAppearance();
+    for (const [frame, budget] of [[0, 100000], [1, 400], [2, 80]]) {
+      const out = join(dir, `rep-${name}-${frame}-${budget}.glb`);
+      execFileSync(bin, ["decode", "-q", file, "--frame", String(frame), "--triangles", String(budget), "-o", out]);
+      const glb = readGlb(out);
+      await player.seek(frame);
+      const pos = player.positions();
+      player.replay.selectTriangles(budget, player.replay.splitBenefits(pos));
+      const mesh = player.texturedMesh(pos);
+      const attr = glb.json.meshes[0].primitives[0].attributes, what = `${name} frame ${frame} budget ${budget}`;
+      assert.deepEqual(Array.from(mesh.uv0!), Array.from(accessor(glb, attr.TEXCOORD_0)), `${what}: texture coordinates`);
+      if (a.colors) assert.deepEqual(Array.from(mesh.colors!), Array.from(accessor(glb, attr.COLOR_0)), `${what}: colours`);
+    }
+    // Each represented table alone, with the band above and frame 0's parents: the player's
+    // values; without the band above, cut short or damaged, an error and never a crash.
+    const tris = (player as unknown as { triangles: Uint32Array }).triangles, chartOf = player.looks!.charts.triangleChart;
+    for (let j = 0; j < levels; j++) {
+      if ((modes[j] & 16) === 0) continue;
+      const parent = readKey(await c.chunk(c.find(ChunkKind.Key, 0, j)), "k", c.header.levelSizes, j, c.version);
+      const above = { parent, table: player.looks!.tables[j + 1]! };
+      const read = (b: Uint8Array, up: typeof above | null = above): { values: Int32Array } => j === 0
+        ? readBand0Table(b, "band 0", c.header.levelSizes[0], a, tris, chartOf, up)
+        : readTable(b, `band ${j}`, c.header.levelSizes[j], a, c.header.triangleCount, up);
+      assert.deepEqual(Array.from(read(raws[j]).values), Array.from(player.looks!.tables[j]!.values), `${name} band ${j}`);
+      assert.throws(() => read(raws[j], null), DecodeError, `${name} band ${j} without the band above`);
+      assert.throws(() => read(raws[j].subarray(0, raws[j].length - 1)), DecodeError, `${name} band ${j} cut short`);
+      for (let at = 1; at < raws[j].length; at += Math.max(1, raws[j].length >> 5)) {
+        try { read(Uint8Array.from(raws[j], (b, i) => (i === at ? b ^ 0x5a : b))); } catch (e) { assert.ok(e instanceof DecodeError, `${name} band ${j} byte ${at}: ${e}`); }
+      }
+    }
+  }
+  assert.ok(represented >= 3, `only ${represented} of 4 inputs took represented values`);
+  assert.ok(entriesAbove >= 2, `only ${entriesAbove} of 4 inputs took entries from the band above (mode | 32)`);
 });
 
 test("a skinned glTF's stream (version 7): every frame's input vertices equal the Rust decoder's, and coarse clients agree", async () => {

@@ -3,12 +3,17 @@
 //! into its (node, chart) entries and its values, every part zstd-compressed on its own (level
 //! 19, as the encoder) so the parts are comparable with the chunks' stored bytes.
 //!
+//! Per band: its coding mode (1 derived entries, 2 chart-wise, 3 from the band above; | 8
+//! rANS-coded residuals, | 16 represented values, | 32 entries from the band above), its
+//! entries and how many of them are representatives (no residual), and what its entries would
+//! take listed. `DUMP_CHARTS=FILE` writes each triangle's chart, one a line, for experiments.
+//!
 //! `cargo build --release -p pmcodec && target/release/pmcodec encode -q IN.glb -o /tmp/a.pmc &&
 //!  cargo run --release -p pmcodec-container --example appearance_parts -- /tmp/a.pmc`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
-use pmcodec_container::appearance::payload::{needs_above, read_charts, read_table, read_table_with};
-use pmcodec_container::payload::read_triangles;
+use pmcodec_container::appearance::payload::{Table, needs_above, read_band, read_charts, representatives};
 use pmcodec_container::payload::{put, zigzag};
+use pmcodec_container::payload::{read_key, read_triangles};
 use pmcodec_container::{ChunkKind, FileSource, Reader};
 
 fn z(raw: &[u8]) -> usize {
@@ -67,6 +72,11 @@ fn main() {
             put(&mut group_runs, n);
             last = g;
         }
+        if let Ok(dump) = std::env::var("DUMP_CHARTS") {
+            // Each triangle's chart, one a line, for offline experiments.
+            let lines: Vec<String> = charts.triangle_chart.iter().map(u32::to_string).collect();
+            std::fs::write(&dump, lines.join("\n")).unwrap();
+        }
         if std::env::var("EXPERIMENT").is_ok() {
             // Alternative chart-run codings: 0 = the next new chart, else chart + 1.
             let mut alt = Vec::new();
@@ -102,6 +112,9 @@ fn main() {
             group_runs.len()
         );
         let mut total = cs;
+        let te = reader.index().chunks.iter().find(|e| e.kind == ChunkKind::Triangles).unwrap();
+        let tris = read_triangles(&reader.read_chunk(te).unwrap(), "t", h.triangle_count, h.vertex_count, reader.version()).unwrap();
+        let mut above: Option<Table> = None;
         for j in (0..h.levels() as u32).rev() {
             let Some((e, s)) = stored(ChunkKind::Attributes, j) else {
                 println!("  band {j}: no attributes chunk");
@@ -109,32 +122,27 @@ fn main() {
             };
             total += s;
             let raw = reader.read_chunk(e).unwrap();
-            // The coding mode after a first byte 0; bit 8: value residuals rANS-coded.
-            let rans = raw.len() > 1 && raw[0] == 0 && raw[1] & 8 != 0;
-            let coded = if rans { "rANS-coded" } else { "varints" };
-            if raw.len() > 1 && raw[0] == 0 && raw[1] & 7 == 1 {
-                // Band 0 with derived entries: only predicted values are stored.
-                let te = reader.index().chunks.iter().find(|e| e.kind == ChunkKind::Triangles).unwrap();
-                let tris =
-                    read_triangles(&reader.read_chunk(te).unwrap(), "t", h.triangle_count, h.vertex_count, reader.version()).unwrap();
-                let t =
-                    read_table_with(&raw, "t", h.level_sizes[j as usize], &info, h.triangle_count, Some((&tris, &charts.triangle_chart)))
-                        .unwrap();
-                println!(
-                    "  band {j}: {s} B stored ({} raw), {} entries of {} nodes derived from the triangles: predicted values only ({coded})",
-                    raw.len(),
-                    t.len(),
-                    h.level_sizes[j as usize]
-                );
-                continue;
-            }
-            if needs_above(&raw) {
-                println!("  band {j}: {s} B stored ({} raw, values from the band above, {coded})", raw.len());
-                continue;
-            }
-            let t = read_table(&raw, "t", h.level_sizes[j as usize], &info, h.triangle_count).unwrap();
-            let ch = info.channels();
-            let (mut ent, mut val) = (Vec::new(), Vec::new());
+            // The coding mode after a first byte 0: 1 derived entries, 2 chart-wise, 3 from the
+            // band above; | 8 value residuals rANS-coded; | 16 represented values; | 32 entries
+            // coded from the band above's.
+            let mode = if raw.len() > 1 && raw[0] == 0 { raw[1] } else { 0 };
+            let coded = if mode & 8 != 0 { "rANS-coded" } else { "varints" };
+            let kind = match (mode & 7, mode & 32 != 0) {
+                (1, _) => "entries derived from the triangles",
+                (2, _) => "listed, chart-wise values",
+                (3, false) => "listed, values from the band above",
+                (3, true) => "entries and values from the band above",
+                _ => "listed",
+            };
+            let parent = needs_above(&raw).then(|| {
+                let ke = reader.find(ChunkKind::Key, 0, j).unwrap();
+                read_key(&reader.read_chunk(ke).unwrap(), "k", &h.level_sizes, j as usize, reader.version()).unwrap()
+            });
+            let band0 = (j == 0).then(|| (&tris[..], &charts.triangle_chart[..]));
+            let above_of = parent.as_ref().and_then(|p| above.as_ref().map(|t| (&p[..], t)));
+            let t = read_band(&raw, "t", h.level_sizes[j as usize], &info, h.triangle_count, band0, above_of).unwrap();
+            // The entries as a listed table writes them, zstd alone.
+            let mut ent = Vec::new();
             let mut prev: Option<(u32, u32)> = None;
             for n in 0..h.level_sizes[j as usize] {
                 for x in t.first[n as usize]..t.first[n as usize + 1] {
@@ -156,40 +164,39 @@ fn main() {
                     prev = Some((n, c));
                 }
             }
-            for k in 0..ch {
-                let mut last = 0i32;
-                for e in 0..t.len() {
-                    let q = t.values[e * ch + k];
-                    put(&mut val, zigzag(q.wrapping_sub(last)));
-                    last = q;
-                }
-            }
-            if std::env::var("EXPERIMENT").is_ok() {
-                // Values as differences from the previous entry of the same chart.
-                let mut alt = Vec::new();
-                for k in 0..ch {
-                    let mut last = vec![0i32; info.charts as usize];
-                    for e in 0..t.len() {
-                        let c = t.charts[e] as usize;
-                        let q = t.values[e * ch + k];
-                        put(&mut alt, zigzag(q.wrapping_sub(last[c])));
-                        last[c] = q;
-                    }
-                }
-                println!("  EXP band {j}: values same-chart delta {} B", z(&alt));
-            }
+            let reps = match (&parent, &above) {
+                (Some(p), Some(a)) if mode & 16 != 0 => representatives(&t, p, a).iter().filter(|r| r.is_some()).count(),
+                _ => 0,
+            };
             println!(
-                "  band {j}: {s} B stored ({} raw, {}), {} entries of {} nodes: entries {} B, values {} B (parts zstd alone, as listed)",
+                "  band {j}: {s} B stored ({} raw; mode {mode}: {kind}, {coded}), {} entries of {} nodes, {reps} represented (no residual); entries as listed {} B{}",
                 raw.len(),
-                match (raw.len() > 1 && raw[0] == 0, raw.get(1).map_or(0, |m| m & 7)) {
-                    (true, 2) => format!("chart-wise values, {coded}"),
-                    _ => format!("listed, {coded}"),
-                },
                 t.len(),
                 h.level_sizes[j as usize],
                 z(&ent),
-                z(&val)
+                if mode & 7 == 1 { " (not stored)" } else { "" }
             );
+            if let (Ok(_), Some(p), Some(a)) = (std::env::var("EXPERIMENT"), &parent, &above) {
+                // Bit lengths of the non-representatives' residuals against their parent entries.
+                let ch = info.channels();
+                let reps = representatives(&t, p, a);
+                let mut hist = [0usize; 33];
+                let mut orphans = 0;
+                for (n, &pn) in p.iter().enumerate().take(t.first.len() - 1) {
+                    for e in t.first[n] as usize..t.first[n + 1] as usize {
+                        if reps[e].is_some() {
+                            continue;
+                        }
+                        match a.get(pn, t.charts[e], ch) {
+                            Some(v) => (0..ch)
+                                .for_each(|k| hist[32 - zigzag(t.values[e * ch + k].wrapping_sub(v[k])).leading_zeros() as usize] += 1),
+                            None => orphans += 1,
+                        }
+                    }
+                }
+                println!("  EXP band {j}: residual bit lengths vs parent {:?}, {orphans} entries without a parent entry", &hist[..16]);
+            }
+            above = Some(t);
         }
         println!("  appearance total (charts + attributes, stored): {total} B");
     }

@@ -81,7 +81,10 @@ fn version_3_files_decode_as_they_did() {
 /// `tests/compat/v6-textured-cloth-k4.pmc`: the version 6 encoder's textured cloth (UVs,
 /// colours, two materials, a PNG), the file the TypeScript decoder's appearance is checked on
 /// (web/test/container.test.ts). It must verify and decode, appearance included, to what
-/// today's encoder makes of the same input.
+/// today's encoder makes of the same input; but for coarse nodes' texture coordinates and
+/// colours: since the represented values (proto/container.md, "Attributes", mode | 16) a coarse
+/// value is one of its children's input values where version 6 stored their mean, so cuts
+/// showing nodes above level 0 compare all but those values.
 #[test]
 fn version_6_textured_files_decode_as_they_did() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/compat/v6-textured-cloth-k4.pmc");
@@ -99,11 +102,15 @@ fn version_6_textured_files_decode_as_they_did() {
             da.seek(f).unwrap();
             db.seek(f).unwrap();
             for target in [CutTarget::Triangles(40), CutTarget::Level(level)] {
-                assert_eq!(
-                    da.textured_mesh(target).expect("old"),
-                    db.textured_mesh(target).expect("new"),
-                    "level {level} frame {f} {target:?}"
-                );
+                let (mut old, mut new) = (da.textured_mesh(target).expect("old"), db.textured_mesh(target).expect("new"));
+                if target != CutTarget::Level(0) {
+                    for app in [&mut old.1, &mut new.1] {
+                        assert_eq!(app.uv0.len(), app.colors.len(), "level {level} frame {f} {target:?}");
+                        app.uv0.clear();
+                        app.colors.clear();
+                    }
+                }
+                assert_eq!(old, new, "level {level} frame {f} {target:?}");
             }
         }
     }

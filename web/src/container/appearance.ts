@@ -9,6 +9,32 @@ import { MAX_SYMBOLS, decodeSymbols, rAnsTable } from "./rans.js";
 
 /** Set in a table's mode (after its first byte 0): value residuals as a rANS section. */
 const RANS_VALUES = 8;
+/** Set with mode 3 or 1: representatives take their parent entry's values, no residual. */
+const REPRESENTED = 16;
+
+/** Frame 0's parents of a band's nodes (its Key chunk) and the band above's table. */
+export interface Above { parent: Uint32Array; table: Table }
+
+/**
+ * Per entry of a table (entries of node n at first[n]..first[n+1]), the entry of the band above
+ * it copies, or -1: the first entry, in table order, whose node's parent has an entry of the
+ * same chart above, each entry above represented once (the Rust `representatives`).
+ */
+export function representatives(first: Uint32Array, charts: Uint32Array, above: Above): Int32Array {
+  const t = above.table, claimed = new Uint8Array(t.charts.length), out = new Int32Array(charts.length).fill(-1);
+  for (let n = 0; n + 1 < first.length && n < above.parent.length; n++) {
+    const p = above.parent[n];
+    if (p + 1 >= t.first.length) continue;
+    for (let e = first[n]; e < first[n + 1]; e++) {
+      for (let x = t.first[p]; x < t.first[p + 1]; x++) {
+        if (t.charts[x] !== charts[e]) continue;
+        if (!claimed[x]) { claimed[x] = 1; out[e] = x; }
+        break;
+      }
+    }
+  }
+  return out;
+}
 
 /**
  * `m * ch` residual codes (zigzag, channel after channel) as varints or, with `rans`, as the
@@ -89,23 +115,51 @@ function runs(c: Cursor, triangles: number, out: Uint32Array, value: () => numbe
   if (at !== triangles) throw new DecodeError(`${what}: runs cover ${at} of ${triangles} triangles`);
 }
 
+/**
+ * Recent-chart runs (the Rust `write_charts_recent`): R, then a RESIDUALS section of 2 R codes,
+ * per run its chart (0 the next new one, else its position among the charts seen, most recent
+ * first) and its length minus 1.
+ */
+function recentRuns(c: Cursor, raw: Uint8Array, a: AppearanceInfo, triangles: number, out: Uint32Array, what: string): void {
+  const n = c.count(triangles, "chart runs"), codes = readCodes(c, raw, n, 2, true, what), recent: number[] = [];
+  let next = 0, at = 0;
+  for (let i = 0; i < n; i++) {
+    const s = codes[i];
+    let chart: number;
+    if (s === 0) chart = next++;
+    else if (s < recent.length) chart = recent.splice(s, 1)[0];
+    else throw new DecodeError(`${what}: recent chart ${s} of ${recent.length}`);
+    if (chart >= a.charts) throw new DecodeError(`${what}: chart ${chart} out of range`);
+    recent.unshift(chart);
+    const len = codes[n + i] + 1;
+    if (at + len > triangles) throw new DecodeError(`${what}: a run of ${len} triangles after ${at} of ${triangles}`);
+    out.fill(chart, at, at + len);
+    at += len;
+  }
+  if (at !== triangles) throw new DecodeError(`${what}: runs cover ${at} of ${triangles} triangles`);
+}
+
 /** The Charts chunk. */
 export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number): Charts {
   const what = "charts chunk", c = new Cursor(raw, what);
-  // A first byte 0 (a count of charts is at least 1): a coding mode, 1 = new-chart runs.
-  const newRuns = raw.length > 0 && raw[0] === 0;
-  if (newRuns) {
+  // A first byte 0 (a count of charts is at least 1): a coding mode, 1 = new-chart runs,
+  // 2 = recent-chart runs.
+  const coded = raw.length > 0 && raw[0] === 0;
+  let mode = 0;
+  if (coded) {
     c.get();
-    const mode = c.get();
-    if (mode !== 1) throw new DecodeError(`${what}: charts coding ${mode} unknown`);
+    mode = c.get();
+    if (mode !== 1 && mode !== 2) throw new DecodeError(`${what}: charts coding ${mode} unknown`);
   }
+  const newRuns = mode === 1;
   const n = c.count(a.charts, "charts");
   if (n !== a.charts || n > raw.length) throw new DecodeError(`${what}: ${n} charts where the header says ${a.charts}`);
   const chartMaterial = new Uint32Array(n);
   for (let i = 0; i < n; i++) chartMaterial[i] = c.id(Math.max(a.materials, 1), "material");
   const triangleChart = new Uint32Array(triangles), triangleGroup = new Uint32Array(triangles);
   let next = 0;
-  runs(c, triangles, triangleChart, () => {
+  if (mode === 2) recentRuns(c, raw, a, triangles, triangleChart, what);
+  else runs(c, triangles, triangleChart, () => {
     if (!newRuns) return c.id(a.charts, "chart");
     const x = c.get(), chart = x === 0 ? next++ : x - 1;
     if (chart >= a.charts) throw new DecodeError(`${what}: chart ${chart} out of range`);
@@ -121,58 +175,124 @@ export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number
   return { triangleChart, triangleGroup, chartMaterial };
 }
 
-/** The Attributes chunk of a band of `nodes` nodes. */
-/** Whether a table's payload predicts its values from the band above (mode 3). */
+/** Set with mode 3: the entries coded from the band above's (`readEntriesAbove`). */
+const ENTRIES_ABOVE = 32;
+
+/** `m` entries listed (node differences, charts as is or as differences within a node), ascending. */
+function readEntries(c: Cursor, m: number, nodes: number, nCharts: number, what: string): [number, number][] {
+  const out: [number, number][] = [];
+  let pn = -1, pc = -1;
+  for (let e = 0; e < m; e++) {
+    const d = c.get(), rc = c.get();
+    let node: number, chart: number;
+    if (pn >= 0 && d === 0) { node = pn; chart = pc + rc + 1; } else if (pn >= 0) { node = pn + d; chart = rc; } else { node = d; chart = rc; }
+    if (node >= nodes || chart >= nCharts) throw new DecodeError(`${what}: entry (node ${node}, chart ${chart}) out of range`);
+    pn = node; pc = chart;
+    out.push([node, chart]);
+  }
+  return out;
+}
+
+/** The charts of the band above's entries of node's parent (first and end into its table), or none. */
+function candidates(above: Above, node: number): [number, number] {
+  if (node >= above.parent.length) return [0, 0];
+  const p = above.parent[node], t = above.table;
+  return p + 1 < t.first.length ? [t.first[p], t.first[p + 1]] : [0, 0];
+}
+
+/**
+ * ENTRIES FROM ABOVE (the Rust `put_entries_above`): `n`, a bit per (node c < n, chart of an
+ * entry of c's parent above), then the entries in charts their parent has none in, listed.
+ */
+function readEntriesAbove(c: Cursor, raw: Uint8Array, nodes: number, nCharts: number, limit: number, above: Above, what: string): [number, number][] {
+  const n = c.get();
+  if (n > nodes) throw new DecodeError(`${what}: entries of ${n} nodes where the band has ${nodes}`);
+  let total = 0;
+  for (let node = 0; node < n; node++) { const [lo, hi] = candidates(above, node); total += hi - lo; }
+  const len = Math.ceil(total / 8);
+  if (c.pos + len > raw.length) throw new DecodeError(`${what}: ${len} bytes wanted at byte ${c.pos} of ${raw.length}`);
+  const bits = raw.subarray(c.pos, c.pos + len);
+  c.pos += len;
+  const out: [number, number][] = [];
+  let at = 0;
+  for (let node = 0; node < n; node++) {
+    const [lo, hi] = candidates(above, node);
+    for (let x = lo; x < hi; x++, at++) if ((bits[at >> 3] >> (at & 7)) & 1) out.push([node, above.table.charts[x]]);
+  }
+  if (at % 8 !== 0 && bits[len - 1] >> (at % 8) !== 0) throw new DecodeError(`${what}: bits set beyond the candidates`);
+  const x = c.count(limit, "listed entries");
+  if (2 * x > raw.length - c.pos) throw new DecodeError(`${what}: ${x} listed entries in ${raw.length - c.pos} bytes`);
+  const extras = readEntries(c, x, n, nCharts, what);
+  if (out.length + x > limit) throw new DecodeError(`${what}: ${out.length + x} entries, more than ${limit}`);
+  out.push(...extras);
+  out.sort((p, q) => p[0] - q[0] || p[1] - q[1]);
+  for (let e = 1; e < out.length; e++) if (out[e][0] === out[e - 1][0] && out[e][1] === out[e - 1][1]) throw new DecodeError(`${what}: an entry both in its parent's charts and listed`);
+  return out;
+}
+
+/** Whether a table's payload needs the band above: values from it (mode 3), represented (| 16) or entries from it (| 32). */
 export function needsAbove(raw: Uint8Array): boolean {
-  return raw.length > 1 && raw[0] === 0 && (raw[1] & ~RANS_VALUES) === 3;
+  return raw.length > 1 && raw[0] === 0 && ((raw[1] & ~RANS_VALUES) === 3 || (raw[1] & (REPRESENTED | ENTRIES_ABOVE)) !== 0);
 }
 
 /**
  * `above`: frame 0's parents of the band's nodes (its Key chunk) and the band above's table,
  * which a table predicting its values from the band above needs (mode 3).
  */
-export function readTable(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: number, above: { parent: Uint32Array; table: Table } | null = null): Table {
+export function readTable(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: number, above: Above | null = null): Table {
   const ch = channels(a), c = new Cursor(raw, what);
   // A first byte 0 with more after it: a coding mode (2: values chart-wise; 3: from the band
-  // above, else chart-wise; 1 is band 0's).
-  let chartwise = false, rans = false, fromAbove: { parent: Uint32Array; table: Table } | null = null;
+  // above, else chart-wise, | 16 with represented values; 1 is band 0's).
+  let chartwise = false, rans = false, represented = false, entriesAbove = false, fromAbove: Above | null = null;
   if (raw.length > 1 && raw[0] === 0) {
     c.get();
-    const coding = c.get(), mode = coding & ~RANS_VALUES;
+    const coding = c.get();
     rans = (coding & RANS_VALUES) !== 0;
-    if (mode === 1) throw new DecodeError(`${what}: derived entries outside band 0`);
-    if (mode !== 2 && mode !== 3 && !(mode === 0 && rans)) throw new DecodeError(`${what}: table coding ${coding} unknown`);
-    if (mode === 3 && !above) throw new DecodeError(`${what}: values from the band above, at the top or without it`);
+    entriesAbove = (coding & ENTRIES_ABOVE) !== 0;
+    const mode = coding & ~(RANS_VALUES | ENTRIES_ABOVE);
+    if ((mode & ~REPRESENTED) === 1 && !entriesAbove) throw new DecodeError(`${what}: derived entries outside band 0`);
+    const known = entriesAbove ? mode === 3 || mode === (3 | REPRESENTED) : mode === 2 || mode === 3 || mode === (3 | REPRESENTED) || (mode === 0 && rans);
+    if (!known) throw new DecodeError(`${what}: table coding ${coding} unknown`);
+    if ((mode & 3) === 3 && !above) throw new DecodeError(`${what}: values from the band above, at the top or without it`);
     chartwise = mode !== 0;
-    if (mode === 3) fromAbove = above;
+    represented = (mode & REPRESENTED) !== 0;
+    if ((mode & 3) === 3) fromAbove = above;
   }
-  const m = c.count(Math.min(nodes * a.charts, 3 * triangles), "entries");
-  // Entries take two bytes at least; varint values one more each (rANS values may take less).
-  if (m * (rans ? 2 : 2 + ch) > raw.length) throw new DecodeError(`${what}: ${m} entries in ${raw.length} bytes`);
+  const limit = Math.min(nodes * a.charts, 3 * triangles);
+  let list: [number, number][];
+  if (entriesAbove && fromAbove) list = readEntriesAbove(c, raw, nodes, a.charts, limit, fromAbove, what);
+  else {
+    const count = c.count(limit, "entries");
+    // Entries take two bytes at least; varint values one more each (rANS or represented values may take less).
+    if (count * (rans || represented ? 2 : 2 + ch) > raw.length) throw new DecodeError(`${what}: ${count} entries in ${raw.length} bytes`);
+    list = readEntries(c, count, nodes, a.charts, what);
+  }
+  const m = list.length;
   const first = new Uint32Array(nodes + 1), charts = new Uint32Array(m), nodeOf = new Uint32Array(m);
-  let pn = -1, pc = -1;
-  for (let e = 0; e < m; e++) {
-    const d = c.get(), rc = c.get();
-    let node: number, chart: number;
-    if (pn >= 0 && d === 0) { node = pn; chart = pc + rc + 1; } else if (pn >= 0) { node = pn + d; chart = rc; } else { node = d; chart = rc; }
-    if (node >= nodes || chart >= a.charts) throw new DecodeError(`${what}: entry (node ${node}, chart ${chart}) out of range`);
-    pn = node; pc = chart;
-    nodeOf[e] = node; charts[e] = chart; first[node + 1]++;
-  }
+  list.forEach(([node, chart], e) => { nodeOf[e] = node; charts[e] = chart; first[node + 1]++; });
   for (let n = 0; n < nodes; n++) first[n + 1] += first[n];
-  const values = new Int32Array(m * ch), codes = readCodes(c, raw, m, ch, rans, what);
+  const reps = represented && fromAbove ? representatives(first, charts, fromAbove) : new Int32Array(m).fill(-1);
+  let coded = m;
+  for (let e = 0; e < m; e++) if (reps[e] >= 0) coded--;
+  const values = new Int32Array(m * ch), codes = readCodes(c, raw, coded, ch, rans, what);
   for (let k = 0; k < ch; k++) {
     // The previous value of the entry's chart (chart-wise) or of any entry (slot 0).
     const last = new Int32Array(chartwise ? a.charts : 1);
+    let at = k * coded;
     for (let e = 0; e < m; e++) {
       const slot = chartwise ? charts[e] : 0;
+      if (reps[e] >= 0) {
+        // A representative: its parent entry's value, no residual (0 past the band above's values).
+        last[slot] = values[e * ch + k] = fromAbove!.table.values[reps[e] * ch + k] ?? 0;
+        continue;
+      }
       let pred = last[slot];
       if (fromAbove && nodeOf[e] < fromAbove.parent.length) {
         // The entry (parent, chart) of the band above, when it has one.
         const t = fromAbove.table, p = fromAbove.parent[nodeOf[e]];
         if (p + 1 < t.first.length) for (let x = t.first[p]; x < t.first[p + 1]; x++) if (t.charts[x] === charts[e]) { pred = t.values[x * ch + k]; break; }
       }
-      const z = codes[k * m + e];
+      const z = codes[at++];
       last[slot] = values[e * ch + k] = (pred + ((z >>> 1) ^ -(z & 1))) | 0;
     }
   }
@@ -201,22 +321,35 @@ export function band0Entries(triangles: Uint32Array, triangleChart: Uint32Array)
  * across the triangles (proto/container.md, "Attributes, band 0 with derived entries"; the
  * Rust `read_table_with`).
  */
-export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: Uint32Array, triangleChart: Uint32Array): Table {
-  if (raw.length <= 1 || raw[0] !== 0 || (raw[1] & ~RANS_VALUES) !== 1) return readTable(raw, what, nodes, a, triangleChart.length);
+export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: Uint32Array, triangleChart: Uint32Array, above: Above | null = null): Table {
+  if (raw.length <= 1 || raw[0] !== 0 || (raw[1] & ~(RANS_VALUES | REPRESENTED)) !== 1) return readTable(raw, what, nodes, a, triangleChart.length, above);
   const ch = channels(a), c = new Cursor(raw, what);
   c.get();
-  const rans = (c.get() & RANS_VALUES) !== 0;
+  const coding = c.get(), rans = (coding & RANS_VALUES) !== 0, represented = (coding & REPRESENTED) !== 0;
+  if (represented && !above) throw new DecodeError(`${what}: represented values without the band above`);
   if (triangles.length !== 3 * triangleChart.length) throw new DecodeError(`${what}: triangles and charts disagree`);
   const entries = band0Entries(triangles, triangleChart), m = entries.length;
   for (const [n, k] of entries) if (n >= nodes || k >= a.charts) throw new DecodeError(`${what}: entry (node ${n}, chart ${k}) out of range`);
-  if (!rans && m * ch > raw.length) throw new DecodeError(`${what}: ${m} entries in ${raw.length} bytes`);
   const first = new Uint32Array(nodes + 1), charts = new Uint32Array(m);
   entries.forEach(([n, k], e) => { first[n + 1]++; charts[e] = k; });
   for (let n = 0; n < nodes; n++) first[n + 1] += first[n];
-  const residuals = new Int32Array(m * ch), codes = readCodes(c, raw, m, ch, rans, what);
-  for (let i = 0; i < m * ch; i++) residuals[i] = (codes[i] >>> 1) ^ -(codes[i] & 1);
+  // Representatives take their parent entry's values before the traversal, which skips them.
+  const values = new Int32Array(m * ch), known = new Uint8Array(m);
+  let coded = m;
+  if (represented) {
+    const reps = representatives(first, charts, above!), up = above!.table.values;
+    for (let e = 0; e < m; e++) {
+      if (reps[e] < 0) continue;
+      if ((reps[e] + 1) * ch > up.length) throw new DecodeError(`${what}: band above without values`);
+      for (let s = 0; s < ch; s++) values[e * ch + s] = up[reps[e] * ch + s];
+      known[e] = 1;
+      coded--;
+    }
+  }
+  if (!rans && coded * ch > raw.length) throw new DecodeError(`${what}: ${coded} entries in ${raw.length} bytes`);
+  const residuals = new Int32Array(coded * ch), codes = readCodes(c, raw, coded, ch, rans, what);
+  for (let i = 0; i < coded * ch; i++) residuals[i] = (codes[i] >>> 1) ^ -(codes[i] & 1);
   c.finish();
-  const values = new Int32Array(m * ch);
   const find = (v: number, k: number): number => {
     if (v >= nodes) return -1;
     for (let x = first[v]; x < first[v + 1]; x++) if (charts[x] === k) return x;
@@ -226,7 +359,7 @@ export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: 
   // unknown corner is predicted by the parallelogram across an earlier triangle's edge, else
   // the mean of two known corners, else one known corner, else the last entry made known in
   // the triangle's chart, else the last entry made known.
-  const known = new Uint8Array(m), last = new Int32Array(ch), e = [0, 0, 0];
+  const last = new Int32Array(ch), e = [0, 0, 0];
   // The last entry made known in each chart, if any.
   let nc = 0;
   for (let t = 0; t < triangleChart.length; t++) nc = Math.max(nc, triangleChart[t] + 1);
@@ -251,7 +384,7 @@ export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: 
         else if (kp) pred = vp;
         else if (kq) pred = vq;
         else pred = chartSeen[chart] ? chartLast[chart * ch + s] : last[s];
-        values[x * ch + s] = (pred + residuals[s * m + visited]) | 0;
+        values[x * ch + s] = (pred + residuals[s * coded + visited]) | 0;
       }
       visited++;
       known[x] = 1;

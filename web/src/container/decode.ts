@@ -381,17 +381,17 @@ export class Decoder {
     const lowest = channels(a) === 0 ? h.levelSizes.length : this.minLevel;
     for (let j = h.levelSizes.length - 1; j >= lowest; j--) {
       const raw = await c.chunk(c.find(ChunkKind.Attributes, 0, j)), what = `band ${j} attributes`;
+      let above = null;
       if (needsAbove(raw)) {
         // Bands go top down: the band above is read; frame 0's parents from its Key chunk.
         const parent = readKey(await c.chunk(c.find(ChunkKind.Key, 0, j)), `frame 0 band ${j} keyframe`, h.levelSizes, j, c.version);
         const table = tables[j + 1];
-        tables[j] = readTable(raw, what, h.levelSizes[j], a, h.triangleCount, table ? { parent, table } : null);
-        continue;
+        above = table ? { parent, table } : null;
       }
-      if (j > 0) { tables[j] = readTable(raw, what, h.levelSizes[j], a, h.triangleCount); continue; }
+      if (j > 0) { tables[j] = readTable(raw, what, h.levelSizes[j], a, h.triangleCount, above); continue; }
       // Band 0's entries may be derived from the triangles (a level-0 client's own).
       const triangles = this.triangles ?? readTriangles(await c.chunk(c.find(ChunkKind.Triangles, 0, 0)), "triangles chunk", h.triangleCount, h.vertexCount, c.version);
-      tables[j] = readBand0Table(raw, what, h.levelSizes[j], a, triangles, charts.triangleChart);
+      tables[j] = readBand0Table(raw, what, h.levelSizes[j], a, triangles, charts.triangleChart, above);
     }
     this.looks = { charts, tables, materials };
   }

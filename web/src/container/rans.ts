@@ -29,39 +29,20 @@ export function rAnsTable(freqs: number[], what: string): Uint32Array {
 /**
  * Decodes `out.length` zigzagged residuals from `stream`, symbol i with table i % 3; an escaped
  * symbol's value comes from `escape` (the varints after the stream, in order). Checks that the
- * stream ends exactly where its final states say.
+ * stream ends exactly where its final states say (`decodeSymbols`, the one rANS loop).
  */
 export function decodeResiduals(stream: Uint8Array, tables: Uint32Array[], out: Int32Array, what: string, escape: () => number): void {
-  const len = stream.length;
-  if (len < 12) throw new DecodeError(`${what}: rANS stream shorter than its states`);
-  const x = [0, 0, 0];
-  for (let w = 0; w < 3; w++) {
-    x[w] = ((stream[4 * w] << 24) >>> 0) + (stream[4 * w + 1] << 16) + (stream[4 * w + 2] << 8) + stream[4 * w + 3];
-    if (x[w] < L || x[w] >= 2 ** 31) throw new DecodeError(`${what}: rANS state out of range`);
-  }
-  let pos = 12, overrun = false;
+  const symbols = decodeSymbols(stream, out.length, (i) => tables[i % 3], what);
   for (let i = 0; i < out.length; i++) {
-    const w = i % 3, t = tables[w];
-    let s = x[w];
-    const e = t[s & (M - 1)];
-    s = (e & 0x1fff) * (s >>> 12) + ((e >>> 13) & 0xfff);
-    while (s < L) {
-      if (pos >= len) { overrun = true; s = L; break; }
-      s = (s << 8) | stream[pos++];
-    }
-    x[w] = s;
-    let z = e >>> 25;
-    if (z === ESCAPE) z = escape();
+    const z = symbols[i] === ESCAPE ? escape() : symbols[i];
     out[i] = (z >>> 1) ^ -(z & 1);
   }
-  if (overrun) throw new DecodeError(`${what}: rANS stream ends early`);
-  if (pos !== len || x[0] !== L || x[1] !== L || x[2] !== L) throw new DecodeError(`${what}: rANS stream does not end where it should`);
 }
 
 /**
  * Decodes `count` symbols from `stream`, symbol i on state i % 3 with the table `tableOf(i)`
- * (the attribute tables' residual lengths, whose table changes by channel, not by state; the
- * Rust `Decoder::get` one at a time). Checks that the stream ends exactly where its final
+ * (the position residuals' table changes with the state, the attribute tables' residual
+ * lengths' by channel; the Rust `Decoder::get` one at a time). Checks that the stream ends exactly where its final
  * states say.
  */
 export function decodeSymbols(stream: Uint8Array, count: number, tableOf: (i: number) => Uint32Array, what: string): Uint32Array {

@@ -4,13 +4,16 @@
 //!
 //! - `charts`: the charts and smoothing groups of the input triangles.
 //! - `tables`: the encoder's per-level (node, chart) attribute tables.
-//! - `payload`: the Charts and Attributes chunk payloads.
+//! - `payload`: the Attributes chunk payloads (and the Charts chunk's, from `chart_runs`);
+//!   `entries`: a table's entries, listed or from the band above.
 //! - `cut`: a decoded cut's per-corner attributes and normals.
 //! - [`mod@format`]: the raw serialized types (header field, Materials chunk).
 
+mod chart_runs;
 pub(crate) mod charts;
 mod codes;
 pub(crate) mod cut;
+mod entries;
 pub mod export;
 pub mod format;
 pub mod payload;
@@ -79,9 +82,10 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
     let materials = postcard::to_stdvec(&MaterialsChunk::from_appearance(app))
         .map_err(|e| crate::ContainerError::Io(format!("materials chunk: {e}")))?;
     let size = |b: &Vec<u8>| zstd::bulk::compress(b, crate::format::ZSTD_LEVEL).map_or(usize::MAX, |z| z.len());
-    // The charts as plain or new-chart runs, whichever zstd makes shorter.
+    // The charts as plain, new-chart or recent-chart runs, whichever zstd makes shortest.
     let charts = [payload::write_charts(builder.charts()), payload::write_charts_new_runs(builder.charts())]
         .into_iter()
+        .chain(payload::write_charts_recent(builder.charts()))
         .min_by_key(size)
         .unwrap_or_default();
     let mut out = vec![(ChunkKind::Charts, 0, charts), (ChunkKind::Materials, 0, materials)];
@@ -97,14 +101,34 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
             // same table).
             // Each also with its value residuals entropy-coded (rANS over their bit lengths),
             // which pays once a band has a few hundred values.
+            // With the band above, its representatives' values need no residual at all
+            // (`tables` made every coarse value one of its children's).
             let mut codings = vec![payload::write_table(t, channels), payload::write_table_rans(t, channels)];
+            let chart_of = &builder.charts().triangle_chart;
             for rans in [false, true] {
                 codings.push(payload::write_table_chartwise(t, channels, rans));
                 if j == 0 {
-                    codings.push(payload::write_table_derived(t, channels, builder.triangles(), &builder.charts().triangle_chart, rans));
+                    codings.push(payload::write_table_derived(t, channels, builder.triangles(), chart_of, rans));
                 }
                 if let (Some(parent), Some(above)) = (builder.first_parent(j), tables.get(j + 1)) {
-                    codings.push(payload::write_table_from_above(t, channels, parent, &above.to_table(), rans));
+                    let above = above.to_table();
+                    codings.push(payload::write_table_from_above(t, channels, parent, &above, rans));
+                    codings.extend(payload::write_table_represented(t, channels, parent, &above, rans));
+                    // And the entries themselves as bits over their parents' charts.
+                    for represented in [false, true] {
+                        codings.extend(payload::write_table_entries_above(t, channels, parent, &above, rans, represented));
+                    }
+                    if j == 0 {
+                        codings.extend(payload::write_table_derived_represented(
+                            t,
+                            channels,
+                            builder.triangles(),
+                            chart_of,
+                            parent,
+                            &above,
+                            rans,
+                        ));
+                    }
                 }
             }
             let raw = codings.into_iter().min_by_key(size).unwrap_or_default();

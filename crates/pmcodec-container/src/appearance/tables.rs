@@ -17,7 +17,7 @@
 
 use super::charts::Charts;
 use super::format::AppearanceInfo;
-use super::payload::QuantizedTable;
+use super::payload::{QuantizedTable, Table, representatives};
 use glam::Vec3;
 use pmcodec_mesh::Appearance;
 use std::collections::HashMap;
@@ -184,7 +184,7 @@ impl<'a> TableBuilder<'a> {
         }
         out.push(t0);
         let info = &self.info;
-        for sums in self.levels.iter().skip(1) {
+        for (l, sums) in self.levels.iter().enumerate().skip(1) {
             let mut keys: Vec<(u64, u32)> = sums.index.iter().filter(|(_, e)| sums.needed[**e as usize]).map(|(&k, &e)| (k, e)).collect();
             keys.sort_unstable();
             let mut table = QuantizedTable::default();
@@ -193,6 +193,22 @@ impl<'a> TableBuilder<'a> {
                 table.entries.push(((key >> 32) as u32, key as u32));
                 let w = sums.weight[e];
                 table.values.extend((0..channels).map(|k| quantize(info, k, sums.sums[e * channels + k] / w)));
+            }
+            // A coarse value is its representative child's (payload::representatives, under
+            // frame 0's hierarchy), not the mean above: one of the input's own values, which the
+            // band below then need not send again. The mean stays where no child of frame 0's
+            // hierarchy has an entry in the chart (pairs only other frames' swaps make).
+            if let (Some(parent), Some(below)) = (self.first_parent(l - 1), out.get(l - 1)) {
+                let nodes = table.entries.last().map_or(0, |e| e.0 + 1);
+                let index = Table::index(&table.entries, nodes);
+                let below_nodes = below.entries.last().map_or(0, |e| e.0 + 1);
+                let reps = representatives(&Table::index(&below.entries, below_nodes), parent, &index);
+                for (e, r) in reps.into_iter().enumerate() {
+                    if let Some(a) = r {
+                        let a = a as usize;
+                        table.values[a * channels..(a + 1) * channels].copy_from_slice(&below.values[e * channels..(e + 1) * channels]);
+                    }
+                }
             }
             out.push(table);
         }

@@ -4,7 +4,7 @@
 use super::Decoder;
 use crate::appearance::cut::{DecodedAppearance, textured_mesh};
 use crate::appearance::format::{AppearanceInfo, MaterialsChunk};
-use crate::appearance::payload::{Table, needs_above, read_charts, read_table, read_table_above, read_table_with};
+use crate::appearance::payload::{Table, needs_above, read_band, read_charts, read_table_above};
 use crate::format::ChunkKind;
 use crate::payload::{read_key, read_triangles};
 use crate::{ByteSource, ContainerError};
@@ -41,12 +41,17 @@ impl<S: ByteSource> Decoder<S> {
         for (j, slot) in tables.iter_mut().enumerate().skip(bands).rev() {
             let raw = self.chunk(ChunkKind::Attributes, 0, j)?;
             let what = format!("band {j} attributes");
-            let table = if needs_above(&raw) {
-                // Through the parents of frame 0's hierarchy (its Key chunk of band j).
+            // Through the parents of frame 0's hierarchy (its Key chunk of band j).
+            let parent = if needs_above(&raw) {
                 let key = self.chunk(ChunkKind::Key, 0, j)?;
-                let parent = read_key(&key, &format!("frame 0 band {j} keyframe"), &h.level_sizes, j, self.reader.version())?;
-                read_table_above(&raw, &what, h.level_sizes[j], &info, h.triangle_count, above.as_ref().map(|t| (&parent[..], t)))?
-            } else if j == 0 {
+                Some(read_key(&key, &format!("frame 0 band {j} keyframe"), &h.level_sizes, j, self.reader.version())?)
+            } else {
+                None
+            };
+            let above_of = parent.as_ref().and_then(|p| above.as_ref().map(|t| (&p[..], t)));
+            let table = if j > 0 {
+                read_table_above(&raw, &what, h.level_sizes[j], &info, h.triangle_count, above_of)?
+            } else {
                 // Band 0's entries may be derived from the triangles (a level-0 client's own).
                 let triangles = match &self.triangles {
                     Some(t) => t.clone(),
@@ -62,9 +67,7 @@ impl<S: ByteSource> Decoder<S> {
                         )?
                     }
                 };
-                read_table_with(&raw, &what, h.level_sizes[j], &info, h.triangle_count, Some((&triangles, &charts.triangle_chart)))?
-            } else {
-                read_table(&raw, &what, h.level_sizes[j], &info, h.triangle_count)?
+                read_band(&raw, &what, h.level_sizes[j], &info, h.triangle_count, Some((&triangles, &charts.triangle_chart)), above_of)?
             };
             above = Some(table.clone());
             *slot = Some(table);
