@@ -82,7 +82,7 @@ pub fn fit_skin<'a>(
     h: &Hierarchy,
     positions0: &[Vec3],
     (lo, step): (Vec3, f32),
-    placement: SkinPlacement,
+    (placement, keep): (SkinPlacement, f64),
 ) -> Result<SkinFit<'a>, ContainerError> {
     let step = step as f64;
     let bstep = bind_step(skin, step);
@@ -108,6 +108,9 @@ pub fn fit_skin<'a>(
     }
     let frame0 = skin.matrices.first().map(Vec::as_slice).unwrap_or_default();
     let ancestors = h.all_ancestors();
+    // The entries each level keeps (a coarse node's dropped influences go to the kept entry
+    // that replaces them: `super::skeleton`).
+    let skeleton = super::skeleton::skeleton_levels(skin, &ancestors, &h.level_sizes, &positions0[..n0.min(positions0.len())], keep);
     for (j, anc) in ancestors.iter().enumerate().skip(1) {
         let size = h.level_sizes[j] as usize;
         let mut sums: Vec<Vec<(u32, f64)>> = vec![Vec::new(); size];
@@ -118,6 +121,7 @@ pub fn fit_skin<'a>(
                 if w <= 0.0 {
                     continue;
                 }
+                let k = skeleton[j].get(k as usize).copied().unwrap_or(k);
                 match sums[node].iter_mut().find(|p| p.0 == k) {
                     Some(p) => p.1 += w as f64,
                     None => sums[node].push((k, w as f64)),
