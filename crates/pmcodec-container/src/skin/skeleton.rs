@@ -181,45 +181,67 @@ fn level_influence(skin: &SequenceSkin, ancestors: &[u32], size: usize) -> (Vec<
 fn merge_costs(skin: &SequenceSkin) -> (Vec<f64>, Vec<f64>, usize) {
     let n = skin.palette_len as usize;
     let mut moment = vec![[0.0f64; 16]; n];
-    for (v, r) in skin.rest.iter().enumerate() {
-        let p = [r.x as f64, r.y as f64, r.z as f64, 1.0];
+    for (v, &r) in skin.rest.iter().enumerate() {
         let (Some(js), Some(ws)) = (skin.joints.get(v), skin.weights.get(v)) else { continue };
         for (&e, &w) in js.iter().zip(ws) {
-            let Some(s) = moment.get_mut(e as usize).filter(|_| w > 0.0 && w.is_finite()) else { continue };
-            for a in 0..4 {
-                for b in 0..4 {
-                    s[4 * a + b] += w as f64 * p[a] * p[b];
-                }
+            if let Some(s) = moment.get_mut(e as usize).filter(|_| w > 0.0 && w.is_finite()) {
+                add_moment(s, r, w as f64);
             }
         }
     }
-    let frames = skin.matrices.len();
     let weight: Vec<f64> = moment.iter().map(|s| s[15]).collect();
-    let sampled: Vec<&Vec<[f32; 12]>> =
-        (0..SAMPLED_FRAMES.min(frames)).filter_map(|i| skin.matrices.get(i * frames / SAMPLED_FRAMES.min(frames))).collect();
+    let sampled = sampled_frames(skin);
     let mut cost = vec![0.0f64; n * n];
-    let count = sampled.len();
-    for ms in sampled {
-        for e in 0..n {
-            let (Some(me), s) = (ms.get(e), &moment[e]) else { continue };
-            if s[15] <= 0.0 {
-                continue;
-            }
-            for k in 0..n {
-                let Some(mk) = ms.get(k) else { continue };
-                let mut sum = 0.0;
-                for a in 0..3 {
-                    let d: [f64; 4] = std::array::from_fn(|c| me[4 * a + c] as f64 - mk[4 * a + c] as f64);
-                    for x in 0..4 {
-                        let row: f64 = (0..4).map(|y| s[4 * x + y] * d[y]).sum();
-                        sum += d[x] * row;
-                    }
-                }
-                cost[e * n + k] += sum;
+    for e in (0..n).filter(|&e| weight[e] > 0.0) {
+        for k in 0..n {
+            cost[e * n + k] = apart(&sampled, e, k, &moment[e]);
+        }
+    }
+    (cost, weight, sampled.len())
+}
+
+/// The frames whose transforms are compared, evenly over the sequence.
+pub(crate) fn sampled_frames(skin: &SequenceSkin) -> Vec<&[[f32; 12]]> {
+    let frames = skin.matrices.len();
+    let count = SAMPLED_FRAMES.min(frames);
+    (0..count).filter_map(|i| skin.matrices.get(i * frames / count).map(Vec::as_slice)).collect()
+}
+
+/// `sum_f tr(D_f S D_f^T)`: how far entry k's transforms carry points of weighted second moment
+/// `s` (homogeneous, row-major 4x4) from where entry e's carry them, squared, over `frames`.
+fn apart(frames: &[&[[f32; 12]]], e: usize, k: usize, s: &[f64; 16]) -> f64 {
+    let mut sum = 0.0;
+    for ms in frames {
+        let (Some(me), Some(mk)) = (ms.get(e), ms.get(k)) else { continue };
+        for a in 0..3 {
+            let d: [f64; 4] = std::array::from_fn(|c| me[4 * a + c] as f64 - mk[4 * a + c] as f64);
+            for x in 0..4 {
+                let row: f64 = (0..4).map(|y| s[4 * x + y] * d[y]).sum();
+                sum += d[x] * row;
             }
         }
     }
-    (cost, weight, count)
+    sum
+}
+
+/// Adds weight `w` at rest point `p` to the second moment `s`.
+pub(crate) fn add_moment(s: &mut [f64; 16], p: Vec3, w: f64) {
+    let p = [p.x as f64, p.y as f64, p.z as f64, 1.0];
+    for a in 0..4 {
+        for b in 0..4 {
+            s[4 * a + b] += w * p[a] * p[b];
+        }
+    }
+}
+
+/// For one coarse node: of `candidates` (entries its level keeps), the one whose transforms
+/// carry the node's points that entry `e` moves (second moment `s`) nearest to where `e`
+/// carries them; ties to the first. Why per node: the level's merge target of `e` is the best
+/// over all of `e`'s points, and a node at one end of `e`'s region may follow another kept
+/// entry more closely (a thigh bone's top with the hip, its bottom with the shin).
+/// `frames`: [`sampled_frames`].
+pub(crate) fn nearest(frames: &[&[[f32; 12]]], e: u32, s: &[f64; 16], candidates: &[u32]) -> Option<u32> {
+    candidates.iter().map(|&k| (apart(frames, e as usize, k as usize, s), k)).min_by(|a, b| a.0.total_cmp(&b.0)).map(|(_, k)| k)
 }
 
 #[cfg(test)]
