@@ -51,11 +51,14 @@ pub struct SkinnedCoarse {
 /// with a fitted skin at 800 vertices: mean RMS 0.0825% -> 0.0829% of the diagonal) for 4.4%
 /// fewer position bytes there; `{ error: 0.25, cells: 1.0, reach: 0.25 }` saves 9.4% for 3.7%
 /// more RMS error (`examples/skinned_coarse.rs`). Its skeleton levels (`joints: 0.25`) cut what
-/// a client at 10% of the triangles reads of the fitted horse from 39.7% to 24.2% of a full
-/// client's bytes, of RobotExpressive from 59.9% to 48.1% (Fox 70.5% to 62.5%), with cuts as
-/// close to the input (`pmcodec eval --pmc` within 0.5% of the RMS error without them) for
-/// files 0.7% (horse) to 9% (Fox: a Joints chunk per band and frame) larger
-/// (`examples/skinned.rs`); 0.1 merges less (horse 26.8%, Robot 49.1%, Fox 67.1%).
+/// a client at 10% of the triangles reads of the fitted horse from 39.7% to 24.1% of a full
+/// client's bytes, of RobotExpressive (every clip) from 59.9% to 48.1%, of Fox from 70.5% to
+/// 62.5%, with cuts as close to the input (`pmcodec eval --pmc`: within 0.5% of the RMS error
+/// without them) for files 0.2% (horse: fewer influences in the Bind chunks pay for most of
+/// the coarse position bytes), 5.7% (Robot) and 8.5% (Fox: a Joints chunk per band and frame
+/// where there was one per frame) larger (`examples/skinned.rs`). Larger values merge more
+/// for more coarse position bytes (0.5, measured before a coarse node chose the entry each of
+/// its merged ones goes to: horse 23.8%, Robot 48.0%, Fox 61.2%, files 2-11% larger).
 impl Default for SkinnedCoarse {
     fn default() -> Self {
         SkinnedCoarse { error: 0.1, cells: 0.5, reach: 0.25, joints: 0.25 }
