@@ -174,6 +174,8 @@ fn main() {
         if skin.is_some() {
             println!("    {}", bands(&r));
             println!("    a 10% client reads: {}", read_by_kind(&r, l10));
+            let top = sizes.len() - 1;
+            println!("    every client (the coarsest, level {top}) reads: {} of {} B", read_by_kind(&r, top), full.0);
         }
         println!(
             "  {:<24} {:>9} bytes ({:.2}x the GLB), {:.3} bits/vertex/frame (positions {:.3}, pose {:.0} B/frame, bind {} B); \
