@@ -299,4 +299,30 @@ mod tests {
         assert!(levels[1].iter().all(|&k| k == levels[1][0]), "{:?}", levels[1]);
         assert!(skeleton_levels(&s, &ancestors, &sizes, &rest, 0.0).iter().all(|l| *l == identity));
     }
+
+    /// A node follows the kept entry that carries its own points best: entry 2 turns about
+    /// (10, 0, 0), entry 0 turns the same way about the origin, entry 1 holds still. Near the
+    /// pivot entry 2 moves nothing (entry 1 is nearer); at (-10, 0, 0) it moves twice as far
+    /// from entry 1 as from entry 0.
+    #[test]
+    fn a_node_takes_the_entry_that_carries_its_own_points_nearest() {
+        let turn = |angle: f32, pivot: f32| {
+            let (s, c) = angle.sin_cos();
+            // x' = R (x - p) + p, p = (pivot, 0, 0).
+            [c, -s, 0.0, pivot - c * pivot, s, c, 0.0, -s * pivot, 0.0, 0.0, 1.0, 0.0]
+        };
+        let still = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+        let matrices: Vec<Vec<[f32; 12]>> = (0..8).map(|f| vec![turn(0.1 * f as f32, 0.0), still, turn(0.1 * f as f32, 10.0)]).collect();
+        let s = SequenceSkin { palette_len: 3, matrices, ..Default::default() };
+        let frames = sampled_frames(&s);
+        let moment = |x: f32| {
+            let mut m = [0.0; 16];
+            add_moment(&mut m, Vec3::new(x, 0.0, 0.0), 1.0);
+            add_moment(&mut m, Vec3::new(x, 1.0, 0.0), 1.0);
+            m
+        };
+        assert_eq!(nearest(&frames, 2, &moment(10.0), &[0, 1]), Some(1));
+        assert_eq!(nearest(&frames, 2, &moment(-10.0), &[0, 1]), Some(0));
+        assert_eq!(nearest(&frames, 2, &moment(-10.0), &[]), None);
+    }
 }
