@@ -40,6 +40,11 @@ use pmcodec_mesh::SequenceSkin;
 /// entries cheap (256 fitted bones: 65,536 pairs).
 const SAMPLED_FRAMES: usize = 32;
 
+/// Skins whose vertices use more palette entries than this keep every entry at every level: the
+/// comparison of every pair and the greedy merging grow as the square and the cube of the
+/// count (a fitted skin has at most 256 bones).
+const MAX_MERGED: usize = 512;
+
 /// For each level of a hierarchy (`ancestors[j][v]`: vertex v's level-j node; `sizes[j]`: node
 /// counts; `rest_world`: the vertices' frame-0 positions), the entry each palette entry stands
 /// for there: itself where kept, else the kept entry that replaces it. Level 0 keeps every
@@ -63,37 +68,54 @@ pub(crate) fn skeleton_levels(
     if tolerance.is_nan() || tolerance <= 0.0 || n < 2 {
         return out;
     }
-    let (cost, weight, frames) = merge_costs(skin);
-    // RMS distance between where e's points go under e and under k.
-    let distance = |e: usize, k: usize| (cost[e * n + k].max(0.0) / (weight[e] * frames as f64).max(1e-300)).sqrt();
-    // groups[k]: the entries k stands for (k itself while kept; empty once merged).
-    let mut groups: Vec<Vec<usize>> = (0..n).map(|e| vec![e]).collect();
+    // Only the entries some vertex uses take part (a glTF palette also lists joints and nodes
+    // that move no vertex: RobotExpressive uses 36 of its 98), at most MAX_MERGED of them.
+    let (moment, weight) = moments(skin);
+    let used: Vec<usize> = (0..n).filter(|&e| weight[e] > 0.0).collect();
+    let m = used.len();
+    if !(2..=MAX_MERGED).contains(&m) {
+        return out;
+    }
+    let frames = sampled_frames(skin);
+    // apart[a * m + b]: the RMS distance between where used[a]'s points go under it and under
+    // used[b] over the sampled frames.
+    let mut apart_rms = vec![0.0f64; m * m];
+    for (a, &e) in used.iter().enumerate() {
+        let total = (weight[e] * frames.len() as f64).max(1e-300);
+        for (b, &k) in used.iter().enumerate() {
+            apart_rms[a * m + b] = (apart(&frames, e, k, &moment[e]).max(0.0) / total).sqrt();
+        }
+    }
+    let distance = |a: usize, b: usize| apart_rms[a * m + b];
+    // groups[a]: the used entries (by index in `used`) used[a] stands for (a itself while kept;
+    // empty once merged).
+    let mut groups: Vec<Vec<usize>> = (0..m).map(|a| vec![a]).collect();
     for (j, anc) in ancestors.iter().enumerate().skip(1) {
         let size = sizes.get(j).copied().unwrap_or(0) as usize;
         let (influence, users) = level_influence(skin, anc, size);
         let limit = tolerance * mean_radius(anc, size, rest_world);
         loop {
-            let kept: Vec<usize> = (0..n).filter(|&e| !groups[e].is_empty()).collect();
+            let kept: Vec<usize> = (0..m).filter(|&a| !groups[a].is_empty()).collect();
             // The cheapest merge: (move, group, into).
             let mut best: Option<(f64, usize, usize)> = None;
-            for &e in &kept {
-                let g = &groups[e];
-                let used = g.iter().map(|&x| users[x]).max().unwrap_or(0);
-                for &k in kept.iter().filter(|&&k| k != e) {
+            for &a in &kept {
+                let g = &groups[a];
+                let nodes = g.iter().map(|&x| users[used[x]]).max().unwrap_or(0);
+                for &b in kept.iter().filter(|&&b| b != a) {
                     let moved: f64 =
-                        if used == 0 { 0.0 } else { g.iter().map(|&x| influence[x] * distance(x, k)).sum::<f64>() / used as f64 };
-                    if best.is_none_or(|b| moved < b.0) {
-                        best = Some((moved, e, k));
+                        if nodes == 0 { 0.0 } else { g.iter().map(|&x| influence[used[x]] * distance(x, b)).sum::<f64>() / nodes as f64 };
+                    if best.is_none_or(|best| moved < best.0) {
+                        best = Some((moved, a, b));
                     }
                 }
             }
-            let Some((_, e, k)) = best.filter(|b| b.0 <= limit) else { break };
-            let g = std::mem::take(&mut groups[e]);
-            groups[k].extend(g);
+            let Some((_, a, b)) = best.filter(|best| best.0 <= limit) else { break };
+            let g = std::mem::take(&mut groups[a]);
+            groups[b].extend(g);
         }
-        for (k, g) in groups.iter().enumerate() {
+        for (b, g) in groups.iter().enumerate() {
             for &x in g {
-                out[j][x] = k as u32;
+                out[j][used[x]] = used[b] as u32;
             }
         }
     }
@@ -172,13 +194,9 @@ fn level_influence(skin: &SequenceSkin, ancestors: &[u32], size: usize) -> (Vec<
     (out, seen.iter().map(|s| s.len() as u32).collect())
 }
 
-/// `cost[e * n + k]`: how far entry k's transforms carry the points entry e moves from where
-/// e's carry them, summed over sampled frames: `sum_f tr(D_f S_e D_f^T)` with `D_f` the
-/// difference of the two 3x4 matrices in frame f and `S_e` the weighted second moment of the
-/// homogeneous rest positions of e's vertices (so the squared displacement of every point,
-/// weighted by e's weight on it).
-/// Also each entry's total weight over the vertices and the number of frames sampled.
-fn merge_costs(skin: &SequenceSkin) -> (Vec<f64>, Vec<f64>, usize) {
+/// Each entry's weighted second moment of the homogeneous rest positions of its vertices
+/// (row-major 4x4; its last value is the entry's total weight) and that total weight.
+fn moments(skin: &SequenceSkin) -> (Vec<[f64; 16]>, Vec<f64>) {
     let n = skin.palette_len as usize;
     let mut moment = vec![[0.0f64; 16]; n];
     for (v, &r) in skin.rest.iter().enumerate() {
@@ -189,15 +207,8 @@ fn merge_costs(skin: &SequenceSkin) -> (Vec<f64>, Vec<f64>, usize) {
             }
         }
     }
-    let weight: Vec<f64> = moment.iter().map(|s| s[15]).collect();
-    let sampled = sampled_frames(skin);
-    let mut cost = vec![0.0f64; n * n];
-    for e in (0..n).filter(|&e| weight[e] > 0.0) {
-        for k in 0..n {
-            cost[e * n + k] = apart(&sampled, e, k, &moment[e]);
-        }
-    }
-    (cost, weight, sampled.len())
+    let weight = moment.iter().map(|s| s[15]).collect();
+    (moment, weight)
 }
 
 /// The frames whose transforms are compared, evenly over the sequence.
@@ -294,6 +305,11 @@ mod tests {
         let levels = skeleton_levels(&s, &ancestors, &sizes, &rest, 0.1);
         assert_eq!(levels[1], identity);
         assert_eq!(levels[2], [0, 1, 0, 0, 0, 1, 1, 1]);
+        // An entry no vertex uses stands for itself at every level.
+        let mut unused = s.clone();
+        unused.palette_len = 9;
+        let levels = skeleton_levels(&unused, &ancestors, &sizes, &rest, 0.25);
+        assert_eq!(levels[2], [0, 1, 0, 0, 0, 1, 1, 1, 8]);
         // Without a bound one entry stands for all; 0 keeps every entry.
         let levels = skeleton_levels(&s, &ancestors, &sizes, &rest, 100.0);
         assert!(levels[1].iter().all(|&k| k == levels[1][0]), "{:?}", levels[1]);
