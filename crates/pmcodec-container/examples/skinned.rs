@@ -5,7 +5,7 @@
 //! a 10% client reads by chunk kind, and per band the palette entries its Joints chunks carry;
 //! and the encode time. With `all`, every animation of the file is played back to back. Rows:
 //! skinned with every joint at every level (`joints 0`), then with the skeleton's level of
-//! detail at each threshold of `PMC_JOINTS` (comma-separated, default `1`: today's encoder);
+//! detail at each threshold of `PMC_JOINTS` (comma-separated; default today's encoder's, 0.25);
 //! `codings` adds the older Palette and plain Joints codings. A folder of OBJ frames is given
 //! the skin `pmcodec encode --fit-skin` fits.
 //! `cargo run --release -p pmcodec-container --example skinned -- ../shared/data/gltf/Fox.glb [all] [centroid] [codings]`
@@ -140,9 +140,10 @@ fn main() {
         let table: Vec<String> = kinds.iter().map(|(k, (b, c))| format!("{k} {b} B in {c}")).collect();
         println!("    preamble, header and index {} B; {}", r.data_start(), table.join(", "));
         println!("    positions per band (band 0 first): {:?} B", s.positions_bytes);
-        // PMC_OUT=dir: the skinned file, and every frame's quantized node positions as the Rust
-        // decoder stores them at levels 0 and 1 (i32 little-endian, frame after frame), for
-        // comparing other decoders with.
+        // PMC_OUT=dir: each skinned file in the Joints coding (`skinned-joints{threshold}.pmc`,
+        // for `pmcodec eval --pmc`), and every frame's quantized node positions as the Rust
+        // decoder stores them at levels 0 and 1 (i32 little-endian, frame after frame; the last
+        // such row's), for comparing other decoders with.
         if let (Some(dir), Some(_), PaletteCoding::Joints) = (std::env::var_os("PMC_OUT"), skin, palette_coding) {
             std::fs::write(Path::new(&dir).join(format!("skinned-joints{joints}.pmc")), &bytes).expect("write");
             for level in [0, 1] {
