@@ -1,10 +1,18 @@
 //! Skinned streams (issue 17): for each skinned glTF, the `.pmc` at 12-bit quantization with
 //! skinning prediction beside the same file without it and the source GLB; bits per vertex per
-//! frame; the share of a full client's bytes that clients at 10% and 25% of the triangles read;
-//! and the encode time. With `all`, every animation of the file is played back to back.
-//! `cargo run --release -p pmcodec-container --example skinned -- ../shared/data/gltf/Fox.glb [all] [centroid]`
+//! frame; the share of a full client's bytes that clients at 10% and 25% of the triangles read
+//! (with and without the texture images, which the server also serves at their own URLs), what
+//! a 10% client reads by chunk kind, and per band the palette entries its Joints chunks carry;
+//! and the encode time. With `all`, every animation of the file is played back to back. Rows:
+//! skinned with every joint at every level (`joints 0`), then with the skeleton's level of
+//! detail at each threshold of `PMC_JOINTS` (comma-separated; default today's encoder's, 0.25);
+//! `codings` adds the older Palette and plain Joints codings. A folder of OBJ frames is given
+//! the skin `pmcodec encode --fit-skin` fits.
+//! `cargo run --release -p pmcodec-container --example skinned -- ../shared/data/gltf/Fox.glb [all] [centroid] [codings]`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
-use pmcodec_container::{Decoder, EncodeOptions, PaletteCoding, QuantizationChoice, Reader, SkinPlacement, encode, summary};
+use pmcodec_container::{
+    ChunkKind, Decoder, EncodeOptions, PaletteCoding, QuantizationChoice, Reader, SkinPlacement, SkinnedCoarse, encode, summary,
+};
 use pmcodec_mesh::gltf_input::{GltfOptions, RiggedMesh, load_gltf};
 use std::path::Path;
 
@@ -29,10 +37,54 @@ fn all_animations(path: &Path) -> pmcodec_mesh::Sequence {
     out.expect("the file has animations")
 }
 
-/// Bytes a client at `level` reads over the whole file (every chunk it needs).
-fn bytes_at(bytes: &[u8], level: usize) -> u64 {
+/// Bytes a client at `level` reads over the whole file (every chunk it needs), and of them the
+/// texture images'.
+fn bytes_at(bytes: &[u8], level: usize) -> (u64, u64) {
     let r = Reader::open(bytes).expect("open");
-    r.index().chunks.iter().filter(|e| e.kind.read_at(e.band as usize, level)).map(|e| e.stored_len as u64).sum::<u64>() + r.data_start()
+    let read = || r.index().chunks.iter().filter(|e| e.kind.read_at(e.band as usize, level));
+    let images = read().filter(|e| e.kind == ChunkKind::Image).map(|e| e.stored_len as u64).sum();
+    (read().map(|e| e.stored_len as u64).sum::<u64>() + r.data_start(), images)
+}
+
+/// What a client at `level` reads, by chunk kind (and band for Bind and Joints chunks), largest
+/// first, beside the preamble, header and index.
+fn read_by_kind(r: &Reader<&[u8]>, level: usize) -> String {
+    let mut kinds: std::collections::BTreeMap<String, u64> = Default::default();
+    for e in r.index().chunks.iter().filter(|e| e.kind.read_at(e.band as usize, level)) {
+        let name = match e.kind {
+            ChunkKind::Bind | ChunkKind::Joints => format!("{} band {}", e.kind.name(), e.band),
+            k => k.name().to_string(),
+        };
+        *kinds.entry(name).or_default() += e.stored_len as u64;
+    }
+    let mut rows: Vec<(String, u64)> = kinds.into_iter().collect();
+    rows.push(("preamble, header and index".into(), r.data_start()));
+    rows.sort_by_key(|r| std::cmp::Reverse(r.1));
+    rows.iter().map(|(k, b)| format!("{k} {b}")).collect::<Vec<_>>().join(", ")
+}
+
+/// Per band (band 0 first): nodes, the palette entries its nodes use, the entries its Joints
+/// chunks carry (used by it and by no coarser band), and its Joints chunks' bytes.
+fn bands(r: &Reader<&[u8]>) -> String {
+    let h = r.header();
+    let mut d = Decoder::new(r.borrowed(), 0).expect("decoder");
+    d.seek(0).expect("frame 0");
+    let Some((nodes, _)) = d.skin() else { return String::new() };
+    let mut taken = std::collections::BTreeSet::new();
+    let mut out = vec![String::new(); h.levels()];
+    let mut from = h.level_sizes.iter().sum::<u32>() as usize;
+    for j in (0..h.levels()).rev() {
+        let to = from;
+        from -= h.level_sizes[j] as usize;
+        let used: std::collections::BTreeSet<u32> =
+            nodes[from..to].iter().flat_map(|n| n.joints.iter().zip(&n.weights).filter(|p| *p.1 > 0).map(|p| *p.0)).collect();
+        let carried = used.iter().filter(|e| !taken.contains(*e)).count();
+        taken.extend(used.iter().copied());
+        let joints: u64 =
+            r.index().chunks.iter().filter(|e| e.kind == ChunkKind::Joints && e.band as usize == j).map(|e| e.stored_len as u64).sum();
+        out[j] = format!("band {j}: {} nodes, uses {} entries, carries {carried}, joints {joints} B", h.level_sizes[j], used.len());
+    }
+    out.join("; ")
 }
 
 fn main() {
@@ -40,7 +92,16 @@ fn main() {
     let path = Path::new(&args[1]);
     let all = args.iter().any(|a| a == "all");
     let placement = if args.iter().any(|a| a == "centroid") { SkinPlacement::Centroid } else { SkinPlacement::BackPropagated };
-    let seq = if all { all_animations(path) } else { load_gltf(path, &GltfOptions::default()).expect("load") };
+    let seq = if path.is_dir() {
+        let mut seq = pmcodec_mesh::obj::load_obj_sequence(path, 30.0).expect("load");
+        let fit = pmcodec_mesh::skin_fit::FitOptions { quant_bits: 12, ..Default::default() };
+        seq.skin = Some(pmcodec_mesh::skin_fit::fit_skin(&seq, &fit).expect("fit").0);
+        seq
+    } else if all {
+        all_animations(path)
+    } else {
+        load_gltf(path, &GltfOptions::default()).expect("load")
+    };
     let glb = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
     let (n, frames) = (seq.vertex_count(), seq.frame_count());
     println!(
@@ -52,13 +113,18 @@ fn main() {
     // Without skin; skinned with the palettes in Palette chunks (as before the Joints chunk);
     // skinned as today's encoder writes it (Joints chunks).
     // Joints chunks in the plain coding only (as before the linked coding), then as today.
-    for (skin, palette_coding) in [
-        (None, PaletteCoding::Joints),
-        (Some(placement), PaletteCoding::Palette),
-        (Some(placement), PaletteCoding::JointsPlain),
-        (Some(placement), PaletteCoding::Joints),
-    ] {
-        let opts = EncodeOptions { quantization: QuantizationChoice::Bits(12), skin, palette_coding, ..Default::default() };
+    let thresholds: Vec<f64> = std::env::var("PMC_JOINTS")
+        .map(|s| s.split(',').map(|x| x.parse().expect("a number")).collect())
+        .unwrap_or_else(|_| vec![SkinnedCoarse::default().joints]);
+    let mut rows = vec![(None, PaletteCoding::Joints, 0.0)];
+    if args.iter().any(|a| a == "codings") {
+        rows.extend([(Some(placement), PaletteCoding::Palette, 0.0), (Some(placement), PaletteCoding::JointsPlain, 0.0)]);
+    }
+    rows.push((Some(placement), PaletteCoding::Joints, 0.0));
+    rows.extend(thresholds.iter().filter(|&&t| t > 0.0).map(|&t| (Some(placement), PaletteCoding::Joints, t)));
+    for (skin, palette_coding, joints) in rows {
+        let skinned_coarse = Some(SkinnedCoarse { joints, ..Default::default() });
+        let opts = EncodeOptions { quantization: QuantizationChoice::Bits(12), skin, palette_coding, skinned_coarse, ..Default::default() };
         let t = std::time::Instant::now();
         let bytes = encode(&seq, &opts, |_| {}).expect("encode");
         let secs = t.elapsed().as_secs_f64();
@@ -74,11 +140,12 @@ fn main() {
         let table: Vec<String> = kinds.iter().map(|(k, (b, c))| format!("{k} {b} B in {c}")).collect();
         println!("    preamble, header and index {} B; {}", r.data_start(), table.join(", "));
         println!("    positions per band (band 0 first): {:?} B", s.positions_bytes);
-        // PMC_OUT=dir: the skinned file, and every frame's quantized node positions as the Rust
-        // decoder stores them at levels 0 and 1 (i32 little-endian, frame after frame), for
-        // comparing other decoders with.
+        // PMC_OUT=dir: each skinned file in the Joints coding (`skinned-joints{threshold}.pmc`,
+        // for `pmcodec eval --pmc`), and every frame's quantized node positions as the Rust
+        // decoder stores them at levels 0 and 1 (i32 little-endian, frame after frame; the last
+        // such row's), for comparing other decoders with.
         if let (Some(dir), Some(_), PaletteCoding::Joints) = (std::env::var_os("PMC_OUT"), skin, palette_coding) {
-            std::fs::write(Path::new(&dir).join("skinned.pmc"), &bytes).expect("write");
+            std::fs::write(Path::new(&dir).join(format!("skinned-joints{joints}.pmc")), &bytes).expect("write");
             for level in [0, 1] {
                 let mut d = Decoder::new(r.borrowed(), level).expect("decoder");
                 let mut out = Vec::new();
@@ -89,7 +156,7 @@ fn main() {
                 std::fs::write(Path::new(&dir).join(format!("skinned-level{level}.q")), out).expect("write");
             }
         }
-        let full = bytes_at(&bytes, 0) as f64;
+        let full = bytes_at(&bytes, 0);
         // The levels the default anchors put at 25% and 10% of the input.
         let sizes = &s.header.level_sizes;
         let tris = |l: usize| {
@@ -99,12 +166,24 @@ fn main() {
         };
         let level_of = |share: f64| (0..sizes.len()).rev().find(|&l| tris(l) >= share * 0.999).unwrap_or(0);
         let (l25, l10) = (level_of(0.25), level_of(0.10));
+        // Shares of a full client's bytes, with the texture images and without (they are
+        // served at their own URLs too, and a client may already hold them).
+        let share = |l: usize| {
+            let (b, i) = bytes_at(&bytes, l);
+            (100.0 * b as f64 / full.0 as f64, 100.0 * (b - i) as f64 / (full.0 - full.1).max(1) as f64)
+        };
+        if skin.is_some() {
+            println!("    {}", bands(&r));
+            println!("    a 10% client reads: {}", read_by_kind(&r, l10));
+            let top = sizes.len() - 1;
+            println!("    every client (the coarsest, level {top}) reads: {} of {} B", read_by_kind(&r, top), full.0);
+        }
         println!(
             "  {:<24} {:>9} bytes ({:.2}x the GLB), {:.3} bits/vertex/frame (positions {:.3}, pose {:.0} B/frame, bind {} B); \
-             a client at 25% (level {l25}, {:.1}% of triangles) reads {:.1}%, at 10% (level {l10}, {:.1}%) {:.1}%; encoded in {secs:.1} s",
+             a client at 25% (level {l25}, {:.1}% of triangles) reads {:.1}% ({:.1}% without images), at 10% (level {l10}, {:.1}%) {:.1}% ({:.1}%); encoded in {secs:.1} s",
             match skin {
                 None => "without skin".to_string(),
-                Some(p) => format!("skinned {p:?} {palette_coding:?}"),
+                Some(p) => format!("skinned {p:?} {palette_coding:?} joints {joints}"),
             },
             bytes.len(),
             bytes.len() as f64 / glb.max(1) as f64,
@@ -113,9 +192,11 @@ fn main() {
             s.pose_bytes as f64 / frames as f64,
             s.bind_bytes.iter().sum::<u64>(),
             100.0 * tris(l25),
-            100.0 * bytes_at(&bytes, l25) as f64 / full,
+            share(l25).0,
+            share(l25).1,
             100.0 * tris(l10),
-            100.0 * bytes_at(&bytes, l10) as f64 / full,
+            share(l10).0,
+            share(l10).1,
         );
     }
 }

@@ -26,12 +26,16 @@ fn main() {
     }
     let (n, frames) = (seq.vertex_count(), seq.frame_count());
     println!("{}: {n} vertices, {frames} frames", path.display());
-    // SKINNED_COARSE=error,cells,reach: the tolerance of "after" (else the default).
-    let after =
-        match std::env::var("SKINNED_COARSE").ok().map(|s| s.split(',').map(|x| x.parse::<f64>().expect("number")).collect::<Vec<_>>()) {
-            Some(t) => SkinnedCoarse { error: t[0], cells: t[1], reach: t[2] },
-            None => SkinnedCoarse::default(),
-        };
+    // SKINNED_COARSE=error,cells,reach[,joints]: the tolerance of "after" (else the default).
+    let after = match std::env::var("SKINNED_COARSE")
+        .ok()
+        .map(|s| s.split(',').map(|x| x.parse::<f64>().expect("number")).collect::<Vec<_>>())
+    {
+        Some(t) => {
+            SkinnedCoarse { error: t[0], cells: t[1], reach: t[2], joints: t.get(3).copied().unwrap_or(SkinnedCoarse::default().joints) }
+        }
+        None => SkinnedCoarse::default(),
+    };
     let tolerances: Vec<(&str, Option<SkinnedCoarse>)> = vec![("before", None), ("after", Some(after))];
     for (name, skinned_coarse) in tolerances {
         let opts = EncodeOptions { quantization: QuantizationChoice::Bits(12), skinned_coarse, ..Default::default() };

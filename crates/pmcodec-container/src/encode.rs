@@ -587,7 +587,10 @@ fn code_frames(
         }
         if let (0, Some((input, placement))) = (f, skin_input) {
             // The skeleton once, before the first frame, top band first.
-            let fit = fit_skin(input, h, positions, (lo, step), placement)?;
+            // Coarse levels keep fewer joints only where coarse nodes may sit at their skinned
+            // positions (the skeleton's level of detail, `skin::skeleton`).
+            let keep = opts.skinned_coarse.map_or(0.0, |c| c.joints);
+            let fit = fit_skin(input, h, positions, (lo, step), (placement, keep))?;
             let offsets = &h.offsets;
             for j in (0..levels).rev() {
                 chunks.push(ChunkKind::Bind, 0, j as u32, write_binds(&fit.nodes[offsets[j] as usize..offsets[j + 1] as usize]))?;

@@ -5,8 +5,8 @@ use crate::{EXIT_BAD_INPUT, EXIT_FAILURE, Exit, progress};
 use anyhow::{Context, anyhow};
 use clap::{Args, ValueEnum};
 use pmcodec_container::{
-    ContainerError, EncodeOptions, FileSource, Motion, QuantizationChoice, Reader, SkinPlacement, StreamError, VertexOrder, encode,
-    encode_stream, encode_with_report, summary, write_file,
+    ContainerError, EncodeOptions, FileSource, Motion, QuantizationChoice, Reader, SkinPlacement, SkinnedCoarse, StreamError, VertexOrder,
+    encode, encode_stream, encode_with_report, summary, write_file,
 };
 use pmcodec_hierarchy::base::{PoseSet, VertexWeights};
 use pmcodec_hierarchy::recluster::ReclusterOptions;
@@ -449,13 +449,28 @@ fn encode_fitted(
         used = true;
     }
     if !used {
-        seq.skin = None;
+        let skin = seq.skin.take();
         let plain = encode(seq, opts, |_| bar.inc(1)).map_err(|e| container_error(e, what))?;
         if saved as f64 > 0.75 * skin_bytes as f64 && plain.len() >= bytes.len() {
             used = true;
         } else {
             reason.push_str(&format!("; {} bytes without the skin, {bytes_with_skin} with it", plain.len()));
             bytes = plain;
+            // The skeleton's levels (coarse levels merging joints) trade a full client's bytes
+            // for a coarse client's; where the skin loses with them it may still pay without
+            // them (samba-60: 972,387 B with them, 923,560 without, 926,190 without the skin).
+            if let (Some(skin), Some(coarse)) = (skin, opts.skinned_coarse.filter(|c| c.joints > 0.0)) {
+                seq.skin = Some(skin);
+                let flat = EncodeOptions { skinned_coarse: Some(SkinnedCoarse { joints: 0.0, ..coarse }), ..opts.clone() };
+                let every = encode(seq, &flat, |_| bar.inc(1)).map_err(|e| container_error(e, what))?;
+                if every.len() < bytes.len() {
+                    reason.push_str(&format!(", {} with it and every joint at every level: kept so", every.len()));
+                    bytes = every;
+                    used = true;
+                } else {
+                    seq.skin = None;
+                }
+            }
         }
     }
     let out = FittedSkinOutput {

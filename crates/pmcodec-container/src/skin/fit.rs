@@ -82,7 +82,7 @@ pub fn fit_skin<'a>(
     h: &Hierarchy,
     positions0: &[Vec3],
     (lo, step): (Vec3, f32),
-    placement: SkinPlacement,
+    (placement, keep): (SkinPlacement, f64),
 ) -> Result<SkinFit<'a>, ContainerError> {
     let step = step as f64;
     let bstep = bind_step(skin, step);
@@ -108,9 +108,15 @@ pub fn fit_skin<'a>(
     }
     let frame0 = skin.matrices.first().map(Vec::as_slice).unwrap_or_default();
     let ancestors = h.all_ancestors();
+    // The entries each level keeps (a coarse node's dropped influences go to the kept entry
+    // that replaces them: `super::skeleton`).
+    let skeleton = super::skeleton::skeleton_levels(skin, &ancestors, &h.level_sizes, &positions0[..n0.min(positions0.len())], keep);
+    let frames = super::skeleton::sampled_frames(skin);
     for (j, anc) in ancestors.iter().enumerate().skip(1) {
         let size = h.level_sizes[j] as usize;
-        let mut sums: Vec<Vec<(u32, f64)>> = vec![Vec::new(); size];
+        // Per node, its cluster's summed weight on each entry and the second moment of the
+        // points each entry moves.
+        let mut own: Vec<Vec<(u32, f64, [f64; 16])>> = vec![Vec::new(); size];
         let mut centroid = vec![(DVec3::ZERO, 0u32); size];
         for v in 0..n0 {
             let node = anc[v] as usize;
@@ -118,14 +124,41 @@ pub fn fit_skin<'a>(
                 if w <= 0.0 {
                     continue;
                 }
-                match sums[node].iter_mut().find(|p| p.0 == k) {
-                    Some(p) => p.1 += w as f64,
-                    None => sums[node].push((k, w as f64)),
-                }
+                let at = match own[node].iter().position(|p| p.0 == k) {
+                    Some(i) => i,
+                    None => {
+                        own[node].push((k, 0.0, [0.0; 16]));
+                        own[node].len() - 1
+                    }
+                };
+                own[node][at].1 += w as f64;
+                super::skeleton::add_moment(&mut own[node][at].2, skin.rest[v], w as f64);
             }
             centroid[node].0 += skin.rest[v].as_dvec3();
             centroid[node].1 += 1;
         }
+        // A merged entry's weight goes to whichever of the entries the level keeps for it or
+        // for the node's other influences carries its points nearest.
+        let level = &skeleton[j];
+        let target = |k: u32| level.get(k as usize).copied().unwrap_or(k);
+        let sums: Vec<Vec<(u32, f64)>> = own
+            .iter()
+            .map(|entries| {
+                let mut candidates: Vec<u32> = entries.iter().map(|p| target(p.0)).collect();
+                candidates.sort_unstable();
+                candidates.dedup();
+                let mut pairs: Vec<(u32, f64)> = Vec::new();
+                for (k, w, s) in entries {
+                    let to =
+                        if target(*k) == *k { *k } else { super::skeleton::nearest(&frames, *k, s, &candidates).unwrap_or(target(*k)) };
+                    match pairs.iter_mut().find(|p| p.0 == to) {
+                        Some(p) => p.1 += w,
+                        None => pairs.push((to, *w)),
+                    }
+                }
+                pairs
+            })
+            .collect();
         for (local, pairs) in sums.into_iter().enumerate() {
             let g = h.offsets[j] as usize + local;
             let (joints, weights) = quantize_weights(pairs);

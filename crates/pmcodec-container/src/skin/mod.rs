@@ -19,6 +19,7 @@ mod joints;
 mod payload;
 mod place;
 mod rig;
+mod skeleton;
 
 pub(crate) use fit::{SkinFit, fit_skin};
 pub use hierarchy::{Link, NO_REF};
