@@ -6,6 +6,7 @@ mod positions;
 pub use positions::EncodeReport;
 
 use crate::ContainerError;
+pub use crate::derive::DerivedTopology;
 use crate::format::*;
 use crate::predict::{LowerNeighbours, coarse_shift};
 use crate::skin::{
@@ -74,6 +75,11 @@ pub struct EncodeOptions {
     /// How a skinned file codes each frame's palette: Joints chunks (the default) or the
     /// Palette chunks files had before them (kept for comparison and for tests of readers).
     pub palette_coding: PaletteCoding,
+    /// Which bands' faces and corner updates the file leaves for their readers to derive from
+    /// the Triangles chunk and the Key and Delta chunks below them (proto/container.md, "Faces",
+    /// coding 2). `Always` (the default) writes the smallest file; `Never` writes them all, as
+    /// files before the derived coding did.
+    pub derived_topology: DerivedTopology,
 }
 
 /// The chunk kind a skinned file's palettes are written in (proto/container.md, "Palette" and
@@ -121,6 +127,7 @@ impl Default for EncodeOptions {
             skinned_coarse: Some(SkinnedCoarse::default()),
             chunk_flags: crate::format::FLAGS,
             palette_coding: PaletteCoding::Joints,
+            derived_topology: DerivedTopology::Always,
         }
     }
 }
@@ -658,6 +665,16 @@ fn code_frames(
         // The reclustering side may have finished: then there is nothing to refill.
         let _ = recycle.send(r);
     }
+    let (flags, interval) = (chunks.1, header.keyframe_interval);
+    let keyframe_before = |f: u32| if interval == 0 { 0 } else { f - f % interval };
+    let store = |raw: &[u8]| crate::format::store_chunk(raw, ZSTD_LEVEL, flags).map_err(|e| ContainerError::Io(format!("zstd: {e}")));
+    crate::derive::choose(
+        &mut chunks.0,
+        opts.derived_topology,
+        keyframe_before,
+        crate::format::sparse_kind(ChunkKind::Corners, flags),
+        store,
+    )?;
     if let Some(l) = looks {
         let mut after = chunks.0.split_off(1);
         for (kind, band, raw) in crate::appearance::chunks(l)? {

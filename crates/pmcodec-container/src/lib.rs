@@ -12,6 +12,7 @@
 
 pub mod appearance;
 mod decode;
+mod derive;
 mod encode;
 pub mod format;
 mod grid;
@@ -26,8 +27,8 @@ mod topology;
 
 pub use decode::Decoder;
 pub use encode::{
-    EncodeOptions, EncodeReport, PaletteCoding, QuantizationChoice, SkinPlacement, StreamError, encode, encode_stream, encode_until,
-    encode_with_report, write_file,
+    DerivedTopology, EncodeOptions, EncodeReport, PaletteCoding, QuantizationChoice, SkinPlacement, StreamError, encode, encode_stream,
+    encode_until, encode_with_report, write_file,
 };
 pub use format::{ChunkEntry, ChunkKind, Header, Index, Motion, VertexOrder};
 pub use pmcodec_hierarchy::{CutTarget, Distance};

@@ -5,12 +5,18 @@
 //! (which reads neither) shows; seeking back to a keyframe too.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use pmcodec_container::{ChunkKind, CutTarget, Decoder, EncodeOptions, QuantizationChoice, Reader, encode, verify};
+use pmcodec_container::{ChunkKind, CutTarget, Decoder, DerivedTopology, EncodeOptions, QuantizationChoice, Reader, encode, verify};
 use std::collections::BTreeSet;
 
 #[test]
 fn coded_topology_decodes_at_every_level_as_a_full_client_sees_it() {
-    let opts = EncodeOptions { keyframe_interval: 8, quantization: QuantizationChoice::Bits(12), ..Default::default() };
+    // Every band's faces and corners sent, so that the codings of those chunks are exercised.
+    let opts = EncodeOptions {
+        keyframe_interval: 8,
+        quantization: QuantizationChoice::Bits(12),
+        derived_topology: DerivedTopology::Never,
+        ..Default::default()
+    };
     let mut coded_kinds = BTreeSet::new();
     for (name, seq) in [
         ("cloth", pmcodec_mesh::samples::waving_cloth(14, 12, 20)),
@@ -57,7 +63,12 @@ fn coded_topology_decodes_at_every_level_as_a_full_client_sees_it() {
 fn damaged_coded_corners_are_refused() {
     use pmcodec_container::payload;
     let seq = pmcodec_mesh::samples::waving_cloth(14, 12, 12);
-    let opts = EncodeOptions { keyframe_interval: 8, quantization: QuantizationChoice::Bits(12), ..Default::default() };
+    let opts = EncodeOptions {
+        keyframe_interval: 8,
+        quantization: QuantizationChoice::Bits(12),
+        derived_topology: DerivedTopology::Never,
+        ..Default::default()
+    };
     let bytes = encode(&seq, &opts, |_| {}).expect("encode");
     let r = Reader::open(bytes.as_slice()).expect("open");
     let h = r.header();
@@ -92,4 +103,73 @@ fn damaged_coded_corners_are_refused() {
         }
     }
     assert!(tried > 0, "no coded Corners chunk");
+}
+
+/// Derived topology (proto/container.md, "Faces", coding 2): a file whose bands derive their
+/// faces and corner updates decodes at every level, every frame (in order, and seeking back
+/// into an interval), exactly as the file that sends them: same level meshes, same positions.
+/// On a cloth (boundaries), rigid parts (many disconnected pieces), a twisting tube, and a
+/// skinned generated sequence; with and without the sparse and stored flags.
+#[test]
+fn derived_topology_decodes_as_sent_topology() {
+    let base = EncodeOptions { keyframe_interval: 6, quantization: QuantizationChoice::Bits(12), ..Default::default() };
+    let skinned = pmcodec_mesh::skin::bending_tube(16, 40, 18);
+    assert!(skinned.skin.is_some());
+    for (name, seq) in [
+        ("cloth", pmcodec_mesh::samples::waving_cloth(14, 12, 18)),
+        ("parts", pmcodec_mesh::samples::rigid_parts(7, 18)),
+        ("tube", pmcodec_mesh::samples::twisting_tube(16, 10, 18)),
+        ("skinned", skinned),
+    ] {
+        let sent = encode(&seq, &EncodeOptions { derived_topology: DerivedTopology::Never, ..base.clone() }, |_| {}).expect("encode");
+        let sent = Reader::open(sent.as_slice()).expect("open");
+        let levels = sent.header().levels();
+        assert!(levels >= 3, "{name}: {levels} levels");
+        for (policy, flags) in [
+            (DerivedTopology::Always, pmcodec_container::format::FLAGS),
+            (DerivedTopology::Always, 0),
+            (DerivedTopology::WhenCheaper, pmcodec_container::format::FLAGS),
+        ] {
+            let opts = EncodeOptions { derived_topology: policy, chunk_flags: flags, ..base.clone() };
+            let bytes = encode(&seq, &opts, |_| {}).expect("encode");
+            let r = Reader::open(bytes.as_slice()).expect("open");
+            verify(&r).expect("verify");
+            let derived: Vec<_> = r.index().chunks.iter().filter(|e| e.kind == ChunkKind::Faces && e.raw_len == 2).collect();
+            if policy == DerivedTopology::Always {
+                // Every band of every keyframe derived, and no corner update sent.
+                assert_eq!(derived.len(), r.index().chunks.iter().filter(|e| e.kind == ChunkKind::Faces).count(), "{name}");
+                assert!(!derived.is_empty());
+                for e in r.index().chunks.iter().filter(|e| e.kind == ChunkKind::Corners) {
+                    assert_eq!(r.read_chunk(e).expect("chunk"), [0], "{name}: {}", e.describe());
+                }
+                // (`sent` is written with today's flags.)
+                assert!(
+                    flags == 0 || bytes.len() < sent.source().len(),
+                    "{name}: derived {} B, sent {} B",
+                    bytes.len(),
+                    sent.source().len()
+                );
+            }
+            for level in 1..levels {
+                let derives = r.derives(0, level);
+                assert_eq!(derives, policy == DerivedTopology::Always || derived.iter().any(|e| e.frame == 0 && e.band as usize == level));
+                // What a level-limited client fetches covers what it reads (a decoder over
+                // exactly those chunks decodes every frame).
+                let chunks = Decoder::new(r.borrowed(), level).expect("decoder").chunks_for(r.header().frame_count - 1);
+                let key_below = chunks.iter().any(|e| e.kind == ChunkKind::Key && (e.band as usize) < level);
+                assert_eq!(key_below, r.derives(r.header().frame_count - 1, level), "{name} level {level}");
+                let mut a = Decoder::new(sent.borrowed(), level).expect("sent");
+                let mut b = Decoder::new(r.borrowed(), level).expect("derived");
+                b.keep_keyframes(2);
+                for f in (0..r.header().frame_count).chain([13, 3, 8, 14]) {
+                    a.seek(f).expect("sent frame");
+                    b.seek(f).expect("derived frame");
+                    assert_eq!(a.replay().expect("a").corners(), b.replay().expect("b").corners(), "{name} level {level} frame {f}");
+                    let (x, y) = (a.mesh(CutTarget::Level(level)).expect("a"), b.mesh(CutTarget::Level(level)).expect("b"));
+                    assert_eq!(x.triangles, y.triangles, "{name} level {level} frame {f}: triangles");
+                    assert_eq!(x.positions, y.positions, "{name} level {level} frame {f}: positions");
+                }
+            }
+        }
+    }
 }
