@@ -18,8 +18,9 @@ function fixtures(): { dir: string; pmc: string } {
   const dir = mkdtempSync(join(tmpdir(), "pmc-ts-"));
   execFileSync(bin, ["sample", "twisting-tube", "-o", join(dir, "frames"), "--frames", "20"]);
   const pmc = join(dir, "tube.pmc");
-  // Coarse nodes on a grid, so residual shifts are exercised too.
-  execFileSync(bin, ["encode", "-q", join(dir, "frames"), "-o", pmc, "--keyframe-interval", "8", "--quant-bits", "14", "--coarse-grid", "1"]);
+  // Coarse nodes on a grid, so residual shifts are exercised too; every band's faces and
+  // corner updates sent, so that their codings are (derived ones: "derived topology" below).
+  execFileSync(bin, ["encode", "-q", join(dir, "frames"), "-o", pmc, "--keyframe-interval", "8", "--quant-bits", "14", "--coarse-grid", "1", "--derived-topology", "never"]);
   return { dir, pmc };
 }
 
@@ -203,6 +204,33 @@ test("bit-coded topology chunks (coding 1): the tube holds them of every kind, a
       tried++;
     }
     assert.ok(tried > 0, `level ${level}: no coded Corners chunk`);
+  }
+});
+
+test("derived topology (Faces coding 2): level-limited players hold the same corners and positions as with the faces sent, every frame and after seeks, and read what Reader.reads names", async () => {
+  const derivedPmc = join(dir, "tube-derived.pmc");
+  execFileSync(bin, ["encode", "-q", join(dir, "frames"), "-o", derivedPmc, "--keyframe-interval", "8", "--quant-bits", "14", "--coarse-grid", "1"]);
+  const d = await open(derivedPmc), s = await open(pmc);
+  const faces = d.index.filter((e) => e.kind === ChunkKind.Faces);
+  assert.ok(faces.length > 0 && faces.every((e) => e.rawLen === 2), "every Faces chunk derived");
+  for (const e of d.index.filter((x) => x.kind === ChunkKind.Corners)) assert.deepEqual(Array.from(await d.chunk(e)), [0]);
+  for (let level = 1; level < d.header.levelSizes.length; level++) {
+    assert.ok(d.derives(13, level) && !s.derives(13, level));
+    assert.ok(d.index.some((e) => e.kind === ChunkKind.Key && e.band === 0 && d.reads(e, level)));
+    assert.ok(!s.index.some((e) => e.kind === ChunkKind.Key && e.band < level && s.reads(e, level)));
+    const a = new Decoder(await open(pmc), level), b = new Decoder(await open(derivedPmc), level);
+    for (const f of [...Array(d.header.frameCount).keys(), 13, 3, 9]) {
+      await a.seek(f);
+      await b.seek(f);
+      assert.deepEqual(b.replay.corners, a.replay.corners, `level ${level} frame ${f}: corners`);
+      assert.deepEqual(b.current, a.current, `level ${level} frame ${f}: positions`);
+    }
+    // Only the chunks Reader.reads names are read.
+    const r = await open(derivedPmc);
+    const allowed = r.index.filter((e) => r.reads(e, level)).reduce((n, e) => n + e.storedLen, 0);
+    const p = new Decoder(r, level);
+    for (let f = 0; f < r.header.frameCount; f++) await p.seek(f);
+    assert.ok(r.bytesRead - r.dataStart <= allowed, `level ${level}: ${r.bytesRead - r.dataStart} > ${allowed}`);
   }
 });
 
