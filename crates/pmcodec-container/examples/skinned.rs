@@ -3,6 +3,7 @@
 //! frame; the share of a full client's bytes that clients at 10% and 25% of the triangles read;
 //! and the encode time. With `all`, every animation of the file is played back to back.
 //! `cargo run --release -p pmcodec-container --example skinned -- ../shared/data/gltf/Fox.glb [all] [centroid]`
+//! (`PMC_DERIVED`: below)
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::{Decoder, EncodeOptions, PaletteCoding, QuantizationChoice, Reader, SkinPlacement, encode, summary};
 use pmcodec_mesh::gltf_input::{GltfOptions, RiggedMesh, load_gltf};
@@ -32,7 +33,16 @@ fn all_animations(path: &Path) -> pmcodec_mesh::Sequence {
 /// Bytes a client at `level` reads over the whole file (every chunk it needs).
 fn bytes_at(bytes: &[u8], level: usize) -> u64 {
     let r = Reader::open(bytes).expect("open");
-    r.index().chunks.iter().filter(|e| e.kind.read_at(e.band as usize, level)).map(|e| e.stored_len as u64).sum::<u64>() + r.data_start()
+    r.index().chunks.iter().filter(|e| r.reads(e, level)).map(|e| e.stored_len as u64).sum::<u64>() + r.data_start()
+}
+
+/// `PMC_DERIVED=never|always|when-cheaper`: which bands derive their faces (default: the encoder's).
+fn derived_topology() -> pmcodec_container::DerivedTopology {
+    match std::env::var("PMC_DERIVED").as_deref() {
+        Ok("never") => pmcodec_container::DerivedTopology::Never,
+        Ok("when-cheaper") => pmcodec_container::DerivedTopology::WhenCheaper,
+        _ => EncodeOptions::default().derived_topology,
+    }
 }
 
 fn main() {
@@ -58,7 +68,13 @@ fn main() {
         (Some(placement), PaletteCoding::JointsPlain),
         (Some(placement), PaletteCoding::Joints),
     ] {
-        let opts = EncodeOptions { quantization: QuantizationChoice::Bits(12), skin, palette_coding, ..Default::default() };
+        let opts = EncodeOptions {
+            quantization: QuantizationChoice::Bits(12),
+            skin,
+            palette_coding,
+            derived_topology: derived_topology(),
+            ..Default::default()
+        };
         let t = std::time::Instant::now();
         let bytes = encode(&seq, &opts, |_| {}).expect("encode");
         let secs = t.elapsed().as_secs_f64();

@@ -31,6 +31,34 @@ pub fn entry_is_derived(e: &ChunkEntry) -> bool {
     e.kind == ChunkKind::Faces && e.raw_len == DERIVED_FACES.len() as u32
 }
 
+/// Whether band `level`'s faces and corner updates are derived in the keyframe interval of
+/// `frame`, from the index entries of a file (`chunks`, in file order) whose keyframes are
+/// every `interval` frames (0: frame 0 only).
+pub fn derives(chunks: &[ChunkEntry], interval: u32, frame: u32, level: usize) -> bool {
+    if level == 0 {
+        return false;
+    }
+    let key = if interval == 0 { 0 } else { frame - frame % interval };
+    // Entries are in file order: frame 0's once-only chunks first, then frame after frame.
+    let start = chunks.partition_point(|e| e.kind == ChunkKind::Triangles || e.frame < key);
+    chunks[start..].iter().take_while(|e| e.frame == key).any(|e| e.band as usize == level && entry_is_derived(e))
+}
+
+/// Whether a client whose finest level is `level` reads chunk `e` of a file with entries
+/// `chunks` and keyframe interval `interval`: [`ChunkKind::read_at`], and where band `level`
+/// is derived ([`derives`]), the Triangles chunk and the Key and Delta chunks of the bands below
+/// it (proto/container.md, "Who reads what").
+pub fn reads(chunks: &[ChunkEntry], interval: u32, e: &ChunkEntry, level: usize) -> bool {
+    if e.kind.read_at(e.band as usize, level) {
+        return true;
+    }
+    match e.kind {
+        ChunkKind::Triangles => level > 0 && chunks.iter().any(|x| x.band as usize == level && entry_is_derived(x)),
+        ChunkKind::Key | ChunkKind::Delta => (e.band as usize) < level && derives(chunks, interval, e.frame, level),
+        _ => false,
+    }
+}
+
 /// A level-L reader's view of the levels below L in a derived interval: the parent maps of
 /// levels 0..L-1 and every triangle's level-L corners, kept as the encoder keeps them (the
 /// corners of triangles that are not alive included), so that each frame's corner updates are

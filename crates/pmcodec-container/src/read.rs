@@ -213,22 +213,14 @@ impl<S: ByteSource> Reader<S> {
     /// `frame` (its keyframe's Faces chunk is coding 2, proto/container.md "Faces"), which a
     /// reader tells from the index entry alone.
     pub fn derives(&self, frame: u32, level: usize) -> bool {
-        level > 0
-            && self.find(ChunkKind::Faces, self.header.keyframe_before(frame), level as u32).is_some_and(crate::derive::entry_is_derived)
+        crate::derive::derives(&self.index.chunks, self.header.keyframe_interval, frame, level)
     }
 
     /// Whether a client whose finest level is `level` reads chunk `e`: [`ChunkKind::read_at`],
     /// and where band `level` is derived ([`Reader::derives`]), the Triangles chunk and the Key
     /// and Delta chunks of the bands below it.
     pub fn reads(&self, e: &ChunkEntry, level: usize) -> bool {
-        if e.kind.read_at(e.band as usize, level) {
-            return true;
-        }
-        match e.kind {
-            ChunkKind::Triangles => self.index.chunks.iter().any(|x| x.band as usize == level && crate::derive::entry_is_derived(x)),
-            ChunkKind::Key | ChunkKind::Delta => (e.band as usize) < level && self.derives(e.frame, level),
-            _ => false,
-        }
+        crate::derive::reads(&self.index.chunks, self.header.keyframe_interval, e, level)
     }
 
     /// Fetches one chunk, checks its CRC before decompressing, and decompresses it into at most
