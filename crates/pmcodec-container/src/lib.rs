@@ -11,6 +11,7 @@
 #![warn(missing_docs)]
 
 pub mod appearance;
+mod bits;
 mod decode;
 mod derive;
 mod encode;
