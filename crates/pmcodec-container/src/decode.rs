@@ -224,7 +224,7 @@ impl<S: ByteSource> Decoder<S> {
     fn chunk(&self, kind: ChunkKind, frame: u32, band: usize) -> Result<Vec<u8>, ContainerError> {
         let found = self.reader.find(kind, frame, band as u32);
         if found.is_none() && crate::format::sparse_kind(kind, self.reader.flags()) {
-            return Ok(vec![0]);
+            return Ok(crate::format::left_out_payload(kind).to_vec());
         }
         let e = found.ok_or_else(|| ContainerError::Corrupt {
             what: format!("frame {frame} band {band} {}", kind.name()),

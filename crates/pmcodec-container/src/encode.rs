@@ -246,7 +246,7 @@ impl Chunks {
 
     fn push(&mut self, kind: ChunkKind, frame: u32, band: u32, raw: Vec<u8>) -> Result<(), ContainerError> {
         // Nothing to say: left out (FLAG_SPARSE), and read as empty.
-        if crate::format::sparse_kind(kind, self.1) && raw == [0] {
+        if crate::format::sparse_kind(kind, self.1) && crate::format::leaves_out(kind, &raw) {
             return Ok(());
         }
         let stored = crate::format::store_chunk(&raw, ZSTD_LEVEL, self.1).map_err(|e| ContainerError::Io(format!("zstd: {e}")))?;

@@ -104,9 +104,31 @@ pub fn compress(raw: &[u8], level: i32) -> std::io::Result<Vec<u8>> {
     })
 }
 
-/// Whether a chunk of `kind` left out of a file with preamble `flags` reads as empty.
+/// Whether a chunk of `kind` may be left out of a file with preamble `flags`, and then reads
+/// as [`left_out_payload`].
 pub fn sparse_kind(kind: ChunkKind, flags: u16) -> bool {
-    flags & FLAG_SPARSE != 0 && matches!(kind, ChunkKind::Delta | ChunkKind::Corners)
+    flags & FLAG_SPARSE != 0 && matches!(kind, ChunkKind::Delta | ChunkKind::Corners | ChunkKind::Positions)
+}
+
+/// What a chunk of a sparse kind left out of the index reads as: no swaps, no corner updates,
+/// and for Positions a band whose residuals are all zero (shift 0, sparse coding, no node
+/// listed; proto/container.md, "Chunks").
+pub fn left_out_payload(kind: ChunkKind) -> &'static [u8] {
+    match kind {
+        ChunkKind::Positions => &[64, 0],
+        _ => &[0],
+    }
+}
+
+/// Whether an encoder leaves a chunk of a sparse kind with payload `raw` out: the empty Delta
+/// and Corners payload, and a Positions payload with every residual zero in the sparse coding
+/// (any shift: zero residuals move nothing whatever their unit).
+pub fn leaves_out(kind: ChunkKind, raw: &[u8]) -> bool {
+    match kind {
+        ChunkKind::Delta | ChunkKind::Corners => raw == [0],
+        ChunkKind::Positions => raw.len() == 2 && (64..=64 + 16).contains(&raw[0]) && raw[1] == 0,
+        _ => false,
+    }
 }
 
 /// The fixed 32-byte preamble.

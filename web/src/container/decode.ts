@@ -340,7 +340,7 @@ export class Decoder {
     const top = h.levelSizes.length - 1;
     for (let j = top; j >= this.minLevel; j--) {
       const what = `frame ${f} band ${j} positions`;
-      const { shift, res } = readPositions(await this.reader.chunk(this.reader.find(ChunkKind.Positions, f, j)), what, h.levelSizes[j]);
+      const { shift, res } = readPositions(await this.reader.chunkAt(ChunkKind.Positions, f, j), what, h.levelSizes[j]);
       if (this.holdsOffsets) {
         if (this.skin!.uses(j)) { this.offsetBand(j, intra, shift, res); continue; }
         this.poseFor(j, intra);

@@ -68,7 +68,7 @@ export interface ChunkEntry { kind: ChunkKind; frame: number; band: number; offs
 /** The fixed 32 bytes at the start of a file: version, table lengths and their checksums. */
 /**
  * Preamble flags (proto/container.md, "Preamble"): a chunk whose stored length equals its raw
- * length is stored as is (FLAG_STORED); empty Delta and Corners chunks are left out (FLAG_SPARSE).
+ * length is stored as is (FLAG_STORED); empty Delta and Corners chunks, and Positions chunks of zero residuals, are left out (FLAG_SPARSE).
  */
 export const FLAG_STORED = 1, FLAG_SPARSE = 2;
 

@@ -47,11 +47,12 @@ export class Reader {
 
   /**
    * Frame `frame` band `band`'s chunk of `kind`: in a file with FLAG_SPARSE, a Delta or Corners
-   * chunk left out reads as the empty payload (a single 0).
+   * chunk left out reads as the empty payload (a single 0), a Positions chunk as zero residuals.
    */
   async chunkAt(kind: ChunkKind, frame: number, band: number): Promise<Uint8Array> {
-    const sparse = (this.flags & FLAG_SPARSE) !== 0 && (kind === ChunkKind.Delta || kind === ChunkKind.Corners);
-    if (sparse && !this.index.some((x) => x.kind === kind && x.frame === frame && x.band === band)) return new Uint8Array([0]);
+    const sparse = (this.flags & FLAG_SPARSE) !== 0 && (kind === ChunkKind.Delta || kind === ChunkKind.Corners || kind === ChunkKind.Positions);
+    // A Positions chunk left out: every residual zero (shift 0, sparse coding, no node listed).
+    if (sparse && !this.index.some((x) => x.kind === kind && x.frame === frame && x.band === band)) return new Uint8Array(kind === ChunkKind.Positions ? [64, 0] : [0]);
     return this.chunk(this.find(kind, frame, band));
   }
 
