@@ -1,6 +1,7 @@
 //! Decoding: replaying keyframes and deltas down to a finest level L, reconstructing the
 //! quantized node positions, and extracting meshes at any cut.
 
+mod derived;
 mod textured;
 
 use crate::appearance::DecodedAppearance;
@@ -361,36 +362,6 @@ impl<S: ByteSource> Decoder<S> {
         Ok(())
     }
 
-    /// The input triangles from the Triangles chunk.
-    fn read_triangles(&self) -> Result<Vec<[u32; 3]>, ContainerError> {
-        let h = self.reader.header();
-        let e = self
-            .reader
-            .index()
-            .chunks
-            .iter()
-            .find(|e| e.kind == ChunkKind::Triangles)
-            .ok_or_else(|| ContainerError::Corrupt { what: "index".into(), detail: "no triangles chunk".into() })?;
-        let raw = self.reader.read_chunk(e)?;
-        payload::read_triangles(&raw, "triangles chunk", h.triangle_count, h.vertex_count, self.reader.version())
-    }
-
-    /// The levels below `min_level` at keyframe `frame`, for a band whose faces are derived:
-    /// the input triangles and the keyframe's Key chunks of bands 0..min_level.
-    fn derive_below(&self, frame: u32) -> Result<Below, ContainerError> {
-        let fine = match &self.fine {
-            Some(t) => t.clone(),
-            None => std::sync::Arc::new(self.read_triangles()?),
-        };
-        let sizes = &self.reader.header().level_sizes;
-        let mut parents = Vec::with_capacity(self.min_level);
-        for j in 0..self.min_level {
-            let raw = self.chunk(ChunkKind::Key, frame, j)?;
-            parents.push(payload::read_key(&raw, &format!("frame {frame} band {j} keyframe"), sizes, j, self.reader.version())?);
-        }
-        Ok(Below::new(fine, parents))
-    }
-
     fn step(&mut self, frame: u32) -> Result<(), ContainerError> {
         let h = self.reader.header();
         let (sizes, triangles) = (h.level_sizes.clone(), h.triangle_count);
@@ -400,28 +371,13 @@ impl<S: ByteSource> Decoder<S> {
             let raw = self.chunk(ChunkKind::Delta, frame, j)?;
             moves.push((j, payload::read_delta(&raw, &format!("frame {frame} band {j} delta"), &sizes, j)?));
         }
-        // A derived interval: the moves of the levels below too, whose effect on the level's
-        // corners replaces its Corners chunk (which must say nothing).
-        let mut below_moves = Vec::new();
-        if self.below.is_some() {
-            for j in (0..self.min_level).rev() {
-                let raw = self.chunk(ChunkKind::Delta, frame, j)?;
-                below_moves.push((j, payload::read_delta(&raw, &format!("frame {frame} band {j} delta"), &sizes, j)?));
-            }
-        }
+        let below_moves = self.below_moves(frame)?;
         let pose = self.read_pose(frame, false)?;
         let mut delta = FrameDelta::default();
-        if self.below.is_some() {
-            let j = self.min_level;
-            if self.reader.find(ChunkKind::Corners, frame, j as u32).is_some() && self.chunk(ChunkKind::Corners, frame, j)? != [0] {
-                return Err(ContainerError::Corrupt {
-                    what: format!("frame {frame} band {j} corners"),
-                    detail: "corner updates in an interval whose faces are derived".into(),
-                });
-            }
-            let below = self.below.as_mut().ok_or_else(|| ContainerError::Options("no keyframe loaded".into()))?;
-            let updates = below.apply(&below_moves);
-            delta.corners.extend(updates.into_iter().map(|(t, corners)| CornerUpdate { level: j as u32, t, corners }));
+        let j = self.min_level;
+        if let Some(below) = self.below.as_mut() {
+            // A derived interval: the moves below the level give its corner updates.
+            delta.corners.extend(below.apply(&below_moves).into_iter().map(|(t, corners)| CornerUpdate { level: j as u32, t, corners }));
         } else if self.min_level > 0 {
             let j = self.min_level;
             let raw = self.chunk(ChunkKind::Corners, frame, j)?;

@@ -665,16 +665,7 @@ fn code_frames(
         // The reclustering side may have finished: then there is nothing to refill.
         let _ = recycle.send(r);
     }
-    let (flags, interval) = (chunks.1, header.keyframe_interval);
-    let keyframe_before = |f: u32| if interval == 0 { 0 } else { f - f % interval };
-    let store = |raw: &[u8]| crate::format::store_chunk(raw, ZSTD_LEVEL, flags).map_err(|e| ContainerError::Io(format!("zstd: {e}")));
-    crate::derive::choose(
-        &mut chunks.0,
-        opts.derived_topology,
-        keyframe_before,
-        crate::format::sparse_kind(ChunkKind::Corners, flags),
-        store,
-    )?;
+    derive_bands(&mut chunks, header.keyframe_interval, opts.derived_topology)?;
     if let Some(l) = looks {
         let mut after = chunks.0.split_off(1);
         for (kind, band, raw) in crate::appearance::chunks(l)? {
@@ -683,6 +674,15 @@ fn code_frames(
         chunks.0.append(&mut after);
     }
     Ok((assemble(&header, chunks)?, std::mem::take(&mut coder.report)))
+}
+
+/// Leaves the faces and corner updates of the bands `policy` derives to their readers
+/// (proto/container.md, "Faces", coding 2).
+fn derive_bands(chunks: &mut Chunks, interval: u32, policy: DerivedTopology) -> Result<(), ContainerError> {
+    let flags = chunks.1;
+    let keyframe_before = |f: u32| if interval == 0 { 0 } else { f - f % interval };
+    let store = |raw: &[u8]| crate::format::store_chunk(raw, ZSTD_LEVEL, flags).map_err(|e| ContainerError::Io(format!("zstd: {e}")));
+    crate::derive::choose(&mut chunks.0, policy, keyframe_before, crate::format::sparse_kind(ChunkKind::Corners, flags), store)
 }
 
 /// Band j's pose chunk (carrying palette `entries`) in the coding the options ask for, against

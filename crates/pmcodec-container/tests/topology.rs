@@ -183,3 +183,39 @@ fn derived_topology_decodes_as_sent_topology() {
         }
     }
 }
+
+/// A derived interval's damage is refused by name, never a panic: a Corners chunk that says
+/// something where the faces are derived, a derived Faces payload with a byte more, and a Key
+/// chunk below the band (which a derived band reads) out of range.
+#[test]
+fn damaged_derived_bands_are_refused() {
+    use pmcodec_container::testing::reseal;
+    let seq = pmcodec_mesh::samples::waving_cloth(10, 9, 6);
+    // Flags 0: every Corners chunk present (the empty payload), so one can be damaged.
+    let opts = EncodeOptions { keyframe_interval: 4, quantization: QuantizationChoice::Bits(12), chunk_flags: 0, ..Default::default() };
+    let bytes = encode(&seq, &opts, |_| {}).expect("encode");
+    let fails = |bytes: &[u8], frame: u32| -> String {
+        let r = Reader::open(bytes).expect("open");
+        let mut d = Decoder::new(r.borrowed(), 1).expect("decoder");
+        (0..=frame).map(|f| d.seek(f)).find_map(Result::err).expect("damage detected").to_string()
+    };
+    let damaged = |kind: ChunkKind, frame: u32, band: u32, f: fn(&mut Vec<u8>)| {
+        reseal(&bytes, |u| {
+            let c = u.chunks.iter_mut().find(|c| c.entry.kind == kind && c.entry.frame == frame && c.entry.band == band).expect("chunk");
+            f(&mut c.raw);
+        })
+        .expect("reseal")
+    };
+    // One update in the varint coding: triangle 0's corners.
+    let e = fails(&damaged(ChunkKind::Corners, 2, 1, |raw| *raw = vec![1, 0, 0, 1, 2]), 2);
+    assert!(e.contains("frame 2 band 1 corners") && e.contains("derived"), "{e}");
+    let e = fails(&damaged(ChunkKind::Faces, 0, 1, |raw| raw.push(0)), 0);
+    assert!(e.contains("frame 0 band 1 faces") && e.contains("coding"), "{e}");
+    // 90 parents in the varint coding, the first 60 (beyond level 1).
+    let e = fails(&damaged(ChunkKind::Key, 4, 0, |raw| *raw = [90, 120].into_iter().chain([0; 89]).collect()), 4);
+    assert!(e.contains("frame 4 band 0 keyframe"), "{e}");
+    // The intact file decodes.
+    assert!(
+        Reader::open(bytes.as_slice()).is_ok_and(|r| Decoder::new(r.borrowed(), 1).is_ok_and(|mut d| (0..6).all(|f| d.seek(f).is_ok())))
+    );
+}
