@@ -7,6 +7,7 @@ import { execFileSync } from "node:child_process";
 import { existsSync, mkdirSync, mkdtempSync, readdirSync, readFileSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
+import { FLAG_NAMES, frontDecode } from "../src/container/format.js";
 import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, dequantizeUv, readBand0Table, readPositions, readTable, texturedMesh } from "../src/container/index.js";
 import { readCornerUpdates, readDelta, readFaces, readKey } from "../src/container/payload.js";
 
@@ -232,6 +233,19 @@ test("derived topology (Faces coding 2): level-limited players hold the same cor
     for (let f = 0; f < r.header.frameCount; f++) await p.seek(f);
     assert.ok(r.bytesRead - r.dataStart <= allowed, `level ${level}: ${r.bytesRead - r.dataStart} > ${allowed}`);
   }
+});
+
+test("front-coded frame names (FLAG_NAMES) read as the names the encoder was given, as Rust reads them", async () => {
+  const c = await open(pmc);
+  assert.ok((c.flags & FLAG_NAMES) !== 0);
+  const files = readdirSync(join(dir, "frames")).filter((f) => f.endsWith(".obj")).sort();
+  assert.deepEqual(c.header.frameNames, files);
+  // The Rust unit test's vectors (format::tests::frame_names_front_code_and_decode).
+  const long = "x".repeat(300);
+  const names = ["waving-cloth@9", "waving-cloth@10", "", "Dance@1.233s", "Dance@1.267s", "été@1", "été@2", "\u{7f}odd", long, long + "y", "éx", "éy"];
+  const coded = ["waving-cloth@9", "\u{d}10", "\u{0}", "\u{0}Dance@1.233s", "\u{9}67s", "\u{0}été@1", "\u{6}2", "\u{0}\u{7f}odd", "\u{0}" + long, "\u{7f}" + "x".repeat(173) + "y", "\u{0}éx", "\u{2}y"];
+  assert.deepEqual(frontDecode(coded), names);
+  assert.deepEqual(frontDecode(["é", "\u{7f}a", "\u{1}b", "ßc"]), ["é", "éa", "b", "ßc"]);
 });
 
 test("damaged files are errors, not crashes", async () => {

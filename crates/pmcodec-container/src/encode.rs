@@ -275,6 +275,14 @@ fn assemble(header: &Header, chunks: Chunks) -> Result<Vec<u8>, ContainerError> 
         offset += bytes.len() as u64;
         index.chunks.push(*e);
     }
+    // Frame names front-coded under FLAG_NAMES (proto/container.md, "Header").
+    let named;
+    let header = if flags & FLAG_NAMES != 0 {
+        named = Header { frame_names: crate::format::front_code(&header.frame_names), ..header.clone() };
+        &named
+    } else {
+        header
+    };
     let hb = postcard::to_stdvec(header).map_err(|e| ContainerError::Io(format!("header: {e}")))?;
     let ib = index.to_bytes(VERSION, header.frame_count).map_err(|e| ContainerError::Io(format!("index: {e}")))?;
     let pre = Preamble {

@@ -119,7 +119,10 @@ impl<S: ByteSource> Reader<S> {
         if crc32fast::hash(&hb) != pre.header_crc {
             return Err(ContainerError::Checksum { what: "header".into() });
         }
-        let header = Header::from_bytes(&hb, pre.version)?;
+        let mut header = Header::from_bytes(&hb, pre.version)?;
+        if pre.flags & crate::format::FLAG_NAMES != 0 {
+            header.frame_names = crate::format::front_decode(&header.frame_names);
+        }
         let ib = source.read_at(PREAMBLE_LEN as u64 + pre.header_len as u64, pre.index_len as usize)?;
         if crc32fast::hash(&ib) != pre.index_crc {
             return Err(ContainerError::Checksum { what: "index".into() });

@@ -380,8 +380,8 @@ fn corruption_is_an_error_naming_the_region() {
 #[test]
 fn header_snapshot() {
     let bytes = encode(&wave(3), &EncodeOptions::default(), |_| {}).unwrap();
-    // Preamble: magic, version 7, flags 3 (stored and sparse chunks).
-    assert_eq!(&bytes[..12], b"\x89PMC\r\n\x1a\n\x07\x00\x03\x00");
+    // Preamble: magic, version 7, flags 7 (stored and sparse chunks, front-coded names).
+    assert_eq!(&bytes[..12], b"\x89PMC\r\n\x1a\n\x07\x00\x07\x00");
     let reader = Reader::open(bytes.as_slice()).unwrap();
     let h = reader.header();
     assert_eq!((h.vertex_count, h.triangle_count, h.frame_count), (108, 176, 3));

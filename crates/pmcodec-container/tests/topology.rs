@@ -219,3 +219,21 @@ fn damaged_derived_bands_are_refused() {
         Reader::open(bytes.as_slice()).is_ok_and(|r| Decoder::new(r.borrowed(), 1).is_ok_and(|mut d| (0..6).all(|f| d.seek(f).is_ok())))
     );
 }
+
+/// Front-coded frame names (preamble flag 4, proto/container.md "Header"): read back as given,
+/// in a smaller header than plain names.
+#[test]
+fn front_coded_frame_names_read_back() {
+    use pmcodec_container::format::{FLAG_NAMES, FLAGS, Preamble};
+    let mut seq = pmcodec_mesh::samples::waving_cloth(6, 5, 24);
+    seq.frame_names[3] = "été@3".into();
+    seq.frame_names[4] = String::new();
+    let header_len = |flags: u16| {
+        let bytes = encode(&seq, &EncodeOptions { chunk_flags: flags, ..Default::default() }, |_| {}).expect("encode");
+        let r = Reader::open(bytes.as_slice()).expect("open");
+        assert_eq!(r.header().frame_names, seq.frame_names, "flags {flags}");
+        Preamble::parse(&bytes).expect("preamble").header_len
+    };
+    let (front, plain) = (header_len(FLAGS), header_len(FLAGS & !FLAG_NAMES));
+    assert!(front + 200 < plain, "header {front} B front-coded, {plain} B plain");
+}

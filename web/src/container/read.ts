@@ -6,8 +6,8 @@
 import { decompress } from "fzstd";
 import { DecodeError } from "./error.js";
 import {
-  ChunkEntry, ChunkKind, FLAG_SPARSE, FLAG_STORED, Header, MAX_TABLE_LEN, PREAMBLE_LEN, checkTables, crc32, describe, isKeyframe, keyframeBefore,
-  parseHeader, parseIndex, parsePreamble, readAt as kindReadAt,
+  ChunkEntry, ChunkKind, FLAG_NAMES, FLAG_SPARSE, FLAG_STORED, Header, MAX_TABLE_LEN, PREAMBLE_LEN, checkTables, crc32, describe, isKeyframe, keyframeBefore,
+  frontDecode, parseHeader, parseIndex, parsePreamble, readAt as kindReadAt,
 } from "./format.js";
 import { entryIsDerived } from "./derive.js";
 
@@ -29,6 +29,7 @@ export class Reader {
     if (crc32(hb) !== headerCrc) throw new DecodeError("header: checksum mismatch");
     if (crc32(ib) !== indexCrc) throw new DecodeError("index: checksum mismatch");
     const header = parseHeader(hb, version);
+    if ((flags & FLAG_NAMES) !== 0) header.frameNames = frontDecode(header.frameNames);
     const index = parseIndex(ib, version, header.frameCount);
     checkTables(header, index, fileLen - dataStart);
     const r = new Reader(readAt, version, flags, header, index, dataStart, fileLen);
