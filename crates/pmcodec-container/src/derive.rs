@@ -59,6 +59,9 @@ pub fn reads(chunks: &[ChunkEntry], interval: u32, e: &ChunkEntry, level: usize)
     }
 }
 
+/// A frame's moves of some levels: (level, (node, new parent) ascending by node).
+pub(crate) type LevelMoves = Vec<(usize, Vec<(u32, u32)>)>;
+
 /// A level-L reader's view of the levels below L in a derived interval: the parent maps of
 /// levels 0..L-1 and every triangle's level-L corners, kept as the encoder keeps them (the
 /// corners of triangles that are not alive included), so that each frame's corner updates are

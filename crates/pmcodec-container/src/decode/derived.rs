@@ -3,7 +3,7 @@
 //! of the bands below it ([`crate::derive`]).
 
 use super::Decoder;
-use crate::derive::Below;
+use crate::derive::{Below, LevelMoves};
 use crate::format::ChunkKind;
 use crate::payload;
 use crate::{ByteSource, ContainerError};
@@ -41,7 +41,7 @@ impl<S: ByteSource> Decoder<S> {
 
     /// In a derived interval, frame `frame`'s moves of the levels below `min_level` (top
     /// first), after checking that the band's Corners chunk says nothing; empty otherwise.
-    pub(super) fn below_moves(&self, frame: u32) -> Result<Vec<(usize, Vec<(u32, u32)>)>, ContainerError> {
+    pub(super) fn below_moves(&self, frame: u32) -> Result<LevelMoves, ContainerError> {
         let mut moves = Vec::new();
         if self.below.is_none() {
             return Ok(moves);
