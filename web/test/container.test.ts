@@ -7,6 +7,7 @@ import { execFileSync } from "node:child_process";
 import { existsSync, mkdirSync, mkdtempSync, readdirSync, readFileSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
+import { FLAG_NAMES, frontDecode } from "../src/container/format.js";
 import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, dequantizeUv, readBand0Table, readPositions, readTable, texturedMesh } from "../src/container/index.js";
 import { readCornerUpdates, readDelta, readFaces, readKey } from "../src/container/payload.js";
 
@@ -18,8 +19,9 @@ function fixtures(): { dir: string; pmc: string } {
   const dir = mkdtempSync(join(tmpdir(), "pmc-ts-"));
   execFileSync(bin, ["sample", "twisting-tube", "-o", join(dir, "frames"), "--frames", "20"]);
   const pmc = join(dir, "tube.pmc");
-  // Coarse nodes on a grid, so residual shifts are exercised too.
-  execFileSync(bin, ["encode", "-q", join(dir, "frames"), "-o", pmc, "--keyframe-interval", "8", "--quant-bits", "14", "--coarse-grid", "1"]);
+  // Coarse nodes on a grid, so residual shifts are exercised too; every band's faces and
+  // corner updates sent, so that their codings are (derived ones: "derived topology" below).
+  execFileSync(bin, ["encode", "-q", join(dir, "frames"), "-o", pmc, "--keyframe-interval", "8", "--quant-bits", "14", "--coarse-grid", "1", "--derived-topology", "never"]);
   return { dir, pmc };
 }
 
@@ -204,6 +206,46 @@ test("bit-coded topology chunks (coding 1): the tube holds them of every kind, a
     }
     assert.ok(tried > 0, `level ${level}: no coded Corners chunk`);
   }
+});
+
+test("derived topology (Faces coding 2): level-limited players hold the same corners and positions as with the faces sent, every frame and after seeks, and read what Reader.reads names", async () => {
+  const derivedPmc = join(dir, "tube-derived.pmc");
+  execFileSync(bin, ["encode", "-q", join(dir, "frames"), "-o", derivedPmc, "--keyframe-interval", "8", "--quant-bits", "14", "--coarse-grid", "1"]);
+  const d = await open(derivedPmc), s = await open(pmc);
+  const faces = d.index.filter((e) => e.kind === ChunkKind.Faces);
+  assert.ok(faces.length > 0 && faces.every((e) => e.rawLen === 2), "every Faces chunk derived");
+  for (const e of d.index.filter((x) => x.kind === ChunkKind.Corners)) assert.deepEqual(Array.from(await d.chunk(e)), [0]);
+  for (let level = 1; level < d.header.levelSizes.length; level++) {
+    assert.ok(d.derives(13, level) && !s.derives(13, level));
+    assert.ok(d.index.some((e) => e.kind === ChunkKind.Key && e.band === 0 && d.reads(e, level)));
+    assert.ok(!s.index.some((e) => e.kind === ChunkKind.Key && e.band < level && s.reads(e, level)));
+    const a = new Decoder(await open(pmc), level), b = new Decoder(await open(derivedPmc), level);
+    for (const f of [...Array(d.header.frameCount).keys(), 13, 3, 9]) {
+      await a.seek(f);
+      await b.seek(f);
+      assert.deepEqual(b.replay.corners, a.replay.corners, `level ${level} frame ${f}: corners`);
+      assert.deepEqual(b.current, a.current, `level ${level} frame ${f}: positions`);
+    }
+    // Only the chunks Reader.reads names are read.
+    const r = await open(derivedPmc);
+    const allowed = r.index.filter((e) => r.reads(e, level)).reduce((n, e) => n + e.storedLen, 0);
+    const p = new Decoder(r, level);
+    for (let f = 0; f < r.header.frameCount; f++) await p.seek(f);
+    assert.ok(r.bytesRead - r.dataStart <= allowed, `level ${level}: ${r.bytesRead - r.dataStart} > ${allowed}`);
+  }
+});
+
+test("front-coded frame names (FLAG_NAMES) read as the names the encoder was given, as Rust reads them", async () => {
+  const c = await open(pmc);
+  assert.ok((c.flags & FLAG_NAMES) !== 0);
+  const files = readdirSync(join(dir, "frames")).filter((f) => f.endsWith(".obj")).sort();
+  assert.deepEqual(c.header.frameNames, files);
+  // The Rust unit test's vectors (format::tests::frame_names_front_code_and_decode).
+  const long = "x".repeat(300);
+  const names = ["waving-cloth@9", "waving-cloth@10", "", "Dance@1.233s", "Dance@1.267s", "été@1", "été@2", "\u{7f}odd", long, long + "y", "éx", "éy"];
+  const coded = ["waving-cloth@9", "\u{d}10", "\u{0}", "\u{0}Dance@1.233s", "\u{9}67s", "\u{0}été@1", "\u{6}2", "\u{0}\u{7f}odd", "\u{0}" + long, "\u{7f}" + "x".repeat(173) + "y", "\u{0}éx", "\u{2}y"];
+  assert.deepEqual(frontDecode(coded), names);
+  assert.deepEqual(frontDecode(["é", "\u{7f}a", "\u{1}b", "ßc"]), ["é", "éa", "b", "ßc"]);
 });
 
 test("damaged files are errors, not crashes", async () => {
@@ -631,9 +673,10 @@ test("skinned streams' palettes: the encoder writes Joints chunks, and streams w
   execFileSync(bin, ["encode", "-q", fox, "-o", file, "--keyframe-interval", "8", "--quant-bits", "12"]);
   const c = await open(file);
   assert.ok(c.index.some((e) => e.kind === ChunkKind.Joints) && !c.index.some((e) => e.kind === ChunkKind.Pose || e.kind === ChunkKind.Palette));
-  // Today's files leave empty Delta and Corners chunks out and store small chunks as they are
-  // (sameAsRust reads the Fox stream so in the test above); older files have neither flag.
-  assert.equal(c.flags, 3);
+  // Today's files leave empty Delta and Corners chunks out, store small chunks as they are and
+  // front-code their frame names (sameAsRust reads the Fox stream so in the test above); older
+  // files have none of these flags.
+  assert.equal(c.flags, 7);
   assert.ok(c.index.filter((e) => e.kind === ChunkKind.Delta).length < c.header.frameCount * c.header.levelSizes.length);
   assert.ok(c.index.some((e) => e.storedLen === e.rawLen));
   // The top band has one in every frame: it carries the band mask to every client.

@@ -281,7 +281,7 @@ impl Session {
         wanted.extend(self.decoder.reader().index().chunks.iter().filter(|e| {
             e.frame > frame
                 && e.frame <= last
-                && e.kind.read_at(e.band as usize, level)
+                && self.decoder.reader().reads(e, level)
                 && matches!(
                     e.kind,
                     ChunkKind::Delta | ChunkKind::Positions | ChunkKind::Corners | ChunkKind::Pose | ChunkKind::Palette | ChunkKind::Joints

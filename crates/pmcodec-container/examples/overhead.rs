@@ -7,7 +7,7 @@
 //! a glTF path, its animations played back to back (as the `skinned` example); with a folder,
 //! its OBJ frames (the horse, the cat).
 //! `cargo run --release -p pmcodec-container --example overhead -- [file.glb | folder]`
-//! (`PMC_K`, `PMC_SUBDIVIDE`, `PMC_FRAMES`: below).
+//! (`PMC_K`, `PMC_SUBDIVIDE`, `PMC_FRAMES`, `PMC_DERIVED`: below).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::{ChunkKind, EncodeOptions, QuantizationChoice, Reader, encode, summary};
 use pmcodec_mesh::gltf_input::RiggedMesh;
@@ -62,8 +62,19 @@ fn main() {
     // `PMC_K=32`: another keyframe interval (the encoder's default is 16).
     let k = std::env::var("PMC_K").ok().and_then(|k| k.parse().ok()).unwrap_or(EncodeOptions::default().keyframe_interval);
     for flags in [0, pmcodec_container::format::FLAGS] {
-        let opts =
-            EncodeOptions { quantization: QuantizationChoice::Bits(12), chunk_flags: flags, keyframe_interval: k, ..Default::default() };
+        // `PMC_DERIVED=never|when-cheaper`: bands that send their faces (default: the encoder's).
+        let derived_topology = match std::env::var("PMC_DERIVED").as_deref() {
+            Ok("never") => pmcodec_container::DerivedTopology::Never,
+            Ok("when-cheaper") => pmcodec_container::DerivedTopology::WhenCheaper,
+            _ => EncodeOptions::default().derived_topology,
+        };
+        let opts = EncodeOptions {
+            quantization: QuantizationChoice::Bits(12),
+            chunk_flags: flags,
+            keyframe_interval: k,
+            derived_topology,
+            ..Default::default()
+        };
         let bytes = encode(&seq, &opts, |_| {}).expect("encode");
         let r = Reader::open(bytes.as_slice()).expect("open");
         let s = summary(&r);

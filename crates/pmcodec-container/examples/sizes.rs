@@ -111,8 +111,8 @@ fn main() {
         d.seek(mid).expect("seek");
         let shown = d.mesh(pmcodec_container::CutTarget::Triangles(budget)).expect("mesh").triangles.len();
         if shown as f64 >= 0.98 * budget as f64 {
-            let part: u64 = reader.index().chunks.iter().filter(|e| e.kind.read_at(e.band as usize, l)).map(|e| e.stored_len as u64).sum();
-            let full: u64 = reader.index().chunks.iter().filter(|e| e.kind.read_at(e.band as usize, 0)).map(|e| e.stored_len as u64).sum();
+            let part: u64 = reader.index().chunks.iter().filter(|e| reader.reads(e, l)).map(|e| e.stored_len as u64).sum();
+            let full: u64 = reader.index().chunks.iter().filter(|e| reader.reads(e, 0)).map(|e| e.stored_len as u64).sum();
             println!(
                 "10% of the triangles ({budget}, frame {mid}) needs levels >= {l} ({shown} shown): reads {:.1}% of what a full-resolution reader reads ({:.1}% of all chunk bytes)",
                 part as f64 * 100.0 / full as f64,

@@ -9,6 +9,7 @@
 //! `codings` adds the older Palette and plain Joints codings. A folder of OBJ frames is given
 //! the skin `pmcodec encode --fit-skin` fits.
 //! `cargo run --release -p pmcodec-container --example skinned -- ../shared/data/gltf/Fox.glb [all] [centroid] [codings]`
+//! (`PMC_DERIVED`: below)
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::{
     ChunkKind, Decoder, EncodeOptions, PaletteCoding, QuantizationChoice, Reader, SkinPlacement, SkinnedCoarse, encode, summary,
@@ -41,7 +42,7 @@ fn all_animations(path: &Path) -> pmcodec_mesh::Sequence {
 /// texture images'.
 fn bytes_at(bytes: &[u8], level: usize) -> (u64, u64) {
     let r = Reader::open(bytes).expect("open");
-    let read = || r.index().chunks.iter().filter(|e| e.kind.read_at(e.band as usize, level));
+    let read = || r.index().chunks.iter().filter(|e| r.reads(e, level));
     let images = read().filter(|e| e.kind == ChunkKind::Image).map(|e| e.stored_len as u64).sum();
     (read().map(|e| e.stored_len as u64).sum::<u64>() + r.data_start(), images)
 }
@@ -50,7 +51,7 @@ fn bytes_at(bytes: &[u8], level: usize) -> (u64, u64) {
 /// first, beside the preamble, header and index.
 fn read_by_kind(r: &Reader<&[u8]>, level: usize) -> String {
     let mut kinds: std::collections::BTreeMap<String, u64> = Default::default();
-    for e in r.index().chunks.iter().filter(|e| e.kind.read_at(e.band as usize, level)) {
+    for e in r.index().chunks.iter().filter(|e| r.reads(e, level)) {
         let name = match e.kind {
             ChunkKind::Bind | ChunkKind::Joints => format!("{} band {}", e.kind.name(), e.band),
             k => k.name().to_string(),
@@ -85,6 +86,15 @@ fn bands(r: &Reader<&[u8]>) -> String {
         out[j] = format!("band {j}: {} nodes, uses {} entries, carries {carried}, joints {joints} B", h.level_sizes[j], used.len());
     }
     out.join("; ")
+}
+
+/// `PMC_DERIVED=never|always|when-cheaper`: which bands derive their faces (default: the encoder's).
+fn derived_topology() -> pmcodec_container::DerivedTopology {
+    match std::env::var("PMC_DERIVED").as_deref() {
+        Ok("never") => pmcodec_container::DerivedTopology::Never,
+        Ok("when-cheaper") => pmcodec_container::DerivedTopology::WhenCheaper,
+        _ => EncodeOptions::default().derived_topology,
+    }
 }
 
 fn main() {
@@ -124,7 +134,14 @@ fn main() {
     rows.extend(thresholds.iter().filter(|&&t| t > 0.0).map(|&t| (Some(placement), PaletteCoding::Joints, t)));
     for (skin, palette_coding, joints) in rows {
         let skinned_coarse = Some(SkinnedCoarse { joints, ..Default::default() });
-        let opts = EncodeOptions { quantization: QuantizationChoice::Bits(12), skin, palette_coding, skinned_coarse, ..Default::default() };
+        let opts = EncodeOptions {
+            quantization: QuantizationChoice::Bits(12),
+            skin,
+            palette_coding,
+            skinned_coarse,
+            derived_topology: derived_topology(),
+            ..Default::default()
+        };
         let t = std::time::Instant::now();
         let bytes = encode(&seq, &opts, |_| {}).expect("encode");
         let secs = t.elapsed().as_secs_f64();

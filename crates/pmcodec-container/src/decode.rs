@@ -1,9 +1,11 @@
 //! Decoding: replaying keyframes and deltas down to a finest level L, reconstructing the
 //! quantized node positions, and extracting meshes at any cut.
 
+mod derived;
 mod textured;
 
 use crate::appearance::DecodedAppearance;
+use crate::derive::Below;
 use crate::format::{ChunkKind, Motion};
 use crate::payload;
 use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, predict};
@@ -58,6 +60,12 @@ pub struct Decoder<S> {
     looks: Option<DecodedAppearance>,
     /// The skin of a skinned file, once its bind chunks are read.
     skin: Option<SkinState>,
+    /// The input triangles, read for deriving a band's faces ([`crate::derive`]) by a decoder
+    /// above level 0.
+    fine: Option<std::sync::Arc<Vec<[u32; 3]>>>,
+    /// The levels below `min_level` while the current keyframe interval derives band
+    /// `min_level`'s faces and corner updates (Faces coding 2).
+    below: Option<Below>,
 }
 
 /// A decoder's state just after loading a keyframe: what seeking back to it restores.
@@ -70,6 +78,8 @@ struct KeptKeyframe {
     weights: StencilWeights,
     /// Its joint palette, rigid parameters and skinned bands (skinned files).
     pose: (Vec<i64>, HeldRig, u64),
+    /// The levels below `min_level` when the interval derives its faces.
+    below: Option<Below>,
 }
 
 /// What meshes of one decoded frame are cut from.
@@ -129,6 +139,8 @@ impl<S: ByteSource> Decoder<S> {
             keep: 0,
             looks: None,
             skin: None,
+            fine: None,
+            below: None,
         })
     }
 
@@ -175,9 +187,18 @@ impl<S: ByteSource> Decoder<S> {
         let mut out = Vec::new();
         // Attribute tables may predict values through frame 0's hierarchy (its Key chunks).
         let looks_keys = load_key && self.looks.is_none() && h.appearance.as_ref().is_some_and(|a| a.channels() > 0);
-        for e in self.reader.index().chunks.iter().filter(|e| e.kind.read_at(e.band as usize, self.min_level)) {
+        // A band whose faces the interval derives reads the input triangles and the Key and
+        // Delta chunks below it too.
+        let derived = self.reader.derives(key, self.min_level);
+        let wanted = |e: &&crate::ChunkEntry| {
+            e.kind.read_at(e.band as usize, self.min_level)
+                || (derived
+                    && (e.kind == ChunkKind::Triangles
+                        || (matches!(e.kind, ChunkKind::Key | ChunkKind::Delta) && (e.band as usize) < self.min_level)))
+        };
+        for e in self.reader.index().chunks.iter().filter(wanted) {
             let take = match e.kind {
-                ChunkKind::Triangles => load_key && self.triangles.is_none(),
+                ChunkKind::Triangles => load_key && self.triangles.is_none() && self.fine.is_none(),
                 ChunkKind::Key => load_key && (e.frame == key || (looks_keys && e.frame == 0)),
                 ChunkKind::Faces => load_key && e.frame == key,
                 ChunkKind::Delta | ChunkKind::Corners => e.frame >= first_delta && e.frame <= frame,
@@ -204,7 +225,7 @@ impl<S: ByteSource> Decoder<S> {
     fn chunk(&self, kind: ChunkKind, frame: u32, band: usize) -> Result<Vec<u8>, ContainerError> {
         let found = self.reader.find(kind, frame, band as u32);
         if found.is_none() && crate::format::sparse_kind(kind, self.reader.flags()) {
-            return Ok(vec![0]);
+            return Ok(crate::format::left_out_payload(kind).to_vec());
         }
         let e = found.ok_or_else(|| ContainerError::Corrupt {
             what: format!("frame {frame} band {band} {}", kind.name()),
@@ -246,6 +267,7 @@ impl<S: ByteSource> Decoder<S> {
             }
             self.current.copy_from_slice(&k.current);
             self.weights.clone_from(&k.weights);
+            self.below.clone_from(&k.below);
             if let Some(s) = self.skin.as_mut() {
                 s.advance_rig(k.pose.0.clone(), k.pose.1.clone(), true, k.pose.2);
             }
@@ -264,6 +286,7 @@ impl<S: ByteSource> Decoder<S> {
                 current: self.current.clone(),
                 weights: self.weights.clone(),
                 pose: self.skin.as_ref().map(|s| (s.palette.clone(), (s.rig.clone(), s.links.clone()), s.mask)).unwrap_or_default(),
+                below: self.below.clone(),
             });
         }
         Ok(())
@@ -292,25 +315,27 @@ impl<S: ByteSource> Decoder<S> {
                 }
             }
         }
+        let mut below = None;
         if self.min_level > 0 {
             let j = self.min_level;
             let raw = self.chunk(ChunkKind::Faces, frame, j)?;
-            key.bands[j].faces =
-                payload::read_faces(&raw, &format!("frame {frame} band {j} faces"), sizes[j], h.triangle_count, self.reader.version())?;
+            if crate::derive::is_derived(&raw) {
+                let b = self.derive_below(frame)?;
+                key.bands[j].faces = b.faces();
+                self.fine = Some(b.triangles());
+                below = Some(b);
+            } else {
+                key.bands[j].faces =
+                    payload::read_faces(&raw, &format!("frame {frame} band {j} faces"), sizes[j], h.triangle_count, self.reader.version())?;
+            }
         }
         if self.min_level == 0 && self.triangles.is_none() {
-            let e = self
-                .reader
-                .index()
-                .chunks
-                .iter()
-                .find(|e| e.kind == ChunkKind::Triangles)
-                .ok_or_else(|| ContainerError::Corrupt { what: "index".into(), detail: "no triangles chunk".into() })?;
-            let raw = self.reader.read_chunk(e)?;
-            let triangles = payload::read_triangles(&raw, "triangles chunk", h.triangle_count, h.vertex_count, self.reader.version())?;
+            let triangles = self.read_triangles()?;
+            let h = self.reader.header();
             self.lower = LowerNeighbours::new(h.vertex_count as usize, &triangles, h.order);
             self.triangles = Some(triangles);
         }
+        self.below = below;
         if self.reader.header().skin.is_some() && self.skin.is_none() {
             self.skin = Some(self.load_skin()?);
         }
@@ -346,9 +371,14 @@ impl<S: ByteSource> Decoder<S> {
             let raw = self.chunk(ChunkKind::Delta, frame, j)?;
             moves.push((j, payload::read_delta(&raw, &format!("frame {frame} band {j} delta"), &sizes, j)?));
         }
+        let below_moves = self.below_moves(frame)?;
         let pose = self.read_pose(frame, false)?;
         let mut delta = FrameDelta::default();
-        if self.min_level > 0 {
+        let j = self.min_level;
+        if let Some(below) = self.below.as_mut() {
+            // A derived interval: the moves below the level give its corner updates.
+            delta.corners.extend(below.apply(&below_moves).into_iter().map(|(t, corners)| CornerUpdate { level: j as u32, t, corners }));
+        } else if self.min_level > 0 {
             let j = self.min_level;
             let raw = self.chunk(ChunkKind::Corners, frame, j)?;
             let what = format!("frame {frame} band {j} corners");

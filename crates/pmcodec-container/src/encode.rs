@@ -6,6 +6,7 @@ mod positions;
 pub use positions::EncodeReport;
 
 use crate::ContainerError;
+pub use crate::derive::DerivedTopology;
 use crate::format::*;
 use crate::predict::{LowerNeighbours, coarse_shift};
 use crate::skin::{
@@ -74,6 +75,11 @@ pub struct EncodeOptions {
     /// How a skinned file codes each frame's palette: Joints chunks (the default) or the
     /// Palette chunks files had before them (kept for comparison and for tests of readers).
     pub palette_coding: PaletteCoding,
+    /// Which bands' faces and corner updates the file leaves for their readers to derive from
+    /// the Triangles chunk and the Key and Delta chunks below them (proto/container.md, "Faces",
+    /// coding 2). `Always` (the default) writes the smallest file; `Never` writes them all, as
+    /// files before the derived coding did.
+    pub derived_topology: DerivedTopology,
 }
 
 /// The chunk kind a skinned file's palettes are written in (proto/container.md, "Palette" and
@@ -121,6 +127,7 @@ impl Default for EncodeOptions {
             skinned_coarse: Some(SkinnedCoarse::default()),
             chunk_flags: crate::format::FLAGS,
             palette_coding: PaletteCoding::Joints,
+            derived_topology: DerivedTopology::Always,
         }
     }
 }
@@ -239,7 +246,7 @@ impl Chunks {
 
     fn push(&mut self, kind: ChunkKind, frame: u32, band: u32, raw: Vec<u8>) -> Result<(), ContainerError> {
         // Nothing to say: left out (FLAG_SPARSE), and read as empty.
-        if crate::format::sparse_kind(kind, self.1) && raw == [0] {
+        if crate::format::sparse_kind(kind, self.1) && crate::format::leaves_out(kind, &raw) {
             return Ok(());
         }
         let stored = crate::format::store_chunk(&raw, ZSTD_LEVEL, self.1).map_err(|e| ContainerError::Io(format!("zstd: {e}")))?;
@@ -268,6 +275,14 @@ fn assemble(header: &Header, chunks: Chunks) -> Result<Vec<u8>, ContainerError> 
         offset += bytes.len() as u64;
         index.chunks.push(*e);
     }
+    // Frame names front-coded under FLAG_NAMES (proto/container.md, "Header").
+    let named;
+    let header = if flags & FLAG_NAMES != 0 {
+        named = Header { frame_names: crate::format::front_code(&header.frame_names), ..header.clone() };
+        &named
+    } else {
+        header
+    };
     let hb = postcard::to_stdvec(header).map_err(|e| ContainerError::Io(format!("header: {e}")))?;
     let ib = index.to_bytes(VERSION, header.frame_count).map_err(|e| ContainerError::Io(format!("index: {e}")))?;
     let pre = Preamble {
@@ -661,6 +676,7 @@ fn code_frames(
         // The reclustering side may have finished: then there is nothing to refill.
         let _ = recycle.send(r);
     }
+    derive_bands(&mut chunks, header.keyframe_interval, opts.derived_topology)?;
     if let Some(l) = looks {
         let mut after = chunks.0.split_off(1);
         for (kind, band, raw) in crate::appearance::chunks(l)? {
@@ -669,6 +685,15 @@ fn code_frames(
         chunks.0.append(&mut after);
     }
     Ok((assemble(&header, chunks)?, std::mem::take(&mut coder.report)))
+}
+
+/// Leaves the faces and corner updates of the bands `policy` derives to their readers
+/// (proto/container.md, "Faces", coding 2).
+fn derive_bands(chunks: &mut Chunks, interval: u32, policy: DerivedTopology) -> Result<(), ContainerError> {
+    let flags = chunks.1;
+    let keyframe_before = |f: u32| if interval == 0 { 0 } else { f - f % interval };
+    let store = |raw: &[u8]| crate::format::store_chunk(raw, ZSTD_LEVEL, flags).map_err(|e| ContainerError::Io(format!("zstd: {e}")));
+    crate::derive::choose(&mut chunks.0, policy, keyframe_before, crate::format::sparse_kind(ChunkKind::Corners, flags), store)
 }
 
 /// Band j's pose chunk (carrying palette `entries`) in the coding the options ask for, against

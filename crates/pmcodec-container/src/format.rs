@@ -45,8 +45,62 @@ pub const FLAG_STORED: u16 = 1;
 /// missing one as that payload. Most frames of a small mesh swap nothing in most bands, and
 /// each chunk costs an index entry (about 8 bytes, 15 before version 7) besides its own bytes.
 pub const FLAG_SPARSE: u16 = 2;
+/// Preamble flag (version 7): the header's frame names are *front-coded* ([`front_code`]):
+/// each name after the first is the previous one's first `k` bytes and a suffix. Names of
+/// successive frames share most of their bytes ("waving-cloth@123", "Dance@1.233s"): on
+/// RobotExpressive's 595 frames the header was 7,841 bytes, 3,445 front-coded.
+pub const FLAG_NAMES: u16 = 4;
 /// The flags this encoder sets and this reader knows.
-pub const FLAGS: u16 = FLAG_STORED | FLAG_SPARSE;
+pub const FLAGS: u16 = FLAG_STORED | FLAG_SPARSE | FLAG_NAMES;
+
+/// Longest shared prefix a front-coded name refers to (its one-character count).
+const MAX_SHARED: usize = 127;
+
+/// Front-codes frame names ([`FLAG_NAMES`], proto/container.md "Header"): the first as is,
+/// each next one as the character of code `k` (the bytes it shares with the name before, at
+/// most 127, ending on a character boundary) followed by its bytes after those `k`.
+pub fn front_code(names: &[String]) -> Vec<String> {
+    let mut out = Vec::with_capacity(names.len());
+    for (i, name) in names.iter().enumerate() {
+        let Some(prev) = i.checked_sub(1).and_then(|p| names.get(p)) else {
+            out.push(name.clone());
+            continue;
+        };
+        let mut k = prev.bytes().zip(name.bytes()).take_while(|(a, b)| a == b).count().min(MAX_SHARED);
+        while !name.is_char_boundary(k) {
+            k -= 1;
+        }
+        let mut coded = String::with_capacity(1 + name.len() - k);
+        coded.push(char::from(k as u8));
+        coded.push_str(&name[k..]);
+        out.push(coded);
+    }
+    out
+}
+
+/// Undoes [`front_code`]. Never fails: an entry that does not start with a count (0 to 127)
+/// is a whole name, and a count beyond the name before (or inside one of its characters) is
+/// cut back to it, so damaged names stay names.
+pub fn front_decode(coded: &[String]) -> Vec<String> {
+    let mut out: Vec<String> = Vec::with_capacity(coded.len());
+    for (i, entry) in coded.iter().enumerate() {
+        let (Some(prev), Some(c)) = (i.checked_sub(1).and_then(|p| out.get(p)), entry.chars().next()) else {
+            out.push(entry.clone());
+            continue;
+        };
+        if c as u32 > MAX_SHARED as u32 {
+            out.push(entry.clone());
+            continue;
+        }
+        let mut k = (c as usize).min(prev.len());
+        while !prev.is_char_boundary(k) {
+            k -= 1;
+        }
+        let name = format!("{}{}", &prev[..k], &entry[1..]);
+        out.push(name);
+    }
+    out
+}
 
 /// A chunk's stored bytes in a file with preamble `flags`: its zstd frame at `level`, or, with
 /// [`FLAG_STORED`], the payload itself when the frame would be no shorter (a frame exactly as
@@ -104,9 +158,31 @@ pub fn compress(raw: &[u8], level: i32) -> std::io::Result<Vec<u8>> {
     })
 }
 
-/// Whether a chunk of `kind` left out of a file with preamble `flags` reads as empty.
+/// Whether a chunk of `kind` may be left out of a file with preamble `flags`, and then reads
+/// as [`left_out_payload`].
 pub fn sparse_kind(kind: ChunkKind, flags: u16) -> bool {
-    flags & FLAG_SPARSE != 0 && matches!(kind, ChunkKind::Delta | ChunkKind::Corners)
+    flags & FLAG_SPARSE != 0 && matches!(kind, ChunkKind::Delta | ChunkKind::Corners | ChunkKind::Positions)
+}
+
+/// What a chunk of a sparse kind left out of the index reads as: no swaps, no corner updates,
+/// and for Positions a band whose residuals are all zero (shift 0, sparse coding, no node
+/// listed; proto/container.md, "Chunks").
+pub fn left_out_payload(kind: ChunkKind) -> &'static [u8] {
+    match kind {
+        ChunkKind::Positions => &[64, 0],
+        _ => &[0],
+    }
+}
+
+/// Whether an encoder leaves a chunk of a sparse kind with payload `raw` out: the empty Delta
+/// and Corners payload, and a Positions payload with every residual zero in the sparse coding
+/// (any shift: zero residuals move nothing whatever their unit).
+pub fn leaves_out(kind: ChunkKind, raw: &[u8]) -> bool {
+    match kind {
+        ChunkKind::Delta | ChunkKind::Corners => raw == [0],
+        ChunkKind::Positions => raw.len() == 2 && (64..=64 + 16).contains(&raw[0]) && raw[1] == 0,
+        _ => false,
+    }
 }
 
 /// The fixed 32-byte preamble.
@@ -668,6 +744,55 @@ impl Index {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn frame_names_front_code_and_decode() {
+        let long = "x".repeat(300);
+        let names: Vec<String> = [
+            "waving-cloth@9",
+            "waving-cloth@10",
+            "",
+            "Dance@1.233s",
+            "Dance@1.267s",
+            "été@1",
+            "été@2",
+            "\u{7f}odd",
+            &long,
+            &(long.clone() + "y"),
+            "éx",
+            "éy",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        let coded = front_code(&names);
+        assert_eq!(front_decode(&coded), names);
+        // The vectors web/test/container.test.ts decodes.
+        let x173 = "x".repeat(173);
+        let want = [
+            "waving-cloth@9".to_string(),
+            "\u{d}10".into(),
+            "\u{0}".into(),
+            "\u{0}Dance@1.233s".into(),
+            "\u{9}67s".into(),
+            "\u{0}été@1".into(),
+            "\u{6}2".into(),
+            "\u{0}\u{7f}odd".into(),
+            format!("\u{0}{long}"),
+            format!("\u{7f}{x173}y"),
+            "\u{0}éx".into(),
+            "\u{2}y".into(),
+        ];
+        assert_eq!(coded, want);
+        assert_eq!(coded[4], "\u{9}67s");
+        // At most 127 shared bytes; a name sharing part of a character shares none of it.
+        assert_eq!(coded[9].len(), 1 + 300 - 127 + 1);
+        assert_eq!(coded[11], "\u{2}y");
+        // Damaged entries decode to names, never a panic: a count beyond the name before, a
+        // count inside one of its characters, a first character that is no count.
+        let damaged: Vec<String> = ["é", "\u{7f}a", "\u{1}b", "ßc"].iter().map(|s| s.to_string()).collect();
+        assert_eq!(front_decode(&damaged), ["é", "éa", "b", "ßc"]);
+    }
 
     fn entry(kind: ChunkKind, frame: u32, band: u32, offset: u64, stored_len: u32, raw_len: u32) -> ChunkEntry {
         ChunkEntry { kind, frame, band, offset, stored_len, raw_len, crc32: 0xDEAD_BEEF ^ offset as u32 }

@@ -11,7 +11,9 @@
 #![warn(missing_docs)]
 
 pub mod appearance;
+mod bits;
 mod decode;
+mod derive;
 mod encode;
 pub mod format;
 mod grid;
@@ -25,9 +27,10 @@ pub mod testing;
 mod topology;
 
 pub use decode::Decoder;
+pub use derive::{derives, reads};
 pub use encode::{
-    EncodeOptions, EncodeReport, PaletteCoding, QuantizationChoice, SkinPlacement, StreamError, encode, encode_stream, encode_until,
-    encode_with_report, write_file,
+    DerivedTopology, EncodeOptions, EncodeReport, PaletteCoding, QuantizationChoice, SkinPlacement, StreamError, encode, encode_stream,
+    encode_until, encode_with_report, write_file,
 };
 pub use format::{ChunkEntry, ChunkKind, Header, Index, Motion, VertexOrder};
 pub use pmcodec_hierarchy::{CutTarget, Distance};
@@ -225,17 +228,19 @@ pub fn summary<S: ByteSource>(reader: &Reader<S>) -> Summary {
     s.positions_bits_per_vertex_frame = pos as f64 * 8.0 / (s.header.vertex_count.max(1) as f64 * frames);
     s.delta_bytes_per_frame = s.delta_bytes.iter().sum::<u64>() as f64 / frames;
     s.delta_raw_bytes_per_frame = s.delta_raw_bytes.iter().sum::<u64>() as f64 / frames;
-    // Pose chunks (older files) go to every client; Palette chunks to the clients of their
-    // band and finer.
-    let read_by_all = s.pose_bytes - s.palette_bytes.iter().sum::<u64>();
+    // Per frame: swaps, positions, corner updates and poses, as `Reader::reads` says a client
+    // stopping at each level reads them (Pose chunks of older files go to every client, Palette
+    // and Joints chunks to the clients of their band and finer, and a band whose faces are
+    // derived reads the swaps below it).
+    let per_frame = |e: &&ChunkEntry| {
+        matches!(
+            e.kind,
+            ChunkKind::Delta | ChunkKind::Positions | ChunkKind::Corners | ChunkKind::Pose | ChunkKind::Palette | ChunkKind::Joints
+        )
+    };
     for l in 0..levels {
-        let palettes: u64 = s.palette_bytes[l..].iter().sum();
-        s.bytes_per_frame_to_level[l] = (s.delta_bytes[l..].iter().sum::<u64>()
-            + s.positions_bytes[l..].iter().sum::<u64>()
-            + s.corners_bytes[l]
-            + read_by_all
-            + palettes) as f64
-            / frames;
+        let bytes: u64 = reader.index().chunks.iter().filter(per_frame).filter(|e| reader.reads(e, l)).map(|e| e.stored_len as u64).sum();
+        s.bytes_per_frame_to_level[l] = bytes as f64 / frames;
     }
     s
 }

@@ -119,7 +119,10 @@ impl<S: ByteSource> Reader<S> {
         if crc32fast::hash(&hb) != pre.header_crc {
             return Err(ContainerError::Checksum { what: "header".into() });
         }
-        let header = Header::from_bytes(&hb, pre.version)?;
+        let mut header = Header::from_bytes(&hb, pre.version)?;
+        if pre.flags & crate::format::FLAG_NAMES != 0 {
+            header.frame_names = crate::format::front_decode(&header.frame_names);
+        }
         let ib = source.read_at(PREAMBLE_LEN as u64 + pre.header_len as u64, pre.index_len as usize)?;
         if crc32fast::hash(&ib) != pre.index_crc {
             return Err(ContainerError::Checksum { what: "index".into() });
@@ -207,6 +210,20 @@ impl<S: ByteSource> Reader<S> {
         let chunks = &self.index.chunks;
         let start = chunks.partition_point(|e| e.kind == ChunkKind::Triangles || e.frame < frame);
         chunks[start..].iter().take_while(|e| e.frame == frame).find(|e| e.kind == kind && e.band == band)
+    }
+
+    /// Whether band `level`'s faces and corner updates are derived in the keyframe interval of
+    /// `frame` (its keyframe's Faces chunk is coding 2, proto/container.md "Faces"), which a
+    /// reader tells from the index entry alone.
+    pub fn derives(&self, frame: u32, level: usize) -> bool {
+        crate::derive::derives(&self.index.chunks, self.header.keyframe_interval, frame, level)
+    }
+
+    /// Whether a client whose finest level is `level` reads chunk `e`: [`ChunkKind::read_at`],
+    /// and where band `level` is derived ([`Reader::derives`]), the Triangles chunk and the Key
+    /// and Delta chunks of the bands below it.
+    pub fn reads(&self, e: &ChunkEntry, level: usize) -> bool {
+        crate::derive::reads(&self.index.chunks, self.header.keyframe_interval, e, level)
     }
 
     /// Fetches one chunk, checks its CRC before decompressing, and decompresses it into at most

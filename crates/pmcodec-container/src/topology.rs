@@ -15,6 +15,7 @@
 //! numbers are too short for a table of their own, and varints spend a byte where a few bits do.
 
 use crate::ContainerError;
+use crate::bits::{BitReader, Bits};
 use crate::payload::{unzigzag, zigzag};
 
 /// The varint a coded payload starts with after its leading 0 (a varint payload that starts
@@ -56,93 +57,49 @@ impl Context {
     }
 }
 
-/// Bits, least significant bit of each byte first.
+/// Writes numbers of a [`Context`] into the shared bit stream ([`crate::bits`]).
 struct BitWriter {
-    bytes: Vec<u8>,
-    bit: usize,
+    bits: Bits,
 }
 
 impl BitWriter {
     fn new(bytes: Vec<u8>) -> Self {
-        let bit = bytes.len() * 8;
-        BitWriter { bytes, bit }
+        BitWriter { bits: Bits::after(bytes) }
     }
 
     fn bit(&mut self, b: bool) {
-        if self.bit.is_multiple_of(8) {
-            self.bytes.push(0);
-        }
-        if b {
-            let last = self.bytes.len() - 1;
-            self.bytes[last] |= 1 << (self.bit % 8);
-        }
-        self.bit += 1;
+        self.bits.put(b as u64, 1);
     }
 
     /// `u` as an Exp-Golomb code of the context's order, then the context learns it.
     fn number(&mut self, ctx: &mut Context, u: u32) {
-        let k = ctx.order();
-        let v = u as u64 + (1u64 << k);
-        let len = 64 - v.leading_zeros();
-        for _ in 0..len - 1 - k {
-            self.bit(false);
-        }
-        for i in (0..len).rev() {
-            self.bit(v >> i & 1 == 1);
-        }
+        self.bits.golomb(u as u64, ctx.order());
         ctx.update(u);
     }
+
+    fn into_bytes(self) -> Vec<u8> {
+        self.bits.out
+    }
 }
 
-/// Reads what [`BitWriter`] writes; errors name the chunk.
-struct BitReader<'a> {
-    bytes: &'a [u8],
-    bit: usize,
-    what: &'a str,
+/// Reads the numbers [`BitWriter`] writes; errors name the chunk.
+trait Numbers {
+    fn flag(&mut self) -> Result<bool, ContainerError>;
+    fn number(&mut self, ctx: &mut Context) -> Result<u32, ContainerError>;
 }
 
-impl BitReader<'_> {
-    fn corrupt(&self, detail: impl Into<String>) -> ContainerError {
-        ContainerError::Corrupt { what: self.what.to_string(), detail: detail.into() }
+impl Numbers for BitReader<'_> {
+    fn flag(&mut self) -> Result<bool, ContainerError> {
+        Ok(self.bit()? == 1)
     }
 
-    fn bit(&mut self) -> Result<bool, ContainerError> {
-        let Some(&b) = self.bytes.get(self.bit / 8) else {
-            return Err(self.corrupt("bit stream ends early"));
-        };
-        let v = b >> (self.bit % 8) & 1 == 1;
-        self.bit += 1;
-        Ok(v)
-    }
-
+    /// An Exp-Golomb code of the context's order (at most 32 bits after its leading zeros, and
+    /// a value below 2^32), then the context learns it.
     fn number(&mut self, ctx: &mut Context) -> Result<u32, ContainerError> {
-        let k = ctx.order();
-        let mut zeros = 0u32;
-        while !self.bit()? {
-            zeros += 1;
-            if zeros + k > 32 {
-                return Err(self.corrupt("Exp-Golomb code beyond 32 bits"));
-            }
-        }
-        let mut v = 1u64;
-        for _ in 0..zeros + k {
-            v = v << 1 | self.bit()? as u64;
-        }
-        let u = u32::try_from(v - (1u64 << k)).map_err(|_| self.corrupt("number beyond 32 bits"))?;
+        let v = self.golomb_within(ctx.order(), 32)?;
+        let u = u32::try_from(v).map_err(|_| self.corrupt("number beyond 32 bits"))?;
         ctx.update(u);
         Ok(u)
-    }
-
-    /// The stream ends in the byte of its last bit, whose later bits are 0.
-    fn finish(&self) -> Result<(), ContainerError> {
-        let used = self.bit.div_ceil(8);
-        if used != self.bytes.len() {
-            return Err(self.corrupt(format!("{} bytes after the bit stream", self.bytes.len().saturating_sub(used))));
-        }
-        if !self.bit.is_multiple_of(8) && self.bytes[used - 1] >> (self.bit % 8) != 0 {
-            return Err(self.corrupt("bits set after the bit stream"));
-        }
-        Ok(())
     }
 }
 
@@ -228,7 +185,7 @@ pub fn write_faces(faces: &[(u32, [u32; 3])]) -> Vec<u8> {
         }
         last = c;
     }
-    w.bytes
+    w.into_bytes()
 }
 
 /// Reads [`write_faces`]'s bit stream from `start`: faces ascending, corners below `size`.
@@ -288,7 +245,7 @@ pub fn write_key(parent: &[u32]) -> Vec<u8> {
         touch(&mut recent, p);
         last = p;
     }
-    w.bytes
+    w.into_bytes()
 }
 
 /// Reads [`write_key`]'s bit stream from `start`: exactly `expected` parents below `limit`.
@@ -332,7 +289,7 @@ pub fn write_delta(moves: &[(u32, u32)]) -> Vec<u8> {
         w.number(&mut diff, zigzag(to.wrapping_sub(last) as i32));
         last = to;
     }
-    w.bytes
+    w.into_bytes()
 }
 
 /// Reads [`write_delta`]'s bit stream from `start`: at most `nodes` moves, nodes ascending
@@ -477,7 +434,7 @@ pub fn write_corner_updates(updates: &[(u32, [u32; 3])], before: &[[u32; 3]], si
         }
         last = c;
     }
-    w.bytes
+    w.into_bytes()
 }
 
 /// Reads [`write_corner_updates`]'s bit stream from `start` against the corners the reader
@@ -520,7 +477,7 @@ pub fn read_corner_updates(
         }
         let mut any = false;
         for &t in held.triangles(x) {
-            if !r.bit()? {
+            if !r.flag()? {
                 continue;
             }
             any = true;
@@ -579,7 +536,8 @@ mod tests {
         for &v in &values {
             w.number(&mut c, v);
         }
-        let mut r = BitReader { bytes: &w.bytes, bit: 0, what: "t" };
+        let bytes = w.into_bytes();
+        let mut r = BitReader { bytes: &bytes, bit: 0, what: "t" };
         let mut c = Context::new();
         for &v in &values {
             assert_eq!(r.number(&mut c).unwrap(), v);

@@ -265,8 +265,15 @@ fn full_resolution_decoding_skips_faces_and_corners() {
 
 #[test]
 fn level_limited_decoding_reads_only_its_bands() {
+    level_limited_decoding(DerivedTopology::Never);
+    // Derived faces (proto/container.md, "Faces", coding 2): the same corners, and what the
+    // client reads is what `Reader::reads` names (the Key and Delta chunks below it too).
+    level_limited_decoding(DerivedTopology::Always);
+}
+
+fn level_limited_decoding(derived_topology: DerivedTopology) {
     let Some(seq) = data("horse-gallop", 10) else { return };
-    let bytes = encode(&seq, &EncodeOptions::default(), |_| {}).unwrap();
+    let bytes = encode(&seq, &EncodeOptions { derived_topology, ..Default::default() }, |_| {}).unwrap();
     let full_reader = Reader::open(bytes.as_slice()).unwrap();
     let mut full = Decoder::new(full_reader.borrowed(), 0).unwrap();
     let src = Counting { bytes: &bytes, fetched: Default::default() };
@@ -300,14 +307,22 @@ fn level_limited_decoding_reads_only_its_bands() {
     }
     // Everything fetched: preamble, header, index and chunks of bands >= level only, and of
     // the faces and corners chunks only those of band `level`.
-    let allowed: u64 = reader.data_start()
-        + reader.index().chunks.iter().filter(|e| e.kind.read_at(e.band as usize, level)).map(|e| e.stored_len as u64).sum::<u64>();
+    let allowed: u64 =
+        reader.data_start() + reader.index().chunks.iter().filter(|e| reader.reads(e, level)).map(|e| e.stored_len as u64).sum::<u64>();
+    let derived = derived_topology == DerivedTopology::Always;
+    assert_eq!(reader.derives(5, level), derived);
     assert!(
-        reader.index().chunks.iter().any(|e| e.kind == ChunkKind::Corners && e.band as usize > level),
+        derived || reader.index().chunks.iter().any(|e| e.kind == ChunkKind::Corners && e.band as usize > level),
         "the file has corner chunks a level-{level} client skips"
     );
+    if !derived {
+        assert!(reader.index().chunks.iter().all(|e| reader.reads(e, level) == e.kind.read_at(e.band as usize, level)));
+    }
     assert!(src.fetched.get() <= allowed, "{} > {allowed}", src.fetched.get());
-    assert!(src.fetched.get() * 4 < bytes.len() as u64, "a level-{level} client read {} of {} bytes", src.fetched.get(), bytes.len());
+    // Deriving, it reads the input triangles and the parent maps below its level too (on ten
+    // frames with one keyframe, a third of the file).
+    let part_of = if derived { 2 } else { 4 };
+    assert!(src.fetched.get() * part_of < bytes.len() as u64, "a level-{level} client read {} of {} bytes", src.fetched.get(), bytes.len());
     let m = part.mesh(CutTarget::Triangles(1000)).unwrap();
     assert!(!m.triangles.is_empty() && m.triangles.len() <= 1000);
 }
@@ -365,8 +380,8 @@ fn corruption_is_an_error_naming_the_region() {
 #[test]
 fn header_snapshot() {
     let bytes = encode(&wave(3), &EncodeOptions::default(), |_| {}).unwrap();
-    // Preamble: magic, version 7, flags 3 (stored and sparse chunks).
-    assert_eq!(&bytes[..12], b"\x89PMC\r\n\x1a\n\x07\x00\x03\x00");
+    // Preamble: magic, version 7, flags 7 (stored and sparse chunks, front-coded names).
+    assert_eq!(&bytes[..12], b"\x89PMC\r\n\x1a\n\x07\x00\x07\x00");
     let reader = Reader::open(bytes.as_slice()).unwrap();
     let h = reader.header();
     assert_eq!((h.vertex_count, h.triangle_count, h.frame_count), (108, 176, 3));
@@ -383,19 +398,17 @@ fn header_snapshot() {
     assert!(e.contains("header"), "{e}");
     // Deterministic output: encoding twice gives the same bytes.
     assert_eq!(bytes, encode(&wave(3), &EncodeOptions::default(), |_| {}).unwrap());
-    // Index order: triangles, then frame 0: the faces and corners only a client stopping at
-    // band 1.. reads (band 1 first), then bands top..0, each key, delta, positions; empty
-    // Delta chunks are left out (the sparse flag): frame 0 swaps nothing in bands 2 and 1, and
-    // frame 1 nothing in bands 2 and 1 either.
+    // Index order: triangles, then frame 0: the faces only a client stopping at band 1..
+    // reads (band 1 first; derived, so two bytes each, and no Corners chunks), then bands
+    // top..0, each key, delta, positions; empty Delta chunks are left out (the sparse flag):
+    // frame 0 swaps nothing in bands 2 and 1.
     let kinds: Vec<(ChunkKind, u32, u32)> = reader.index().chunks.iter().take(15).map(|e| (e.kind, e.frame, e.band)).collect();
     assert_eq!(
         kinds,
         vec![
             (ChunkKind::Triangles, 0, 0),
             (ChunkKind::Faces, 0, 1),
-            (ChunkKind::Corners, 0, 1),
             (ChunkKind::Faces, 0, 2),
-            (ChunkKind::Corners, 0, 2),
             (ChunkKind::Key, 0, 2),
             (ChunkKind::Positions, 0, 2),
             (ChunkKind::Key, 0, 1),
@@ -403,11 +416,14 @@ fn header_snapshot() {
             (ChunkKind::Key, 0, 0),
             (ChunkKind::Delta, 0, 0),
             (ChunkKind::Positions, 0, 0),
-            (ChunkKind::Corners, 1, 1),
-            (ChunkKind::Corners, 1, 2),
             (ChunkKind::Positions, 1, 2),
+            (ChunkKind::Delta, 1, 1),
+            (ChunkKind::Positions, 1, 1),
+            (ChunkKind::Delta, 1, 0),
+            (ChunkKind::Positions, 1, 0),
         ]
     );
+    assert!(reader.index().chunks.iter().filter(|e| e.kind == ChunkKind::Faces).all(|e| e.raw_len == 2));
 }
 
 mod props {

@@ -148,8 +148,17 @@ fn coarse_clients_read_only_their_bands_joints() {
     assert_eq!(s.palette_bytes.iter().sum::<u64>(), s.pose_bytes);
     let frames = r.header().frame_count as f64;
     for level in 0..=top {
+        // Swaps and positions of its bands, its corner updates, and where its band derives its
+        // faces (proto/container.md, "Faces", coding 2) the swaps below it.
+        let below: u64 = r
+            .index()
+            .chunks
+            .iter()
+            .filter(|e| e.kind == ChunkKind::Delta && (e.band as usize) < level && r.reads(e, level))
+            .map(|e| e.stored_len as u64)
+            .sum();
         let others: u64 =
-            s.delta_bytes[level..].iter().sum::<u64>() + s.positions_bytes[level..].iter().sum::<u64>() + s.corners_bytes[level];
+            s.delta_bytes[level..].iter().sum::<u64>() + s.positions_bytes[level..].iter().sum::<u64>() + s.corners_bytes[level] + below;
         let want = (others + palette_bytes(level)) as f64 / frames;
         assert!((s.bytes_per_frame_to_level[level] - want).abs() < 1e-9, "level {level}: {} vs {want}", s.bytes_per_frame_to_level[level]);
     }

@@ -115,7 +115,8 @@ impl LoadedAsset {
                 ChunkKind::Key => looks_keys && e.frame == 0,
                 _ => false,
             };
-            e.kind.read_at(e.band as usize, level) && (every_frame || e.frame >= from)
+            // A band whose faces are derived reads the triangles and the bands below it too.
+            pmcodec_container::reads(&self.chunks, self.header.keyframe_interval, e, level) && (every_frame || e.frame >= from)
         })
     }
 }

@@ -5,8 +5,8 @@ use crate::{EXIT_BAD_INPUT, EXIT_FAILURE, Exit, progress};
 use anyhow::{Context, anyhow};
 use clap::{Args, ValueEnum};
 use pmcodec_container::{
-    ContainerError, EncodeOptions, FileSource, Motion, QuantizationChoice, Reader, SkinPlacement, SkinnedCoarse, StreamError, VertexOrder,
-    encode, encode_stream, encode_with_report, summary, write_file,
+    ContainerError, DerivedTopology, EncodeOptions, FileSource, Motion, QuantizationChoice, Reader, SkinPlacement, SkinnedCoarse,
+    StreamError, VertexOrder, encode, encode_stream, encode_with_report, summary, write_file,
 };
 use pmcodec_hierarchy::base::{PoseSet, VertexWeights};
 use pmcodec_hierarchy::recluster::ReclusterOptions;
@@ -34,6 +34,13 @@ pub enum MotionArg {
 pub enum OrderArg {
     BreadthFirst,
     Input,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum DerivedArg {
+    Always,
+    Never,
+    WhenCheaper,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -84,6 +91,12 @@ pub struct EncodeArgs {
     /// (what format version 4 used; better with `--motion mean`).
     #[arg(long, value_enum, default_value_t = OrderArg::BreadthFirst)]
     pub order: OrderArg,
+    /// Which bands' faces and corner updates their readers derive from the triangles and the
+    /// parent maps below them instead of reading them: `always` (the smallest file), `never`
+    /// (every band sends them, as files before), or `when-cheaper` (where a coarse client then
+    /// reads no more bytes).
+    #[arg(long, value_enum, default_value_t = DerivedArg::Always)]
+    pub derived_topology: DerivedArg,
     /// For a skinned glTF, where coarse nodes sit in bind space for prediction by skinning:
     /// `back-propagated` (their frame-0 position through their blended transform, Houle &
     /// Poulin), `centroid` (their cluster's rest centroid), or `none` (no skinning).
@@ -369,7 +382,20 @@ pub fn encode_options(args: &EncodeArgs) -> Result<EncodeOptions, Exit> {
         SkinArg::Centroid => Some(SkinPlacement::Centroid),
         SkinArg::None => None,
     };
-    let mut opts = EncodeOptions { keyframe_interval: args.keyframe_interval, coarse_grid, motion, order, skin, ..Default::default() };
+    let derived_topology = match args.derived_topology {
+        DerivedArg::Always => DerivedTopology::Always,
+        DerivedArg::Never => DerivedTopology::Never,
+        DerivedArg::WhenCheaper => DerivedTopology::WhenCheaper,
+    };
+    let mut opts = EncodeOptions {
+        keyframe_interval: args.keyframe_interval,
+        coarse_grid,
+        motion,
+        order,
+        skin,
+        derived_topology,
+        ..Default::default()
+    };
     opts.build.branching = args.branching;
     opts.build.anchors = parse_anchors(&args.level_anchors)?;
     opts.base.poses = parse_poses(&args.base_poses).map_err(|e| Exit(2, e))?;

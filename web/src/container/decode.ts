@@ -3,6 +3,7 @@
 // triangle budget selects, ordered as the Rust decoder orders it.
 
 import { Charts, Materials, Table, TexturedMesh, needsAbove, readBand0Table, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
+import { Below, isDerived } from "./derive.js";
 import { DecodeError } from "./error.js";
 import { ChunkKind, Motion, channels } from "./format.js";
 import { readCornerUpdates, readDelta, readFaces, readKey, readPositions, readTriangles } from "./payload.js";
@@ -32,6 +33,10 @@ export class Decoder {
   current: Int32Array;
   previous: Int32Array;
   private triangles: Uint32Array | null = null;
+  /** The input triangles, read above level 0 for deriving faces (derive.ts). */
+  private fine: Uint32Array | null = null;
+  /** The levels below minLevel while the keyframe interval derives band minLevel's faces. */
+  private below: Below | null = null;
   /** Level-0 lower neighbours (proto/container.md, "Positions, band j"). */
   private lower: LowerNeighbours | null = null;
   /** Band 0's stencil weights from the last keyframe (keyframe affine motion). */
@@ -81,7 +86,19 @@ export class Decoder {
       bands[j].parent = readKey(await c.chunk(c.find(ChunkKind.Key, k, j)), `frame ${k} band ${j} keyframe`, h.levelSizes, j, c.version);
     }
     const L = this.minLevel;
-    if (L > 0) bands[L].faces = readFaces(await c.chunk(c.find(ChunkKind.Faces, k, L)), `frame ${k} band ${L} faces`, h.levelSizes[L], h.triangleCount, c.version);
+    let below: Below | null = null;
+    if (L > 0) {
+      const raw = await c.chunk(c.find(ChunkKind.Faces, k, L));
+      if (isDerived(raw)) {
+        // Faces coding 2: from the input triangles and the keyframe's parent maps below L.
+        this.fine ??= readTriangles(await c.chunk(c.find(ChunkKind.Triangles, 0, 0)), "triangles chunk", h.triangleCount, h.vertexCount, c.version);
+        const parents: Uint32Array[] = [];
+        for (let j = 0; j < L; j++) parents.push(readKey(await c.chunk(c.find(ChunkKind.Key, k, j)), `frame ${k} band ${j} keyframe`, h.levelSizes, j, c.version));
+        below = new Below(this.fine, parents);
+        bands[L].faces = below.faces();
+      } else bands[L].faces = readFaces(raw, `frame ${k} band ${L} faces`, h.levelSizes[L], h.triangleCount, c.version);
+    }
+    this.below = below;
     if (this.minLevel === 0 && !this.triangles) {
       const raw = await c.chunk(c.find(ChunkKind.Triangles, 0, 0));
       this.triangles = readTriangles(raw, "triangles chunk", h.triangleCount, h.vertexCount, c.version);
@@ -119,9 +136,17 @@ export class Decoder {
     for (let j = h.levelSizes.length - 1; j >= this.minLevel; j--) {
       readDelta(await c.chunkAt(ChunkKind.Delta, f, j), `frame ${f} band ${j} delta`, h.levelSizes, j, delta);
     }
+    // A derived interval: the moves below minLevel too, whose effect on its corners replaces its
+    // Corners chunk (which must say nothing).
+    const below: FrameDelta = { swaps: [], corners: [] };
+    if (this.below) for (let j = this.minLevel - 1; j >= 0; j--) readDelta(await c.chunkAt(ChunkKind.Delta, f, j), `frame ${f} band ${j} delta`, h.levelSizes, j, below);
     const pose = await this.readPose(f, false);
     const L = this.minLevel;
-    if (L > 0) {
+    if (this.below) {
+      const raw = await c.chunkAt(ChunkKind.Corners, f, L);
+      if (raw.length !== 1 || raw[0] !== 0) throw new DecodeError(`frame ${f} band ${L} corners: corner updates in an interval whose faces are derived`);
+      for (const u of this.below.apply(below.swaps)) delta.corners.push({ level: L, t: u.t, corners: u.corners });
+    } else if (L > 0) {
       const raw = await c.chunkAt(ChunkKind.Corners, f, L), what = `frame ${f} band ${L} corners`;
       const updates = c.version >= 5
         ? readCornerUpdates(raw, what, h.levelSizes[L], this.replay.corners)
@@ -315,7 +340,7 @@ export class Decoder {
     const top = h.levelSizes.length - 1;
     for (let j = top; j >= this.minLevel; j--) {
       const what = `frame ${f} band ${j} positions`;
-      const { shift, res } = readPositions(await this.reader.chunk(this.reader.find(ChunkKind.Positions, f, j)), what, h.levelSizes[j]);
+      const { shift, res } = readPositions(await this.reader.chunkAt(ChunkKind.Positions, f, j), what, h.levelSizes[j]);
       if (this.holdsOffsets) {
         if (this.skin!.uses(j)) { this.offsetBand(j, intra, shift, res); continue; }
         this.poseFor(j, intra);

@@ -68,9 +68,31 @@ export interface ChunkEntry { kind: ChunkKind; frame: number; band: number; offs
 /** The fixed 32 bytes at the start of a file: version, table lengths and their checksums. */
 /**
  * Preamble flags (proto/container.md, "Preamble"): a chunk whose stored length equals its raw
- * length is stored as is (FLAG_STORED); empty Delta and Corners chunks are left out (FLAG_SPARSE).
+ * length is stored as is (FLAG_STORED); empty Delta and Corners chunks, and Positions chunks of zero residuals, are left out (FLAG_SPARSE).
  */
 export const FLAG_STORED = 1, FLAG_SPARSE = 2;
+/** Preamble flag: frame names front-coded (proto/container.md, "Header"; frontDecode). */
+export const FLAG_NAMES = 4;
+
+/**
+ * Undoes the front coding of frame names (as `format::front_decode`): each name after the first
+ * is the previous one's first k bytes (UTF-8; k the code of the entry's first character, 0 to
+ * 127, cut back to the name before and to a character boundary) and the rest of the entry; an
+ * entry whose first character is no count is a whole name.
+ */
+export function frontDecode(coded: string[]): string[] {
+  const enc = new TextEncoder(), dec = new TextDecoder();
+  const out: string[] = [];
+  for (let i = 0; i < coded.length; i++) {
+    const e = coded[i], c = e.codePointAt(0);
+    if (i === 0 || c === undefined || c > 127) { out.push(e); continue; }
+    const prev = enc.encode(out[i - 1]);
+    let k = Math.min(c, prev.length);
+    while (k > 0 && k < prev.length && (prev[k] & 0xc0) === 0x80) k--;
+    out.push(dec.decode(prev.subarray(0, k)) + e.slice(1));
+  }
+  return out;
+}
 
 export interface Preamble { version: number; flags: number; headerLen: number; indexLen: number; headerCrc: number; indexCrc: number }
 

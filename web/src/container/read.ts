@@ -6,9 +6,10 @@
 import { decompress } from "fzstd";
 import { DecodeError } from "./error.js";
 import {
-  ChunkEntry, ChunkKind, FLAG_SPARSE, FLAG_STORED, Header, MAX_TABLE_LEN, PREAMBLE_LEN, checkTables, crc32, describe, isKeyframe, keyframeBefore,
-  parseHeader, parseIndex, parsePreamble,
+  ChunkEntry, ChunkKind, FLAG_NAMES, FLAG_SPARSE, FLAG_STORED, Header, MAX_TABLE_LEN, PREAMBLE_LEN, checkTables, crc32, describe, isKeyframe, keyframeBefore,
+  frontDecode, parseHeader, parseIndex, parsePreamble, readAt as kindReadAt,
 } from "./format.js";
+import { entryIsDerived } from "./derive.js";
 
 /** Fetches `len` bytes at `offset`. */
 export type ReadAt = (offset: number, len: number) => Promise<Uint8Array>;
@@ -28,6 +29,7 @@ export class Reader {
     if (crc32(hb) !== headerCrc) throw new DecodeError("header: checksum mismatch");
     if (crc32(ib) !== indexCrc) throw new DecodeError("index: checksum mismatch");
     const header = parseHeader(hb, version);
+    if ((flags & FLAG_NAMES) !== 0) header.frameNames = frontDecode(header.frameNames);
     const index = parseIndex(ib, version, header.frameCount);
     checkTables(header, index, fileLen - dataStart);
     const r = new Reader(readAt, version, flags, header, index, dataStart, fileLen);
@@ -46,12 +48,38 @@ export class Reader {
 
   /**
    * Frame `frame` band `band`'s chunk of `kind`: in a file with FLAG_SPARSE, a Delta or Corners
-   * chunk left out reads as the empty payload (a single 0).
+   * chunk left out reads as the empty payload (a single 0), a Positions chunk as zero residuals.
    */
   async chunkAt(kind: ChunkKind, frame: number, band: number): Promise<Uint8Array> {
-    const sparse = (this.flags & FLAG_SPARSE) !== 0 && (kind === ChunkKind.Delta || kind === ChunkKind.Corners);
-    if (sparse && !this.index.some((x) => x.kind === kind && x.frame === frame && x.band === band)) return new Uint8Array([0]);
+    const sparse = (this.flags & FLAG_SPARSE) !== 0 && (kind === ChunkKind.Delta || kind === ChunkKind.Corners || kind === ChunkKind.Positions);
+    // A Positions chunk left out: every residual zero (shift 0, sparse coding, no node listed).
+    if (sparse && !this.index.some((x) => x.kind === kind && x.frame === frame && x.band === band)) return new Uint8Array(kind === ChunkKind.Positions ? [64, 0] : [0]);
     return this.chunk(this.find(kind, frame, band));
+  }
+
+  /**
+   * Whether band `level`'s faces and corner updates are derived in the keyframe interval of
+   * `frame` (its keyframe's Faces chunk is coding 2), told from the index entry alone.
+   */
+  derives(frame: number, level: number): boolean {
+    if (level <= 0) return false;
+    const k = this.keyframeBefore(frame), key = k * 64 + level;
+    let d = this.derived.get(key);
+    if (d === undefined) this.derived.set(key, d = this.index.some((x) => x.frame === k && x.band === level && entryIsDerived(x)));
+    return d;
+  }
+  /** derives() by keyframe * 64 + level (levels are at most 64). */
+  private readonly derived = new Map<number, boolean>();
+
+  /**
+   * Whether a client whose finest level is `level` reads chunk `e`: readAt, and where band
+   * `level` is derived, the Triangles chunk and the Key and Delta chunks of the bands below it.
+   */
+  reads(e: ChunkEntry, level: number): boolean {
+    if (kindReadAt(e.kind, e.band, level)) return true;
+    if (e.kind === ChunkKind.Triangles) return this.index.some((x) => x.band === level && entryIsDerived(x));
+    if (e.kind === ChunkKind.Key || e.kind === ChunkKind.Delta) return e.band < level && this.derives(e.frame, level);
+    return false;
   }
 
   /** A chunk's decompressed bytes, checked against its CRC-32 and declared size. */

@@ -4,7 +4,7 @@
 // request a few frames ahead, and turns a decoded frame into render-ready buffers: the budget
 // cut's vertices, smooth normals and indices, computed once per decoded frame.
 
-import { ChunkEntry, ChunkKind, Decoder, Reader, attributeEntry, dequantizeUv, readAt, readMaterials, texturedMesh } from "../container/index.js";
+import { ChunkEntry, ChunkKind, Decoder, Reader, attributeEntry, dequantizeUv, readMaterials, texturedMesh } from "../container/index.js";
 import { buildCutMesh, morphAttributeStarts, morphStarts } from "../geomorph.js";
 import { FetchRange, RangeCache } from "./ranges.js";
 import type { ColourMode, FramePayload, LooksPayload, MaterialGroup, OpenedInfo, SkinFrame } from "./protocol.js";
@@ -138,7 +138,7 @@ export class Session {
   /** Byte ranges of what a level-L decoder reads of frame f. */
   private spans(f: number, level: number, out: [number, number][]): void {
     const base = this.container.dataStart;
-    for (const e of this.byFrame[f]) if (readAt(e.kind, e.band, level)) out.push([base + e.offset, base + e.offset + e.storedLen]);
+    for (const e of this.byFrame[f]) if (this.container.reads(e, level)) out.push([base + e.offset, base + e.offset + e.storedLen]);
   }
 
   /**
@@ -158,7 +158,8 @@ export class Session {
     if (!d || want < d.minLevel || (want > d.minLevel && (!continues || f === key))) d = this.decoder = new Decoder(c, want, { skinOffsets: this.gpuSkin });
     const from = d.frame >= key && d.frame <= f ? d.frame + 1 : key;
     const need: [number, number][] = [];
-    if (d.minLevel === 0 && this.triangles) need.push([c.dataStart + this.triangles.offset, c.dataStart + this.triangles.offset + this.triangles.storedLen]);
+    // Above level 0, an interval that derives its faces reads the triangles too.
+    if ((d.minLevel === 0 || c.derives(key, d.minLevel)) && this.triangles) need.push([c.dataStart + this.triangles.offset, c.dataStart + this.triangles.offset + this.triangles.storedLen]);
     for (let g = from; g <= f; g++) this.spans(g, d.minLevel, need);
     const ahead: [number, number][] = [];
     let passedKey = false;
