@@ -593,13 +593,20 @@ fn encode_frames<F: AsRef<[Vec3]>>(
     let held_corners: Vec<Vec<[u32; 3]>> = (0..enc.hierarchy().levels()).map(|j| enc.corners_at(j).to_vec()).collect();
     let first = Reclustered::new(&enc);
     let quadrics = head.skin.is_some() && opts.skin.is_some() && opts.skinned_coarse.is_some();
+    // Appearance is the same in every frame: its tables cover the pairs every frame's
+    // hierarchy shows, so each frame's is observed here, right after its reclustering (the
+    // coding side was the longer of the two threads by about this much on a 34,102-vertex
+    // character), and they are written once all frames are seen, after the triangles.
+    let mut looks = head.appearance.as_ref().map(|a| crate::appearance::builder(head, a, level_sizes.len()));
+    let looks_info = looks.as_ref().map(|l| l.info().clone());
     std::thread::scope(|scope| {
         let (to_coder, reclustered) = std::sync::mpsc::sync_channel::<Reclustered>(AHEAD);
         let (recycle, recycled) = std::sync::mpsc::channel::<Reclustered>();
-        let coder = scope.spawn(move || -> Result<(Vec<u8>, EncodeReport), ContainerError> {
+        let coder = scope.spawn(move || -> Result<(Header, Chunks, EncodeReport), ContainerError> {
             let (lo, hi) = bounds()?;
             let step = quantization_step(opts, lo, hi)?;
-            let header = header(head, frame_count, opts, (lo, hi), step, level_sizes);
+            let mut header = header(head, frame_count, opts, (lo, hi), step, level_sizes);
+            header.appearance = looks_info;
             code_frames(head, opts, header, held_corners, (lo, step), reclustered, recycle)
         });
         let mut spare = Some(first);
@@ -607,6 +614,9 @@ fn encode_frames<F: AsRef<[Vec3]>>(
         for (f, frame) in frames.enumerate() {
             let (delta, _) = enc.encode_frame(frame.as_ref());
             drop(frame);
+            if let Some(l) = looks.as_mut() {
+                l.observe(&enc.hierarchy().parent);
+            }
             let mut r = match spare.take().or_else(|| recycled.try_recv().ok()) {
                 Some(r) => r,
                 None => Reclustered::new(&enc),
@@ -629,7 +639,15 @@ fn encode_frames<F: AsRef<[Vec3]>>(
         if cancelled {
             return Err(ContainerError::Cancelled);
         }
-        coded
+        let (header, mut chunks, report) = coded?;
+        if let Some(l) = looks {
+            let mut after = chunks.0.split_off(1);
+            for (kind, band, raw) in crate::appearance::chunks(l)? {
+                chunks.push(kind, 0, band, raw)?;
+            }
+            chunks.0.append(&mut after);
+        }
+        Ok((assemble(&header, chunks)?, report))
     })
 }
 
@@ -638,8 +656,9 @@ fn is_keyframe(opts: &EncodeOptions, f: usize) -> bool {
     f == 0 || (opts.keyframe_interval > 0 && (f as u64).is_multiple_of(opts.keyframe_interval as u64))
 }
 
-/// The coding side of [`encode_until`]: every reclustered frame, in order, into chunks, then
-/// the file. Returns early (dropping `frames`, which stops the reclustering) on an error.
+/// The coding side of [`encode_until`]: every reclustered frame, in order, into chunks (the
+/// appearance chunks, observed on the reclustering side, are put in after). Returns early
+/// (dropping `frames`, which stops the reclustering) on an error.
 fn code_frames(
     seq: &Sequence,
     opts: &EncodeOptions,
@@ -648,12 +667,8 @@ fn code_frames(
     (lo, step): (Vec3, f32),
     frames: std::sync::mpsc::Receiver<Reclustered>,
     recycle: std::sync::mpsc::Sender<Reclustered>,
-) -> Result<(Vec<u8>, EncodeReport), ContainerError> {
+) -> Result<(Header, Chunks, EncodeReport), ContainerError> {
     let levels = header.levels();
-    // Appearance is the same in every frame: its tables cover the pairs every frame's
-    // hierarchy shows, so they are written once all frames are seen, after the triangles.
-    let mut looks = seq.appearance.as_ref().map(|a| crate::appearance::builder(seq, a, levels));
-    header.appearance = looks.as_ref().map(|l| l.info().clone());
 
     let mut chunks = Chunks(Vec::new(), opts.chunk_flags & crate::format::FLAGS);
     chunks.push(ChunkKind::Triangles, 0, 0, payload::write_triangles(&seq.triangles, VERSION))?;
@@ -674,9 +689,6 @@ fn code_frames(
     let mut corners: Vec<(u32, [u32; 3])> = Vec::new();
     for r in frames {
         let (f, delta, h, positions) = (r.frame, &r.delta, &r.h, &r.positions);
-        if let Some(l) = looks.as_mut() {
-            l.observe(&h.parent);
-        }
         if let (0, Some((input, placement))) = (f, skin_input) {
             // The skeleton once, before the first frame, top band first.
             let fit = fit_skin(input, h, positions, (lo, step), placement)?;
@@ -752,14 +764,7 @@ fn code_frames(
         // The reclustering side may have finished: then there is nothing to refill.
         let _ = recycle.send(r);
     }
-    if let Some(l) = looks {
-        let mut after = chunks.0.split_off(1);
-        for (kind, band, raw) in crate::appearance::chunks(l)? {
-            chunks.push(kind, 0, band, raw)?;
-        }
-        chunks.0.append(&mut after);
-    }
-    Ok((assemble(&header, chunks)?, std::mem::take(&mut coder.report)))
+    Ok((header, chunks, std::mem::take(&mut coder.report)))
 }
 
 /// Band j's pose chunk (carrying palette `entries`) in the coding the options ask for, against
