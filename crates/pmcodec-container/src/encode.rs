@@ -74,6 +74,12 @@ pub struct EncodeOptions {
     /// How a skinned file codes each frame's palette: Joints chunks (the default) or the
     /// Palette chunks files had before them (kept for comparison and for tests of readers).
     pub palette_coding: PaletteCoding,
+    /// For a skinned sequence predicted by skinning, recluster (Kircher & Garland section 4)
+    /// only every this many frames; the frames between keep their clusters and move their
+    /// nodes (0 or 1: every frame). Where the motion is the skin's, clusters fitted to one pose
+    /// stay good for the next few, and the swap search is the larger part of the reclustering
+    /// thread's work (issue 17, "Encode cost").
+    pub skinned_recluster_every: u32,
 }
 
 /// The chunk kind a skinned file's palettes are written in (proto/container.md, "Palette" and
@@ -121,6 +127,7 @@ impl Default for EncodeOptions {
             skinned_coarse: Some(SkinnedCoarse::default()),
             chunk_flags: crate::format::FLAGS,
             palette_coding: PaletteCoding::Joints,
+            skinned_recluster_every: 1,
         }
     }
 }
@@ -611,7 +618,13 @@ fn encode_frames<F: AsRef<[Vec3]>>(
         });
         let mut spare = Some(first);
         let mut cancelled = false;
+        let every = if head.skin.is_some() && opts.skin.is_some() { opts.skinned_recluster_every.max(1) as usize } else { 1 };
+        let budget = opts.recluster.max_swaps_per_frame;
         for (f, frame) in frames.enumerate() {
+            if every > 1 {
+                // A swap budget of 0 skips the swap search; node positions still follow the frame.
+                enc.recluster_options_mut().max_swaps_per_frame = if f % every == 0 { budget } else { 0 };
+            }
             let (delta, _) = enc.encode_frame(frame.as_ref());
             drop(frame);
             if let Some(l) = looks.as_mut() {

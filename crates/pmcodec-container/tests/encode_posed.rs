@@ -87,3 +87,24 @@ fn frames_outside_the_bounds_or_missing_are_errors() {
     let e = encode_posed(&head, n, sampler.frames(1), || Err(ContainerError::Options("no bounds".into())), &options(), go).unwrap_err();
     assert!(e.to_string().contains("no bounds"), "{e}");
 }
+
+#[test]
+fn a_skinned_sequence_reclustered_every_fourth_frame_swaps_only_there() {
+    let rig = character(6);
+    let seq = rig.to_sequence_with(Some(0), 20.0, &InputLimits::default()).unwrap();
+    // Frames (and bands) whose Delta chunk carries swaps.
+    let swapped = |every: u32| -> Vec<u32> {
+        let opts = EncodeOptions { skinned_recluster_every: every, keyframe_interval: 0, ..options() };
+        let bytes = pmcodec_container::encode(&seq, &opts, |_| {}).unwrap();
+        let r = pmcodec_container::Reader::open(bytes.as_slice()).unwrap();
+        let mut frames: Vec<u32> =
+            r.index().chunks.iter().filter(|e| e.kind == pmcodec_container::ChunkKind::Delta && e.raw_len > 1).map(|e| e.frame).collect();
+        frames.dedup();
+        frames
+    };
+    let every_frame = swapped(1);
+    assert!(every_frame.iter().any(|f| f % 4 != 0), "reclustering every frame swaps between the fourth frames: {every_frame:?}");
+    let fourth = swapped(4);
+    assert!(!fourth.is_empty());
+    assert!(fourth.iter().all(|f| f % 4 == 0), "{fourth:?}");
+}

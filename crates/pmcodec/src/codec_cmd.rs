@@ -112,6 +112,10 @@ pub struct EncodeArgs {
     pub base_weights: WeightsArg,
     #[command(flatten)]
     pub recluster: ReclusterArgs,
+    /// For a skinned input predicted by skinning, recluster only every N frames (the frames
+    /// between keep their clusters; their nodes still move).
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub skinned_recluster_every: u32,
 }
 
 /// The reclustering flags `encode` and `eval` share; a flag left out keeps the library's
@@ -386,6 +390,7 @@ pub fn encode_options(args: &EncodeArgs) -> Result<EncodeOptions, Exit> {
         WeightsArg::Smooth => VertexWeights::Smooth,
     };
     opts.recluster = args.recluster.options()?;
+    opts.skinned_recluster_every = args.skinned_recluster_every;
     opts.quantization = match (args.max_error, args.quant_bits) {
         (_, Some(b)) => QuantizationChoice::Bits(b),
         (Some(e), None) => QuantizationChoice::MaxError(e),
