@@ -98,6 +98,15 @@ ROWS = [
         + f" && target/release/examples/encode_speed {BIN} {DATA}/horse-gallop 5"
         + f" && target/release/examples/encode_speed {BIN} target/benchmarks/made/horse-sub4 1",
         r"^(encode|meshoptimizer)|ms/frame|vertices;"),
+    # Issue 17's encode-cost bar (under 10 s and 200 MB): a character of the issue's size made
+    # by code (crates/pmcodec-mesh/src/samples/character.rs), its frames posed as the encoder
+    # asks for them.
+    Row("encode-big-character", "issue 17's encode cost: a generated skinned character (59 parts, 34,102 vertices, one skeleton of 57 joints, 35 s at 30 fps, 1,051 frames): the whole `pmcodec encode` process's wall time and peak RSS (bars 10 s, 200 MB), the .pmc's bytes beside the GLB's, and the load average before the run",
+        "mkdir -p target/benchmarks && "
+        + example("pmcodec-mesh", "make_character", "target/benchmarks/big-character.glb")
+        + " && wc -c < target/benchmarks/big-character.glb | sed 's/^/GLB bytes /' && sed 's/^/load average /' /proc/loadavg"
+        + f" && /usr/bin/time -f 'encode: wall %e s, peak RSS %M KiB' {BIN} encode target/benchmarks/big-character.glb -o target/benchmarks/big-character.pmc 2>&1",
+        r"^(GLB bytes|load average|encode:)|bytes;"),
     Row("encode", "container encode, horse, 48 frames (median)",
         divan("container", "encode_horse"), r".", divan=True),
     Row("decode", "container decode, horse, 48 frames, one core, by band-0 motion; decoded and cut at 2,000 triangles every frame by a level-0 / level-1 decoder (median)",

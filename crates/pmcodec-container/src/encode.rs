@@ -80,6 +80,12 @@ pub struct EncodeOptions {
     /// coding 2). `Always` (the default) writes the smallest file; `Never` writes them all, as
     /// files before the derived coding did.
     pub derived_topology: DerivedTopology,
+    /// For a skinned sequence predicted by skinning, recluster (Kircher & Garland section 4)
+    /// only every this many frames; the frames between keep their clusters and move their
+    /// nodes (0 or 1: every frame). Where the motion is the skin's, clusters fitted to one pose
+    /// stay good for the next few, and the swap search is the larger part of the reclustering
+    /// thread's work (issue 17, "Encode cost").
+    pub skinned_recluster_every: u32,
 }
 
 /// The chunk kind a skinned file's palettes are written in (proto/container.md, "Palette" and
@@ -128,6 +134,7 @@ impl Default for EncodeOptions {
             chunk_flags: crate::format::FLAGS,
             palette_coding: PaletteCoding::Joints,
             derived_topology: DerivedTopology::Always,
+            skinned_recluster_every: 1,
         }
     }
 }
@@ -457,6 +464,98 @@ pub fn encode_stream<E: Send>(
     }
 }
 
+/// Encodes a sequence whose frames are made when the encoder asks for them (a skinned glTF's
+/// frames posed from its skeleton, [`pmcodec_mesh::gltf_input::FrameSampler`]) and whose
+/// bounding box a cheaper pass gives (posing every frame without keeping it): `head` holds
+/// frame 0 (with the triangles, appearance, skin and every frame's name), `rest` makes frames
+/// 1.. (`frame_count` in all) and `bounds` the box of them all. The bytes are those
+/// [`encode_with_report`] writes for the whole sequence.
+///
+/// Unlike [`encode_stream`], nothing queues: the quantization grid comes from `bounds`, which
+/// runs on a thread of its own beside the base hierarchy's build, so each frame is made as the
+/// reclustering reaches it and dropped once reclustered, and the frames held at once are the
+/// few the coding side is behind ([`FRAMES_AHEAD`] at most, besides the one reclustered).
+/// A frame outside `bounds` (a bounds pass that disagrees with the frames) is an error, and
+/// nothing is returned.
+///
+/// With base poses other than the first frame, the base hierarchy needs every frame: `rest` is
+/// collected first.
+pub fn encode_posed(
+    head: &Sequence,
+    frame_count: usize,
+    rest: impl Iterator<Item = Vec<Vec3>>,
+    bounds: impl FnOnce() -> Result<(Vec3, Vec3), ContainerError> + Send,
+    opts: &EncodeOptions,
+    progress: impl FnMut(usize) -> ControlFlow<()>,
+) -> Result<(Vec<u8>, EncodeReport), ContainerError> {
+    if opts.base.poses != PoseSet::FirstFrame || head.frames.len() != 1 {
+        let mut seq = head.clone();
+        seq.frames.extend(rest);
+        return encode_with_report(&seq, opts, progress);
+    }
+    head.validate()?;
+    let (lo0, hi0) = head.bounds().ok_or_else(|| ContainerError::Options("empty sequence".into()))?;
+    // An option out of range is refused before any work, as the whole sequence's would be.
+    quantization_step(opts, lo0, hi0)?;
+    let n = head.vertex_count();
+    // The frames' own box, and the first bad frame, seen as the reclustering takes them.
+    let seen = std::cell::Cell::new((lo0, hi0));
+    let bad = std::cell::RefCell::new(None);
+    let mut made = 1;
+    let checked = rest.take(frame_count.saturating_sub(1)).enumerate().map_while(|(i, p)| {
+        made += 1;
+        match check_frame(head, i + 1, n, &p) {
+            Ok(()) => {
+                if let Some((a, b)) = pmcodec_mesh::bounds_of(&p) {
+                    let (lo, hi) = seen.get();
+                    seen.set((lo.min(a), hi.max(b)));
+                }
+                Some(std::borrow::Cow::Owned(p))
+            }
+            Err(e) => {
+                *bad.borrow_mut() = Some(e);
+                None
+            }
+        }
+    });
+    let first = std::borrow::Cow::Borrowed(head.frames[0].as_slice());
+    let all = std::iter::once(first).chain(checked);
+    let given = std::sync::Mutex::new(None);
+    let out = std::thread::scope(|scope| {
+        let given = &given;
+        // The bounds pass starts now, beside the base hierarchy's build; the coding side
+        // waits for it before its first frame.
+        let pass = scope.spawn(bounds);
+        let joined = move || {
+            let b = match pass.join() {
+                Ok(b) => b?,
+                Err(panic) => std::panic::resume_unwind(panic),
+            };
+            if let Ok(mut slot) = given.lock() {
+                *slot = Some(b);
+            }
+            Ok(b)
+        };
+        encode_frames(head, frame_count, all, joined, opts, progress)
+    });
+    if let Some(e) = bad.into_inner() {
+        return Err(e);
+    }
+    let out = out?;
+    if made != frame_count {
+        return Err(ContainerError::Options(format!("{made} frames made where the sequence has {frame_count}")));
+    }
+    let (lo, hi) = seen.get();
+    match given.into_inner().ok().flatten() {
+        Some((glo, ghi)) if glo.cmple(lo).all() && hi.cmple(ghi).all() => Ok(out),
+        b => Err(ContainerError::Options(format!("the frames span {lo}..{hi}, outside the bounds given ({b:?})"))),
+    }
+}
+
+/// Frames the reclustering runs ahead of the coding side at most (so at most these many
+/// reclustered frames' hierarchies and positions are held besides the one being made).
+pub const FRAMES_AHEAD: usize = AHEAD;
+
 /// Frame `f` of a streamed sequence checked as [`Sequence::validate`] checks every frame.
 fn check_frame(head: &Sequence, f: usize, n: usize, p: &[Vec3]) -> Result<(), ContainerError> {
     let label = || match head.frame_names.get(f) {
@@ -516,20 +615,36 @@ fn encode_frames<F: AsRef<[Vec3]>>(
     let held_corners: Vec<Vec<[u32; 3]>> = (0..enc.hierarchy().levels()).map(|j| enc.corners_at(j).to_vec()).collect();
     let first = Reclustered::new(&enc);
     let quadrics = head.skin.is_some() && opts.skin.is_some() && opts.skinned_coarse.is_some();
+    // Appearance is the same in every frame: its tables cover the pairs every frame's
+    // hierarchy shows, so each frame's is observed here, right after its reclustering (the
+    // coding side was the longer of the two threads by about this much on a 34,102-vertex
+    // character), and they are written once all frames are seen, after the triangles.
+    let mut looks = head.appearance.as_ref().map(|a| crate::appearance::builder(head, a, level_sizes.len()));
+    let looks_info = looks.as_ref().map(|l| l.info().clone());
     std::thread::scope(|scope| {
         let (to_coder, reclustered) = std::sync::mpsc::sync_channel::<Reclustered>(AHEAD);
         let (recycle, recycled) = std::sync::mpsc::channel::<Reclustered>();
-        let coder = scope.spawn(move || -> Result<(Vec<u8>, EncodeReport), ContainerError> {
+        let coder = scope.spawn(move || -> Result<(Header, Chunks, EncodeReport), ContainerError> {
             let (lo, hi) = bounds()?;
             let step = quantization_step(opts, lo, hi)?;
-            let header = header(head, frame_count, opts, (lo, hi), step, level_sizes);
+            let mut header = header(head, frame_count, opts, (lo, hi), step, level_sizes);
+            header.appearance = looks_info;
             code_frames(head, opts, header, held_corners, (lo, step), reclustered, recycle)
         });
         let mut spare = Some(first);
         let mut cancelled = false;
+        let every = if head.skin.is_some() && opts.skin.is_some() { opts.skinned_recluster_every.max(1) as usize } else { 1 };
+        let budget = opts.recluster.max_swaps_per_frame;
         for (f, frame) in frames.enumerate() {
+            if every > 1 {
+                // A swap budget of 0 skips the swap search; node positions still follow the frame.
+                enc.recluster_options_mut().max_swaps_per_frame = if f % every == 0 { budget } else { 0 };
+            }
             let (delta, _) = enc.encode_frame(frame.as_ref());
             drop(frame);
+            if let Some(l) = looks.as_mut() {
+                l.observe(&enc.hierarchy().parent);
+            }
             let mut r = match spare.take().or_else(|| recycled.try_recv().ok()) {
                 Some(r) => r,
                 None => Reclustered::new(&enc),
@@ -552,7 +667,15 @@ fn encode_frames<F: AsRef<[Vec3]>>(
         if cancelled {
             return Err(ContainerError::Cancelled);
         }
-        coded
+        let (header, mut chunks, report) = coded?;
+        if let Some(l) = looks {
+            let mut after = chunks.0.split_off(1);
+            for (kind, band, raw) in crate::appearance::chunks(l)? {
+                chunks.push(kind, 0, band, raw)?;
+            }
+            chunks.0.append(&mut after);
+        }
+        Ok((assemble(&header, chunks)?, report))
     })
 }
 
@@ -561,8 +684,9 @@ fn is_keyframe(opts: &EncodeOptions, f: usize) -> bool {
     f == 0 || (opts.keyframe_interval > 0 && (f as u64).is_multiple_of(opts.keyframe_interval as u64))
 }
 
-/// The coding side of [`encode_until`]: every reclustered frame, in order, into chunks, then
-/// the file. Returns early (dropping `frames`, which stops the reclustering) on an error.
+/// The coding side of [`encode_until`]: every reclustered frame, in order, into chunks (the
+/// appearance chunks, observed on the reclustering side, are put in after). Returns early
+/// (dropping `frames`, which stops the reclustering) on an error.
 fn code_frames(
     seq: &Sequence,
     opts: &EncodeOptions,
@@ -571,12 +695,8 @@ fn code_frames(
     (lo, step): (Vec3, f32),
     frames: std::sync::mpsc::Receiver<Reclustered>,
     recycle: std::sync::mpsc::Sender<Reclustered>,
-) -> Result<(Vec<u8>, EncodeReport), ContainerError> {
+) -> Result<(Header, Chunks, EncodeReport), ContainerError> {
     let levels = header.levels();
-    // Appearance is the same in every frame: its tables cover the pairs every frame's
-    // hierarchy shows, so they are written once all frames are seen, after the triangles.
-    let mut looks = seq.appearance.as_ref().map(|a| crate::appearance::builder(seq, a, levels));
-    header.appearance = looks.as_ref().map(|l| l.info().clone());
 
     let mut chunks = Chunks(Vec::new(), opts.chunk_flags & crate::format::FLAGS);
     chunks.push(ChunkKind::Triangles, 0, 0, payload::write_triangles(&seq.triangles, VERSION))?;
@@ -597,9 +717,6 @@ fn code_frames(
     let mut corners: Vec<(u32, [u32; 3])> = Vec::new();
     for r in frames {
         let (f, delta, h, positions) = (r.frame, &r.delta, &r.h, &r.positions);
-        if let Some(l) = looks.as_mut() {
-            l.observe(&h.parent);
-        }
         if let (0, Some((input, placement))) = (f, skin_input) {
             // The skeleton once, before the first frame, top band first.
             // Coarse levels keep fewer joints only where coarse nodes may sit at their skinned
@@ -616,10 +733,12 @@ fn code_frames(
         }
         let intra = header.is_keyframe(f as u32);
         if let Some(fit) = &skin {
+            // The header's count: a streamed sequence's head holds frame 0 only.
+            let frames_total = header.frame_count as usize;
             palette = match opts.palette_coding {
                 PaletteCoding::Joints => {
                     let next = (f / header.keyframe_interval.max(1) as usize + 1) * header.keyframe_interval as usize;
-                    let until = if header.keyframe_interval == 0 { seq.frame_count() } else { next.min(seq.frame_count()) };
+                    let until = if header.keyframe_interval == 0 { frames_total } else { next.min(frames_total) };
                     fit.joints_linked(f, &held, intra, &bands, until)?
                 }
                 _ => fit.joints(f, &held, intra)?,
@@ -677,14 +796,7 @@ fn code_frames(
         let _ = recycle.send(r);
     }
     derive_bands(&mut chunks, header.keyframe_interval, opts.derived_topology)?;
-    if let Some(l) = looks {
-        let mut after = chunks.0.split_off(1);
-        for (kind, band, raw) in crate::appearance::chunks(l)? {
-            chunks.push(kind, 0, band, raw)?;
-        }
-        chunks.0.append(&mut after);
-    }
-    Ok((assemble(&header, chunks)?, std::mem::take(&mut coder.report)))
+    Ok((header, chunks, std::mem::take(&mut coder.report)))
 }
 
 /// Leaves the faces and corner updates of the bands `policy` derives to their readers

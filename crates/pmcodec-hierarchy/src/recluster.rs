@@ -156,6 +156,12 @@ impl Reclusterer {
         &self.opts
     }
 
+    /// The options, to change between frames (an encoder reclustering only some frames sets
+    /// the swap budget of the others to 0).
+    pub fn options_mut(&mut self) -> &mut ReclusterOptions {
+        &mut self.opts
+    }
+
     /// The fine mesh's topology.
     pub fn topology(&self) -> &FineTopology {
         &self.topo

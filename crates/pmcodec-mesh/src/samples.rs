@@ -2,9 +2,11 @@
 //! deforming meshes without any third-party file: a tube that bends and twists, and a cloth
 //! sheet waving in the wind. Deterministic: the same arguments give the same bytes.
 
+mod character;
 mod textured;
 
 use crate::Sequence;
+pub use character::{CharacterOptions, skinned_character};
 use glam::{Quat, Vec3};
 use std::f32::consts::{PI, TAU};
 pub use textured::{checkerboard_png, png_rgba, textured_cloth};

@@ -6,10 +6,12 @@ use anyhow::{Context, anyhow};
 use clap::{Args, ValueEnum};
 use pmcodec_container::{
     ContainerError, DerivedTopology, EncodeOptions, FileSource, Motion, QuantizationChoice, Reader, SkinPlacement, SkinnedCoarse,
-    StreamError, VertexOrder, encode, encode_stream, encode_with_report, summary, write_file,
+    StreamError, VertexOrder, encode, encode_posed, encode_stream, encode_with_report, summary, write_file,
 };
 use pmcodec_hierarchy::base::{PoseSet, VertexWeights};
 use pmcodec_hierarchy::recluster::ReclusterOptions;
+use pmcodec_mesh::InputLimits;
+use pmcodec_mesh::gltf_input::{AnimationSelector, FrameSampler, RiggedMesh};
 use pmcodec_mesh::skin_fit::{FitOptions, MAX_BONES, fit_skin};
 use serde::Serialize;
 use std::ops::ControlFlow;
@@ -123,6 +125,10 @@ pub struct EncodeArgs {
     pub base_weights: WeightsArg,
     #[command(flatten)]
     pub recluster: ReclusterArgs,
+    /// For a skinned input predicted by skinning, recluster only every N frames (the frames
+    /// between keep their clusters; their nodes still move).
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub skinned_recluster_every: u32,
 }
 
 /// The reclustering flags `encode` and `eval` share; a flag left out keeps the library's
@@ -279,9 +285,14 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
         return Err(Exit(2, anyhow!("--fit-skin with --skin none: a fitted skin is only used for prediction by skinning")));
     }
     // OBJ frames after the first are parsed on a thread of their own while the encoder works;
-    // a skin fit needs every frame first.
-    let (mut seq, rest) =
-        if fit_bones.is_some() { (input::load(&args.input, &args.input_args)?, None) } else { input::open(&args.input, &args.input_args)? };
+    // glTF frames are posed as the encoder asks for them; a skin fit needs every frame first.
+    let rig = if fit_bones.is_some() { None } else { open_rig(&args.input, &args.input_args)? };
+    let sampler = rig.as_ref().map(|(rig, animation)| posed(rig, *animation, &args.input, &args.input_args)).transpose()?;
+    let (mut seq, rest) = match &sampler {
+        Some((_, head)) => (head.clone(), None),
+        None if fit_bones.is_some() => (input::load(&args.input, &args.input_args)?, None),
+        None => input::open(&args.input, &args.input_args)?,
+    };
     let mut fitted = None;
     if let Some(bones) = fit_bones {
         if seq.skin.is_some() && !quiet {
@@ -302,7 +313,7 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
     let opts = encode_options(&args)?;
     let encoding = Instant::now();
     let what = || format!("encoding {}", args.input.display());
-    let frames = if rest.is_some() { seq.frame_names.len() } else { seq.frame_count() };
+    let frames = if rest.is_some() || sampler.is_some() { seq.frame_names.len() } else { seq.frame_count() };
     let bar = progress(frames as u64 * (1 + fitted.is_some() as u64), "encode", quiet || args.json);
     let mut fitted_out = None;
     // What the encoder refuses is the input or an option value out of range: bad input.
@@ -311,7 +322,7 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
         fitted_out = Some(out);
         bytes
     } else {
-        encode_read(&seq, rest, frames, &opts, &bar, &args.input)?
+        encode_read(&seq, (rest, sampler.as_ref().map(|s| &s.0)), frames, &opts, &bar, &args.input)?
     };
     bar.finish_and_clear();
     let encode_seconds = encoding.elapsed().as_secs_f64();
@@ -405,6 +416,7 @@ pub fn encode_options(args: &EncodeArgs) -> Result<EncodeOptions, Exit> {
         WeightsArg::Smooth => VertexWeights::Smooth,
     };
     opts.recluster = args.recluster.options()?;
+    opts.skinned_recluster_every = args.skinned_recluster_every;
     opts.quantization = match (args.max_error, args.quant_bits) {
         (_, Some(b)) => QuantizationChoice::Bits(b),
         (Some(e), None) => QuantizationChoice::MaxError(e),
@@ -413,17 +425,66 @@ pub fn encode_options(args: &EncodeArgs) -> Result<EncodeOptions, Exit> {
     Ok(opts)
 }
 
+/// A glTF input opened to be posed frame by frame: the welded rig and the animation to
+/// sample (as `input::load` chooses it); `None` for other input.
+fn open_rig(path: &Path, args: &InputArgs) -> Result<Option<(RiggedMesh, Option<usize>)>, Exit> {
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    if ext != "glb" && ext != "gltf" {
+        return Ok(None);
+    }
+    let bad = |e: pmcodec_mesh::MeshError| Exit(EXIT_BAD_INPUT, anyhow::Error::new(e).context(format!("reading {}", path.display())));
+    let mut rig = RiggedMesh::from_path_with(path, &InputLimits::default()).map_err(bad)?;
+    rig.weld();
+    let animation = match &args.animation {
+        Some(a) => Some(
+            rig.find_animation(&match a.parse::<usize>() {
+                Ok(i) => AnimationSelector::Index(i),
+                Err(_) => AnimationSelector::Name(a.clone()),
+            })
+            .map_err(bad)?,
+        ),
+        None => (!rig.animations.is_empty()).then_some(0),
+    };
+    Ok(Some((rig, animation)))
+}
+
+/// The sampler of `rig`'s `animation` at the input's frame rate and the sequence's head (frame
+/// 0, the skin and every frame's name), under the default input limits.
+fn posed<'a>(
+    rig: &'a RiggedMesh,
+    animation: Option<usize>,
+    path: &Path,
+    args: &InputArgs,
+) -> Result<(FrameSampler<'a>, pmcodec_mesh::Sequence), Exit> {
+    let bad = |e: pmcodec_mesh::MeshError| Exit(EXIT_BAD_INPUT, anyhow::Error::new(e).context(format!("reading {}", path.display())));
+    let sampler = rig.sampler(animation, args.fps, &InputLimits::default()).map_err(bad)?;
+    let head = sampler.head().map_err(bad)?;
+    Ok((sampler, head))
+}
+
 /// Encodes `seq`, whose frames after the first `rest` reads while the encoder works (OBJ
-/// input), or which holds every frame.
+/// input) or the sampler poses as the encoder asks for them (glTF input, against the bounds of
+/// a posing pass of their own: no frame is held beyond the few being encoded), or which holds
+/// every frame.
 fn encode_read(
     seq: &pmcodec_mesh::Sequence,
-    rest: Option<pmcodec_mesh::obj::ObjFrames>,
+    (rest, sampler): (Option<pmcodec_mesh::obj::ObjFrames>, Option<&FrameSampler>),
     frames: usize,
     opts: &EncodeOptions,
     bar: &indicatif::ProgressBar,
     input: &Path,
 ) -> Result<Vec<u8>, Exit> {
     let what = || format!("encoding {}", input.display());
+    if let Some(sampler) = sampler {
+        let bounds = || sampler.bounds().map_err(ContainerError::from);
+        let progress = |_| {
+            bar.inc(1);
+            ControlFlow::Continue(())
+        };
+        return encode_posed(seq, frames, sampler.frames(1), bounds, opts, progress)
+            .map(|(bytes, _)| bytes)
+            .map_err(|e| container_error(e, what()));
+    }
     Ok(match rest {
         Some(rest) => encode_stream(seq, frames, rest, opts, |_| {
             bar.inc(1);

@@ -30,6 +30,11 @@ impl Encoder {
         enc
     }
 
+    /// The reclustering options, to change between frames.
+    pub fn recluster_options_mut(&mut self) -> &mut ReclusterOptions {
+        self.recluster.options_mut()
+    }
+
     /// The current hierarchy H_f.
     pub fn hierarchy(&self) -> &Hierarchy {
         self.recluster.hierarchy()

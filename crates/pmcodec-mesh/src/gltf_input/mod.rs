@@ -74,6 +74,7 @@ mod looks;
 mod looks_raw;
 mod meshopt;
 mod rigged;
+mod sampler;
 mod scene;
 #[cfg(test)]
 mod tests;
@@ -85,6 +86,7 @@ use self::file::*;
 use self::looks::*;
 use self::meshopt::*;
 pub use self::rigged::*;
+pub use self::sampler::FrameSampler;
 use self::scene::*;
 
 // ------------------------------------------------------------------------------------------------

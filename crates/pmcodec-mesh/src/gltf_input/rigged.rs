@@ -204,6 +204,17 @@ impl RiggedMesh {
     /// [`RiggedMesh::to_sequence`] under the given limits on frames and frames times vertices,
     /// checked before any frame is sampled.
     pub fn to_sequence_with(&self, animation: Option<usize>, frame_rate: f32, limits: &InputLimits) -> Result<Sequence, MeshError> {
+        let sampler = self.sampler(animation, frame_rate, limits)?;
+        let mut seq = sampler.head_unchecked();
+        seq.frames.extend(sampler.frames(1));
+        seq.validate()?;
+        Ok(seq)
+    }
+
+    /// The frames of `animation` (as [`RiggedMesh::to_sequence_with`] samples them, under the
+    /// same checks) made one at a time when asked for, so that a long animation never holds
+    /// every frame's positions at once: see [`FrameSampler`].
+    pub fn sampler(&self, animation: Option<usize>, frame_rate: f32, limits: &InputLimits) -> Result<FrameSampler<'_>, MeshError> {
         if !(frame_rate.is_finite() && frame_rate > 0.0) {
             return Err(MeshError::Invalid(format!("frame rate {frame_rate} is not a positive number")));
         }
@@ -224,19 +235,8 @@ impl RiggedMesh {
         }
         let label = anim.map_or_else(|| "rest".to_string(), Animation::label);
         limits.check_positions(count, n, &format!("animation {label}, {duration} s at {frame_rate} frames per second"))?;
-        let mut seq = Sequence { triangles: self.triangles.clone(), frame_rate, source: self.source.clone(), ..Default::default() };
-        for i in 0..count {
-            let t = i as f32 / frame_rate;
-            seq.frames.push(self.pose(anim, t));
-            seq.frame_names.push(format!("{label}@{t:.3}s"));
-        }
-        seq.morph_displacement = self.morph_displacement();
-        seq.skin = crate::skin::sequence_skin(self, anim, &(0..count).map(|i| i as f32 / frame_rate).collect::<Vec<_>>());
-        seq.appearance.clone_from(&self.appearance);
-        seq.validate()?;
-        Ok(seq)
+        Ok(FrameSampler { rig: self, animation: anim, frame_rate, count, label })
     }
-
     /// Per vertex, the summed length of its morph deltas over all targets (the distance to the
     /// neutral shape, as Berner and Rieger weigh vertices); empty when no instance has targets.
     pub fn morph_displacement(&self) -> Vec<f32> {
@@ -308,9 +308,17 @@ impl RiggedMesh {
     /// Positions of every vertex at time `t` (seconds) of `animation`, or in the rest pose for
     /// `None`. Channels naming nodes this mesh does not have are ignored.
     pub fn pose(&self, animation: Option<&Animation>, t: f32) -> Vec<Vec3> {
+        let mut out = Vec::new();
+        self.pose_into(animation, t, &mut out);
+        out
+    }
+
+    /// [`RiggedMesh::pose`] into `out` (resized to the vertex count), reusing its allocation.
+    pub fn pose_into(&self, animation: Option<&Animation>, t: f32, out: &mut Vec<Vec3>) {
         let PoseTransforms { world, joints: joint_matrices, morph: weights } = self.pose_transforms(animation, t);
         let world_of = |n: usize| world.get(n).copied().unwrap_or(Mat4::IDENTITY);
-        let mut out = vec![Vec3::ZERO; self.vertex_count()];
+        out.clear();
+        out.resize(self.vertex_count(), Vec3::ZERO);
         for (inst, morph) in self.instances.iter().zip(&weights) {
             let rigid = world_of(inst.node);
             let skin = inst.skin.and_then(|s| joint_matrices.get(s));
@@ -338,7 +346,6 @@ impl RiggedMesh {
                 };
             }
         }
-        out
     }
 
     /// Merges vertices that are equal in every pose and drops the triangles that then repeat a
