@@ -98,6 +98,10 @@ ROWS = [
         + f" && target/release/examples/encode_speed {BIN} {DATA}/horse-gallop 5"
         + f" && target/release/examples/encode_speed {BIN} target/benchmarks/made/horse-sub4 1",
         r"^(encode|meshoptimizer)|ms/frame|vertices;"),
+    Row("encode-speed-fit", "the same with a fitted skin (`encode --fit-skin`: Le & Deng's SSDR, then the encode), horse and samba, beside meshoptimizer in the same run (issue 19's encoder bar)",
+        example("pmcodec-eval", "encode_speed", f"{BIN} {DATA}/horse-gallop 3 -- --fit-skin --quant-bits 12")
+        + f" && target/release/examples/encode_speed {BIN} {DATA}/samba-60 3 -- --fit-skin --quant-bits 12",
+        r"^(encode|meshoptimizer)|ms/frame|vertices;"),
     Row("encode", "container encode, horse, 48 frames (median)",
         divan("container", "encode_horse"), r".", divan=True),
     Row("decode", "container decode, horse, 48 frames, one core, by band-0 motion; decoded and cut at 2,000 triangles every frame by a level-0 / level-1 decoder (median)",
