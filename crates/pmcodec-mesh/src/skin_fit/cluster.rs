@@ -39,17 +39,20 @@ pub fn centroids(rest: &[DVec3], labels: &[u32], bones: usize) -> Vec<(u32, DVec
 pub fn near_bones(points: &[DVec3], centroids: &[(u32, DVec3)]) -> Vec<Vec<u32>> {
     points
         .par_iter()
-        .map_init(|| Vec::with_capacity(centroids.len()), |scored: &mut Vec<(f64, u32)>, p| {
-            scored.clear();
-            scored.extend(centroids.iter().map(|&(b, c)| (c.distance_squared(*p), b)));
-            let m = NEAR_BONES.min(scored.len());
-            if m < scored.len() {
-                scored.select_nth_unstable_by(m, |a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            }
-            let near = &mut scored[..m];
-            near.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            near.iter().map(|s| s.1).collect()
-        })
+        .map_init(
+            || Vec::with_capacity(centroids.len()),
+            |scored: &mut Vec<(f64, u32)>, p| {
+                scored.clear();
+                scored.extend(centroids.iter().map(|&(b, c)| (c.distance_squared(*p), b)));
+                let m = NEAR_BONES.min(scored.len());
+                if m < scored.len() {
+                    scored.select_nth_unstable_by(m, |a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                }
+                let near = &mut scored[..m];
+                near.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                near.iter().map(|s| s.1).collect()
+            },
+        )
         .collect()
 }
 

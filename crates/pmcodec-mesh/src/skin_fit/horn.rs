@@ -126,14 +126,10 @@ fn largest_eigenvector(n: &[[f64; 4]; 4]) -> Option<[f64; 4]> {
 /// The determinant of `a` without row `skip_row` and column `skip_col`.
 fn minor3(a: &[[f64; 4]; 4], skip_row: usize, skip_col: usize) -> f64 {
     let mut m = [[0.0; 3]; 3];
-    let mut r = 0;
-    for i in (0..4).filter(|&i| i != skip_row) {
-        let mut c = 0;
-        for j in (0..4).filter(|&j| j != skip_col) {
+    for (r, i) in (0..4).filter(|&i| i != skip_row).enumerate() {
+        for (c, j) in (0..4).filter(|&j| j != skip_col).enumerate() {
             m[r][c] = a[i][j];
-            c += 1;
         }
-        r += 1;
     }
     m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
         + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])

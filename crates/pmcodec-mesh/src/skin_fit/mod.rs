@@ -239,7 +239,10 @@ fn main_bones(fit: &Fit) -> Vec<u32> {
 
 /// Each vertex's squared error under `fit`, summed over the frames of `data`.
 fn errors(data: &Data, fit: &Fit) -> Vec<f64> {
-    (0..data.len()).into_par_iter().map(|i| (0..data.frames.len()).map(|fi| data.at(fi, i).distance_squared(fit.pose(data, fi, i))).sum()).collect()
+    (0..data.len())
+        .into_par_iter()
+        .map(|i| (0..data.frames.len()).map(|fi| data.at(fi, i).distance_squared(fit.pose(data, fi, i))).sum())
+        .collect()
 }
 
 /// SSDR's alternation on `data` from `fit`: weights, then transforms, until an alternation
@@ -257,7 +260,7 @@ fn alternate(data: &Data, mut fit: Fit, opts: &FitOptions, trace: &mut Trace) ->
         fit.influences = (0..data.len())
             .into_par_iter()
             .map(|i| {
-                let c = weights::candidates(data, i, &fit.transforms, fit.bones, k, &near[i], &all, &fit.influences[i]);
+                let c = weights::candidates(data, i, &fit.transforms, k, &near[i], &all, &fit.influences[i]);
                 weights::solve_vertex(data, i, &fit.transforms, fit.bones, c.as_slice())
             })
             .collect();
@@ -313,7 +316,7 @@ fn finish(seq: &Sequence, fit_ids: &[usize], data: &Data, fit: &Fit, opts: &FitO
         (0..everything.len())
             .into_par_iter()
             .map(|v| {
-                let c = weights::candidates(&everything, v, transforms, bones, k, &near[v], &data.frames, &keep(v));
+                let c = weights::candidates(&everything, v, transforms, k, &near[v], &data.frames, &keep(v));
                 weights::solve_vertex(&everything, v, transforms, bones, c.as_slice())
             })
             .collect()
@@ -352,7 +355,7 @@ fn estimated_bits(seq: &Sequence, data: &Data, held: &Data, fit: &Fit, opts: &Fi
     let mut counts: std::collections::HashMap<i64, u64> = std::collections::HashMap::new();
     let mut influences = 0usize;
     for i in 0..held.len() {
-        let c = weights::candidates(held, i, &fit.transforms, fit.bones, opts.candidates as usize, &near[i], &all, &[]);
+        let c = weights::candidates(held, i, &fit.transforms, opts.candidates as usize, &near[i], &all, &[]);
         let weights_of = weights::solve_vertex(held, i, &fit.transforms, fit.bones, c.as_slice());
         influences += weights_of.len();
         let mut before = [0i64; 3];

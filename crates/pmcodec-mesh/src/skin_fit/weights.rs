@@ -32,17 +32,10 @@ impl Candidates {
 /// `data`) most closely, best first. Le and Deng restrict each vertex to its nearest bones the
 /// same way, which keeps the weight solve small; choosing them again after every transform
 /// step lets a vertex move to a bone that has come to fit it better.
-pub fn candidates(
-    data: &Data,
-    i: usize,
-    transforms: &[Rigid],
-    bones: usize,
-    k: usize,
-    near: &[u32],
-    score: &[usize],
-    keep: &[(u32, f64)],
-) -> Candidates {
+pub fn candidates(data: &Data, i: usize, transforms: &[Rigid], k: usize, near: &[u32], score: &[usize], keep: &[(u32, f64)]) -> Candidates {
     let k = k.clamp(1, MAX_CANDIDATES);
+    // `transforms` holds every bone for each of the data's frames.
+    let bones = transforms.len() / data.frames.len().max(1);
     let mut out = Candidates { bones: [0; MAX_CANDIDATES], len: 0 };
     for &(b, w) in keep {
         if w > 0.0 && out.len < MAX_CANDIDATES && !out.as_slice().contains(&b) {
