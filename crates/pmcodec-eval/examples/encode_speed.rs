@@ -61,7 +61,7 @@ fn index_target(frame: &[glam::Vec3], indices: &[u32]) -> (usize, usize) {
 /// unique in it).
 fn json_number(json: &str, key: &str) -> Option<f64> {
     let at = json.find(&format!("\"{key}\": "))? + key.len() + 4;
-    json[at..].split(|c: char| c == ',' || c == '\n' || c == '}').next()?.trim().parse().ok()
+    json[at..].split([',', '\n', '}']).next()?.trim().parse().ok()
 }
 
 fn median(v: &mut [f64]) -> f64 {
