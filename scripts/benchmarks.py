@@ -107,6 +107,10 @@ ROWS = [
         + " && wc -c < target/benchmarks/big-character.glb | sed 's/^/GLB bytes /' && sed 's/^/load average /' /proc/loadavg"
         + f" && /usr/bin/time -f 'encode: wall %e s, peak RSS %M KiB' {BIN} encode target/benchmarks/big-character.glb -o target/benchmarks/big-character.pmc 2>&1",
         r"^(GLB bytes|load average|encode:)|bytes;"),
+    Row("encode-speed-fit", "the same with a fitted skin (`encode --fit-skin`: Le & Deng's SSDR, then the encode), horse and samba, beside meshoptimizer in the same run (issue 19's encoder bar)",
+        example("pmcodec-eval", "encode_speed", f"{BIN} {DATA}/horse-gallop 3 -- --fit-skin --quant-bits 12")
+        + f" && target/release/examples/encode_speed {BIN} {DATA}/samba-60 3 -- --fit-skin --quant-bits 12",
+        r"^(encode|meshoptimizer)|ms/frame|vertices;"),
     Row("encode", "container encode, horse, 48 frames (median)",
         divan("container", "encode_horse"), r".", divan=True),
     Row("decode", "container decode, horse, 48 frames, one core, by band-0 motion; decoded and cut at 2,000 triangles every frame by a level-0 / level-1 decoder (median)",

@@ -8,6 +8,11 @@
 //! from `/usr/bin/time -f %M` (the maximum resident set size, in KiB).
 //!
 //! `cargo build --release -p pmcodec --bin pmcodec && cargo run --release -p pmcodec-eval --example encode_speed -- target/release/pmcodec INPUT [RUNS] [-- ENCODE FLAGS...]`
+//!
+//! Flags after `--` go to `pmcodec encode`: issue 19's bar is measured with a fitted skin,
+//! `encode_speed target/release/pmcodec ../shared/data/horse-gallop 5 -- --fit-skin --quant-bits 12`
+//! (the fit, its share of the process and whether the file kept it are printed from the
+//! encoder's `--json`).
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
@@ -52,6 +57,13 @@ fn index_target(frame: &[glam::Vec3], indices: &[u32]) -> (usize, usize) {
     best
 }
 
+/// The number after `"key": ` in the encoder's `--json` (a flat search: the keys looked for are
+/// unique in it).
+fn json_number(json: &str, key: &str) -> Option<f64> {
+    let at = json.find(&format!("\"{key}\": "))? + key.len() + 4;
+    json[at..].split([',', '\n', '}']).next()?.trim().parse().ok()
+}
+
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -71,7 +83,9 @@ fn run(args: &[String]) -> Result<(), String> {
     let (target, got) = index_target(&seq.frames[0], &indices);
     let frames = seq.frame_count() as f64;
     let out = std::env::temp_dir().join(format!("encode_speed-{}.pmc", std::process::id()));
-    let (mut enc_ms, mut opt_ms, mut rss) = (Vec::new(), Vec::new(), Vec::new());
+    let fitting = flags.iter().any(|f| f == "--fit-skin" || f.starts_with("--fit-skin="));
+    let (mut enc_ms, mut opt_ms, mut rss, mut fit_ms) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut fit_json = String::new();
     for _ in 0..runs.max(1) {
         let t = Instant::now();
         let mut kept = 0;
@@ -87,6 +101,7 @@ fn run(args: &[String]) -> Result<(), String> {
             .args(["encode", "-q", input, "-o"])
             .arg(&out)
             .args(flags)
+            .args(if fitting { &["--json"][..] } else { &[] })
             .output()
             .map_err(|e| format!("/usr/bin/time {bin}: {e}"))?;
         enc_ms.push(t.elapsed().as_secs_f64() * 1e3 / frames);
@@ -96,6 +111,10 @@ fn run(args: &[String]) -> Result<(), String> {
         }
         let kib: f64 = err.lines().last().and_then(|l| l.trim().parse().ok()).ok_or_else(|| format!("no RSS from /usr/bin/time: {err}"))?;
         rss.push(kib / 1024.0);
+        if fitting {
+            fit_json = String::from_utf8_lossy(&o.stdout).into_owned();
+            fit_ms.push(json_number(&fit_json, "fit_seconds").ok_or("no fit_seconds in the encoder's --json")? * 1e3 / frames);
+        }
     }
     let bytes = std::fs::metadata(&out).map(|m| m.len()).unwrap_or(0);
     let _ = std::fs::remove_file(&out);
@@ -109,6 +128,15 @@ fn run(args: &[String]) -> Result<(), String> {
     println!("encode (whole process): {e:.2} ms/frame, peak RSS {:.1} MiB, {bytes} bytes", median(&mut rss));
     println!("meshoptimizer: {m:.2} ms/frame (one frame to {got} vertices, {} triangles)", target / 3);
     println!("encode / meshoptimizer: {:.2}x", e / m);
+    if fitting {
+        let f = median(&mut fit_ms);
+        println!(
+            "skin fit: {f:.2} ms/frame ({:.0}% of the encode), {} bones, kept: {} (last run)",
+            100.0 * f / e,
+            json_number(&fit_json, "bones").unwrap_or(0.0),
+            fit_json.contains("\"used\": true")
+        );
+    }
     Ok(())
 }
 

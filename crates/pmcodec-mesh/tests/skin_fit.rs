@@ -220,3 +220,86 @@ fn the_bone_count_is_chosen_by_cost() {
     let e = fit_skin(&tube, &FitOptions { quant_bits: 40, ..Default::default() }).unwrap_err();
     assert!(e.to_string().contains("quant_bits"), "{e}");
 }
+
+#[test]
+fn the_fit_is_deterministic_and_its_work_bounded_when_it_subsamples() {
+    // More vertices than the fit's sample (4,096 by default, 16 per bone for up to 256 bones):
+    // the bones are fitted to a subsample, the count is chosen on held-out vertices; two runs
+    // give the same skin.
+    let cloth = samples::waving_cloth(70, 60, 6);
+    assert!(cloth.vertex_count() > 4096);
+    let opts = FitOptions::default();
+    let (a, report) = fit_skin(&cloth, &opts).unwrap();
+    let (b, again) = fit_skin(&cloth, &opts).unwrap();
+    assert_eq!(report, again);
+    assert_eq!(a, b);
+    a.validate(cloth.vertex_count(), cloth.frame_count()).unwrap();
+    assert_eq!(report.sample_vertices, 4096, "{report:?}");
+    // Counts double from the default (one bone per 200 vertices) up to 256.
+    assert_eq!(report.counts_tried[0], (cloth.vertex_count() / 200) as u32, "{report:?}");
+    for w in report.counts_tried.windows(2) {
+        assert_eq!(w[1], (2 * w[0]).min(256), "{report:?}");
+    }
+    // At most `iterations` alternations at the first count, 3 at each doubling (started from
+    // the last fit's split bones), and at least one at each.
+    let tried = report.counts_tried.len() as u32;
+    assert!(report.alternations >= tried, "{report:?}");
+    assert!(report.alternations <= opts.iterations + 3 * (tried - 1), "{report:?}");
+}
+
+#[test]
+fn the_sample_holds_enough_vertices_per_bone() {
+    let opts = FitOptions::default();
+    let cloth = samples::waving_cloth(30, 24, 6);
+    // A sample asked for: taken, with the count given.
+    let (_, small) = fit_skin(&cloth, &FitOptions { sample_vertices: 300, bones: Some(12), ..opts.clone() }).unwrap();
+    assert_eq!(small.sample_vertices, 300, "{small:?}");
+    assert_eq!(small.counts_tried, vec![12]);
+    // Too small for the bones: 16 vertices per bone.
+    let (_, few) = fit_skin(&cloth, &FitOptions { sample_vertices: 100, bones: Some(20), ..opts.clone() }).unwrap();
+    assert_eq!(few.sample_vertices, 16 * 20, "{few:?}");
+    // A mesh smaller than the sample: every vertex.
+    let (_, all) = fit_skin(&cloth, &FitOptions { bones: Some(4), ..opts.clone() }).unwrap();
+    assert_eq!(all.sample_vertices as usize, cloth.vertex_count());
+    // One alternation asked for: one per count tried.
+    let (_, one) = fit_skin(&cloth, &FitOptions { iterations: 1, ..opts }).unwrap();
+    assert_eq!(one.alternations, one.counts_tried.len() as u32, "{one:?}");
+    assert!(one.counts_tried.len() > 1, "{one:?}");
+}
+
+#[test]
+fn generated_articulated_sequences_fit_under_a_stated_residual() {
+    // The fitted skin reproduces a bending, twisting tube and a waving cloth (no rigid parts in
+    // either) to a small fraction of the bounding-box diagonal (RMS over every vertex and
+    // frame), also with the bones fitted to a quarter of the cloth's vertices.
+    let tube = samples::twisting_tube(24, 48, 16);
+    let (_, report) = fit_skin(&tube, &FitOptions::default()).unwrap();
+    assert!(report.rms_error < TUBE_RMS, "tube {report:?}");
+    let cloth = samples::waving_cloth(56, 44, 12);
+    let (_, report) = fit_skin(&cloth, &FitOptions { bones: Some(24), sample_vertices: 616, ..Default::default() }).unwrap();
+    assert_eq!(report.sample_vertices, 616);
+    assert!(report.rms_error < CLOTH_RMS, "cloth {report:?}");
+    let (_, full) = fit_skin(&cloth, &FitOptions { bones: Some(24), sample_vertices: 4096, ..Default::default() }).unwrap();
+    // The subsample costs little against fitting the bones to every vertex.
+    assert!(report.rms_error < 1.5 * full.rms_error, "quarter {report:?} vs all {full:?}");
+}
+
+const TUBE_RMS: f64 = 0.002;
+const CLOTH_RMS: f64 = 0.005;
+
+#[test]
+fn one_and_two_threads_fit_the_same_skin() {
+    // Vertices and frames are solved in parallel and collected in order: the thread count
+    // must not change a byte. Both with the count chosen and with a subsample.
+    let tube = samples::twisting_tube(16, 30, 10);
+    for opts in [FitOptions::default(), FitOptions { bones: Some(8), sample_vertices: 200, ..Default::default() }] {
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| fit_skin(&tube, &opts).unwrap())
+        };
+        let (one, r1) = run(1);
+        let (two, r2) = run(2);
+        assert_eq!(r1, r2);
+        assert_eq!(one, two);
+    }
+}

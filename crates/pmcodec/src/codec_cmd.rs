@@ -261,6 +261,11 @@ struct FittedSkinOutput {
     bones: u32,
     rms_error: f64,
     max_error: f64,
+    /// Vertices the bones were fitted to, the bone counts tried (doubling from the default)
+    /// and the SSDR alternations run over all of them: the fit's work.
+    sample_vertices: u32,
+    counts_tried: Vec<u32>,
+    alternations: u32,
     fit_seconds: f64,
     /// The fit's share of the whole command's time.
     fit_share: f64,
@@ -564,6 +569,9 @@ fn encode_fitted(
         bones: fit.bones,
         rms_error: fit.rms_error,
         max_error: fit.max_error,
+        sample_vertices: fit.sample_vertices,
+        counts_tried: fit.counts_tried,
+        alternations: fit.alternations,
         fit_seconds,
         fit_share: 0.0,
         used,

@@ -5,7 +5,9 @@
 //! keeps the identity.
 
 use super::horn::{Rigid, outer, rotation_from_covariance};
-use glam::{DMat3, DVec3, Vec3};
+use super::sample::Data;
+use glam::{DMat3, DVec3};
+use rayon::prelude::*;
 
 /// The vertices each bone influences, with their weights.
 pub fn members(joints: &[Vec<(u32, f64)>], bones: usize) -> Vec<Vec<(u32, f64)>> {
@@ -20,13 +22,16 @@ pub fn members(joints: &[Vec<(u32, f64)>], bones: usize) -> Vec<Vec<(u32, f64)>>
     out
 }
 
-/// Refits `transforms[f * bones + b]` for every frame but the first, one bone after another
-/// (block coordinate descent: each step can only lower the reconstruction error).
-pub fn update(rest: &[DVec3], frames: &[Vec<Vec3>], influences: &[Vec<(u32, f64)>], transforms: &mut [Rigid], bones: usize) {
+/// Refits `transforms[fi * bones + b]` for every frame of `data` but the rest pose, one bone
+/// after another (block coordinate descent: each step can only lower the reconstruction
+/// error). Frames are independent of each other.
+pub fn update(data: &Data, influences: &[Vec<(u32, f64)>], transforms: &mut [Rigid], bones: usize) {
     let by_bone = members(influences, bones);
-    let mut recon = vec![DVec3::ZERO; rest.len()];
-    for (f, frame) in frames.iter().enumerate().skip(1) {
-        let row = &mut transforms[f * bones..(f + 1) * bones];
+    let rest = &data.rest;
+    // Frames in parallel, each with its own reconstruction: the same result on any number of
+    // threads.
+    transforms.par_chunks_mut(bones).enumerate().filter(|(fi, _)| !data.is_rest(*fi)).for_each(|(fi, row)| {
+        let mut recon = vec![DVec3::ZERO; rest.len()];
         for (v, infl) in influences.iter().enumerate() {
             recon[v] = infl.iter().map(|&(b, w)| w * row[b as usize].apply(rest[v])).sum();
         }
@@ -41,7 +46,7 @@ pub fn update(rest: &[DVec3], frames: &[Vec<Vec3>], influences: &[Vec<(u32, f64)
             let (mut sw2, mut pbar, mut qbar) = (0.0, DVec3::ZERO, DVec3::ZERO);
             for &(v, w) in list {
                 let v = v as usize;
-                let q = frame[v].as_dvec3() - recon[v] + w * old.apply(rest[v]);
+                let q = data.at(fi, v) - recon[v] + w * old.apply(rest[v]);
                 sw2 += w * w;
                 pbar += w * w * rest[v];
                 qbar += w * q;
@@ -54,7 +59,7 @@ pub fn update(rest: &[DVec3], frames: &[Vec<Vec3>], influences: &[Vec<(u32, f64)
             let mut s = DMat3::ZERO;
             for &(v, w) in list {
                 let v = v as usize;
-                let q = frame[v].as_dvec3() - recon[v] + w * old.apply(rest[v]);
+                let q = data.at(fi, v) - recon[v] + w * old.apply(rest[v]);
                 s += outer(w * (rest[v] - pbar), q - w * qbar);
             }
             let r = rotation_from_covariance(s);
@@ -65,5 +70,5 @@ pub fn update(rest: &[DVec3], frames: &[Vec<Vec3>], influences: &[Vec<(u32, f64)
             }
             row[b] = new;
         }
-    }
+    });
 }

@@ -5,21 +5,15 @@
 //! segments an animation with (Mamou, Zaharia and Prêteux, "FAMC: the MPEG-4 standard for
 //! animated mesh compression", 2008) and that Le and Deng initialise SSDR with ("Smooth
 //! Skinning Decomposition with Rigid Bones", 2012, section 4.2), including their reseeding of
-//! an empty bone at the vertex reconstructed worst.
+//! an empty bone at the vertex reconstructed worst. [`split`] starts a fit with more bones
+//! from one with fewer (each new bone seeded at the worst-reconstructed vertex of a bone that
+//! reconstructs its vertices worst), so that doubling the bone count refines the last fit
+//! instead of starting again.
 
 use super::horn::{Rigid, fit_rigid};
-use glam::{DVec3, Vec3};
-
-/// Frames the clustering looks at: all of them up to `cap`, else `cap` evenly spaced ones
-/// (frame 0 always), which bounds the cost of a long sequence.
-pub fn sample_frames(frames: usize, cap: usize) -> Vec<usize> {
-    if frames <= cap {
-        return (0..frames).collect();
-    }
-    let mut out: Vec<usize> = (0..cap).map(|i| i * (frames - 1) / (cap - 1).max(1)).collect();
-    out.dedup();
-    out
-}
+use super::sample::Data;
+use glam::DVec3;
+use rayon::prelude::*;
 
 /// Bones a vertex is compared with at most, in the clustering and the choice of candidates:
 /// those whose vertices' rest centroid is nearest its rest position. A bone far away in the
@@ -27,10 +21,9 @@ pub fn sample_frames(frames: usize, cap: usize) -> Vec<usize> {
 /// every bone would make the cost grow with the square of the bone count.
 pub const NEAR_BONES: usize = 24;
 
-/// For every vertex, the (at most [`NEAR_BONES`]) bones whose members' rest centroid is
-/// nearest its rest position, nearest first; `labels` gives each vertex's (main) bone, and a
-/// bone without vertices is never near.
-pub fn near_bones(rest: &[DVec3], labels: &[u32], bones: usize) -> Vec<Vec<u32>> {
+/// Every bone's rest centroid of the vertices `labels` puts on it (bones without vertices are
+/// left out).
+pub fn centroids(rest: &[DVec3], labels: &[u32], bones: usize) -> Vec<(u32, DVec3)> {
     let mut sum = vec![(DVec3::ZERO, 0usize); bones];
     for (p, &b) in rest.iter().zip(labels) {
         if let Some(s) = sum.get_mut(b as usize) {
@@ -38,44 +31,52 @@ pub fn near_bones(rest: &[DVec3], labels: &[u32], bones: usize) -> Vec<Vec<u32>>
             s.1 += 1;
         }
     }
-    let centroids: Vec<(u32, DVec3)> = sum.iter().enumerate().filter(|(_, s)| s.1 > 0).map(|(b, s)| (b as u32, s.0 / s.1 as f64)).collect();
-    let mut scored: Vec<(f64, u32)> = Vec::with_capacity(centroids.len());
-    rest.iter()
-        .map(|p| {
-            scored.clear();
-            scored.extend(centroids.iter().map(|&(b, c)| (c.distance_squared(*p), b)));
-            let m = NEAR_BONES.min(scored.len());
-            if m < scored.len() {
-                scored.select_nth_unstable_by(m, |a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            }
-            let mut near = scored[..m].to_vec();
-            near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            near.into_iter().map(|s| s.1).collect()
-        })
+    sum.iter().enumerate().filter(|(_, s)| s.1 > 0).map(|(b, s)| (b as u32, s.0 / s.1 as f64)).collect()
+}
+
+/// For every point, the (at most [`NEAR_BONES`]) bones whose `centroids` are nearest it,
+/// nearest first (ties by bone number).
+pub fn near_bones(points: &[DVec3], centroids: &[(u32, DVec3)]) -> Vec<Vec<u32>> {
+    points
+        .par_iter()
+        .map_init(
+            || Vec::with_capacity(centroids.len()),
+            |scored: &mut Vec<(f64, u32)>, p| {
+                scored.clear();
+                scored.extend(centroids.iter().map(|&(b, c)| (c.distance_squared(*p), b)));
+                let m = NEAR_BONES.min(scored.len());
+                if m < scored.len() {
+                    scored.select_nth_unstable_by(m, |a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                }
+                let near = &mut scored[..m];
+                near.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                near.iter().map(|s| s.1).collect()
+            },
+        )
         .collect()
 }
 
-/// One bone label per vertex and the bones' transforms per frame (`transforms[f * bones + b]`,
-/// frame 0 the identity: the rest pose is frame 0).
+/// One bone label per vertex and the bones' transforms per frame of the data
+/// (`transforms[fi * bones + b]`, the identity in the rest frame).
 pub struct Clusters {
     pub labels: Vec<u32>,
     pub transforms: Vec<Rigid>,
 }
 
-/// Clusters the `rest` vertices of `frames` into `bones` rigid bones (`bones` at most the
-/// vertex count, at least 1).
-pub fn cluster(rest: &[DVec3], frames: &[Vec<Vec3>], bones: usize, iterations: u32, sample: &[usize]) -> Clusters {
-    let n = rest.len();
-    let at = |f: usize, v: usize| frames[f][v].as_dvec3();
-    // Trajectory distance over the sampled frames.
-    let dist = |u: usize, v: usize| -> f64 { sample.iter().map(|&f| at(f, u).distance_squared(at(f, v))).sum() };
+/// Clusters the vertices of `data` into `bones` rigid bones (`bones` at most the vertex count,
+/// at least 1): seeds by farthest-point sampling of trajectories, then [`lloyd`].
+pub fn cluster(data: &Data, bones: usize, iterations: u32) -> Clusters {
+    let n = data.len();
+    let frames = data.frames.len();
+    // Trajectory distance over the data's frames.
+    let dist = |u: usize, v: usize| -> f64 { (0..frames).map(|fi| data.at(fi, u).distance_squared(data.at(fi, v))).sum() };
     // First seed: the vertex farthest from the mean trajectory, so that the seeding does not
     // depend on the input's vertex numbering more than ties require.
-    let mean: Vec<DVec3> = sample.iter().map(|&f| frames[f].iter().map(|p| p.as_dvec3()).sum::<DVec3>() / n as f64).collect();
+    let mean: Vec<DVec3> = (0..frames).map(|fi| (0..n).map(|v| data.at(fi, v)).sum::<DVec3>() / n as f64).collect();
     let mut first = 0;
     let mut far = -1.0;
     for v in 0..n {
-        let d: f64 = sample.iter().zip(&mean).map(|(&f, m)| at(f, v).distance_squared(*m)).sum();
+        let d: f64 = mean.iter().enumerate().map(|(fi, m)| data.at(fi, v).distance_squared(*m)).sum();
         if d > far {
             (far, first) = (d, v);
         }
@@ -97,8 +98,16 @@ pub fn cluster(rest: &[DVec3], frames: &[Vec<Vec3>], bones: usize, iterations: u
             }
         }
     }
-    let frame_count = frames.len();
-    let mut transforms = vec![Rigid::IDENTITY; frame_count * bones];
+    lloyd(data, labels, bones, iterations)
+}
+
+/// Lloyd iterations from `labels`: every bone's rigid transform per frame fitted to its
+/// vertices, every vertex moved to the bone (its own or one near it) that reproduces its
+/// trajectory best; then the transforms fitted once more to the final labels.
+pub fn lloyd(data: &Data, mut labels: Vec<u32>, bones: usize, iterations: u32) -> Clusters {
+    let n = data.len();
+    let frames = data.frames.len();
+    let mut transforms = vec![Rigid::IDENTITY; frames * bones];
     let mut members: Vec<Vec<usize>> = vec![Vec::new(); bones];
     let mut error = vec![0.0f64; n];
     for it in 0..=iterations {
@@ -109,8 +118,11 @@ pub fn cluster(rest: &[DVec3], frames: &[Vec<Vec3>], bones: usize, iterations: u
             members[b as usize].push(v);
         }
         // A bone that lost all its vertices restarts at the vertex reconstructed worst.
-        for b in 0..bones {
-            if members[b].is_empty() && it > 0 {
+        if it > 0 {
+            for b in 0..bones {
+                if !members[b].is_empty() {
+                    continue;
+                }
                 let mut worst = None;
                 for v in 0..n {
                     if members[labels[v] as usize].len() > 1 && worst.is_none_or(|w: usize| error[v] > error[w]) {
@@ -126,37 +138,90 @@ pub fn cluster(rest: &[DVec3], frames: &[Vec<Vec3>], bones: usize, iterations: u
                 }
             }
         }
-        // The final pass fits every frame; earlier ones only the sampled frames they compare.
-        let fit_frames: Vec<usize> =
-            if it == iterations { (1..frame_count).collect() } else { sample.iter().copied().filter(|&f| f > 0).collect() };
-        for &f in &fit_frames {
+        transforms.par_chunks_mut(bones).enumerate().filter(|(fi, _)| !data.is_rest(*fi)).for_each(|(fi, row)| {
             for (b, m) in members.iter().enumerate() {
-                transforms[f * bones + b] = fit_rigid(m.iter().map(|&v| (rest[v], at(f, v), 1.0)));
+                row[b] = fit_rigid(m.iter().map(|&v| (data.rest[v], data.at(fi, v), 1.0)));
             }
+        });
+        // Every vertex to the bone that reproduces its trajectory best, among its own and the
+        // bones near it (its own only on the last pass, which measures the errors).
+        let near = if it < iterations { near_bones(&data.rest, &centroids(&data.rest, &labels, bones)) } else { Vec::new() };
+        let assigned: Vec<(f64, u32)> = (0..n)
+            .into_par_iter()
+            .map(|v| {
+                let mut best = (f64::INFINITY, labels[v]);
+                let others = near.get(v).map_or(&[][..], |x| &x[..]);
+                for b in std::iter::once(labels[v] as usize).chain(others.iter().map(|&b| b as usize)) {
+                    let mut e = 0.0;
+                    for fi in 0..frames {
+                        e += transforms[fi * bones + b].apply(data.rest[v]).distance_squared(data.at(fi, v));
+                        if e >= best.0 {
+                            break;
+                        }
+                    }
+                    if e < best.0 {
+                        best = (e, b as u32);
+                    }
+                }
+                best
+            })
+            .collect();
+        for (v, (e, b)) in assigned.into_iter().enumerate() {
+            labels[v] = b;
+            error[v] = e;
         }
         if it == iterations {
             break;
         }
-        // Every vertex to the bone that reproduces its sampled trajectory best, among its own
-        // and the bones near it.
-        let near = near_bones(rest, &labels, bones);
-        for v in 0..n {
-            let mut best = (f64::INFINITY, labels[v]);
-            for b in std::iter::once(labels[v] as usize).chain(near[v].iter().map(|&b| b as usize)) {
-                let mut e = 0.0;
-                for &f in sample {
-                    e += transforms[f * bones + b].apply(rest[v]).distance_squared(at(f, v));
-                    if e >= best.0 {
-                        break;
-                    }
-                }
-                if e < best.0 {
-                    best = (e, b as u32);
-                }
-            }
-            labels[v] = best.1;
-            error[v] = best.0;
-        }
     }
     Clusters { labels, transforms }
+}
+
+/// Labels for `to` bones from a fit with `from` (`labels`, each vertex's main bone, and
+/// `error`, each vertex's squared error under the fit): the `to - from` bones whose vertices
+/// are reconstructed worst (summed error, ties by number) are split in two, like the
+/// farthest-point seeding of [`cluster`] with two seeds: the bone's worst-reconstructed vertex
+/// seeds the new bone, its best-reconstructed one stays, and every vertex of the bone follows
+/// the seed whose trajectory is nearer its own. Lloyd iterations then settle the rest (Le and
+/// Deng's reseeding at the worst vertex, applied to many bones at once).
+pub fn split(data: &Data, labels: &[u32], error: &[f64], from: usize, to: usize) -> Vec<u32> {
+    let n = data.len();
+    let frames = data.frames.len();
+    let dist = |u: usize, v: usize| -> f64 { (0..frames).map(|fi| data.at(fi, u).distance_squared(data.at(fi, v))).sum() };
+    let mut bone_error = vec![(0.0f64, 0usize); from];
+    for v in 0..n {
+        let b = &mut bone_error[labels[v] as usize];
+        b.0 += error[v];
+        b.1 += 1;
+    }
+    // Bones with at least two vertices can split, worst first.
+    let mut order: Vec<usize> = (0..from).filter(|&b| bone_error[b].1 >= 2).collect();
+    order.sort_by(|&a, &b| bone_error[b].0.total_cmp(&bone_error[a].0).then(a.cmp(&b)));
+    order.truncate(to - from);
+    let mut new_of = vec![u32::MAX; from];
+    for (j, &b) in order.iter().enumerate() {
+        new_of[b] = (from + j) as u32;
+    }
+    // Each split bone's worst and best vertex (first in index order among equals).
+    let (mut worst, mut best) = (vec![usize::MAX; from], vec![usize::MAX; from]);
+    for v in 0..n {
+        let b = labels[v] as usize;
+        if new_of[b] == u32::MAX {
+            continue;
+        }
+        if worst[b] == usize::MAX || error[v] > error[worst[b]] {
+            worst[b] = v;
+        }
+        if best[b] == usize::MAX || error[v] < error[best[b]] {
+            best[b] = v;
+        }
+    }
+    let mut out = labels.to_vec();
+    for v in 0..n {
+        let b = labels[v] as usize;
+        if new_of[b] != u32::MAX && (v == worst[b] || (v != best[b] && dist(v, worst[b]) < dist(v, best[b]))) {
+            out[v] = new_of[b];
+        }
+    }
+    out
 }
