@@ -139,16 +139,6 @@ fn run(input: &str) -> Result<(), String> {
     let mut swaps = Vec::new();
     rc.frame(&seq.frames[0], &mut swaps);
     println!("frame 0 reclustering: {} swaps", swaps.len());
-    // Frame 0 reclustered without hysteresis (nothing was shown before it).
-    let free = ReclusterOptions {
-        min_relative_benefit: env_f64("F0_MIN_BENEFIT", 0.0),
-        max_passes: env_f64("F0_PASSES", 64.0) as u32,
-        ..ReclusterOptions::default()
-    };
-    let mut rf = Reclusterer::new(h.clone(), topo.clone(), seq.triangles.clone(), free);
-    let mut free_swaps = Vec::new();
-    rf.frame(&seq.frames[0], &mut free_swaps);
-    println!("frame 0 reclustering without hysteresis: {} swaps", free_swaps.len());
     println!(
         "{:>5} {:>7} | {:>22} | {:>22} | {:>22} | {:>22} | {:>6} {:>6} {:>6} | loops b/r/d/m | folds b/r/d",
         "level", "verts", "base rms fwd bwd", "recl rms fwd bwd", "direct rms fwd bwd", "mopt rms fwd bwd", "b/d", "r/d", "r/mo"
@@ -160,16 +150,15 @@ fn run(input: &str) -> Result<(), String> {
         }
         let (mb, fb) = level_mesh(&h, &seq.triangles, &base_nodes, level);
         let (mr, fr) = level_mesh(rc.hierarchy(), &seq.triangles, rc.nodes(), level);
-        let (mf, _) = level_mesh(rf.hierarchy(), &seq.triangles, rf.nodes(), level);
         let dl = direct.level_sizes.iter().position(|&s| s == n).unwrap_or(direct.top());
         let (md, fd) = level_mesh(&direct, &seq.triangles, &direct_nodes, dl);
         let mo = meshopt_at(&seq, n as usize)?;
-        let [b, r, d, o, fr0] = [&mb, &mr, &md, &mo, &mf].map(|m| measure(&original, m, diagonal));
-        let (b, r, d, o, fr0) = (b?, r?, d?, o?, fr0?);
+        let [b, r, d, o] = [&mb, &mr, &md, &mo].map(|m| measure(&original, m, diagonal));
+        let (b, r, d, o) = (b?, r?, d?, o?);
         let loops = [&mb, &mr, &md, &mo].map(|m| boundary_loops(m.positions.len(), &m.triangles).1);
         let f = |x: [f64; 3]| format!("{:.4} {:.4} {:.4}", x[0], x[1], x[2]);
         println!(
-            "{level:>5} {n:>7} | {:>22} | {:>22} | {:>22} | {:>22} | {:>6.3} {:>6.3} {:>6.3} | {:?} | {fb}/{fr}/{fd} | free {:.4} {:.3}",
+            "{level:>5} {n:>7} | {:>22} | {:>22} | {:>22} | {:>22} | {:>6.3} {:>6.3} {:>6.3} | {:?} | {fb}/{fr}/{fd}",
             f(b),
             f(r),
             f(d),
@@ -177,16 +166,10 @@ fn run(input: &str) -> Result<(), String> {
             b[0] / d[0],
             r[0] / d[0],
             r[0] / o[0],
-            loops,
-            fr0[0],
-            fr0[0] / d[0]
+            loops
         );
     }
     Ok(())
-}
-
-fn env_f64(name: &str, default: f64) -> f64 {
-    std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default)
 }
 
 fn compare(input: &str, meshes: &[String]) -> Result<(), String> {

@@ -39,11 +39,6 @@ pub struct ReclusterOptions {
     /// A swap must improve the estimate by at least this fraction of the node's current error,
     /// so that rounding noise never drives swaps back and forth.
     pub min_relative_benefit: f64,
-    /// `min_relative_benefit` for the first frame a reclusterer sees (the smaller of the two). No frame was shown
-    /// before it, so hysteresis protects no coherence there; a lower threshold lets that frame's
-    /// swaps refine the greedy QEM clustering of H_0 (Kircher & Garland section 4: a swap
-    /// lowers the hierarchical error) where the full threshold keeps most of it.
-    pub first_frame_min_benefit: f64,
     /// Rank swaps by the exact change of error (both clusters re-solved) instead of the
     /// conservative estimate of equation 1, which never sees a swap whose gain comes only from
     /// the re-solved positions.
@@ -63,16 +58,11 @@ impl Default for ReclusterOptions {
         // 3,200 vertices). Exact benefits find swaps equation 1 misses. The hysteresis of 1.0
         // (a swap must gain at least the moving node's current error) keeps playback coherent
         // (3% of shown triangles change per frame instead of 22%) for about 7% more RMS.
-        // Frame 0 swaps at a tenth of it: its levels came out 1-5% closer to the input (frame 0
-        // alone, each level against our own QEM run at the same count: waving cloth 0.99 ->
-        // 0.96, horse 1.00 -> 0.98, `frame0_levels` in pmcodec-eval); a threshold of 0 swapped
-        // the 8-vertex level of the cloth 10% further from it.
         ReclusterOptions {
             beta: 4.0,
             max_swaps_per_frame: u32::MAX,
             max_passes: 16,
             min_relative_benefit: 1.0,
-            first_frame_min_benefit: 0.1,
             homeomorphism: false,
             exact_benefit: true,
             quadric: QuadricOptions::default(),
@@ -98,8 +88,6 @@ pub struct Reclusterer {
     h: Hierarchy,
     nodes: NodeState,
     opts: ReclusterOptions,
-    /// Frames reclustered so far (the first gets `first_frame_min_benefit`).
-    frames_seen: u64,
     topo: FineTopology,
     triangles: Vec<[u32; 3]>,
     /// (|M_{j+1}| / |M_j|)^beta for each level j: the factor between consecutive weights.
@@ -133,7 +121,6 @@ impl Reclusterer {
             h,
             nodes: NodeState::default(),
             opts,
-            frames_seen: 0,
             topo,
             triangles,
             weight_step,
@@ -203,7 +190,6 @@ impl Reclusterer {
             self.improve_level(k, &adjacency[k], swaps, &mut stats, &mut budget);
         }
         self.adjacency = adjacency;
-        self.frames_seen += 1;
         debug_assert!(self.h.check(&self.topo).is_ok(), "reclustering broke a cluster: {:?}", self.h.check(&self.topo));
         stats
     }
@@ -308,9 +294,7 @@ impl Reclusterer {
     fn threshold(&self, k: usize, v: u32, a: u32) -> f64 {
         let qv = &self.nodes.quadrics[(self.h.offsets[k] + v) as usize];
         let xa = self.nodes.positions[(self.h.offsets[k + 1] + a) as usize];
-        let m = self.opts.min_relative_benefit;
-        let m = if self.frames_seen == 0 { m.min(self.opts.first_frame_min_benefit) } else { m };
-        m * qv.eval_f32(xa).max(0.0)
+        self.opts.min_relative_benefit * qv.eval_f32(xa).max(0.0)
     }
 
     /// Hierarchical benefit of moving level-k node v from a to b: equation 1 at each coarser
