@@ -509,7 +509,7 @@ fn encode_frames<F: AsRef<[Vec3]>>(
             let (lo, hi) = bounds()?;
             let step = quantization_step(opts, lo, hi)?;
             let header = header(head, frame_count, opts, (lo, hi), step, level_sizes);
-            code_frames(head, opts, header, held_corners, (lo, step), &level_error, reclustered, recycle)
+            code_frames(head, opts, header, held_corners, (lo, step, &level_error), reclustered, recycle)
         });
         let mut spare = Some(first);
         let mut cancelled = false;
@@ -589,8 +589,8 @@ fn code_frames(
     opts: &EncodeOptions,
     mut header: Header,
     mut held_corners: Vec<Vec<[u32; 3]>>,
-    (lo, step): (Vec3, f32),
-    level_error: &[f64],
+    // The grid's origin and step, and each level's frame-0 error (see [`band_shift`]).
+    (lo, step, level_error): (Vec3, f32, &[f64]),
     frames: std::sync::mpsc::Receiver<Reclustered>,
     recycle: std::sync::mpsc::Sender<Reclustered>,
 ) -> Result<(Vec<u8>, EncodeReport), ContainerError> {
