@@ -57,6 +57,23 @@ impl NodeState {
         self.quadrics[g as usize].eval_f32(self.positions[g as usize]).max(0.0)
     }
 
+    /// Per level, the root of the area-weighted mean squared distance from the level's
+    /// clusters' faces to their nodes: sqrt(sum E_a / sum area_a) over the level's nodes (0 at
+    /// level 0, whose nodes are the input). A level's own simplification error as one length,
+    /// e.g. for choosing how coarse a grid its positions can be stored on without it showing.
+    pub fn level_rms_errors(&self, h: &Hierarchy) -> Vec<f64> {
+        (0..h.levels())
+            .map(|k| {
+                let (mut e, mut area) = (0.0, 0.0);
+                for g in h.offsets[k]..h.offsets[k + 1] {
+                    e += self.error(g);
+                    area += self.quadrics[g as usize].area;
+                }
+                if k > 0 && area > 0.0 { (e / area).sqrt() } else { 0.0 }
+            })
+            .collect()
+    }
+
     /// Error as a distance: the root of the area-weighted mean squared distance from the
     /// cluster's faces to the node, sqrt(E_a / area_a). Comparable across nodes and to a
     /// length tolerance.

@@ -86,3 +86,54 @@ fn open_grid_keeps_one_boundary_and_does_not_fold() {
         assert!(edges <= fine_edges);
     }
 }
+
+/// The wavy grid of `common::grid` with the triangles whose centroids fall in `holes`
+/// (rectangles in the unit square: x0, y0, x1, y1) removed and the unused vertices dropped:
+/// an open mesh with one boundary loop per hole beside its outline.
+fn grid_with_holes(w: u32, h: u32, holes: &[[f32; 4]]) -> Sequence {
+    let full = grid(w, h, 1);
+    let p = &full.frames[0];
+    let kept: Vec<[u32; 3]> = full
+        .triangles
+        .iter()
+        .copied()
+        .filter(|t| {
+            let c = (p[t[0] as usize] + p[t[1] as usize] + p[t[2] as usize]) / 3.0;
+            !holes.iter().any(|r| c.x > r[0] && c.x < r[2] && c.y > r[1] && c.y < r[3])
+        })
+        .collect();
+    let mut index = vec![u32::MAX; p.len()];
+    let mut positions = Vec::new();
+    let triangles = kept
+        .iter()
+        .map(|t| {
+            t.map(|v| {
+                if index[v as usize] == u32::MAX {
+                    index[v as usize] = positions.len() as u32;
+                    positions.push(p[v as usize]);
+                }
+                index[v as usize]
+            })
+        })
+        .collect();
+    Sequence { triangles, frames: vec![positions], frame_rate: 30.0, ..Default::default() }
+}
+
+#[test]
+fn grid_with_holes_keeps_every_boundary_loop() {
+    // Three holes of different sizes and shapes (the smallest 3 x 3 grid cells) and the outline.
+    let seq = grid_with_holes(48, 40, &[[0.15, 0.2, 0.35, 0.45], [0.55, 0.6, 0.85, 0.7], [0.62, 0.15, 0.69, 0.24]]);
+    let (fine_edges, fine_loops) = boundary_loops(seq.vertex_count(), &seq.triangles);
+    assert_eq!(fine_loops, 4, "the fixture has three holes and an outline");
+    let report = level_report(&seq);
+    eprintln!("levels (vertices, triangles, folded, (boundary edges, loops)): {report:?}");
+    for (vertices, triangles, folded, (edges, loops)) in report {
+        assert_eq!(folded, 0, "{folded} of {triangles} triangles folded at the {vertices}-vertex level");
+        if vertices >= 64 {
+            // A hole collapsed across (its loop pinched, or closed) or a boundary pinched across
+            // the surface (a new loop) changes the count.
+            assert_eq!(loops, fine_loops, "{loops} boundary loops ({edges} edges) at the {vertices}-vertex level");
+        }
+        assert!(edges <= fine_edges);
+    }
+}
