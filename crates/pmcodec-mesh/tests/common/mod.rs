@@ -4,6 +4,8 @@
 //! against an independent encoding of the format (glTF 2.0, "Binary glTF Layout").
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used)]
 
+use pmcodec_mesh::gltf_input::{AnimationSelector, GltfOptions, load_gltf_bytes};
+use pmcodec_mesh::{MeshError, Sequence};
 use serde_json::{Value, json};
 use std::path::PathBuf;
 
@@ -114,4 +116,87 @@ pub fn base64(bytes: &[u8]) -> String {
         }
     }
     out
+}
+
+pub const TRIANGLE: [f32; 9] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+
+// ---- generated animated files and their loading (gltf_input.rs, gltf_errors.rs) ----------------
+
+pub fn opts(animation: Option<AnimationSelector>, frame_rate: f32, weld: bool) -> GltfOptions {
+    GltfOptions { animation, frame_rate, weld, ..Default::default() }
+}
+
+/// A triangle on node 0 with one morph target (vertex 2 moves +1 in z; weight 0 by default) and
+/// an animation "move" with one channel driving `path` of node 0.
+pub fn animated_triangle(path: &str, interpolation: &str, times: &[f32], values: &[f32]) -> (Bin, Value) {
+    let mut bin = Bin::default();
+    let pos = bin.f32(&TRIANGLE, "VEC3");
+    let delta = bin.f32(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0], "VEC3");
+    let input = bin.f32(times, "SCALAR");
+    let ty = match path {
+        "rotation" => "VEC4",
+        "weights" => "SCALAR",
+        _ => "VEC3",
+    };
+    let output = bin.f32(values, ty);
+    let doc = json!({
+        "scene": 0, "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos}, "targets": [{"POSITION": delta}]}], "weights": [0.0]}],
+        "animations": [{"name": "move", "channels": [{"sampler": 0, "target": {"node": 0, "path": path}}],
+                        "samplers": [{"input": input, "output": output, "interpolation": interpolation}]}]
+    });
+    (bin, doc)
+}
+
+pub fn load(bytes: &[u8], fps: f32) -> Result<Sequence, MeshError> {
+    load_gltf_bytes(bytes, &opts(None, fps, false))
+}
+
+/// A strip of three quads along x (vertices at x = 0, 1, 2, 3; y = 0 or 0.1) as a TRIANGLE_STRIP,
+/// skinned to joint 0 (root, at the origin) and joint 1 (its child at x = 1). Vertices at x = 1
+/// are split half and half; beyond, they follow joint 1. Joint 1 turns 90 degrees about z over
+/// one second. The skinned node itself is moved by 100 in x (which glTF says to ignore), and a
+/// rigid triangle hangs from joint 1 one unit further along x.
+pub fn bent_strip() -> (Bin, Value) {
+    let mut bin = Bin::default();
+    let pos: Vec<f32> = (0..8).flat_map(|i| [(i / 2) as f32, (i % 2) as f32 * 0.1, 0.0]).collect();
+    let pos = bin.f32(&pos, "VEC3");
+    let joints: Vec<u16> = (0..8).flat_map(|i| if i / 2 == 0 { [0, 0, 0, 0] } else { [0, 1, 0, 0] }).collect();
+    let joints = bin.u16(&joints, "VEC4");
+    // Normalised u8 weights that do not sum to one (200 alone; 100 + 100): normalised on read.
+    let weights: Vec<u8> = (0..8)
+        .flat_map(|i| match i / 2 {
+            0 => [200, 0, 0, 0],
+            1 => [100, 100, 0, 0],
+            _ => [0, 200, 0, 0],
+        })
+        .collect();
+    let weights = bin.u8(&weights, "VEC4", true);
+    #[rustfmt::skip]
+    let ibm = bin.f32(&[
+        1., 0., 0., 0.,  0., 1., 0., 0.,  0., 0., 1., 0.,  0., 0., 0., 1.,
+        1., 0., 0., 0.,  0., 1., 0., 0.,  0., 0., 1., 0.,  -1., 0., 0., 1.,
+    ], "MAT4");
+    let rigid = bin.f32(&TRIANGLE, "VEC3");
+    let times = bin.f32(&[0.0, 1.0], "SCALAR");
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    let rots = bin.f32(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, s, s], "VEC4");
+    let doc = json!({
+        "scene": 0, "scenes": [{"nodes": [0, 2]}],
+        "nodes": [
+            {"children": [1]},
+            {"translation": [1.0, 0.0, 0.0], "children": [3]},
+            {"mesh": 0, "skin": 0, "translation": [100.0, 0.0, 0.0]},
+            {"mesh": 1, "translation": [1.0, 0.0, 0.0]}
+        ],
+        "skins": [{"joints": [0, 1], "inverseBindMatrices": ibm}],
+        "meshes": [
+            {"primitives": [{"attributes": {"POSITION": pos, "JOINTS_0": joints, "WEIGHTS_0": weights}, "mode": 5}]},
+            {"primitives": [{"attributes": {"POSITION": rigid}}]}
+        ],
+        "animations": [{"channels": [{"sampler": 0, "target": {"node": 1, "path": "rotation"}}],
+                        "samplers": [{"input": times, "output": rots, "interpolation": "LINEAR"}]}]
+    });
+    (bin, doc)
 }
