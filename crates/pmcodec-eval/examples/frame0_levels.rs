@@ -33,55 +33,14 @@ use pmcodec_mesh::{Sequence, TriMesh};
 use std::path::Path;
 use std::process::ExitCode;
 
+#[path = "common/qem.rs"]
+mod qem;
+
 fn load(input: &str) -> Result<Sequence, String> {
     if let Some(s) = pmcodec_mesh::samples::by_name(input) {
         return Ok(s);
     }
     pmcodec_mesh::obj::load_obj_sequence(Path::new(input), 30.0).map_err(|e| format!("{input}: {e}"))
-}
-
-/// meshoptimizer's simplification of frame 0 to about `vertices` vertices (bisected index
-/// target, as `qem_reference.rs`).
-fn meshopt_at(seq: &Sequence, vertices: usize) -> Result<TriMesh, String> {
-    let frame = &seq.frames[0];
-    let bytes: Vec<u8> = frame.iter().flat_map(|p| p.to_array()).flat_map(f32::to_le_bytes).collect();
-    let adapter = meshopt::VertexDataAdapter::new(&bytes, 12, 0).map_err(|e| format!("{e:?}"))?;
-    let indices: Vec<u32> = seq.triangles.iter().flatten().copied().collect();
-    let simplify = |target: usize| {
-        let out = meshopt::simplify(&indices, &adapter, target, f32::MAX, meshopt::SimplifyOptions::empty(), None);
-        let mut index = vec![u32::MAX; frame.len()];
-        let mut mesh = TriMesh::default();
-        for t in out.chunks_exact(3) {
-            let tri = [t[0], t[1], t[2]].map(|v| {
-                if index[v as usize] == u32::MAX {
-                    index[v as usize] = mesh.positions.len() as u32;
-                    mesh.positions.push(frame[v as usize]);
-                }
-                index[v as usize]
-            });
-            mesh.triangles.push(tri);
-        }
-        mesh
-    };
-    let (mut lo, mut hi) = (3usize, indices.len());
-    let mut best: Option<TriMesh> = None;
-    for _ in 0..24 {
-        let mid = (lo + hi) / 2 / 3 * 3;
-        let m = simplify(mid);
-        let got = m.positions.len();
-        if got > vertices {
-            hi = mid;
-        } else {
-            lo = mid + 3;
-        }
-        if best.as_ref().is_none_or(|b| got.abs_diff(vertices) < b.positions.len().abs_diff(vertices)) {
-            best = Some(m);
-        }
-        if got.abs_diff(vertices) * 100 <= vertices || hi <= lo {
-            break;
-        }
-    }
-    best.ok_or_else(|| "no simplification".into())
 }
 
 fn level_mesh(h: &Hierarchy, triangles: &[[u32; 3]], nodes: &NodeState, level: usize) -> (TriMesh, usize) {
@@ -152,7 +111,7 @@ fn run(input: &str) -> Result<(), String> {
         let (mr, fr) = level_mesh(rc.hierarchy(), &seq.triangles, rc.nodes(), level);
         let dl = direct.level_sizes.iter().position(|&s| s == n).unwrap_or(direct.top());
         let (md, fd) = level_mesh(&direct, &seq.triangles, &direct_nodes, dl);
-        let mo = meshopt_at(&seq, n as usize)?;
+        let mo = qem::reference(&seq, n as usize)?;
         let [b, r, d, o] = [&mb, &mr, &md, &mo].map(|m| measure(&original, m, diagonal));
         let (b, r, d, o) = (b?, r?, d?, o?);
         let loops = [&mb, &mr, &md, &mo].map(|m| boundary_loops(m.positions.len(), &m.triangles).1);
