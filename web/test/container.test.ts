@@ -8,7 +8,8 @@ import { existsSync, mkdirSync, mkdtempSync, readdirSync, readFileSync, writeFil
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 import { FLAG_NAMES, frontDecode } from "../src/container/format.js";
-import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, dequantizeUv, readBand0Table, readPositions, readTable, texturedMesh } from "../src/container/index.js";
+import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, bandFaces, dequantizeUv, needsFaces, readBand0Table, readPositions, readTable, texturedMesh } from "../src/container/index.js";
+import type { Faces } from "../src/container/index.js";
 import { readCornerUpdates, readDelta, readFaces, readKey } from "../src/container/payload.js";
 
 const root = repoRoot();
@@ -569,9 +570,11 @@ test("represented attribute values (mode | 16) and entries from the band above (
       if ((modes[j] & 16) === 0) continue;
       const parent = readKey(await c.chunk(c.find(ChunkKind.Key, 0, j)), "k", c.header.levelSizes, j, c.version);
       const above = { parent, table: player.looks!.tables[j + 1]! };
+      // (Values across the band's faces, mode | 64, need them too: the values-across test.)
+      const faces = needsFaces(raws[j]) ? bandFaces(tris, chartOf, await frame0Parents(c, j), "f") : null;
       const read = (b: Uint8Array, up: typeof above | null = above): { values: Int32Array } => j === 0
         ? readBand0Table(b, "band 0", c.header.levelSizes[0], a, tris, chartOf, up)
-        : readTable(b, `band ${j}`, c.header.levelSizes[j], a, c.header.triangleCount, up);
+        : readTable(b, `band ${j}`, c.header.levelSizes[j], a, c.header.triangleCount, up, faces);
       assert.deepEqual(Array.from(read(raws[j]).values), Array.from(player.looks!.tables[j]!.values), `${name} band ${j}`);
       assert.throws(() => read(raws[j], null), DecodeError, `${name} band ${j} without the band above`);
       assert.throws(() => read(raws[j].subarray(0, raws[j].length - 1)), DecodeError, `${name} band ${j} cut short`);
@@ -582,6 +585,99 @@ test("represented attribute values (mode | 16) and entries from the band above (
   }
   assert.ok(represented >= 3, `only ${represented} of 4 inputs took represented values`);
   assert.ok(entriesAbove >= 2, `only ${entriesAbove} of 4 inputs took entries from the band above (mode | 32)`);
+});
+
+/** Frame 0's parent maps of levels 0..j (its Key chunks of bands 0..j-1), finest first. */
+async function frame0Parents(c: Reader, j: number): Promise<Uint32Array[]> {
+  const out: Uint32Array[] = [];
+  for (let i = 0; i < j; i++) out.push(readKey(await c.chunk(c.find(ChunkKind.Key, 0, i)), `k${i}`, c.header.levelSizes, i, c.version));
+  return out;
+}
+
+/**
+ * A generated OBJ sequence of a grid of w x h quads whose texture is `charts` islands side by
+ * side (the grid's columns split into that many charts, each its own `vt`s along the seams),
+ * each island mapped smoothly with a gentle distortion, waving from frame to frame. Deterministic.
+ */
+function islandsObjSequence(out: string, w: number, h: number, charts: number): void {
+  mkdirSync(out, { recursive: true });
+  const vts: string[] = [], vt = new Map<string, number>();
+  const uv = (i: number, j: number, k: number): number => {
+    const id = `${i},${j},${k}`;
+    if (!vt.has(id)) {
+      const u = (k + 0.05 + (0.9 * (i - (k * w) / charts)) / (w / charts + 1) + 0.01 * Math.sin(j * 0.7)) / charts;
+      vts.push(`vt ${u} ${(j + 0.3 * Math.sin(i * 0.4)) / (h + 1)}`);
+      vt.set(id, vts.length);
+    }
+    return vt.get(id)!;
+  };
+  const faces: string[] = [];
+  for (let j = 0; j < h; j++) {
+    for (let i = 0; i < w; i++) {
+      const k = Math.floor((i * charts) / w), v = [j * (w + 1) + i + 1, j * (w + 1) + i + 2, (j + 1) * (w + 1) + i + 2, (j + 1) * (w + 1) + i + 1];
+      const t = [uv(i, j, k), uv(i + 1, j, k), uv(i + 1, j + 1, k), uv(i, j + 1, k)];
+      faces.push(`f ${v[0]}/${t[0]} ${v[1]}/${t[1]} ${v[2]}/${t[2]}`, `f ${v[0]}/${t[0]} ${v[2]}/${t[2]} ${v[3]}/${t[3]}`);
+    }
+  }
+  for (let f = 0; f < 3; f++) {
+    const lines: string[] = [];
+    for (let j = 0; j <= h; j++) for (let i = 0; i <= w; i++) lines.push(`v ${i * 0.1} ${j * 0.1} ${0.15 * Math.sin(i * 0.25 + f * 0.4) * Math.cos(j * 0.3)}`);
+    writeFileSync(join(out, `f${String(f).padStart(3, "0")}.obj`), [...lines, ...vts, ...faces].join("\n") + "\n");
+  }
+}
+
+test("attribute values across a band's faces (mode 3 | 64) on generated seamed meshes with several charts, a cylinder and Horse: every level's tables and cuts' texture coordinates and colours as the Rust decoder's, bit for bit, at every finest level", async () => {
+  const horse = join(root, "../shared/data/gltf/Horse.glb");
+  if (!existsSync(horse)) throw new Error(`${horse} is absent: this test reads the real models in ../shared/data beside the repository`);
+  const islands = join(dir, "obj-islands"), cylinder = join(dir, "obj-across-cylinder");
+  islandsObjSequence(islands, 36, 24, 5);
+  cylinderObjSequence(cylinder, 40, 28);
+  let across = 0;
+  for (const [name, input] of [["islands", islands], ["cylinder", cylinder], ["horse", horse]]) {
+    const file = join(dir, `across-${name}.pmc`);
+    execFileSync(bin, ["encode", "-q", input, "-o", file]);
+    const c = await open(file), a = c.header.appearance!, levels = c.header.levelSizes.length;
+    const raws: Uint8Array[] = [];
+    for (let j = 0; j < levels; j++) raws.push(await c.chunk(c.find(ChunkKind.Attributes, 0, j)));
+    const player = new Decoder(c, 0);
+    await player.loadAppearance();
+    for (const [frame, budget] of [[0, 100000], [1, 300], [2, 60]]) {
+      const out = join(dir, `across-${name}-${frame}-${budget}.glb`);
+      execFileSync(bin, ["decode", "-q", file, "--frame", String(frame), "--triangles", String(budget), "-o", out]);
+      const glb = readGlb(out);
+      await player.seek(frame);
+      const pos = player.positions();
+      player.replay.selectTriangles(budget, player.replay.splitBenefits(pos));
+      const mesh = player.texturedMesh(pos);
+      const attr = glb.json.meshes[0].primitives[0].attributes, what = `${name} frame ${frame} budget ${budget}`;
+      assert.deepEqual(Array.from(mesh.uv0!), Array.from(accessor(glb, attr.TEXCOORD_0)), `${what}: texture coordinates`);
+      if (a.colors) assert.deepEqual(Array.from(mesh.colors!), Array.from(accessor(glb, attr.COLOR_0)), `${what}: colours`);
+    }
+    // A coarse client (finest level L) reads bands L.. and decodes them as a full one does.
+    for (let L = 1; L < levels; L++) {
+      const coarse = new Decoder(c, L);
+      await coarse.loadAppearance();
+      for (let j = L; j < levels; j++) assert.deepEqual(Array.from(coarse.looks!.tables[j]!.values), Array.from(player.looks!.tables[j]!.values), `${name} level ${L} band ${j}`);
+    }
+    const tris = (player as unknown as { triangles: Uint32Array }).triangles, chartOf = player.looks!.charts.triangleChart;
+    for (let j = 1; j < levels; j++) {
+      if (!needsFaces(raws[j])) continue;
+      across++;
+      const parents = await frame0Parents(c, j);
+      const parent = readKey(await c.chunk(c.find(ChunkKind.Key, 0, j)), "k", c.header.levelSizes, j, c.version);
+      const above = { parent, table: player.looks!.tables[j + 1]! }, faces = bandFaces(tris, chartOf, parents, "f");
+      const read = (b: Uint8Array, f: Faces | null = faces): Int32Array => readTable(b, `band ${j}`, c.header.levelSizes[j], a, c.header.triangleCount, above, f).values;
+      assert.deepEqual(Array.from(read(raws[j])), Array.from(player.looks!.tables[j]!.values), `${name} band ${j}`);
+      assert.throws(() => read(raws[j], null), /without its faces/, `${name} band ${j} without its faces`);
+      assert.throws(() => read(raws[j].subarray(0, raws[j].length - 1)), DecodeError, `${name} band ${j} cut short`);
+      for (let at = 1; at < raws[j].length; at += Math.max(1, raws[j].length >> 5)) {
+        try { read(Uint8Array.from(raws[j], (b, i) => (i === at ? b ^ 0x5a : b))); } catch (e) { assert.ok(e instanceof DecodeError, `${name} band ${j} byte ${at}: ${e}`); }
+      }
+      // A parent map missing a node is a DecodeError naming it.
+      assert.throws(() => bandFaces(tris, chartOf, [parents[0].subarray(0, 3)], "band faces"), /misses a node/);
+    }
+  }
+  assert.ok(across >= 2, `only ${across} tables took values across their band's faces`);
 });
 
 test("a skinned glTF's stream (version 7): every frame's input vertices equal the Rust decoder's, and coarse clients agree", async () => {

@@ -2,7 +2,7 @@
 // a finest level (Replay), node positions predicted and corrected band by band, and the cut a
 // triangle budget selects, ordered as the Rust decoder orders it.
 
-import { Charts, Materials, Table, TexturedMesh, needsAbove, readBand0Table, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
+import { Charts, Materials, Table, TexturedMesh, bandFaces, needsAbove, needsFaces, readBand0Table, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
 import { Below, isDerived } from "./derive.js";
 import { DecodeError } from "./error.js";
 import { ChunkKind, Motion, channels } from "./format.js";
@@ -413,10 +413,22 @@ export class Decoder {
         const table = tables[j + 1];
         above = table ? { parent, table } : null;
       }
+      // Band 0's entries may be derived from the triangles (a level-0 client's own), and a
+      // band's faces in frame 0 are walked up from them.
+      const triangles = async (): Promise<Uint32Array> =>
+        this.triangles ?? readTriangles(await c.chunk(c.find(ChunkKind.Triangles, 0, 0)), "triangles chunk", h.triangleCount, h.vertexCount, c.version);
+      if (j > 0 && needsFaces(raw)) {
+        // Values across band j's faces in frame 0: the triangles walked up frame 0's parents
+        // of levels 0..j (their Key chunks), as a derived Faces chunk does.
+        const parents: Uint32Array[] = [];
+        for (let i = 0; i < j; i++) parents.push(readKey(await c.chunk(c.find(ChunkKind.Key, 0, i)), `frame 0 band ${i} keyframe`, h.levelSizes, i, c.version));
+        const faces = bandFaces(await triangles(), charts.triangleChart, parents, what);
+        tables[j] = readTable(raw, what, h.levelSizes[j], a, h.triangleCount, above, faces);
+        continue;
+      }
       if (j > 0) { tables[j] = readTable(raw, what, h.levelSizes[j], a, h.triangleCount, above); continue; }
-      // Band 0's entries may be derived from the triangles (a level-0 client's own).
-      const triangles = this.triangles ?? readTriangles(await c.chunk(c.find(ChunkKind.Triangles, 0, 0)), "triangles chunk", h.triangleCount, h.vertexCount, c.version);
-      tables[j] = readBand0Table(raw, what, h.levelSizes[j], a, triangles, charts.triangleChart, above);
+      const tris = await triangles();
+      tables[j] = readBand0Table(raw, what, h.levelSizes[j], a, tris, charts.triangleChart, above);
     }
     this.looks = { charts, tables, materials };
   }

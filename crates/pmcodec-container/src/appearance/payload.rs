@@ -113,7 +113,7 @@ pub fn write_table_entries_above(
 }
 
 /// Whether every represented entry's values equal its parent entry's.
-fn represented_agree(reps: &[Option<u32>], values: &[i32], above: &[i32], channels: usize) -> bool {
+pub(super) fn represented_agree(reps: &[Option<u32>], values: &[i32], above: &[i32], channels: usize) -> bool {
     reps.iter().enumerate().all(|(e, r)| {
         r.is_none_or(|a| values.get(e * channels..(e + 1) * channels) == above.get(a as usize * channels..(a as usize + 1) * channels))
     })
@@ -153,7 +153,7 @@ impl QuantizedTable {
 }
 
 /// The prediction of entry (node, chart)'s channel k from the band above, if it has the entry.
-fn from_above(above: Option<(&[u32], &Table)>, node: u32, chart: u32, channels: usize, k: usize) -> Option<i32> {
+pub(super) fn from_above(above: Option<(&[u32], &Table)>, node: u32, chart: u32, channels: usize, k: usize) -> Option<i32> {
     let (parent, table) = above?;
     let p = *parent.get(node as usize)?;
     let e = table.find(p, chart)?;
@@ -210,11 +210,11 @@ fn write_values(
 
 /// Set in a table's mode (after its first byte 0): the value residuals are a rANS section
 /// ([`put_codes`]) rather than varints. Files before it never set it.
-const RANS_VALUES: u32 = 8;
+pub(super) const RANS_VALUES: u32 = 8;
 /// Set in a table's mode with [`FROM_ABOVE`] or [`DERIVED_ENTRIES`]: representatives
 /// ([`representatives`]) take their parent entry's values and have no residual. Files before
 /// it never set it.
-const REPRESENTED: u32 = 16;
+pub(super) const REPRESENTED: u32 = 16;
 /// A decoded attribute table, indexed by node: entries of node n are `first[n]..first[n+1]`.
 #[derive(Clone, Debug, Default)]
 pub struct Table {
@@ -280,12 +280,15 @@ const DERIVED_ENTRIES: u32 = 1;
 const CHARTWISE: u32 = 2;
 /// The coding of a listed table with values predicted from the band above
 /// ([`write_table_from_above`]).
-const FROM_ABOVE: u32 = 3;
+pub(super) const FROM_ABOVE: u32 = 3;
 /// [`FROM_ABOVE`] with [`REPRESENTED`] ([`write_table_represented`]).
 const REPRESENTED_ABOVE: u32 = FROM_ABOVE | REPRESENTED;
 /// Set with [`FROM_ABOVE`]: the entries are coded from the band above's
 /// ([`put_entries_above`]). Files before it never set it.
-const ENTRIES_ABOVE: u32 = 32;
+pub(super) const ENTRIES_ABOVE: u32 = 32;
+/// Set with [`FROM_ABOVE`]: the values are predicted across the band's faces
+/// ([`super::across`]). Files before it never set it.
+pub(super) const ACROSS_FACES: u32 = 64;
 
 /// Band 0's traversal (proto/container.md, "Attributes, band 0 with derived entries"): the
 /// triangles in input order, each one's corners in order; a corner whose entry is not yet
@@ -297,7 +300,8 @@ const ENTRIES_ABOVE: u32 = 32;
 /// of the two known corners, the one known corner, the last entry made known in the
 /// triangle's chart, or the last entry made known (zeros at first). Arithmetic wraps in 32 bits, the mean is `(a + b) >> 1` (arithmetic shift).
 /// Entries `known` at the start (the representatives of a represented table, their values in
-/// `values`) are never visited; the others see them as known corners.
+/// `values`) are never visited; the others see them as known corners; `known` ends with the
+/// visited ones set too.
 #[allow(clippy::too_many_arguments)]
 fn traverse(
     table: &Table,
@@ -305,7 +309,7 @@ fn traverse(
     triangle_chart: &[u32],
     channels: usize,
     values: &mut [i32],
-    mut known: Vec<bool>,
+    known: &mut Vec<bool>,
     mut visit: impl FnMut(&[i32], &mut [i32]) -> Result<(), ContainerError>,
     what: &str,
 ) -> Result<(), ContainerError> {
@@ -404,7 +408,7 @@ fn write_derived(
     {
         return None;
     }
-    let known: Vec<bool> = reps.iter().map(Option::is_some).collect();
+    let mut known: Vec<bool> = reps.iter().map(Option::is_some).collect();
     let coded = t.entries.len() - known.iter().filter(|&&k| k).count();
     let mut values = t.values.clone();
     let mut residuals: Vec<Vec<u32>> = vec![Vec::with_capacity(t.entries.len()); channels];
@@ -418,7 +422,7 @@ fn write_derived(
     put(&mut out, 0);
     put(&mut out, DERIVED_ENTRIES | if above.is_some() { REPRESENTED } else { 0 } | if rans { RANS_VALUES } else { 0 });
     // The entries are the triangles' own: the traversal cannot miss one.
-    traverse(&table, triangles, triangle_chart, channels, &mut values, known, visit, "band 0 attributes").ok()?;
+    traverse(&table, triangles, triangle_chart, channels, &mut values, &mut known, visit, "band 0 attributes").ok()?;
     put_codes(&mut out, &residuals.concat(), coded, channels, rans);
     Some(out)
 }
@@ -500,7 +504,7 @@ pub fn read_band(
         k += 1;
         Ok(())
     };
-    traverse(&table, tris, chart_of, channels, &mut values, known, visit, what)?;
+    traverse(&table, tris, chart_of, channels, &mut values, &mut known, visit, what)?;
     table.values = values;
     Ok(table)
 }
@@ -515,7 +519,7 @@ pub fn read_table(bytes: &[u8], what: &str, nodes: u32, info: &AppearanceInfo, t
 pub fn needs_above(bytes: &[u8]) -> bool {
     bytes.len() > 1
         && bytes[0] == 0
-        && (bytes[1] & !(RANS_VALUES as u8) == FROM_ABOVE as u8 || bytes[1] & (REPRESENTED | ENTRIES_ABOVE) as u8 != 0)
+        && (bytes[1] & !(RANS_VALUES as u8) == FROM_ABOVE as u8 || bytes[1] & (REPRESENTED | ENTRIES_ABOVE | ACROSS_FACES) as u8 != 0)
 }
 
 /// [`read_table`] with `above`: frame 0's parents of this band's nodes and the band above's
@@ -528,7 +532,23 @@ pub fn read_table_above(
     triangles: u32,
     above: Option<(&[u32], &Table)>,
 ) -> Result<Table, ContainerError> {
+    read_table_across(bytes, what, nodes, info, triangles, above, None)
+}
+
+/// [`read_table_above`] with `faces`: band j's faces in frame 0 and their charts
+/// ([`super::across::band_faces`]), which a table with values across the faces (mode `3 | 64`)
+/// needs ([`super::across::needs_faces`] says whether).
+pub fn read_table_across(
+    bytes: &[u8],
+    what: &str,
+    nodes: u32,
+    info: &AppearanceInfo,
+    triangles: u32,
+    above: Option<(&[u32], &Table)>,
+    faces: Option<(&[[u32; 3]], &[u32])>,
+) -> Result<Table, ContainerError> {
     let mut c = Cursor::new(bytes, what);
+    let mut across = false;
     let mut chartwise = false;
     let mut predicted = None;
     let mut rans = false;
@@ -540,9 +560,11 @@ pub fn read_table_above(
         rans = mode & RANS_VALUES != 0;
         represented = mode & REPRESENTED != 0;
         entries_above = mode & ENTRIES_ABOVE != 0;
-        match mode & !(RANS_VALUES | if entries_above { ENTRIES_ABOVE } else { 0 }) {
-            0 if rans && !entries_above => {}
-            CHARTWISE if !entries_above => chartwise = true,
+        across = mode & ACROSS_FACES != 0;
+        let flags = RANS_VALUES | if entries_above || across { ENTRIES_ABOVE | ACROSS_FACES } else { 0 };
+        match mode & !flags {
+            0 if rans && !entries_above && !across => {}
+            CHARTWISE if !entries_above && !across => chartwise = true,
             FROM_ABOVE | REPRESENTED_ABOVE => {
                 chartwise = true;
                 predicted = Some(above.ok_or_else(|| ContainerError::Corrupt {
@@ -587,6 +609,15 @@ pub fn read_table_above(
     };
     let coded = m - reps.iter().filter(|r| r.is_some()).count();
     let codes = read_codes(&mut c, coded, channels, rans)?;
+    if across {
+        let corrupt = |detail: &str| ContainerError::Corrupt { what: what.into(), detail: detail.into() };
+        let (Some(above), Some(faces)) = (predicted, faces) else {
+            return Err(corrupt("values across the band's faces without its faces"));
+        };
+        table.values = super::across::read_values(&table, &node_of, &reps, channels, above, faces, &codes, coded, what)?;
+        c.finish()?;
+        return Ok(table);
+    }
     for k in 0..channels {
         let mut last = vec![0i32; if chartwise { info.charts as usize } else { 1 }];
         let mut at = k * coded;
