@@ -626,14 +626,16 @@ function islandsObjSequence(out: string, w: number, h: number, charts: number): 
   }
 }
 
-test("attribute values across a band's faces (mode 3 | 64) on generated seamed meshes with several charts, a cylinder and Horse: every level's tables and cuts' texture coordinates and colours as the Rust decoder's, bit for bit, at every finest level", async () => {
+test("attribute values across a band's faces (mode 3 | 64, band 0's 1 | 16 | 64) on generated seamed meshes with several charts, a cylinder, Horse and Fox: every level's tables and cuts' texture coordinates and colours as the Rust decoder's, bit for bit, at every finest level", async () => {
   const horse = join(root, "../shared/data/gltf/Horse.glb");
   if (!existsSync(horse)) throw new Error(`${horse} is absent: this test reads the real models in ../shared/data beside the repository`);
   const islands = join(dir, "obj-islands"), cylinder = join(dir, "obj-across-cylinder");
   islandsObjSequence(islands, 36, 24, 5);
   cylinderObjSequence(cylinder, 40, 28);
-  let across = 0;
-  for (const [name, input] of [["islands", islands], ["cylinder", cylinder], ["horse", horse]]) {
+  const fox = join(root, "../shared/data/gltf/Fox.glb");
+  if (!existsSync(fox)) throw new Error(`${fox} is absent: this test reads the real models in ../shared/data beside the repository`);
+  let across = 0, band0Across = 0;
+  for (const [name, input] of [["islands", islands], ["cylinder", cylinder], ["horse", horse], ["fox", fox]]) {
     const file = join(dir, `across-${name}.pmc`);
     execFileSync(bin, ["encode", "-q", input, "-o", file]);
     const c = await open(file), a = c.header.appearance!, levels = c.header.levelSizes.length;
@@ -660,6 +662,19 @@ test("attribute values across a band's faces (mode 3 | 64) on generated seamed m
       for (let j = L; j < levels; j++) assert.deepEqual(Array.from(coarse.looks!.tables[j]!.values), Array.from(player.looks!.tables[j]!.values), `${name} level ${L} band ${j}`);
     }
     const tris = (player as unknown as { triangles: Uint32Array }).triangles, chartOf = player.looks!.charts.triangleChart;
+    if (needsFaces(raws[0]) && levels > 1) {
+      // Band 0 across the triangles (mode 1 | 16 | 64): derived entries, the band above needed.
+      band0Across++;
+      assert.equal(raws[0][1] & ~8, 1 | 16 | 64);
+      const above = { parent: readKey(await c.chunk(c.find(ChunkKind.Key, 0, 0)), "k", c.header.levelSizes, 0, c.version), table: player.looks!.tables[1]! };
+      const read = (b: Uint8Array, up: typeof above | null = above): Int32Array => readBand0Table(b, "band 0", c.header.levelSizes[0], a, tris, chartOf, up).values;
+      assert.deepEqual(Array.from(read(raws[0])), Array.from(player.looks!.tables[0]!.values), `${name} band 0`);
+      assert.throws(() => read(raws[0], null), DecodeError, `${name} band 0 without the band above`);
+      assert.throws(() => read(raws[0].subarray(0, raws[0].length - 1)), DecodeError, `${name} band 0 cut short`);
+      for (let at = 1; at < raws[0].length; at += Math.max(1, raws[0].length >> 5)) {
+        try { read(Uint8Array.from(raws[0], (b, i) => (i === at ? b ^ 0x5a : b))); } catch (e) { assert.ok(e instanceof DecodeError, `${name} band 0 byte ${at}: ${e}`); }
+      }
+    }
     for (let j = 1; j < levels; j++) {
       if (!needsFaces(raws[j])) continue;
       across++;
@@ -677,7 +692,7 @@ test("attribute values across a band's faces (mode 3 | 64) on generated seamed m
       assert.throws(() => bandFaces(tris, chartOf, [parents[0].subarray(0, 3)], "band faces"), /misses a node/);
     }
   }
-  assert.ok(across >= 2, `only ${across} tables took values across their band's faces`);
+  assert.ok(across >= 2 && band0Across >= 1, `only ${across} tables above band 0 and ${band0Across} of band 0 took values across their band's faces`);
 });
 
 test("a skinned glTF's stream (version 7): every frame's input vertices equal the Rust decoder's, and coarse clients agree", async () => {

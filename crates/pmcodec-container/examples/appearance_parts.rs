@@ -229,6 +229,23 @@ fn main() {
                     let w = write_table_across(&q, info.channels(), p, a, (&faces, &fc), bits & 1 != 0, bits & 2 != 0, bits & 4 != 0);
                     sizes.push(w.map_or(0, |w| z(&w)));
                 }
+                if j == 0 {
+                    let d: Vec<usize> = [false, true]
+                        .map(|r| {
+                            pmcodec_container::appearance::across::write_table_derived_across(
+                                &q,
+                                info.channels(),
+                                &tris,
+                                &charts.triangle_chart,
+                                p,
+                                a,
+                                r,
+                            )
+                            .map_or(0, |w| z(&w))
+                        })
+                        .to_vec();
+                    println!("  EXP band 0 derived across (varints, rans): {d:?}");
+                }
                 println!("  EXP band {j}: {} faces; across the faces (rans, represented, entries above bits) {sizes:?}", faces.len());
             }
             above = Some(t);

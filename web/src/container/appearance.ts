@@ -444,10 +444,11 @@ export function band0Entries(triangles: Uint32Array, triangleChart: Uint32Array)
  * Rust `read_table_with`).
  */
 export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: Uint32Array, triangleChart: Uint32Array, above: Above | null = null): Table {
-  if (raw.length <= 1 || raw[0] !== 0 || (raw[1] & ~(RANS_VALUES | REPRESENTED)) !== 1) return readTable(raw, what, nodes, a, triangleChart.length, above);
+  if (raw.length <= 1 || raw[0] !== 0 || (raw[1] & ~(RANS_VALUES | REPRESENTED | ACROSS_FACES)) !== 1) return readTable(raw, what, nodes, a, triangleChart.length, above);
   const ch = channels(a), c = new Cursor(raw, what);
   c.get();
-  const coding = c.get(), rans = (coding & RANS_VALUES) !== 0, represented = (coding & REPRESENTED) !== 0;
+  const coding = c.get(), rans = (coding & RANS_VALUES) !== 0, represented = (coding & REPRESENTED) !== 0, across = (coding & ACROSS_FACES) !== 0;
+  if (across && !represented) throw new DecodeError(`${what}: table coding ${coding} unknown`);
   if (represented && !above) throw new DecodeError(`${what}: represented values without the band above`);
   if (triangles.length !== 3 * triangleChart.length) throw new DecodeError(`${what}: triangles and charts disagree`);
   const entries = band0Entries(triangles, triangleChart), m = entries.length;
@@ -455,6 +456,16 @@ export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: 
   const first = new Uint32Array(nodes + 1), charts = new Uint32Array(m);
   entries.forEach(([n, k], e) => { first[n + 1]++; charts[e] = k; });
   for (let n = 0; n < nodes; n++) first[n + 1] += first[n];
+  if (across) {
+    // Mode 1 | 16 | 64: values across the triangles (band 0's faces), averaged with the parent entry's.
+    const nodeOf = Uint32Array.from(entries, ([n]) => n), reps = representatives(first, charts, above!);
+    let coded = m;
+    for (let e = 0; e < m; e++) if (reps[e] >= 0) coded--;
+    const codes = readCodes(c, raw, coded, ch, rans, what);
+    c.finish();
+    const values = acrossValues(first, charts, nodeOf, reps, ch, above!, bandFaces(triangles, triangleChart, [], what), codes, coded, what);
+    return { first, charts, values };
+  }
   // Representatives take their parent entry's values before the traversal, which skips them.
   const values = new Int32Array(m * ch), known = new Uint8Array(m);
   let coded = m;

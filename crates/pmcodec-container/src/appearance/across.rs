@@ -17,7 +17,7 @@
 use super::codes::put_codes;
 use super::entries::{put_entries, put_entries_above};
 use super::payload::{
-    ACROSS_FACES, ENTRIES_ABOVE, FROM_ABOVE, QuantizedTable, RANS_VALUES, REPRESENTED, Table, from_above, representatives,
+    ACROSS_FACES, DERIVED_ENTRIES, ENTRIES_ABOVE, FROM_ABOVE, QuantizedTable, RANS_VALUES, REPRESENTED, Table, from_above, representatives,
     represented_agree,
 };
 use crate::ContainerError;
@@ -132,6 +132,49 @@ pub fn write_table_across(
     } else {
         put_entries(&mut out, &t.entries);
     }
+    put_codes(&mut out, &residuals.concat(), coded, channels, rans);
+    Some(out)
+}
+
+/// ATTRIBUTES, band 0 with derived entries, represented values and values *across the
+/// triangles* averaged with the parent entry's: `0`, `1 | 16 | 64` (with `rans`, `| 8`), then
+/// the residuals against [`visit_across`]'s predictions over band 0's faces (the triangles with
+/// three distinct corners, [`band_faces`] with no parents). `t`'s entries must be
+/// [`band0_entries`](super::payload::band0_entries) of the triangles and charts. `None` where
+/// mode `1 | 16` is `None`.
+pub fn write_table_derived_across(
+    t: &QuantizedTable,
+    channels: usize,
+    triangles: &[[u32; 3]],
+    triangle_chart: &[u32],
+    parent: &[u32],
+    above: &Table,
+    rans: bool,
+) -> Option<Vec<u8>> {
+    let faces = band_faces(triangles, triangle_chart, &[])?;
+    let nodes = t.entries.last().map_or(0, |e| e.0 + 1);
+    let table = Table::index(&t.entries, nodes);
+    let reps = representatives(&table, parent, above);
+    if !represented_agree(&reps, &t.values, &above.values, channels) {
+        return None;
+    }
+    let mut known: Vec<bool> = reps.iter().map(Option::is_some).collect();
+    known.resize(t.entries.len(), false);
+    let coded = known.iter().filter(|&&k| !k).count();
+    let node_of: Vec<u32> = t.entries.iter().map(|e| e.0).collect();
+    let mut values = t.values.clone();
+    let mut residuals: Vec<Vec<u32>> = vec![Vec::with_capacity(coded); channels];
+    let visit = |pred: &[i32], v: &mut [i32]| {
+        for q in 0..channels {
+            residuals[q].push(zigzag(v[q].wrapping_sub(pred[q])));
+        }
+        Ok(())
+    };
+    let f = (&faces.0[..], &faces.1[..]);
+    visit_across(&table, &node_of, channels, &mut values, &mut known, (parent, above), f, visit, "band 0 attributes").ok()?;
+    let mut out = Vec::new();
+    put(&mut out, 0);
+    put(&mut out, DERIVED_ENTRIES | REPRESENTED | ACROSS_FACES | if rans { RANS_VALUES } else { 0 });
     put_codes(&mut out, &residuals.concat(), coded, channels, rans);
     Some(out)
 }

@@ -2,7 +2,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 use super::*;
 use crate::appearance::format::AppearanceInfo;
-use crate::appearance::payload::{read_table_across, write_table_chartwise};
+use crate::appearance::payload::{band0_entries, read_band, read_table_across, write_table_chartwise};
 
 /// A grid of `w` x `h` vertices split into `k` charts by columns (seams: a vertex on a chart
 /// border has an entry in both), its parents two levels up (2 x 2 cells each), and a band-1
@@ -40,17 +40,61 @@ fn grid(w: u32, h: u32, k: u32, uv: Uv<'_>) -> Grid {
     entries.dedup();
     let values = entries.iter().flat_map(|&(n, c)| uv(n % w1, n / w1, c)).collect();
     let band1 = QuantizedTable { entries, values };
-    let mut up: Vec<(u32, u32)> = band1.entries.iter().map(|&(n, c)| (p1[n as usize], c)).collect();
+    let above = above_of(&band1, &p1);
+    Grid { triangles, chart_of, p0, p1, band1, above }
+}
+
+/// The table above `t` under `parent`: every (parent, chart) of its entries, valued as its
+/// representative (2 channels), as the reference encoder values a coarse entry.
+fn above_of(t: &QuantizedTable, parent: &[u32]) -> Table {
+    let mut up: Vec<(u32, u32)> = t.entries.iter().map(|&(n, c)| (parent[n as usize], c)).collect();
     up.sort_unstable();
     up.dedup();
     let mut above = QuantizedTable { values: vec![0; up.len() * 2], entries: up }.to_table();
-    let nodes = band1.entries.last().map_or(0, |e| e.0 + 1);
-    for (e, r) in representatives(&Table::index(&band1.entries, nodes), &p1, &above).into_iter().enumerate() {
+    let nodes = t.entries.last().map_or(0, |e| e.0 + 1);
+    for (e, r) in representatives(&Table::index(&t.entries, nodes), parent, &above).into_iter().enumerate() {
         if let Some(a) = r {
-            above.values[a as usize * 2..a as usize * 2 + 2].copy_from_slice(&band1.values[e * 2..e * 2 + 2]);
+            above.values[a as usize * 2..a as usize * 2 + 2].copy_from_slice(&t.values[e * 2..e * 2 + 2]);
         }
     }
-    Grid { triangles, chart_of, p0, p1, band1, above }
+    above
+}
+
+#[test]
+fn band0_values_across_the_triangles_round_trip_and_fail_cleanly() {
+    // A seamed grid (4 charts) with a degenerate triangle, whose corner (vertex 5, chart 3) no
+    // other triangle reaches: the traversal's leftovers.
+    let g = grid(21, 15, 4, &|x, y, c| [(c * 1000 + x * 50) as i32, (y * 61) as i32]);
+    let mut triangles = g.triangles.clone();
+    let mut chart_of = g.chart_of.clone();
+    triangles.push([5, 5, 6]);
+    chart_of.push(3);
+    let entries = band0_entries(&triangles, &chart_of);
+    let values = entries.iter().flat_map(|&(v, c)| [(c * 1000 + (v % 21) * 25 + (v * 7) % 5) as i32, (v / 21 * 30) as i32]).collect();
+    let t = QuantizedTable { entries, values };
+    let above = above_of(&t, &g.p0);
+    let info = info(4);
+    let (n, tc) = (21 * 15, triangles.len() as u32);
+    let band0 = Some((&triangles[..], &chart_of[..]));
+    for rans in [false, true] {
+        let raw = write_table_derived_across(&t, 2, &triangles, &chart_of, &g.p0, &above, rans).unwrap();
+        assert_eq!(raw[..2], [0, 1 | 16 | 64 | if rans { 8 } else { 0 }]);
+        let back = read_band(&raw, "t", n, &info, tc, band0, Some((&g.p0, &above))).unwrap();
+        assert_eq!(back.values, t.values, "rans {rans}");
+        assert!(read_band(&raw, "t", n, &info, tc, band0, None).is_err(), "without the band above");
+        for cut in [2, raw.len() / 2, raw.len() - 1] {
+            assert!(read_band(&raw[..cut], "t", n, &info, tc, band0, Some((&g.p0, &above))).is_err(), "cut {cut}");
+        }
+        for at in 1..raw.len() {
+            let mut bad = raw.clone();
+            bad[at] ^= 0x5A;
+            let _ = read_band(&bad, "t", n, &info, tc, band0, Some((&g.p0, &above)));
+        }
+        // Across the triangles without represented values is no coding.
+        let mut odd = raw.clone();
+        odd[1] &= !16;
+        assert!(read_band(&odd, "t", n, &info, tc, band0, Some((&g.p0, &above))).is_err());
+    }
 }
 
 fn info(charts: u32) -> AppearanceInfo {

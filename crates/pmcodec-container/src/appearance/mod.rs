@@ -132,6 +132,8 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
                         }
                     }
                     if j == 0 {
+                        let tris = builder.triangles();
+                        codings.extend(across::write_table_derived_across(t, channels, tris, chart_of, parent, &above, rans));
                         codings.extend(payload::write_table_derived_represented(
                             t,
                             channels,

@@ -275,7 +275,7 @@ pub fn band0_entries(triangles: &[[u32; 3]], triangle_chart: &[u32]) -> Vec<(u32
 
 /// The coding of a band-0 table with *derived entries*: after a first byte 0 (no entries
 /// listed), this mode (proto/container.md, "Attributes, band j").
-const DERIVED_ENTRIES: u32 = 1;
+pub(super) const DERIVED_ENTRIES: u32 = 1;
 /// The coding of a listed table with chart-wise value differences ([`write_table_chartwise`]).
 const CHARTWISE: u32 = 2;
 /// The coding of a listed table with values predicted from the band above
@@ -453,7 +453,7 @@ pub fn read_band(
     band0: Option<(&[[u32; 3]], &[u32])>,
     above: Option<(&[u32], &Table)>,
 ) -> Result<Table, ContainerError> {
-    let flags = (RANS_VALUES | REPRESENTED) as u8;
+    let flags = (RANS_VALUES | REPRESENTED | ACROSS_FACES) as u8;
     if bytes.first() != Some(&0) || bytes.len() < 2 || bytes[1] & !flags != DERIVED_ENTRIES as u8 {
         return read_table_above(bytes, what, nodes, info, triangles, above);
     }
@@ -463,7 +463,8 @@ pub fn read_band(
     let mode = c.get()?;
     let rans = mode & RANS_VALUES != 0;
     let corrupt = |detail: String| ContainerError::Corrupt { what: what.into(), detail };
-    if mode & !(RANS_VALUES | REPRESENTED) != DERIVED_ENTRIES {
+    let across = mode & ACROSS_FACES != 0;
+    if mode & !(RANS_VALUES | REPRESENTED | ACROSS_FACES) != DERIVED_ENTRIES || (across && mode & REPRESENTED == 0) {
         return Err(corrupt(format!("table coding {mode} unknown")));
     }
     let Some((tris, chart_of)) = band0 else {
@@ -478,6 +479,21 @@ pub fn read_band(
     }
     let m = entries.len();
     let mut table = Table::index(&entries, nodes);
+    if across {
+        // Mode 1 | 16 | 64: the values across the triangles, averaged with the parent entry's.
+        let Some((parent, above)) = above else {
+            return Err(corrupt("represented values without the band above".into()));
+        };
+        let reps = representatives(&table, parent, above);
+        let coded = m - reps.iter().filter(|r| r.is_some()).count();
+        let codes = read_codes(&mut c, coded, channels, rans)?;
+        c.finish()?;
+        let faces = super::across::band_faces(tris, chart_of, &[]).ok_or_else(|| corrupt("triangles without charts".into()))?;
+        let node_of: Vec<u32> = entries.iter().map(|e| e.0).collect();
+        let f = (&faces.0[..], &faces.1[..]);
+        table.values = super::across::read_values(&table, &node_of, &reps, channels, (parent, above), f, &codes, coded, what)?;
+        return Ok(table);
+    }
     let mut values = vec![0i32; m * channels];
     let mut known = vec![false; m];
     if mode & REPRESENTED != 0 {
