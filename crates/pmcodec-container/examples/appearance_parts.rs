@@ -14,7 +14,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::appearance::across::{band_faces, write_table_across};
 use pmcodec_container::appearance::payload::{
-    QuantizedTable, Table, needs_above, read_band, read_charts, read_table_across, representatives,
+    QuantizedTable, Table, needs_above, read_band, read_charts_with, read_table_across, representatives,
 };
 use pmcodec_container::payload::{put, zigzag};
 use pmcodec_container::payload::{read_key, read_triangles};
@@ -57,7 +57,9 @@ fn main() {
         );
         let Some((ce, cs)) = stored(ChunkKind::Charts, 0) else { continue };
         let raw = reader.read_chunk(ce).unwrap();
-        let charts = read_charts(&raw, &info, h.triangle_count).unwrap();
+        let te = reader.index().chunks.iter().find(|e| e.kind == ChunkKind::Triangles).unwrap();
+        let tris = read_triangles(&reader.read_chunk(te).unwrap(), "t", h.triangle_count, h.vertex_count, reader.version()).unwrap();
+        let charts = read_charts_with(&raw, &info, h.triangle_count, Some(&tris)).unwrap();
         let mut mats = Vec::new();
         for &m in &charts.chart_material {
             put(&mut mats, m);
@@ -103,6 +105,10 @@ fn main() {
             }
             println!("  EXP chart runs: new-or-id {} B, delta {} B", z(&alt), z(&alt2));
         }
+        if std::env::var("EXPERIMENT").is_ok() {
+            let n = pmcodec_container::appearance::payload::write_charts_neighbours(&charts, &tris).map_or(0, |w| z(&w));
+            println!("  EXP charts with neighbour charts (mode 3): {n} B");
+        }
         println!(
             "  charts chunk: {cs} B stored ({} raw); chart materials {} B ({} raw), chart runs {} B ({} runs, {} raw), group runs {} B ({} runs, {} raw) (parts zstd alone)",
             raw.len(),
@@ -116,8 +122,46 @@ fn main() {
             group_runs.len()
         );
         let mut total = cs;
-        let te = reader.index().chunks.iter().find(|e| e.kind == ChunkKind::Triangles).unwrap();
-        let tris = read_triangles(&reader.read_chunk(te).unwrap(), "t", h.triangle_count, h.vertex_count, reader.version()).unwrap();
+        if std::env::var("EXPERIMENT").is_ok() {
+            // Each triangle's chart named from its earlier edge neighbours: symbol counts.
+            let mut edge: std::collections::HashMap<(u32, u32), usize> = std::collections::HashMap::new();
+            let mut counts = [0usize; 6];
+            let mut seen = 0u32;
+            for (t, tri) in tris.iter().enumerate() {
+                let c = charts.triangle_chart[t];
+                let prev = if t > 0 { Some(charts.triangle_chart[t - 1]) } else { None };
+                let mut nb = Vec::new();
+                for i in 0..3 {
+                    let (a, b) = (tri[i].min(tri[(i + 1) % 3]), tri[i].max(tri[(i + 1) % 3]));
+                    if let Some(&u) = edge.get(&(a, b)) {
+                        let k = charts.triangle_chart[u];
+                        if Some(k) != prev && !nb.contains(&k) {
+                            nb.push(k);
+                        }
+                    }
+                }
+                let sym = if Some(c) == prev {
+                    0
+                } else if let Some(i) = nb.iter().position(|&k| k == c) {
+                    1 + i
+                } else if c == seen {
+                    4
+                } else {
+                    5
+                };
+                if c == seen {
+                    seen += 1;
+                }
+                counts[sym] += 1;
+                for i in 0..3 {
+                    let (a, b) = (tri[i].min(tri[(i + 1) % 3]), tri[i].max(tri[(i + 1) % 3]));
+                    edge.entry((a, b)).or_insert(t);
+                }
+            }
+            let n: usize = counts.iter().sum();
+            let h: f64 = counts.iter().filter(|&&c| c > 0).map(|&c| -(c as f64) * (c as f64 / n as f64).log2()).sum();
+            println!("  EXP chart symbols (same as previous, neighbour 1..3, new, other) {counts:?}: {:.0} B at their entropy", h / 8.0);
+        }
         let mut above: Option<Table> = None;
         for j in (0..h.levels() as u32).rev() {
             let Some((e, s)) = stored(ChunkKind::Attributes, j) else {

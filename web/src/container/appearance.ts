@@ -139,8 +139,55 @@ function recentRuns(c: Cursor, raw: Uint8Array, a: AppearanceInfo, triangles: nu
   if (at !== triangles) throw new DecodeError(`${what}: runs cover ${at} of ${triangles} triangles`);
 }
 
-/** The Charts chunk. */
-export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number): Charts {
+/** Whether a Charts payload needs the triangles (mode 3, neighbour charts). */
+export function chartsNeedTriangles(raw: Uint8Array): boolean {
+  return raw.length > 1 && raw[0] === 0 && raw[1] === 3;
+}
+
+/**
+ * Neighbour charts (the Rust `write_charts_neighbours`): a RESIDUALS section of one code per
+ * triangle: its chart's position among its candidates (the previous triangle's chart, then its
+ * earlier edge neighbours' charts, each once), 4 the next new chart, 5 + p the p-th chart of
+ * the list of charts seen, most recently used first.
+ */
+function neighbourCharts(c: Cursor, raw: Uint8Array, a: AppearanceInfo, tris: Uint32Array, out: Uint32Array, what: string): void {
+  const n = out.length, codes = readCodes(c, raw, n, 1, true, what), recent: number[] = [], cands: number[] = [];
+  let nv = 1;
+  for (let i = 0; i < 3 * n; i++) nv = Math.max(nv, tris[i] + 1);
+  const edges = new Map<number, number>(), key = (x: number, y: number): number => Math.min(x, y) * nv + Math.max(x, y);
+  let next = 0;
+  for (let t = 0; t < n; t++) {
+    cands.length = 0;
+    if (recent.length > 0) cands.push(recent[0]);
+    for (let i = 0; i < 3; i++) {
+      const u = edges.get(key(tris[3 * t + i], tris[3 * t + ((i + 1) % 3)]));
+      if (u !== undefined && !cands.includes(out[u])) cands.push(out[u]);
+    }
+    const code = codes[t];
+    let chart: number;
+    if (code < 4) {
+      if (code >= cands.length) throw new DecodeError(`${what}: candidate ${code} of ${cands.length} at triangle ${t}`);
+      chart = cands[code];
+    } else if (code === 4) chart = next;
+    else {
+      if (code - 5 >= recent.length) throw new DecodeError(`${what}: recent chart ${code} at triangle ${t}`);
+      chart = recent[code - 5];
+    }
+    if (chart >= a.charts) throw new DecodeError(`${what}: chart ${chart} out of range (< ${a.charts}) at triangle ${t}`);
+    if (chart === next) next++;
+    const at = recent.indexOf(chart);
+    if (at >= 0) recent.splice(at, 1);
+    recent.unshift(chart);
+    out[t] = chart;
+    for (let i = 0; i < 3; i++) {
+      const k = key(tris[3 * t + i], tris[3 * t + ((i + 1) % 3)]);
+      if (!edges.has(k)) edges.set(k, t);
+    }
+  }
+}
+
+/** The Charts chunk; `tris` (the Triangles chunk's corners) for a chunk with neighbour charts (mode 3). */
+export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number, tris: Uint32Array | null = null): Charts {
   const what = "charts chunk", c = new Cursor(raw, what);
   // A first byte 0 (a count of charts is at least 1): a coding mode, 1 = new-chart runs,
   // 2 = recent-chart runs.
@@ -149,7 +196,9 @@ export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number
   if (coded) {
     c.get();
     mode = c.get();
-    if (mode !== 1 && mode !== 2) throw new DecodeError(`${what}: charts coding ${mode} unknown`);
+    if (mode !== 1 && mode !== 2 && mode !== 3) throw new DecodeError(`${what}: charts coding ${mode} unknown`);
+    if (mode === 3 && !tris) throw new DecodeError(`${what}: neighbour charts without the triangles`);
+    if (mode === 3 && tris!.length !== 3 * triangles) throw new DecodeError(`${what}: ${tris!.length / 3} triangles where the header says ${triangles}`);
   }
   const newRuns = mode === 1;
   const n = c.count(a.charts, "charts");
@@ -159,6 +208,7 @@ export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number
   const triangleChart = new Uint32Array(triangles), triangleGroup = new Uint32Array(triangles);
   let next = 0;
   if (mode === 2) recentRuns(c, raw, a, triangles, triangleChart, what);
+  else if (mode === 3) neighbourCharts(c, raw, a, tris!, triangleChart, what);
   else runs(c, triangles, triangleChart, () => {
     if (!newRuns) return c.id(a.charts, "chart");
     const x = c.get(), chart = x === 0 ? next++ : x - 1;

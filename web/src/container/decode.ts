@@ -2,7 +2,7 @@
 // a finest level (Replay), node positions predicted and corrected band by band, and the cut a
 // triangle budget selects, ordered as the Rust decoder orders it.
 
-import { Charts, Materials, Table, TexturedMesh, bandFaces, needsAbove, needsFaces, readBand0Table, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
+import { Charts, Materials, Table, TexturedMesh, bandFaces, chartsNeedTriangles, needsAbove, needsFaces, readBand0Table, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
 import { Below, isDerived } from "./derive.js";
 import { DecodeError } from "./error.js";
 import { ChunkKind, Motion, channels } from "./format.js";
@@ -398,7 +398,12 @@ export class Decoder {
   async loadAppearance(): Promise<void> {
     const c = this.reader, h = c.header, a = h.appearance;
     if (this.looks || !a) return;
-    const charts = readCharts(await c.chunk(c.find(ChunkKind.Charts, 0, 0)), a, h.triangleCount);
+    // The triangles: a Charts chunk with neighbour charts and band 0's derived entries are read
+    // from them, and a band's faces in frame 0 are walked up from them.
+    const triangles = async (): Promise<Uint32Array> =>
+      this.triangles ?? readTriangles(await c.chunk(c.find(ChunkKind.Triangles, 0, 0)), "triangles chunk", h.triangleCount, h.vertexCount, c.version);
+    const chartsRaw = await c.chunk(c.find(ChunkKind.Charts, 0, 0));
+    const charts = readCharts(chartsRaw, a, h.triangleCount, chartsNeedTriangles(chartsRaw) ? await triangles() : null);
     const materials = readMaterials(await c.chunk(c.find(ChunkKind.Materials, 0, 0)), a);
     const tables: (Table | null)[] = h.levelSizes.map(() => null);
     // Without channels there is nothing to look up: no Attributes chunks in files since
@@ -413,10 +418,6 @@ export class Decoder {
         const table = tables[j + 1];
         above = table ? { parent, table } : null;
       }
-      // Band 0's entries may be derived from the triangles (a level-0 client's own), and a
-      // band's faces in frame 0 are walked up from them.
-      const triangles = async (): Promise<Uint32Array> =>
-        this.triangles ?? readTriangles(await c.chunk(c.find(ChunkKind.Triangles, 0, 0)), "triangles chunk", h.triangleCount, h.vertexCount, c.version);
       if (j > 0 && needsFaces(raw)) {
         // Values across band j's faces in frame 0: the triangles walked up frame 0's parents
         // of levels 0..j (their Key chunks), as a derived Faces chunk does.

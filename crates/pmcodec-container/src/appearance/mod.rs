@@ -87,6 +87,7 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
     let charts = [payload::write_charts(builder.charts()), payload::write_charts_new_runs(builder.charts())]
         .into_iter()
         .chain(payload::write_charts_recent(builder.charts()))
+        .chain(payload::write_charts_neighbours(builder.charts(), builder.triangles()))
         .min_by_key(size)
         .unwrap_or_default();
     let mut out = vec![(ChunkKind::Charts, 0, charts), (ChunkKind::Materials, 0, materials)];

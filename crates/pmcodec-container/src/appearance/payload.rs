@@ -1,7 +1,9 @@
 //! The Charts and Attributes chunk payloads (varints, as every payload; proto/container.md,
 //! "Appearance").
 
-pub use super::chart_runs::{read_charts, write_charts, write_charts_new_runs, write_charts_recent};
+pub use super::chart_runs::{
+    charts_need_triangles, read_charts, read_charts_with, write_charts, write_charts_neighbours, write_charts_new_runs, write_charts_recent,
+};
 use super::codes::{put_codes, read_codes};
 use super::entries::{put_entries, put_entries_above, read_entries, read_entries_above};
 use super::format::AppearanceInfo;
