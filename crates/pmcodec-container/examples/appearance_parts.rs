@@ -122,46 +122,6 @@ fn main() {
             group_runs.len()
         );
         let mut total = cs;
-        if std::env::var("EXPERIMENT").is_ok() {
-            // Each triangle's chart named from its earlier edge neighbours: symbol counts.
-            let mut edge: std::collections::HashMap<(u32, u32), usize> = std::collections::HashMap::new();
-            let mut counts = [0usize; 6];
-            let mut seen = 0u32;
-            for (t, tri) in tris.iter().enumerate() {
-                let c = charts.triangle_chart[t];
-                let prev = if t > 0 { Some(charts.triangle_chart[t - 1]) } else { None };
-                let mut nb = Vec::new();
-                for i in 0..3 {
-                    let (a, b) = (tri[i].min(tri[(i + 1) % 3]), tri[i].max(tri[(i + 1) % 3]));
-                    if let Some(&u) = edge.get(&(a, b)) {
-                        let k = charts.triangle_chart[u];
-                        if Some(k) != prev && !nb.contains(&k) {
-                            nb.push(k);
-                        }
-                    }
-                }
-                let sym = if Some(c) == prev {
-                    0
-                } else if let Some(i) = nb.iter().position(|&k| k == c) {
-                    1 + i
-                } else if c == seen {
-                    4
-                } else {
-                    5
-                };
-                if c == seen {
-                    seen += 1;
-                }
-                counts[sym] += 1;
-                for i in 0..3 {
-                    let (a, b) = (tri[i].min(tri[(i + 1) % 3]), tri[i].max(tri[(i + 1) % 3]));
-                    edge.entry((a, b)).or_insert(t);
-                }
-            }
-            let n: usize = counts.iter().sum();
-            let h: f64 = counts.iter().filter(|&&c| c > 0).map(|&c| -(c as f64) * (c as f64 / n as f64).log2()).sum();
-            println!("  EXP chart symbols (same as previous, neighbour 1..3, new, other) {counts:?}: {:.0} B at their entropy", h / 8.0);
-        }
         let mut above: Option<Table> = None;
         for j in (0..h.levels() as u32).rev() {
             let Some((e, s)) = stored(ChunkKind::Attributes, j) else {
