@@ -142,5 +142,30 @@ fn main() {
                 }
             }
         }
+        // Keyframe parent maps against frame 0's (which every client reads) and against the
+        // keyframe before: how many nodes changed their parent (proto/container.md, Key coding 3).
+        let h = r.header();
+        for j in 0..h.levels().saturating_sub(1) {
+            let key = |f: u32| {
+                let e = r.find(ChunkKind::Key, f, j as u32)?;
+                pmcodec_container::payload::read_key(&r.read_chunk(e).ok()?, "k", &h.level_sizes, j, r.version()).ok()
+            };
+            let Some(first) = key(0) else { continue };
+            let (mut from0, mut fromprev, mut keys) = (0usize, 0usize, 0usize);
+            let mut prev = first.clone();
+            for f in (1..h.frame_count).filter(|&f| r.find(ChunkKind::Key, f, j as u32).is_some()) {
+                let Some(p) = key(f) else { continue };
+                from0 += p.iter().zip(&first).filter(|(a, b)| a != b).count();
+                fromprev += p.iter().zip(&prev).filter(|(a, b)| a != b).count();
+                keys += 1;
+                prev = p;
+            }
+            println!(
+                "      band {j}: {} nodes, {keys} keyframes after 0: {:.1}% of parents differ from frame 0's, {:.1}% from the keyframe before's",
+                first.len(),
+                100.0 * from0 as f64 / (keys * first.len()).max(1) as f64,
+                100.0 * fromprev as f64 / (keys * first.len()).max(1) as f64
+            );
+        }
     }
 }

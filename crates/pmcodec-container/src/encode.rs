@@ -639,7 +639,7 @@ fn code_frames(
     let levels = header.levels();
 
     let mut chunks = Chunks(Vec::new(), opts.chunk_flags & crate::format::FLAGS);
-    chunks.push(ChunkKind::Triangles, 0, 0, payload::write_triangles(&seq.triangles, VERSION))?;
+    chunks.push(ChunkKind::Triangles, 0, 0, payload::write_triangles_best(&seq.triangles, seq.vertex_count() as u32))?;
     let total = header.level_sizes.iter().map(|&n| n as usize).sum();
     let mut coder = PositionCoder::new(
         opts.motion,

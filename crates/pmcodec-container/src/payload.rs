@@ -155,9 +155,36 @@ pub fn write_triangles(tris: &[[u32; 3]], version: u16) -> Vec<u8> {
     out
 }
 
+/// The TRIANGLES payload (corners below `vertices`) in whichever coding stores shorter: the
+/// varint differences of [`write_triangles`] (version 7) or coding 1, a Faces chunk's bit
+/// coding of every triangle ("Triangles"), kept only when it reads back as the same triangles.
+pub fn write_triangles_best(tris: &[[u32; 3]], vertices: u32) -> Vec<u8> {
+    let plain = write_triangles(tris, crate::format::VERSION);
+    if tris.is_empty() {
+        return plain;
+    }
+    let faces: Vec<(u32, [u32; 3])> = tris.iter().enumerate().map(|(t, &c)| (t as u32, c)).collect();
+    let bits = crate::topology::write_faces(&faces);
+    let same = read_triangles(&bits, "triangles", tris.len() as u32, vertices, crate::format::VERSION).is_ok_and(|t| t == tris);
+    if same && stored_size(&bits) < stored_size(&plain) { bits } else { plain }
+}
+
 /// Reads a TRIANGLES chunk of a file of format `version` (see [`write_triangles`]): exactly
 /// `triangles` triangles, every index below `vertices`.
 pub fn read_triangles(bytes: &[u8], what: &str, triangles: u32, vertices: u32, version: u16) -> Result<Vec<[u32; 3]>, ContainerError> {
+    if version >= 7
+        && let Some(start) = crate::topology::coded(bytes, what)?
+    {
+        // Coding 1: a Faces chunk's coding 1 of every triangle in order (each gap 0).
+        let faces = crate::topology::read_faces(bytes, start, what, vertices, triangles)?;
+        if faces.len() != triangles as usize {
+            return Err(ContainerError::Corrupt {
+                what: what.to_string(),
+                detail: format!("{} triangles where the header says {triangles}", faces.len()),
+            });
+        }
+        return Ok(faces.into_iter().map(|(_, c)| c).collect());
+    }
     let mut c = Cursor::new(bytes, what);
     let n = c.count_within(triangles as u64, 3, "triangles")?;
     if n != triangles as usize {

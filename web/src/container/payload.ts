@@ -77,6 +77,15 @@ export class Cursor {
  * the zigzag-coded difference from the same corner of the triangle before (32-bit wrapping).
  */
 export function readTriangles(raw: Uint8Array, what: string, triangles: number, vertices: number, version: number): Uint32Array {
+  const start = version >= 7 ? coded(raw, what) : null;
+  if (start !== null) {
+    // Coding 1: a Faces chunk's coding 1 of every triangle in order (each gap 0).
+    const faces = readFacesCoded(raw, start, what, vertices, triangles);
+    if (faces.length !== triangles) throw new DecodeError(`${what}: ${faces.length} triangles where the header says ${triangles}`);
+    const tris = new Uint32Array(3 * triangles);
+    faces.forEach((f, i) => tris.set(f.corners, 3 * i));
+    return tris;
+  }
   const p = new Cursor(raw, what);
   const n = p.count(triangles, "triangles");
   if (n !== triangles) throw new DecodeError(`${what}: ${n} triangles`);
