@@ -10,7 +10,7 @@ import { join } from "node:path";
 import { FLAG_NAMES, frontDecode } from "../src/container/format.js";
 import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, bandFaces, chartsNeedTriangles, dequantizeUv, needsFaces, readBand0Table, readCharts, readPositions, readTable, texturedMesh } from "../src/container/index.js";
 import type { Faces } from "../src/container/index.js";
-import { readCornerUpdates, readDelta, readFaces, readKey, readTriangles } from "../src/container/payload.js";
+import { keyFromFirst, readCornerUpdates, readDelta, readFaces, readKey, readTriangles } from "../src/container/payload.js";
 
 const root = repoRoot();
 const bin = pmcodecBin(root);
@@ -93,6 +93,67 @@ async function sameAsRust(pmc: string, name: string): Promise<Reader> {
   }
   return c;
 }
+
+test("Triangles coding 1 (a tube with its vertices renumbered at random): TS reads the triangles and every frame as the Rust decoder does; damage is a DecodeError", async () => {
+  // The same permutation for every frame, from a fixed linear congruential sequence.
+  const src = join(dir, "frames"), dst = join(dir, "shuffled");
+  mkdirSync(dst, { recursive: true });
+  const names = readdirSync(src).filter((f) => f.endsWith(".obj")).sort();
+  const n = readObj(join(src, names[0])).positions.length / 3;
+  const order = Array.from({ length: n }, (_, i) => i);
+  let s = 12345n;
+  for (let i = n - 1; i > 0; i--) {
+    s = (s * 6364136223846793005n + 1442695040888963407n) & 0xffffffffffffffffn;
+    const k = Number((s >> 33n) % BigInt(i + 1));
+    [order[i], order[k]] = [order[k], order[i]];
+  }
+  const newId = new Array<number>(n);
+  order.forEach((old, i) => { newId[old] = i; });
+  for (const name of names) {
+    const { positions, indices } = readObj(join(src, name));
+    const lines: string[] = [];
+    for (const old of order) lines.push(`v ${positions[3 * old]} ${positions[3 * old + 1]} ${positions[3 * old + 2]}`);
+    for (let t = 0; t < indices.length; t += 3) lines.push(`f ${newId[indices[t]] + 1} ${newId[indices[t + 1]] + 1} ${newId[indices[t + 2]] + 1}`);
+    writeFileSync(join(dst, name), lines.join("\n") + "\n");
+  }
+  const file = join(dir, "shuffled.pmc");
+  execFileSync(bin, ["encode", "-q", dst, "-o", file, "--keyframe-interval", "8", "--quant-bits", "12"]);
+  const c = await sameAsRust(file, "shuffled");
+  const raw = await c.chunk(c.find(ChunkKind.Triangles, 0, 0));
+  assert.deepEqual(Array.from(raw.subarray(0, 2)), [0, 1], "the encoder keeps coding 1");
+  const h = c.header, tris = readTriangles(raw, "triangles", h.triangleCount, h.vertexCount, c.version);
+  const first = readdirSync(join(dir, "shuffled-frames")).filter((f) => f.endsWith(".obj")).sort()[0];
+  assert.deepEqual(Array.from(tris), readObj(join(dir, "shuffled-frames", first)).indices);
+  assert.throws(() => readTriangles(raw, "triangles", h.triangleCount + 1, h.vertexCount, c.version), DecodeError);
+  assert.throws(() => readTriangles(raw, "triangles", h.triangleCount, 3, c.version), DecodeError);
+  assert.throws(() => readTriangles(raw.subarray(0, raw.length - 1), "triangles", h.triangleCount, h.vertexCount, c.version), DecodeError);
+  assert.throws(() => readTriangles(Uint8Array.from([0, 3, ...raw.subarray(2)]), "triangles", h.triangleCount, h.vertexCount, c.version), /topology coding 3/);
+});
+
+test("Key coding 3 (a later keyframe's changes from frame 0's parent map): TS reads every frame as the Rust decoder does, seeking straight to a late frame too", async () => {
+  const file = join(dir, "tube-key3.pmc");
+  execFileSync(bin, ["encode", "-q", join(dir, "frames"), "-o", file, "--keyframe-interval", "4", "--quant-bits", "12"]);
+  const c = await sameAsRust(file, "key3");
+  const h = c.header;
+  let coded = 0;
+  for (const e of c.index.filter((x) => x.kind === ChunkKind.Key)) {
+    const raw = await c.chunk(e);
+    if (!keyFromFirst(raw)) continue;
+    coded++;
+    assert.ok(e.frame > 0, "never in frame 0's Key chunk");
+    assert.throws(() => readKey(raw, "k", h.levelSizes, e.band, c.version), /frame 0's parents/);
+    const first = readKey(await c.chunk(c.find(ChunkKind.Key, 0, e.band)), "k0", h.levelSizes, e.band, c.version);
+    assert.throws(() => readKey(raw, "k", h.levelSizes, e.band, c.version, first.subarray(1)), DecodeError);
+    assert.throws(() => readKey(raw.subarray(0, raw.length - 1), "k", h.levelSizes, e.band, c.version, first), DecodeError);
+  }
+  assert.ok(coded > 0, "no Key chunk took coding 3");
+  // A player that seeks straight to the last frame reads frame 0's Key chunks for it.
+  const last = h.frameCount - 1, files = readdirSync(join(dir, "key3-frames")).filter((f) => f.endsWith(".obj")).sort();
+  const player = new Decoder(c, 0);
+  await player.seek(last);
+  const pos = player.positions(), expected = readObj(join(dir, "key3-frames", files[last]));
+  for (let i = 0; i < expected.positions.length; i++) assert.equal(pos[i], Math.fround(expected.positions[i]), `frame ${last}: coordinate ${i}`);
+});
 
 test("every band-0 motion and order: every frame's input vertices equal the Rust decoder's, bit for bit", async () => {
   const cases: [string, string[], Motion, VertexOrder][] = [

@@ -6,7 +6,7 @@ import { Charts, Materials, Table, TexturedMesh, bandFaces, chartsNeedTriangles,
 import { Below, isDerived } from "./derive.js";
 import { DecodeError } from "./error.js";
 import { ChunkKind, Motion, channels } from "./format.js";
-import { readCornerUpdates, readDelta, readFaces, readKey, readPositions, readTriangles } from "./payload.js";
+import { keyFromFirst, readCornerUpdates, readDelta, readFaces, readKey, readPositions, readTriangles } from "./payload.js";
 import { LowerNeighbours, affineMotion, keyedMotion, lowerNeighbours, stencilWeights } from "./predict.js";
 import type { Reader } from "./read.js";
 import { FrameDelta, KeyBand, Replay } from "./replay.js";
@@ -79,11 +79,20 @@ export class Decoder {
     for (let g = start + 1; g <= f; g++) await this.step(g);
   }
 
+  /** Band j's parent map at keyframe k; a Key chunk in coding 3 reads frame 0's of the band too. */
+  private async readParents(k: number, j: number): Promise<Uint32Array> {
+    const c = this.reader, sizes = c.header.levelSizes;
+    const raw = await c.chunk(c.find(ChunkKind.Key, k, j));
+    let first: Uint32Array | undefined;
+    if (k > 0 && keyFromFirst(raw)) first = readKey(await c.chunk(c.find(ChunkKind.Key, 0, j)), `frame 0 band ${j} keyframe`, sizes, j, c.version);
+    return readKey(raw, `frame ${k} band ${j} keyframe`, sizes, j, c.version, first);
+  }
+
   private async loadKeyframe(k: number): Promise<void> {
     const c = this.reader, h = c.header;
     const bands: KeyBand[] = h.levelSizes.map(() => ({ parent: new Uint32Array(0), faces: [] }));
     for (let j = h.levelSizes.length - 1; j >= this.minLevel; j--) {
-      bands[j].parent = readKey(await c.chunk(c.find(ChunkKind.Key, k, j)), `frame ${k} band ${j} keyframe`, h.levelSizes, j, c.version);
+      bands[j].parent = await this.readParents(k, j);
     }
     const L = this.minLevel;
     let below: Below | null = null;
@@ -93,7 +102,7 @@ export class Decoder {
         // Faces coding 2: from the input triangles and the keyframe's parent maps below L.
         this.fine ??= readTriangles(await c.chunk(c.find(ChunkKind.Triangles, 0, 0)), "triangles chunk", h.triangleCount, h.vertexCount, c.version);
         const parents: Uint32Array[] = [];
-        for (let j = 0; j < L; j++) parents.push(readKey(await c.chunk(c.find(ChunkKind.Key, k, j)), `frame ${k} band ${j} keyframe`, h.levelSizes, j, c.version));
+        for (let j = 0; j < L; j++) parents.push(await this.readParents(k, j));
         below = new Below(this.fine, parents);
         bands[L].faces = below.faces();
       } else bands[L].faces = readFaces(raw, `frame ${k} band ${L} faces`, h.levelSizes[L], h.triangleCount, c.version);
