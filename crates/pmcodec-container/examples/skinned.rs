@@ -40,16 +40,19 @@ fn all_animations(path: &Path) -> pmcodec_mesh::Sequence {
 
 /// Bytes a client at `level` reads over the whole file (every chunk it needs), and of them the
 /// texture images'.
+/// The preamble, header and index it fetches count as `Reader::open_at` reads them (of a
+/// banded index, only its levels' groups).
 fn bytes_at(bytes: &[u8], level: usize) -> (u64, u64) {
-    let r = Reader::open(bytes).expect("open");
+    let r = Reader::open_at(bytes, level).expect("open");
     let read = || r.index().chunks.iter().filter(|e| r.reads(e, level));
     let images = read().filter(|e| e.kind == ChunkKind::Image).map(|e| e.stored_len as u64).sum();
-    (read().map(|e| e.stored_len as u64).sum::<u64>() + r.data_start(), images)
+    (read().map(|e| e.stored_len as u64).sum::<u64>() + r.bytes_read(), images)
 }
 
 /// What a client at `level` reads, by chunk kind (and band for Bind and Joints chunks), largest
 /// first, beside the preamble, header and index.
 fn read_by_kind(r: &Reader<&[u8]>, level: usize) -> String {
+    let r = &Reader::open_at(*r.source(), level).expect("open");
     let mut kinds: std::collections::BTreeMap<String, u64> = Default::default();
     for e in r.index().chunks.iter().filter(|e| r.reads(e, level)) {
         let name = match e.kind {
@@ -59,7 +62,7 @@ fn read_by_kind(r: &Reader<&[u8]>, level: usize) -> String {
         *kinds.entry(name).or_default() += e.stored_len as u64;
     }
     let mut rows: Vec<(String, u64)> = kinds.into_iter().collect();
-    rows.push(("preamble, header and index".into(), r.data_start()));
+    rows.push(("preamble, header and index".into(), r.bytes_read()));
     rows.sort_by_key(|r| std::cmp::Reverse(r.1));
     rows.iter().map(|(k, b)| format!("{k} {b}")).collect::<Vec<_>>().join(", ")
 }
@@ -155,7 +158,7 @@ fn main() {
             k.1 += 1;
         }
         let table: Vec<String> = kinds.iter().map(|(k, (b, c))| format!("{k} {b} B in {c}")).collect();
-        println!("    preamble, header and index {} B; {}", r.data_start(), table.join(", "));
+        println!("    preamble, header and index {} B (flags {}); {}", r.data_start(), r.flags(), table.join(", "));
         println!("    positions per band (band 0 first): {:?} B", s.positions_bytes);
         // PMC_OUT=dir: each skinned file in the Joints coding (`skinned-joints{threshold}.pmc`,
         // for `pmcodec eval --pmc`), and every frame's quantized node positions as the Rust
