@@ -91,11 +91,13 @@ fn bands(r: &Reader<&[u8]>) -> String {
     out.join("; ")
 }
 
-/// `PMC_DERIVED=never|always|when-cheaper`: which bands derive their faces (default: the encoder's).
+/// `PMC_DERIVED=never|always|when-cheaper|per-band`: which bands derive their faces (default: the encoder's).
 fn derived_topology() -> pmcodec_container::DerivedTopology {
     match std::env::var("PMC_DERIVED").as_deref() {
         Ok("never") => pmcodec_container::DerivedTopology::Never,
         Ok("when-cheaper") => pmcodec_container::DerivedTopology::WhenCheaper,
+        Ok("always") => pmcodec_container::DerivedTopology::Always,
+        Ok("per-band") => pmcodec_container::DerivedTopology::PerBand,
         _ => EncodeOptions::default().derived_topology,
     }
 }

@@ -43,6 +43,7 @@ pub enum DerivedArg {
     Always,
     Never,
     WhenCheaper,
+    PerBand,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -95,8 +96,9 @@ pub struct EncodeArgs {
     pub order: OrderArg,
     /// Which bands' faces and corner updates their readers derive from the triangles and the
     /// parent maps below them instead of reading them: `always` (the smallest file), `never`
-    /// (every band sends them, as files before), or `when-cheaper` (where a coarse client then
-    /// reads no more bytes).
+    /// (every band sends them, as files before), `when-cheaper` (in the keyframe intervals where
+    /// a coarse client then reads no more bytes), or `per-band` (the bands whose clients then
+    /// read no more bytes over the whole file, the triangles counted).
     #[arg(long, value_enum, default_value_t = DerivedArg::Always)]
     pub derived_topology: DerivedArg,
     /// For a skinned glTF, where coarse nodes sit in bind space for prediction by skinning:
@@ -402,6 +404,7 @@ pub fn encode_options(args: &EncodeArgs) -> Result<EncodeOptions, Exit> {
         DerivedArg::Always => DerivedTopology::Always,
         DerivedArg::Never => DerivedTopology::Never,
         DerivedArg::WhenCheaper => DerivedTopology::WhenCheaper,
+        DerivedArg::PerBand => DerivedTopology::PerBand,
     };
     let mut opts = EncodeOptions {
         keyframe_interval: args.keyframe_interval,
