@@ -676,8 +676,7 @@ test("skinned streams' palettes: the encoder writes Joints chunks, and streams w
   // Today's files leave empty Delta and Corners chunks out, store small chunks as they are and
   // front-code their frame names (sameAsRust reads the Fox stream so in the test above); older
   // files have none of these flags.
-  // (and the banded index, bit 3, where it is no longer than the frame-by-frame one).
-  assert.equal(c.flags & ~FLAG_BANDS, 7);
+  assert.equal(c.flags, 7);
   assert.ok(c.index.filter((e) => e.kind === ChunkKind.Delta).length < c.header.frameCount * c.header.levelSizes.length);
   assert.ok(c.index.some((e) => e.storedLen === e.rawLen));
   // The top band has one in every frame: it carries the band mask to every client.
@@ -727,7 +726,7 @@ test("banded index (FLAG_BANDS): every frame as the Rust decoder's; a reader ope
   const frames = join(dir, "frames-banded");
   execFileSync(bin, ["sample", "twisting-tube", "-o", frames, "--frames", "40"]);
   const file = join(dir, "tube-banded.pmc");
-  execFileSync(bin, ["encode", "-q", frames, "-o", file, "--keyframe-interval", "8", "--quant-bits", "12"]);
+  execFileSync(bin, ["encode", "-q", frames, "-o", file, "--keyframe-interval", "8", "--quant-bits", "12", "--banded-index"]);
   const whole = await sameAsRust(file, "banded");
   assert.equal(whole.flags & FLAG_BANDS, FLAG_BANDS, "the encoder bands a 40-frame tube's index");
   const bytes = new Uint8Array(readFileSync(file));

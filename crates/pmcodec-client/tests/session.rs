@@ -9,8 +9,10 @@ async fn server() -> (pmcodec_server::RunningServer, Vec<u8>, std::path::PathBuf
     let dir = std::env::temp_dir().join(format!("pmcodec-client-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let seq = pmcodec_mesh::samples::twisting_tube(16, 24, 40);
-    let bytes =
-        pmcodec_container::encode(&seq, &pmcodec_container::EncodeOptions { keyframe_interval: 8, ..Default::default() }, |_| {}).unwrap();
+    // With the banded index, which a session reads in part.
+    let flags = pmcodec_container::format::FLAGS | pmcodec_container::format::FLAG_BANDS;
+    let opts = pmcodec_container::EncodeOptions { keyframe_interval: 8, chunk_flags: flags, ..Default::default() };
+    let bytes = pmcodec_container::encode(&seq, &opts, |_| {}).unwrap();
     std::fs::write(dir.join("tube.pmc"), &bytes).unwrap();
     let config = pmcodec_server::Config {
         store: pmcodec_server::config::StoreConfig::Local { path: dir.clone() },

@@ -9,7 +9,7 @@
 //! `codings` adds the older Palette and plain Joints codings. A folder of OBJ frames is given
 //! the skin `pmcodec encode --fit-skin` fits.
 //! `cargo run --release -p pmcodec-container --example skinned -- ../shared/data/gltf/Fox.glb [all] [centroid] [codings]`
-//! (`PMC_DERIVED`: below)
+//! (`PMC_DERIVED`, `PMC_BANDS`: below)
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::{
     ChunkKind, Decoder, EncodeOptions, PaletteCoding, QuantizationChoice, Reader, SkinPlacement, SkinnedCoarse, encode, summary,
@@ -102,6 +102,13 @@ fn derived_topology() -> pmcodec_container::DerivedTopology {
     }
 }
 
+/// `PMC_BANDS=1`: the banded index (`pmcodec encode --banded-index`), which coarse clients read
+/// in part (default: the encoder's flags).
+fn chunk_flags() -> u16 {
+    let flags = EncodeOptions::default().chunk_flags;
+    if std::env::var("PMC_BANDS").as_deref() == Ok("1") { flags | pmcodec_container::format::FLAG_BANDS } else { flags }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let path = Path::new(&args[1]);
@@ -145,6 +152,7 @@ fn main() {
             palette_coding,
             skinned_coarse,
             derived_topology: derived_topology(),
+            chunk_flags: chunk_flags(),
             ..Default::default()
         };
         let t = std::time::Instant::now();

@@ -663,7 +663,7 @@ fn code_frames(
 ) -> Result<(Header, Chunks, EncodeReport), ContainerError> {
     let levels = header.levels();
 
-    let mut chunks = Chunks(Vec::new(), opts.chunk_flags & crate::format::FLAGS);
+    let mut chunks = Chunks(Vec::new(), opts.chunk_flags & crate::format::KNOWN_FLAGS);
     chunks.push(ChunkKind::Triangles, 0, 0, payload::write_triangles(&seq.triangles, VERSION))?;
     let total = header.level_sizes.iter().map(|&n| n as usize).sum();
     let mut coder = PositionCoder::new(

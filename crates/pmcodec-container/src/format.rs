@@ -56,9 +56,14 @@ pub const FLAG_NAMES: u16 = 4;
 /// chunk area in the same order, a table of the groups' lengths and CRCs first, and preamble
 /// bytes 28..32 the table's length. A client at level L fetches the table and only its bands'
 /// groups: on RobotExpressive a 10% client read the whole 28 KB index, 15% of its bytes.
+/// Written only when asked ([`crate::EncodeOptions::chunk_flags`], `pmcodec encode
+/// --banded-index`): its chunk area is no longer frame after frame, so a frame's chunks are no
+/// longer one byte range (proto/http.md's per-frame ranges, the players' one request a frame).
 pub const FLAG_BANDS: u16 = 8;
-/// The flags this encoder sets and this reader knows.
-pub const FLAGS: u16 = FLAG_STORED | FLAG_SPARSE | FLAG_NAMES | FLAG_BANDS;
+/// The flags this encoder sets by default.
+pub const FLAGS: u16 = FLAG_STORED | FLAG_SPARSE | FLAG_NAMES;
+/// The flags this encoder may set and this reader knows.
+pub const KNOWN_FLAGS: u16 = FLAGS | FLAG_BANDS;
 
 /// Longest shared prefix a front-coded name refers to (its one-character count).
 const MAX_SHARED: usize = 127;

@@ -382,7 +382,8 @@ fn read_banded<S: ByteSource>(
     if chunks < area {
         return Err(ContainerError::TrailingBytes { bytes: area - chunks });
     }
-    let level = level.filter(|&l| l > 0 && l < levels);
+    // (Level 0 reads every group but the faces of the bands above it.)
+    let level = level.filter(|&l| l < levels);
     let wanted = match level {
         None => (0..rows.len()).collect(),
         Some(l) => groups_for(levels, l, rows.get(crate::format::group_of(ChunkKind::Faces, l as u32, levels)).is_some_and(|r| r.derived)),

@@ -45,7 +45,8 @@ export class Reader {
       const chunks = rows.reduce((a, r) => a + r.chunksLen, 0);
       if (chunks > fileLen - dataStart) throw new DecodeError("chunk area: the file ends before it does");
       if (chunks < fileLen - dataStart) throw new DecodeError(`${fileLen - dataStart - chunks} bytes after the end of the container`);
-      const partial = level !== undefined && level > 0 && level < levels ? level : undefined;
+      // (Level 0 reads every group but the faces of the bands above it.)
+      const partial = level !== undefined && level >= 0 && level < levels ? level : undefined;
       const wanted = partial === undefined ? rows.map((_, g) => g) : groupsFor(levels, partial, rows[groupOf(ChunkKind.Faces, partial, levels)]?.derived ?? false);
       let bodyAt = PREAMBLE_LEN + headerLen + tableLen, chunkAt = 0, read = PREAMBLE_LEN + headerLen + tableLen;
       const entries: ChunkEntry[] = [];
