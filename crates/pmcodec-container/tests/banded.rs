@@ -37,8 +37,11 @@ fn inputs() -> Vec<(String, Sequence, DerivedTopology)> {
     out
 }
 
+/// A mesh's triangles and positions.
+type Mesh = (Vec<[u32; 3]>, Vec<[f32; 3]>);
+
 /// Every frame's mesh at `level` (its whole level, and a cut), played through.
-fn meshes(r: Reader<&[u8]>, level: usize) -> Vec<(Vec<[u32; 3]>, Vec<[f32; 3]>)> {
+fn meshes(r: Reader<&[u8]>, level: usize) -> Vec<Mesh> {
     let frames = r.header().frame_count;
     let mut d = Decoder::new(r, level).expect("decoder");
     let mut out = Vec::new();
