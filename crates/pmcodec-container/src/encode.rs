@@ -73,7 +73,8 @@ pub struct EncodeOptions {
     pub skinned_coarse: Option<SkinnedCoarse>,
     /// The preamble flags to write with (`format::FLAGS`, the default: small chunks stored as
     /// they are, empty Delta and Corners chunks left out; 0: every chunk a zstd frame, as files
-    /// before the flags, for comparison). Unknown bits are dropped.
+    /// before the flags, for comparison; with `format::FLAG_BANDS`, the banded index where it
+    /// is no longer, which coarse clients read in part). Unknown bits are dropped.
     pub chunk_flags: u16,
     /// How a skinned file codes each frame's palette: Joints chunks (the default) or the
     /// Palette chunks files had before them (kept for comparison and for tests of readers).
