@@ -7,7 +7,7 @@ import { execFileSync } from "node:child_process";
 import { existsSync, mkdirSync, mkdtempSync, readdirSync, readFileSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
-import { FLAG_NAMES, frontDecode } from "../src/container/format.js";
+import { FLAG_BANDS, FLAG_NAMES, frontDecode, parseTable } from "../src/container/format.js";
 import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, bandFaces, chartsNeedTriangles, dequantizeUv, needsFaces, readBand0Table, readCharts, readPositions, readTable, texturedMesh } from "../src/container/index.js";
 import type { Faces } from "../src/container/index.js";
 import { keyFromFirst, readCornerUpdates, readDelta, readFaces, readKey, readTriangles } from "../src/container/payload.js";
@@ -908,4 +908,48 @@ test("a damaged Joints chunk is refused with a DecodeError naming it", async () 
   longer.set(raw);
   assert.throws(() => skin.readJoints(longer, "j", skin.bands, e.band, c.header.levelSizes.length, false, out, rig, links), /1 bytes left over/);
   assert.equal(skin.readJoints(raw, "j", skin.bands, e.band, c.header.levelSizes.length, false, out, rig, links) >= 0n, true);
+});
+
+test("banded index (FLAG_BANDS): every frame as the Rust decoder's; a reader opened for a level fetches only its groups and decodes its bands as a whole one; damage to the table or a group is a DecodeError naming it", async () => {
+  const frames = join(dir, "frames-banded");
+  execFileSync(bin, ["sample", "twisting-tube", "-o", frames, "--frames", "40"]);
+  const file = join(dir, "tube-banded.pmc");
+  execFileSync(bin, ["encode", "-q", frames, "-o", file, "--keyframe-interval", "8", "--quant-bits", "12", "--banded-index"]);
+  const whole = await sameAsRust(file, "banded");
+  assert.equal(whole.flags & FLAG_BANDS, FLAG_BANDS, "the encoder bands a 40-frame tube's index");
+  const bytes = new Uint8Array(readFileSync(file));
+  const levels = whole.header.levelSizes.length;
+  assert.ok(levels >= 3, `${levels} levels`);
+  for (let level = 1; level < levels; level++) {
+    const part = await Reader.open(async (o, n) => bytes.slice(o, o + n), bytes.length, level);
+    assert.ok(part.bytesRead < whole.dataStart, `level ${level}: ${part.bytesRead} bytes of preamble, header and index, of ${whole.dataStart}`);
+    // It holds the entries of every chunk a client of its level reads.
+    for (const e of whole.index.filter((x) => whole.reads(x, level))) assert.ok(part.index.some((x) => JSON.stringify(x) === JSON.stringify(e)), `level ${level}: frame ${e.frame} band ${e.band} ${ChunkKind[e.kind]}`);
+    assert.throws(() => new Decoder(part, level - 1), DecodeError);
+    const a = new Decoder(await open(file), level), b = new Decoder(part, level);
+    const from = 3 * whole.header.levelSizes.slice(0, level).reduce((x, y) => x + y, 0);
+    for (let f = 0; f < whole.header.frameCount; f += 3) {
+      await a.seek(f);
+      await b.seek(f);
+      assert.deepEqual(Array.from(b.current.subarray(from)), Array.from(a.current.subarray(from)), `level ${level} frame ${f}`);
+    }
+  }
+  const dv = new DataView(bytes.buffer, bytes.byteOffset);
+  const tableAt = 32 + dv.getUint32(12, true), tableLen = dv.getUint32(28, true);
+  const rows = parseTable(bytes.subarray(tableAt, tableAt + tableLen), levels);
+  const damaged = (at: number): Promise<Reader> => {
+    const b = bytes.slice();
+    b[at] ^= 1;
+    return Reader.open(async (o, n) => b.slice(o, o + n), b.length);
+  };
+  await assert.rejects(damaged(tableAt + 1), /index table: checksum mismatch/);
+  let at = tableAt + tableLen, seen = 0;
+  for (let g = 0; g < rows.length; g++) {
+    if (rows[g].bodyLen > 0) {
+      await assert.rejects(damaged(at + rows[g].bodyLen - 1), new RegExp(`index group ${g} \\(.*\\): checksum mismatch`));
+      seen++;
+    }
+    at += rows[g].bodyLen;
+  }
+  assert.ok(seen > 3, `${seen} groups`);
 });

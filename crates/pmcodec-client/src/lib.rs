@@ -4,6 +4,7 @@
 //! out ready-to-draw vertex and index buffers per frame.
 #![warn(missing_docs)]
 
+use pmcodec_container::format::{FLAG_BANDS, PREAMBLE_LEN, Preamble};
 use pmcodec_container::{ByteSource, ChunkEntry, ChunkKind, ContainerError, CutTarget, Decoder, Distance, Reader};
 use pmcodec_mesh::{Appearance, TriMesh};
 use serde::Deserialize;
@@ -185,6 +186,41 @@ impl ByteSource for SharedBytes {
     }
 }
 
+/// Fetches the groups of a banded index ([`FLAG_BANDS`]) that a client of `level` reads and
+/// `source` lacks (its header and table fetched already), adjacent groups in one range; returns
+/// the bytes downloaded. The reader checks what they hold.
+async fn fetch_groups(client: &Client, file: &str, source: &SharedBytes, pre: &Preamble, level: usize) -> Result<u64, ClientError> {
+    use pmcodec_container::format::{Header, group_of, groups_for, parse_table};
+    let table_at = PREAMBLE_LEN as u64 + pre.header_len as u64;
+    let header = Header::from_bytes(&source.read_at(PREAMBLE_LEN as u64, pre.header_len as usize)?, pre.version)?;
+    let levels = header.levels();
+    let rows = parse_table(&source.read_at(table_at, pre.table_len as usize)?, levels)?;
+    let derived = rows.get(group_of(ChunkKind::Faces, level as u32, levels)).is_some_and(|r| r.derived);
+    let wanted = groups_for(levels, level, derived);
+    let mut spans: Vec<(u64, u64)> = Vec::new();
+    let mut at = table_at + pre.table_len as u64;
+    for (g, row) in rows.iter().enumerate() {
+        let end = at + row.body_len as u64;
+        if row.body_len > 0 && wanted.contains(&g) && !source.0.has(at, end - at) {
+            match spans.last_mut() {
+                Some(last) if last.1 == at => last.1 = end,
+                _ => spans.push((at, end)),
+            }
+        }
+        at = end;
+    }
+    let mut downloaded = 0;
+    for (s, e) in spans {
+        let bytes = client.get(file, Some((s, e - 1))).await?.bytes().await?.to_vec();
+        if bytes.len() as u64 != e - s {
+            return Err(ClientError::Protocol(format!("range {s}-{} returned {} bytes", e - 1, bytes.len())));
+        }
+        downloaded += bytes.len() as u64;
+        source.0.insert(s, bytes);
+    }
+    Ok(downloaded)
+}
+
 /// One frame, ready to draw.
 #[derive(Clone, Debug)]
 pub struct Frame {
@@ -209,6 +245,9 @@ pub struct Session {
     /// Frames fetched ahead of the one being decoded.
     pub ahead: u32,
     bytes_downloaded: u64,
+    /// A finer level [`Session::set_budget`] asked for, opened (its index groups fetched) by
+    /// the next [`Session::frame`].
+    pending: Option<usize>,
 }
 
 /// A level whose whole mesh falls short of the budget by at most this share still serves it:
@@ -228,7 +267,6 @@ impl Session {
         let source = SharedBytes(Arc::new(Prefetched { len: info.summary.bytes, ..Default::default() }));
         let mut downloaded = 0;
         // Preamble, then header and index (their lengths are in the preamble).
-        use pmcodec_container::format::{PREAMBLE_LEN, Preamble};
         let pre = client.get(&info.summary.file, Some((0, PREAMBLE_LEN as u64 - 1))).await?.bytes().await?.to_vec();
         // Magic and version are checked before the lengths are trusted.
         let p = Preamble::parse(&pre)?;
@@ -236,12 +274,23 @@ impl Session {
         if tables > info.summary.bytes {
             return Err(ClientError::Protocol("header and index beyond the file".into()));
         }
-        let head = client.get(&info.summary.file, Some((0, tables - 1))).await?.bytes().await?.to_vec();
+        // A banded index (proto/container.md, "Index"): the header and the index's table
+        // first, then only the groups of entries this session's level reads.
+        let banded = p.version >= 7 && p.flags & FLAG_BANDS != 0;
+        let head_end = if banded { PREAMBLE_LEN as u64 + p.header_len as u64 + p.table_len as u64 } else { tables };
+        let head = client.get(&info.summary.file, Some((0, head_end - 1))).await?.bytes().await?.to_vec();
+        if head.len() as u64 != head_end {
+            return Err(ClientError::Protocol(format!("range 0-{} returned {} bytes", head_end - 1, head.len())));
+        }
         downloaded += (pre.len() + head.len()) as u64;
         source.0.insert(0, head);
-        let reader = Reader::open(source.clone())?;
-        let decoder = Decoder::new(reader, level_for(&info, budget))?;
-        Ok(Session { client, info, source, decoder, budget, ahead: 4, bytes_downloaded: downloaded })
+        let level = level_for(&info, budget);
+        if banded {
+            downloaded += fetch_groups(&client, &info.summary.file, &source, &p, level).await?;
+        }
+        let reader = Reader::open_at(source.clone(), level)?;
+        let decoder = Decoder::new(reader, level)?;
+        Ok(Session { client, info, source, decoder, budget, ahead: 4, bytes_downloaded: downloaded, pending: None })
     }
 
     /// The triangle budget each frame is cut to.
@@ -251,7 +300,7 @@ impl Session {
 
     /// Finest level this session reads.
     pub fn level(&self) -> usize {
-        self.decoder.min_level()
+        self.pending.unwrap_or(self.decoder.min_level())
     }
 
     /// Bytes downloaded by the session so far.
@@ -260,14 +309,26 @@ impl Session {
     }
 
     /// Changes the budget while playing; a budget that needs finer bands restarts the decoder
-    /// at that level (it re-reads the current frame's keyframe and the finer bands).
+    /// at that level (it re-reads the current frame's keyframe and the finer bands) when the
+    /// next frame is asked for, which first fetches those bands' index groups (a banded index).
     pub fn set_budget(&mut self, triangles: u32) -> Result<(), ClientError> {
         self.budget = triangles;
         let need = level_for(&self.info, triangles);
-        if need < self.decoder.min_level() {
-            let reader = Reader::open(self.source.clone())?;
-            self.decoder = Decoder::new(reader, need)?;
+        if need < self.level() {
+            self.pending = Some(need);
         }
+        Ok(())
+    }
+
+    /// Opens the level [`Session::set_budget`] asked for.
+    async fn open_pending(&mut self) -> Result<(), ClientError> {
+        let Some(level) = self.pending else { return Ok(()) };
+        let pre = Preamble::parse(&self.source.read_at(0, PREAMBLE_LEN)?)?;
+        if pre.version >= 7 && pre.flags & FLAG_BANDS != 0 {
+            self.bytes_downloaded += fetch_groups(&self.client, &self.info.summary.file, &self.source, &pre, level).await?;
+        }
+        self.decoder = Decoder::new(Reader::open_at(self.source.clone(), level)?, level)?;
+        self.pending = None;
         Ok(())
     }
 
@@ -317,6 +378,7 @@ impl Session {
 
     /// Frame `frame` at the current budget.
     pub async fn frame(&mut self, frame: u32) -> Result<Frame, ClientError> {
+        self.open_pending().await?;
         self.fetch(frame).await?;
         let t = Instant::now();
         self.decoder.seek(frame)?;

@@ -8,9 +8,11 @@ use pmcodec_container::{CutTarget, Decoder, Reader};
 async fn server() -> (pmcodec_server::RunningServer, Vec<u8>, std::path::PathBuf) {
     let dir = std::env::temp_dir().join(format!("pmcodec-client-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let seq = pmcodec_mesh::samples::twisting_tube(16, 24, 20);
-    let bytes =
-        pmcodec_container::encode(&seq, &pmcodec_container::EncodeOptions { keyframe_interval: 8, ..Default::default() }, |_| {}).unwrap();
+    let seq = pmcodec_mesh::samples::twisting_tube(16, 24, 40);
+    // With the banded index, which a session reads in part.
+    let flags = pmcodec_container::format::FLAGS | pmcodec_container::format::FLAG_BANDS;
+    let opts = pmcodec_container::EncodeOptions { keyframe_interval: 8, chunk_flags: flags, ..Default::default() };
+    let bytes = pmcodec_container::encode(&seq, &opts, |_| {}).unwrap();
     std::fs::write(dir.join("tube.pmc"), &bytes).unwrap();
     let config = pmcodec_server::Config {
         store: pmcodec_server::config::StoreConfig::Local { path: dir.clone() },
@@ -35,6 +37,14 @@ async fn playback_matches_local_decoding() {
     let mut session = client.session("tube", 150).await.unwrap();
     assert!(session.level() > 0, "a 150-triangle budget should not need level 0");
     let reader = Reader::open(bytes.as_slice()).unwrap();
+    // Of the banded index (proto/container.md, "Index") it fetched the table and its groups only.
+    assert_ne!(reader.flags() & pmcodec_container::format::FLAG_BANDS, 0);
+    assert!(
+        session.bytes_downloaded() < 32 + reader.data_start(),
+        "{} bytes to open, of {}",
+        session.bytes_downloaded(),
+        reader.data_start()
+    );
     let mut local = Decoder::new(reader.borrowed(), session.level()).unwrap();
     for f in 0..20 {
         let frame = session.frame(f).await.unwrap();

@@ -9,7 +9,7 @@
 //! `codings` adds the older Palette and plain Joints codings. A folder of OBJ frames is given
 //! the skin `pmcodec encode --fit-skin` fits.
 //! `cargo run --release -p pmcodec-container --example skinned -- ../shared/data/gltf/Fox.glb [all] [centroid] [codings]`
-//! (`PMC_DERIVED`: below)
+//! (`PMC_DERIVED`, `PMC_BANDS`: below)
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::{
     ChunkKind, Decoder, EncodeOptions, PaletteCoding, QuantizationChoice, Reader, SkinPlacement, SkinnedCoarse, encode, summary,
@@ -40,16 +40,19 @@ fn all_animations(path: &Path) -> pmcodec_mesh::Sequence {
 
 /// Bytes a client at `level` reads over the whole file (every chunk it needs), and of them the
 /// texture images'.
+/// The preamble, header and index it fetches count as `Reader::open_at` reads them (of a
+/// banded index, only its levels' groups).
 fn bytes_at(bytes: &[u8], level: usize) -> (u64, u64) {
-    let r = Reader::open(bytes).expect("open");
+    let r = Reader::open_at(bytes, level).expect("open");
     let read = || r.index().chunks.iter().filter(|e| r.reads(e, level));
     let images = read().filter(|e| e.kind == ChunkKind::Image).map(|e| e.stored_len as u64).sum();
-    (read().map(|e| e.stored_len as u64).sum::<u64>() + r.data_start(), images)
+    (read().map(|e| e.stored_len as u64).sum::<u64>() + r.bytes_read(), images)
 }
 
 /// What a client at `level` reads, by chunk kind (and band for Bind and Joints chunks), largest
 /// first, beside the preamble, header and index.
 fn read_by_kind(r: &Reader<&[u8]>, level: usize) -> String {
+    let r = &Reader::open_at(*r.source(), level).expect("open");
     let mut kinds: std::collections::BTreeMap<String, u64> = Default::default();
     for e in r.index().chunks.iter().filter(|e| r.reads(e, level)) {
         let name = match e.kind {
@@ -59,7 +62,7 @@ fn read_by_kind(r: &Reader<&[u8]>, level: usize) -> String {
         *kinds.entry(name).or_default() += e.stored_len as u64;
     }
     let mut rows: Vec<(String, u64)> = kinds.into_iter().collect();
-    rows.push(("preamble, header and index".into(), r.data_start()));
+    rows.push(("preamble, header and index".into(), r.bytes_read()));
     rows.sort_by_key(|r| std::cmp::Reverse(r.1));
     rows.iter().map(|(k, b)| format!("{k} {b}")).collect::<Vec<_>>().join(", ")
 }
@@ -88,13 +91,22 @@ fn bands(r: &Reader<&[u8]>) -> String {
     out.join("; ")
 }
 
-/// `PMC_DERIVED=never|always|when-cheaper`: which bands derive their faces (default: the encoder's).
+/// `PMC_DERIVED=never|always|when-cheaper|per-band`: which bands derive their faces (default: the encoder's).
 fn derived_topology() -> pmcodec_container::DerivedTopology {
     match std::env::var("PMC_DERIVED").as_deref() {
         Ok("never") => pmcodec_container::DerivedTopology::Never,
         Ok("when-cheaper") => pmcodec_container::DerivedTopology::WhenCheaper,
+        Ok("always") => pmcodec_container::DerivedTopology::Always,
+        Ok("per-band") => pmcodec_container::DerivedTopology::PerBand,
         _ => EncodeOptions::default().derived_topology,
     }
+}
+
+/// `PMC_BANDS=1`: the banded index (`pmcodec encode --banded-index`), which coarse clients read
+/// in part (default: the encoder's flags).
+fn chunk_flags() -> u16 {
+    let flags = EncodeOptions::default().chunk_flags;
+    if std::env::var("PMC_BANDS").as_deref() == Ok("1") { flags | pmcodec_container::format::FLAG_BANDS } else { flags }
 }
 
 fn main() {
@@ -140,6 +152,7 @@ fn main() {
             palette_coding,
             skinned_coarse,
             derived_topology: derived_topology(),
+            chunk_flags: chunk_flags(),
             ..Default::default()
         };
         let t = std::time::Instant::now();
@@ -155,7 +168,7 @@ fn main() {
             k.1 += 1;
         }
         let table: Vec<String> = kinds.iter().map(|(k, (b, c))| format!("{k} {b} B in {c}")).collect();
-        println!("    preamble, header and index {} B; {}", r.data_start(), table.join(", "));
+        println!("    preamble, header and index {} B (flags {}); {}", r.data_start(), r.flags(), table.join(", "));
         println!("    positions per band (band 0 first): {:?} B", s.positions_bytes);
         // PMC_OUT=dir: each skinned file in the Joints coding (`skinned-joints{threshold}.pmc`,
         // for `pmcodec eval --pmc`), and every frame's quantized node positions as the Rust

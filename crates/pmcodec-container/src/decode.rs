@@ -121,6 +121,9 @@ impl<S: ByteSource> Decoder<S> {
         if min_level >= h.levels() {
             return Err(ContainerError::Options(format!("level {min_level}: the file has levels 0..{}", h.levels() - 1)));
         }
+        if !reader.covers(min_level) {
+            return Err(ContainerError::Options(format!("level {min_level}: the reader holds the index of coarser levels only")));
+        }
         let total = h.node_count() as usize;
         Ok(Decoder {
             reader,

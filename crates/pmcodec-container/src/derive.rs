@@ -154,6 +154,14 @@ pub enum DerivedTopology {
     /// A band derived in a keyframe interval where what its reader reads instead (the Key and
     /// Delta chunks below it) takes no more bytes than its Faces and Corners chunks.
     WhenCheaper,
+    /// A band derived in every keyframe interval where, over the whole file, what its clients
+    /// read instead (the Triangles chunk, which [`DerivedTopology::WhenCheaper`] leaves out of
+    /// its sums, and the Key and Delta chunks of the bands below) takes no more bytes than its
+    /// Faces and Corners chunks, index entries counted; else in none. So no band's clients read
+    /// more than with every band sent (issue 17's client shares): on the horse, band 2's
+    /// clients read the 34.8 KB Triangles chunk and 35 KB of finer Key and Delta chunks where
+    /// its own faces and corners took a few KB.
+    PerBand,
 }
 
 /// Index entry bytes a chunk costs beside its own (tag, length, CRC; about 7).
@@ -179,10 +187,12 @@ pub(crate) fn choose(
     let mut sent: BTreeMap<(u32, u32), u64> = BTreeMap::new();
     let mut below: BTreeMap<(u32, u32), u64> = BTreeMap::new();
     let mut bands = 0u32;
+    let mut triangles = 0u64;
     for (e, bytes) in chunks.iter() {
         let k = keyframe_before(e.frame);
         let cost = bytes.len() as u64 + ENTRY;
         match e.kind {
+            ChunkKind::Triangles => triangles += cost,
             ChunkKind::Faces | ChunkKind::Corners => *sent.entry((k, e.band)).or_default() += cost,
             // A reader that starts at the keyframe skips its Delta chunk.
             ChunkKind::Key => *below.entry((k, e.band)).or_default() += cost,
@@ -191,9 +201,22 @@ pub(crate) fn choose(
         }
         bands = bands.max(e.band + 1);
     }
+    // PerBand: per band j, over the whole file, what its clients send and what they would read.
+    let mut whole_sent: BTreeMap<u32, u64> = BTreeMap::new();
+    let mut whole_instead: BTreeMap<u32, u64> = BTreeMap::new();
+    let keys: std::collections::BTreeSet<u32> = chunks.iter().filter(|(e, _)| e.kind == ChunkKind::Faces).map(|(e, _)| e.frame).collect();
+    for j in 1..bands {
+        for &k in &keys {
+            *whole_sent.entry(j).or_default() += sent.get(&(k, j)).copied().unwrap_or(0);
+            let below_j: u64 = (0..j).map(|i| below.get(&(k, i)).copied().unwrap_or(0)).sum();
+            *whole_instead.entry(j).or_default() += below_j + 2 + ENTRY;
+        }
+    }
+    let per_band = |j: u32| whole_instead.get(&j).copied().unwrap_or(0) + triangles <= whole_sent.get(&j).copied().unwrap_or(0);
     let derive = |k: u32, j: u32| match policy {
         DerivedTopology::Never => false,
         DerivedTopology::Always => true,
+        DerivedTopology::PerBand => per_band(j),
         DerivedTopology::WhenCheaper => {
             let instead: u64 = (0..j).map(|i| below.get(&(k, i)).copied().unwrap_or(0)).sum::<u64>() + 2 + ENTRY;
             instead <= sent.get(&(k, j)).copied().unwrap_or(0)

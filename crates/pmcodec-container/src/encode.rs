@@ -73,7 +73,8 @@ pub struct EncodeOptions {
     pub skinned_coarse: Option<SkinnedCoarse>,
     /// The preamble flags to write with (`format::FLAGS`, the default: small chunks stored as
     /// they are, empty Delta and Corners chunks left out; 0: every chunk a zstd frame, as files
-    /// before the flags, for comparison). Unknown bits are dropped.
+    /// before the flags, for comparison; with `format::FLAG_BANDS`, the banded index where it
+    /// is no longer, which coarse clients read in part). Unknown bits are dropped.
     pub chunk_flags: u16,
     /// How a skinned file codes each frame's palette: Joints chunks (the default) or the
     /// Palette chunks files had before them (kept for comparison and for tests of readers).
@@ -276,7 +277,25 @@ impl Chunks {
 
 /// The file: preamble, header, index and chunks.
 fn assemble(header: &Header, chunks: Chunks) -> Result<Vec<u8>, ContainerError> {
-    let Chunks(mut chunks, flags) = chunks;
+    let Chunks(made, mut flags) = chunks;
+    let entries: Vec<ChunkEntry> = made.iter().map(|(e, _)| *e).collect();
+    // The banded index (FLAG_BANDS) only where it is no longer than the frame-by-frame one: its
+    // table (a row per group, 1 + 3 per level) can outweigh the per-frame counts it saves on a
+    // small file of few frames. (Neither's length depends on the offsets.)
+    if flags & crate::format::FLAG_BANDS != 0 {
+        let banded = crate::format::banded_index(&entries, header.levels())?.0.len();
+        let plain = Index { chunks: entries.clone() }
+            .to_bytes(VERSION, header.frame_count)
+            .map_err(|e| ContainerError::Io(format!("index: {e}")))?
+            .len();
+        if banded > plain {
+            flags &= !crate::format::FLAG_BANDS;
+        }
+    }
+    // A banded index lays the chunks out group after group.
+    let order = crate::format::file_order(&entries, flags, header.levels());
+    let mut slots: Vec<Option<(ChunkEntry, Vec<u8>)>> = made.into_iter().map(Some).collect();
+    let mut chunks: Vec<(ChunkEntry, Vec<u8>)> = order.iter().filter_map(|&i| slots.get_mut(i).and_then(Option::take)).collect();
     // Offsets are relative to the chunk area, so the index's own length does not feed back.
     let mut offset = 0u64;
     let mut index = Index::default();
@@ -294,14 +313,21 @@ fn assemble(header: &Header, chunks: Chunks) -> Result<Vec<u8>, ContainerError> 
         header
     };
     let hb = postcard::to_stdvec(header).map_err(|e| ContainerError::Io(format!("header: {e}")))?;
-    let ib = index.to_bytes(VERSION, header.frame_count).map_err(|e| ContainerError::Io(format!("index: {e}")))?;
+    let (ib, table_len) = if flags & crate::format::FLAG_BANDS != 0 {
+        crate::format::banded_index(&index.chunks, header.levels())?
+    } else {
+        (index.to_bytes(VERSION, header.frame_count).map_err(|e| ContainerError::Io(format!("index: {e}")))?, 0)
+    };
+    // A banded index's CRC in the preamble covers its table; the table holds each group's.
+    let covered = if table_len > 0 { &ib[..table_len as usize] } else { &ib[..] };
     let pre = Preamble {
         version: VERSION,
         flags,
         header_len: hb.len() as u32,
         index_len: ib.len() as u32,
         header_crc: crc32fast::hash(&hb),
-        index_crc: crc32fast::hash(&ib),
+        index_crc: crc32fast::hash(covered),
+        table_len,
     };
     let mut out = Vec::with_capacity(PREAMBLE_LEN + hb.len() + ib.len() + offset as usize);
     out.extend_from_slice(&pre.to_bytes());
@@ -638,7 +664,7 @@ fn code_frames(
 ) -> Result<(Header, Chunks, EncodeReport), ContainerError> {
     let levels = header.levels();
 
-    let mut chunks = Chunks(Vec::new(), opts.chunk_flags & crate::format::FLAGS);
+    let mut chunks = Chunks(Vec::new(), opts.chunk_flags & crate::format::KNOWN_FLAGS);
     chunks.push(ChunkKind::Triangles, 0, 0, payload::write_triangles_best(&seq.triangles, seq.vertex_count() as u32))?;
     let total = header.level_sizes.iter().map(|&n| n as usize).sum();
     let mut coder = PositionCoder::new(

@@ -119,6 +119,11 @@ impl<'a> Cursor<'a> {
         Ok(b)
     }
 
+    /// Whether every byte was read.
+    pub fn at_end(&self) -> bool {
+        self.pos >= self.bytes.len()
+    }
+
     /// Succeeds only when every byte was read: a chunk with bytes left over is corrupt.
     pub fn finish(&self) -> Result<(), ContainerError> {
         if self.pos == self.bytes.len() { Ok(()) } else { Err(self.corrupt(format!("{} bytes left over", self.bytes.len() - self.pos))) }

@@ -94,11 +94,30 @@ pub struct Reader<S> {
     data_start: u64,
     file_len: u64,
     bytes_read: Cell<u64>,
+    /// With a banded index read in part ([`Reader::open_at`]): the finest level its entries serve.
+    level: Option<usize>,
 }
 
 impl<S: ByteSource> Reader<S> {
     /// Reads and checks the preamble (magic and version first), the header and the index.
     pub fn open(source: S) -> Result<Self, ContainerError> {
+        Self::open_with(source, None)
+    }
+
+    /// [`Reader::open`] for a client whose finest level is `level`: of a banded index
+    /// ([`crate::format::FLAG_BANDS`]) it fetches the group table and only the groups that
+    /// client reads ([`crate::format::groups_for`]), each checked against its CRC; other files
+    /// are read whole. A [`crate::Decoder`] over it decodes levels `level..` only.
+    pub fn open_at(source: S, level: usize) -> Result<Self, ContainerError> {
+        Self::open_with(source, Some(level))
+    }
+
+    /// Whether the entries this reader holds serve a client whose finest level is `level`.
+    pub fn covers(&self, level: usize) -> bool {
+        self.level.is_none_or(|l| l <= level)
+    }
+
+    fn open_with(source: S, level: Option<usize>) -> Result<Self, ContainerError> {
         let file_len = source.len()?;
         if file_len < PREAMBLE_LEN as u64 {
             // Say "not a .pmc file" for short junk, "truncated" for a cut-off real one.
@@ -123,7 +142,25 @@ impl<S: ByteSource> Reader<S> {
         if pre.flags & crate::format::FLAG_NAMES != 0 {
             header.frame_names = crate::format::front_decode(&header.frame_names);
         }
-        let ib = source.read_at(PREAMBLE_LEN as u64 + pre.header_len as u64, pre.index_len as usize)?;
+        let index_at = PREAMBLE_LEN as u64 + pre.header_len as u64;
+        if pre.version >= 7 && pre.flags & crate::format::FLAG_BANDS != 0 {
+            check_header(&header)?;
+            let (index, read, level) = read_banded(&source, &pre, &header, index_at, file_len - data_start, level)?;
+            let reader = Reader {
+                source,
+                version: pre.version,
+                flags: pre.flags,
+                header,
+                index,
+                data_start,
+                file_len,
+                bytes_read: Cell::new(index_at + read),
+                level,
+            };
+            reader.check_index()?;
+            return Ok(reader);
+        }
+        let ib = source.read_at(index_at, pre.index_len as usize)?;
         if crc32fast::hash(&ib) != pre.index_crc {
             return Err(ContainerError::Checksum { what: "index".into() });
         }
@@ -143,6 +180,7 @@ impl<S: ByteSource> Reader<S> {
             data_start,
             file_len,
             bytes_read: Cell::new(data_start),
+            level: None,
         };
         reader.check_index()?;
         Ok(reader)
@@ -175,6 +213,7 @@ impl<S: ByteSource> Reader<S> {
             data_start: self.data_start,
             file_len: self.file_len,
             bytes_read: Cell::new(self.bytes_read.get()),
+            level: self.level,
         }
     }
 
@@ -299,12 +338,70 @@ impl<S: ByteSource> Reader<S> {
             last = Some(key);
         }
         // The container ends with its last chunk: bytes after it (garbage, or a second
-        // container appended) are refused rather than ignored.
-        if end < area {
+        // container appended) are refused rather than ignored. (A banded index's table
+        // accounts for every byte of the chunk area, checked when it was read.)
+        if self.flags & crate::format::FLAG_BANDS == 0 && end < area {
             return Err(ContainerError::TrailingBytes { bytes: area - end });
         }
         Ok(())
     }
+}
+
+/// Reads a banded index ([`crate::format::FLAG_BANDS`]) at `index_at`: its table (checked
+/// against the preamble's CRC), then every group, or with `level` the groups a client of that
+/// level reads. Returns its entries in frame order, the index bytes fetched, and the level the
+/// entries serve (`None`: all of them).
+#[allow(clippy::type_complexity)]
+fn read_banded<S: ByteSource>(
+    source: &S,
+    pre: &Preamble,
+    h: &Header,
+    index_at: u64,
+    area: u64,
+    level: Option<usize>,
+) -> Result<(Index, u64, Option<usize>), ContainerError> {
+    use crate::format::{groups_for, parse_group, parse_table};
+    let corrupt = |detail: String| ContainerError::Corrupt { what: "index table".into(), detail };
+    if pre.table_len > pre.index_len {
+        return Err(corrupt(format!("{} bytes in an index of {}", pre.table_len, pre.index_len)));
+    }
+    let tb = source.read_at(index_at, pre.table_len as usize)?;
+    if crc32fast::hash(&tb) != pre.index_crc {
+        return Err(ContainerError::Checksum { what: "index table".into() });
+    }
+    let levels = h.levels();
+    let rows = parse_table(&tb, levels)?;
+    let bodies: u64 = rows.iter().map(|r| r.body_len as u64).sum();
+    if bodies != (pre.index_len - pre.table_len) as u64 {
+        return Err(corrupt(format!("groups of {bodies} bytes in {} bytes after the table", pre.index_len - pre.table_len)));
+    }
+    let chunks: u64 = rows.iter().map(|r| r.chunks_len as u64).sum();
+    if chunks > area {
+        return Err(ContainerError::Truncated { what: "chunk area".into() });
+    }
+    if chunks < area {
+        return Err(ContainerError::TrailingBytes { bytes: area - chunks });
+    }
+    // (Level 0 reads every group but the faces of the bands above it.)
+    let level = level.filter(|&l| l < levels);
+    let wanted = match level {
+        None => (0..rows.len()).collect(),
+        Some(l) => groups_for(levels, l, rows.get(crate::format::group_of(ChunkKind::Faces, l as u32, levels)).is_some_and(|r| r.derived)),
+    };
+    let (mut body_at, mut chunk_at) = (index_at + pre.table_len as u64, 0u64);
+    let mut read = pre.table_len as u64;
+    let mut entries = Vec::new();
+    for (g, row) in rows.iter().enumerate() {
+        if wanted.contains(&g) {
+            let body = source.read_at(body_at, row.body_len as usize)?;
+            read += body.len() as u64;
+            entries.extend(parse_group(&body, g, row, chunk_at, levels, h.frame_count)?);
+        }
+        body_at += row.body_len as u64;
+        chunk_at += row.chunks_len as u64;
+    }
+    crate::format::frame_order(&mut entries);
+    Ok((Index { chunks: entries }, read, level))
 }
 
 /// The decompressed sizes a chunk of this kind and band may declare, from the header's

@@ -68,8 +68,11 @@ impl Unsealed {
         }
         let header = bytes[PREAMBLE_LEN..PREAMBLE_LEN + header_len].to_vec();
         // Version 7's index is laid out by the header's frames.
-        let frames = Header::from_bytes(&bytes[PREAMBLE_LEN..PREAMBLE_LEN + header_len], version).map_or(0, |h| h.frame_count);
-        let index = Index::from_bytes(&bytes[PREAMBLE_LEN + header_len..data_start], version, frames).map_err(|e| e.to_string())?;
+        let parsed = Header::from_bytes(&bytes[PREAMBLE_LEN..PREAMBLE_LEN + header_len], version).ok();
+        let (frames, levels) = parsed.map_or((0, 1), |h| (h.frame_count, h.levels()));
+        let table_len = u32_at(28) as u32;
+        let index = Index::from_file(&bytes[PREAMBLE_LEN + header_len..data_start], version, flags, table_len, frames, levels)
+            .map_err(|e| e.to_string())?;
         let area = &bytes[data_start..];
         let mut end = 0usize;
         let mut chunks = Vec::with_capacity(index.chunks.len());
@@ -94,7 +97,11 @@ impl Unsealed {
     pub fn seal(&self) -> Vec<u8> {
         let mut area = Vec::new();
         let mut entries = Vec::with_capacity(self.chunks.len());
-        for c in &self.chunks {
+        let levels = self.parsed_header().map_or(1, |h| h.levels());
+        let made: Vec<ChunkEntry> = self.chunks.iter().map(|c| c.entry).collect();
+        let order = crate::format::file_order(&made, self.flags, levels);
+        let chunks: Vec<&Chunk> = order.iter().filter_map(|&i| self.chunks.get(i)).collect();
+        for c in &chunks {
             // Level 1 keeps sealing fast; the reader does not care how well a chunk compresses.
             let stored = crate::format::store_chunk(&c.raw, 1, self.flags).unwrap_or_default();
             let mut e = c.entry;
@@ -104,7 +111,7 @@ impl Unsealed {
             area.extend_from_slice(&stored);
             entries.push(e);
         }
-        for (e, c) in entries.iter_mut().zip(&self.chunks) {
+        for (e, c) in entries.iter_mut().zip(&chunks) {
             match c.lie {
                 Some(Lie::Offset(o)) => e.offset = o,
                 Some(Lie::StoredLen(n)) => e.stored_len = n,
@@ -117,14 +124,20 @@ impl Unsealed {
         // A version 7 index cannot state an offset (chunks follow one another): an offset lie
         // is lost there, while a stored length lie moves every chunk after it.
         let frames = self.parsed_header().map_or(0, |h| h.frame_count);
-        let index = Index { chunks: entries }.to_bytes(self.version, frames).unwrap_or_default();
+        let (index, table_len) = if self.version >= 7 && self.flags & crate::format::FLAG_BANDS != 0 {
+            crate::format::banded_index(&entries, levels).unwrap_or_default()
+        } else {
+            (Index { chunks: entries }.to_bytes(self.version, frames).unwrap_or_default(), 0)
+        };
+        let covered = index.get(..table_len as usize).filter(|_| table_len > 0).unwrap_or(&index);
         let pre = Preamble {
             version: self.version,
             flags: self.flags,
             header_len: self.header.len() as u32,
             index_len: index.len() as u32,
             header_crc: crc32fast::hash(&self.header),
-            index_crc: crc32fast::hash(&index),
+            index_crc: crc32fast::hash(covered),
+            table_len,
         };
         let mut out = Vec::with_capacity(PREAMBLE_LEN + self.header.len() + index.len() + area.len() + self.trailing.len());
         out.extend_from_slice(&pre.to_bytes());

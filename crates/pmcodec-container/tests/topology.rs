@@ -239,3 +239,60 @@ fn front_coded_frame_names_read_back() {
     let (front, plain) = (header_len(FLAGS), header_len(FLAGS & !FLAG_NAMES));
     assert!(front + 200 < plain, "header {front} B front-coded, {plain} B plain");
 }
+
+/// What a client whose finest level is `level` reads of `r`: its chunks' bytes and about 7 bytes
+/// of index entry each (the encoder's own estimate).
+fn read_at_level(r: &Reader<&[u8]>, level: usize) -> u64 {
+    r.index().chunks.iter().filter(|e| r.reads(e, level)).map(|e| e.stored_len as u64 + 7).sum()
+}
+
+/// `DerivedTopology::PerBand`: each band's clients read no more than with that band derived
+/// (`Always`) or sent (`Never`), whichever is less (up to the keyframes' Delta chunks, which the
+/// encoder's estimate leaves out), and the file decodes as the one that sends every band.
+#[test]
+fn per_band_derivation_costs_no_client_more_than_either_choice() {
+    let base = EncodeOptions { keyframe_interval: 6, quantization: QuantizationChoice::Bits(12), ..Default::default() };
+    for (name, seq) in [
+        ("cloth", pmcodec_mesh::samples::waving_cloth(16, 12, 24)),
+        ("parts", pmcodec_mesh::samples::rigid_parts(7, 24)),
+        ("skinned", pmcodec_mesh::skin::bending_tube(16, 40, 24)),
+    ] {
+        let file = |policy| encode(&seq, &EncodeOptions { derived_topology: policy, ..base.clone() }, |_| {}).expect("encode");
+        let (always, never, per_band) = (file(DerivedTopology::Always), file(DerivedTopology::Never), file(DerivedTopology::PerBand));
+        let (a, n, p) =
+            (Reader::open(always.as_slice()).unwrap(), Reader::open(never.as_slice()).unwrap(), Reader::open(per_band.as_slice()).unwrap());
+        verify(&p).expect("verify");
+        assert!(
+            always.len() <= per_band.len() && per_band.len() <= never.len(),
+            "{name}: {} {} {}",
+            always.len(),
+            per_band.len(),
+            never.len()
+        );
+        let levels = p.header().levels();
+        let mut chose = [0, 0];
+        for level in 1..levels {
+            let (ra, rn, rp) = (read_at_level(&a, level), read_at_level(&n, level), read_at_level(&p, level));
+            let slack: u64 = p
+                .index()
+                .chunks
+                .iter()
+                .filter(|e| e.kind == ChunkKind::Delta && p.header().is_keyframe(e.frame))
+                .map(|e| e.stored_len as u64 + 7)
+                .sum();
+            assert!(rp <= ra.min(rn) + slack, "{name} level {level}: {rp} B read, derived {ra}, sent {rn}");
+            chose[usize::from(p.derives(0, level))] += 1;
+            let (mut d, mut s) = (Decoder::new(p.borrowed(), level).expect("decoder"), Decoder::new(n.borrowed(), level).expect("decoder"));
+            for f in 0..p.header().frame_count {
+                d.seek(f).expect("frame");
+                s.seek(f).expect("frame");
+                assert_eq!(
+                    d.mesh(CutTarget::Level(level)).expect("mesh"),
+                    s.mesh(CutTarget::Level(level)).expect("mesh"),
+                    "{name} level {level} frame {f}"
+                );
+            }
+        }
+        println!("{name}: {levels} levels, {} bands sent, {} derived", chose[0], chose[1]);
+    }
+}

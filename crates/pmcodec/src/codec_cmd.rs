@@ -43,6 +43,7 @@ pub enum DerivedArg {
     Always,
     Never,
     WhenCheaper,
+    PerBand,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -95,10 +96,16 @@ pub struct EncodeArgs {
     pub order: OrderArg,
     /// Which bands' faces and corner updates their readers derive from the triangles and the
     /// parent maps below them instead of reading them: `always` (the smallest file), `never`
-    /// (every band sends them, as files before), or `when-cheaper` (where a coarse client then
-    /// reads no more bytes).
+    /// (every band sends them, as files before), `when-cheaper` (in the keyframe intervals where
+    /// a coarse client then reads no more bytes), or `per-band` (the bands whose clients then
+    /// read no more bytes over the whole file, the triangles counted).
     #[arg(long, value_enum, default_value_t = DerivedArg::Always)]
     pub derived_topology: DerivedArg,
+    /// Write the banded index (proto/container.md, "Index") where it is no longer than the
+    /// frame-by-frame one: a client at a coarse level then fetches only its bands' index
+    /// entries, but a frame's chunks are no longer one byte range.
+    #[arg(long)]
+    pub banded_index: bool,
     /// For a skinned glTF, where coarse nodes sit in bind space for prediction by skinning:
     /// `back-propagated` (their frame-0 position through their blended transform, Houle &
     /// Poulin), `centroid` (their cluster's rest centroid), or `none` (no skinning).
@@ -402,6 +409,7 @@ pub fn encode_options(args: &EncodeArgs) -> Result<EncodeOptions, Exit> {
         DerivedArg::Always => DerivedTopology::Always,
         DerivedArg::Never => DerivedTopology::Never,
         DerivedArg::WhenCheaper => DerivedTopology::WhenCheaper,
+        DerivedArg::PerBand => DerivedTopology::PerBand,
     };
     let mut opts = EncodeOptions {
         keyframe_interval: args.keyframe_interval,
@@ -412,6 +420,9 @@ pub fn encode_options(args: &EncodeArgs) -> Result<EncodeOptions, Exit> {
         derived_topology,
         ..Default::default()
     };
+    if args.banded_index {
+        opts.chunk_flags |= pmcodec_container::format::FLAG_BANDS;
+    }
     opts.build.branching = args.branching;
     opts.build.anchors = parse_anchors(&args.level_anchors)?;
     opts.base.poses = parse_poses(&args.base_poses).map_err(|e| Exit(2, e))?;

@@ -62,6 +62,7 @@ export class Decoder {
     this.skinOffsets = opts.skinOffsets ?? false;
     const h = reader.header;
     if (minLevel >= h.levelSizes.length) throw new DecodeError(`level ${minLevel}: the file has ${h.levelSizes.length} levels`);
+    if (minLevel < reader.level) throw new DecodeError(`level ${minLevel}: the reader holds the index of levels ${reader.level}.. only`);
     this.replay = new Replay(h.levelSizes, minLevel, h.triangleCount);
     this.exactCur = new Uint8Array(h.levelSizes.length);
     const total = h.levelSizes.reduce((a, b) => a + b, 0);

@@ -73,6 +73,12 @@ export interface ChunkEntry { kind: ChunkKind; frame: number; band: number; offs
 export const FLAG_STORED = 1, FLAG_SPARSE = 2;
 /** Preamble flag: frame names front-coded (proto/container.md, "Header"; frontDecode). */
 export const FLAG_NAMES = 4;
+/**
+ * Preamble flag: the index is banded (proto/container.md, "Index"; format::FLAG_BANDS): a table
+ * of groups (what every client reads, then per band from the top down its topology, geometry and
+ * faces), each group's entries and chunks contiguous, so a client fetches only its levels' groups.
+ */
+export const FLAG_BANDS = 8;
 
 /**
  * Undoes the front coding of frame names (as `format::front_decode`): each name after the first
@@ -94,7 +100,7 @@ export function frontDecode(coded: string[]): string[] {
   return out;
 }
 
-export interface Preamble { version: number; flags: number; headerLen: number; indexLen: number; headerCrc: number; indexCrc: number }
+export interface Preamble { version: number; flags: number; headerLen: number; indexLen: number; headerCrc: number; indexCrc: number; tableLen: number }
 
 const CRC_TABLE = (() => {
   const t = new Uint32Array(256);
@@ -118,7 +124,7 @@ export function parsePreamble(pre: Uint8Array): Preamble {
   const dv = new DataView(pre.buffer, pre.byteOffset, pre.byteLength);
   const version = dv.getUint16(8, true);
   if (version < OLDEST_READABLE || version > VERSION) throw new DecodeError(`container version ${version} is not supported (this decoder reads versions ${OLDEST_READABLE} to ${VERSION})`);
-  return { version, flags: dv.getUint16(10, true), headerLen: dv.getUint32(12, true), indexLen: dv.getUint32(16, true), headerCrc: dv.getUint32(20, true), indexCrc: dv.getUint32(24, true) };
+  return { version, flags: dv.getUint16(10, true), headerLen: dv.getUint32(12, true), indexLen: dv.getUint32(16, true), headerCrc: dv.getUint32(20, true), indexCrc: dv.getUint32(24, true), tableLen: dv.getUint32(28, true) };
 }
 
 /** The header of a file of `version` (older versions lack the fields added since). */
@@ -192,12 +198,96 @@ export function parseIndex(ib: Uint8Array, version: number, frames: number): Chu
   return out;
 }
 
+/** Groups of a banded index for `levels` levels (format::group_count). */
+export function groupCount(levels: number): number { return 1 + 3 * levels; }
+
+/** The group of a chunk (format::group_of): 0 what every client reads, then per band from the top down topology, geometry, faces. */
+export function groupOf(kind: ChunkKind, band: number, levels: number): number {
+  const top = Math.max(levels - 1, 0), base = 1 + 3 * (top - Math.min(band, top));
+  switch (kind) {
+    case ChunkKind.Pose: case ChunkKind.Charts: case ChunkKind.Materials: case ChunkKind.Image: return 0;
+    case ChunkKind.Triangles: case ChunkKind.Key: case ChunkKind.Delta: return base;
+    case ChunkKind.Faces: case ChunkKind.Corners: return base + 2;
+    default: return base + 1;
+  }
+}
+
+/** Group `g`'s name in messages (format::group_name). */
+export function groupName(g: number, levels: number): string {
+  if (g === 0) return "index group 0 (every client)";
+  const top = Math.max(levels - 1, 0);
+  return `index group ${g} (band ${top - Math.min(Math.floor((g - 1) / 3), top)} ${["topology", "geometry", "faces"][(g - 1) % 3]})`;
+}
+
+/** The groups a client of finest level `level` reads (format::groups_for), ascending. */
+export function groupsFor(levels: number, level: number, derived: boolean): number[] {
+  const top = Math.max(levels - 1, 0), out = [0];
+  for (let b = top; b >= level; b--) {
+    const base = 1 + 3 * (top - b);
+    out.push(base, base + 1);
+    if (b === level) out.push(base + 2);
+  }
+  if (derived) for (let b = Math.min(level, levels) - 1; b >= 0; b--) out.push(1 + 3 * (top - b));
+  return out.sort((a, b) => a - b);
+}
+
+/** A banded index's table row: entry bytes, the faces group's derived bit, chunk bytes, CRC-32 of the entry bytes. */
+export interface GroupRow { bodyLen: number; derived: boolean; chunksLen: number; crc32: number }
+
+/** A banded index's table (format::parse_table): the group count, then each group's row. */
+export function parseTable(tb: Uint8Array, levels: number): GroupRow[] {
+  const c = new Cursor(tb, "index table");
+  const n = c.get();
+  if (n !== groupCount(levels)) throw new DecodeError(`index table: ${n} groups for ${levels} levels (1 + 3 per level)`);
+  const rows: GroupRow[] = [];
+  for (let i = 0; i < n; i++) {
+    const first = c.get(), chunksLen = c.get(), crc = first >= 2 ? c.u32le() : 0;
+    rows.push({ bodyLen: Math.floor(first / 2), derived: (first & 1) !== 0, chunksLen, crc32: crc });
+  }
+  c.finish();
+  return rows;
+}
+
+/**
+ * Group `g`'s entries (format::parse_group): its CRC checked, then entries until its bytes end,
+ * each a tag (kind in bits 0..4, bit 4: raw length = stored length, the frame's advance above),
+ * the band (group 0 only), the stored length, the raw length unless the tag says so, the CRC-32;
+ * its chunks start at `offset` and take the table's `chunksLen` bytes.
+ */
+export function parseGroup(b: Uint8Array, g: number, row: GroupRow, offset: number, levels: number, frames: number): ChunkEntry[] {
+  const what = groupName(g, levels);
+  if (crc32(b) !== row.crc32) throw new DecodeError(`${what}: checksum mismatch`);
+  const c = new Cursor(b, what), out: ChunkEntry[] = [];
+  const top = Math.max(levels - 1, 0), implied = g === 0 ? 0 : top - Math.min(Math.floor((g - 1) / 3), top);
+  let frame = 0, at = offset, derived = false;
+  while (c.pos < b.length) {
+    const tag = c.get(), kind = tag & 15;
+    if (kind > LAST_KIND) throw new DecodeError(`${what}: unknown chunk kind ${kind}`);
+    frame += Math.floor(tag / 32);
+    if (frame >= frames) throw new DecodeError(`${what}: a frame beyond the header's`);
+    const band = g === 0 ? c.get() : implied;
+    if (groupOf(kind, band, levels) !== g) throw new DecodeError(`${what}: a ${ChunkKind[kind]} chunk, which belongs to another group`);
+    const storedLen = c.get(), rawLen = tag & 16 ? storedLen : c.get(), crc = c.u32le();
+    out.push({ kind, frame, band, offset: at, storedLen, rawLen, crc32: crc });
+    derived ||= kind === ChunkKind.Faces && rawLen === 2;
+    at += storedLen;
+  }
+  if (at - offset !== row.chunksLen) throw new DecodeError(`${what}: chunks of ${at - offset} bytes where the table says ${row.chunksLen}`);
+  if (derived !== row.derived) throw new DecodeError(`${what}: the table and its entries disagree on whether its band derives its faces`);
+  return out;
+}
+
+/** Entries read group after group, in the order readers use (format::frame_order): Triangles, then frame after frame, stable. */
+export function frameOrder(entries: ChunkEntry[]): ChunkEntry[] {
+  return entries.sort((a, b) => (a.kind === ChunkKind.Triangles ? 0 : 1) - (b.kind === ChunkKind.Triangles ? 0 : 1) || a.frame - b.frame);
+}
+
 /**
  * Checks a header and index against each other and the file: consistent counts, shrinking
  * levels, sizes within the limits, every chunk inside the data and of a plausible size, and no
  * bytes after the last chunk. `dataLen`: the bytes after the preamble, header and index.
  */
-export function checkTables(h: Header, index: ChunkEntry[], dataLen: number): void {
+export function checkTables(h: Header, index: ChunkEntry[], dataLen: number, banded = false): void {
   if (h.levelSizes.length === 0 || h.levelSizes[0] !== h.vertexCount || h.frameCount === 0 || !(h.step > 0)) throw new DecodeError("header: inconsistent counts");
   if (h.levelSizes.some((s, i) => i > 0 && (s === 0 || s > h.levelSizes[i - 1]))) throw new DecodeError(`header: level sizes ${h.levelSizes} do not shrink`);
   // Declared sizes are capped, so what a player allocates from them is bounded (proto/container.md, "Limits").
@@ -231,7 +321,8 @@ export function checkTables(h: Header, index: ChunkEntry[], dataLen: number): vo
     const [least, most] = rawLenRange(h, e.kind, e.band);
     if (e.rawLen < least || e.rawLen > most) throw new DecodeError(`${describe(e)}: declared size ${e.rawLen} outside ${least}..${most}`);
   }
-  if (end < dataLen) throw new DecodeError(`${dataLen - end} bytes after the end of the container`);
+  // A banded index's table accounts for the whole chunk area (checked when it was read).
+  if (!banded && end < dataLen) throw new DecodeError(`${dataLen - end} bytes after the end of the container`);
 }
 
 /** The decompressed sizes a chunk may declare (proto/container.md, "Limits"). */

@@ -6,7 +6,7 @@
 import { decompress } from "fzstd";
 import { DecodeError } from "./error.js";
 import {
-  ChunkEntry, ChunkKind, FLAG_NAMES, FLAG_SPARSE, FLAG_STORED, Header, MAX_TABLE_LEN, PREAMBLE_LEN, checkTables, crc32, describe, isKeyframe, keyframeBefore,
+  ChunkEntry, ChunkKind, FLAG_BANDS, FLAG_NAMES, frameOrder, groupOf, groupsFor, parseGroup, parseTable, FLAG_SPARSE, FLAG_STORED, Header, MAX_TABLE_LEN, PREAMBLE_LEN, checkTables, crc32, describe, isKeyframe, keyframeBefore,
   frontDecode, parseHeader, parseIndex, parsePreamble, readAt as kindReadAt,
 } from "./format.js";
 import { entryIsDerived } from "./derive.js";
@@ -15,15 +15,56 @@ import { entryIsDerived } from "./derive.js";
 export type ReadAt = (offset: number, len: number) => Promise<Uint8Array>;
 
 export class Reader {
-  private constructor(readonly readAt: ReadAt, readonly version: number, readonly flags: number, readonly header: Header, readonly index: ChunkEntry[], readonly dataStart: number, readonly fileLen: number) {}
+  /** `level`: the finest level the index entries held serve (0: all). */
+  private constructor(readonly readAt: ReadAt, readonly version: number, readonly flags: number, readonly header: Header, readonly index: ChunkEntry[], readonly dataStart: number, readonly fileLen: number, readonly level = 0) {}
   /** Bytes fetched so far: preamble, header, index and chunks. */
   bytesRead = 0;
 
-  static async open(readAt: ReadAt, fileLen: number): Promise<Reader> {
+  /**
+   * Opens a container. With `level`, a banded index (FLAG_BANDS) is read in part: its table and
+   * the groups a client whose finest level is `level` reads (as `Reader::open_at`); the reader
+   * then serves levels `level..` only. Other files are read whole.
+   */
+  static async open(readAt: ReadAt, fileLen: number, level?: number): Promise<Reader> {
     if (fileLen < PREAMBLE_LEN) throw new DecodeError("not a .pmc file (too short)");
-    const { version, flags, headerLen, indexLen, headerCrc, indexCrc } = parsePreamble(await readAt(0, PREAMBLE_LEN));
+    const { version, flags, headerLen, indexLen, headerCrc, indexCrc, tableLen } = parsePreamble(await readAt(0, PREAMBLE_LEN));
     const dataStart = PREAMBLE_LEN + headerLen + indexLen;
     if (dataStart > fileLen || headerLen > MAX_TABLE_LEN || indexLen > MAX_TABLE_LEN) throw new DecodeError("header and index: the file ends before they do");
+    if (version >= 7 && (flags & FLAG_BANDS) !== 0) {
+      if (tableLen > indexLen) throw new DecodeError(`index table: ${tableLen} bytes in an index of ${indexLen}`);
+      const tables = await readAt(PREAMBLE_LEN, headerLen + tableLen);
+      const hb = tables.subarray(0, headerLen), tb = tables.subarray(headerLen);
+      if (crc32(hb) !== headerCrc) throw new DecodeError("header: checksum mismatch");
+      if (crc32(tb) !== indexCrc) throw new DecodeError("index table: checksum mismatch");
+      const header = parseHeader(hb, version);
+      if ((flags & FLAG_NAMES) !== 0) header.frameNames = frontDecode(header.frameNames);
+      const levels = header.levelSizes.length;
+      if (levels === 0) throw new DecodeError("header: inconsistent counts");
+      const rows = parseTable(tb, levels);
+      if (rows.reduce((a, r) => a + r.bodyLen, 0) !== indexLen - tableLen) throw new DecodeError("index table: its groups do not fill the index");
+      const chunks = rows.reduce((a, r) => a + r.chunksLen, 0);
+      if (chunks > fileLen - dataStart) throw new DecodeError("chunk area: the file ends before it does");
+      if (chunks < fileLen - dataStart) throw new DecodeError(`${fileLen - dataStart - chunks} bytes after the end of the container`);
+      // (Level 0 reads every group but the faces of the bands above it.)
+      const partial = level !== undefined && level >= 0 && level < levels ? level : undefined;
+      const wanted = partial === undefined ? rows.map((_, g) => g) : groupsFor(levels, partial, rows[groupOf(ChunkKind.Faces, partial, levels)]?.derived ?? false);
+      let bodyAt = PREAMBLE_LEN + headerLen + tableLen, chunkAt = 0, read = PREAMBLE_LEN + headerLen + tableLen;
+      const entries: ChunkEntry[] = [];
+      for (let g = 0; g < rows.length; g++) {
+        if (wanted.includes(g)) {
+          const body = await readAt(bodyAt, rows[g].bodyLen);
+          read += body.length;
+          entries.push(...parseGroup(body, g, rows[g], chunkAt, levels, header.frameCount));
+        }
+        bodyAt += rows[g].bodyLen;
+        chunkAt += rows[g].chunksLen;
+      }
+      const index = frameOrder(entries);
+      checkTables(header, index, fileLen - dataStart, true);
+      const r = new Reader(readAt, version, flags, header, index, dataStart, fileLen, partial ?? 0);
+      r.bytesRead = read;
+      return r;
+    }
     const tables = await readAt(PREAMBLE_LEN, headerLen + indexLen);
     const hb = tables.subarray(0, headerLen), ib = tables.subarray(headerLen);
     if (crc32(hb) !== headerCrc) throw new DecodeError("header: checksum mismatch");
