@@ -598,8 +598,12 @@ fn encode_frames<F: AsRef<[Vec3]>>(
         }
         let (header, mut chunks, report) = coded?;
         if let Some(l) = looks {
+            // Every client reads the triangles and frame 0's Key chunks below its level where
+            // every band above 0 derives its faces somewhere (`derive::reads`).
+            let derived = |b: usize| chunks.0.iter().any(|(e, _)| e.band as usize == b && crate::derive::entry_is_derived(e));
+            let triangles_read = (1..header.levels()).all(derived);
             let mut after = chunks.0.split_off(1);
-            for (kind, band, raw) in crate::appearance::chunks(l)? {
+            for (kind, band, raw) in crate::appearance::chunks(l, triangles_read)? {
                 chunks.push(kind, 0, band, raw)?;
             }
             chunks.0.append(&mut after);

@@ -139,8 +139,9 @@ fn a_bare_surface_has_no_appearance() {
 /// A tube whose triangles fall into many small UV islands (a chart per triangle band, as in a
 /// low-poly character's atlas): budget cuts that mix levels put a coarse corner beside fine
 /// ones of another chart. Every budget of every frame must find its (node, chart) entries.
-#[test]
-fn budget_cuts_mixing_levels_find_every_chart_entry() {
+/// The twisting tube with a chart per 7 triangles, scattered: charts meet along many short
+/// seams.
+fn scattered_charts_tube() -> pmcodec_mesh::Sequence {
     let mut seq = pmcodec_mesh::samples::twisting_tube(24, 20, 6);
     let mut app = pmcodec_mesh::Appearance::default();
     let mut wedge: std::collections::HashMap<(u32, u32), u32> = Default::default();
@@ -161,16 +162,51 @@ fn budget_cuts_mixing_levels_find_every_chart_entry() {
     }
     app.validate(seq.frames[0].len(), &seq.triangles).expect("a valid appearance");
     seq.appearance = Some(app);
-    let opts = EncodeOptions { keyframe_interval: 3, quantization: QuantizationChoice::Bits(12), ..Default::default() };
-    let bytes = encode(&seq, &opts, |_| {}).expect("encode");
-    let reader = Reader::open(bytes.as_slice()).expect("open");
-    // Which coding each band's table took (0 listed, else the mode after a first byte 0).
-    let modes: Vec<u8> = (0..reader.header().levels() as u32)
+    seq
+}
+
+/// Which coding each band's table took (0 listed, else the mode after a first byte 0).
+fn table_modes(reader: &Reader<&[u8]>) -> Vec<u8> {
+    (0..reader.header().levels() as u32)
         .map(|j| {
             let raw = reader.read_chunk(reader.find(ChunkKind::Attributes, 0, j).expect("attributes")).expect("read");
             if raw.len() > 1 && raw[0] == 0 { raw[1] } else { 0 }
         })
-        .collect();
+        .collect()
+}
+
+/// Where bands keep their own faces, a coarse client reads neither the Triangles chunk nor the
+/// Key chunks below its level ("Who reads what"): its tables and charts must not need them.
+#[test]
+fn coarse_tables_need_no_triangles_where_bands_keep_their_faces() {
+    let seq = scattered_charts_tube();
+    let opts = EncodeOptions {
+        keyframe_interval: 3,
+        quantization: QuantizationChoice::Bits(12),
+        derived_topology: pmcodec_container::DerivedTopology::Never,
+        ..Default::default()
+    };
+    let bytes = encode(&seq, &opts, |_| {}).expect("encode");
+    let reader = Reader::open(bytes.as_slice()).expect("open");
+    let modes = table_modes(&reader);
+    assert!(modes[1..].iter().all(|m| m & 64 == 0), "table codings by band: {modes:?}");
+    let charts = reader.read_chunk(reader.find(ChunkKind::Charts, 0, 0).expect("charts")).expect("read");
+    assert!(!pmcodec_container::appearance::payload::charts_need_triangles(&charts));
+    // And every level decodes from what its client reads.
+    for level in 0..reader.header().levels() {
+        let mut d = Decoder::new(reader.borrowed(), level).expect("decoder");
+        d.seek(4).expect("seek");
+        d.textured_mesh(CutTarget::Level(level)).expect("textured cut");
+    }
+}
+
+#[test]
+fn budget_cuts_mixing_levels_find_every_chart_entry() {
+    let seq = scattered_charts_tube();
+    let opts = EncodeOptions { keyframe_interval: 3, quantization: QuantizationChoice::Bits(12), ..Default::default() };
+    let bytes = encode(&seq, &opts, |_| {}).expect("encode");
+    let reader = Reader::open(bytes.as_slice()).expect("open");
+    let modes = table_modes(&reader);
     // The cuts below read band 0 with derived entries and bands predicted from the band above
     // (either with its residuals entropy-coded: the mode's bit 8).
     assert!(modes[0] & 7 == 1 && modes.iter().any(|m| m & 7 == 3), "table codings by band: {modes:?}");

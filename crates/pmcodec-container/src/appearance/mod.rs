@@ -75,7 +75,16 @@ pub fn builder<'a>(seq: &'a pmcodec_mesh::Sequence, app: &'a Appearance, levels:
 
 /// The appearance chunks, in file order: Charts, Materials, the Attributes of every band top
 /// first (none when the entries carry no channels), then each Image. (kind, band, raw payload).
-pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::ChunkKind, u32, Vec<u8>)>, crate::ContainerError> {
+///
+/// `triangles_read` says whether every client of the file reads the Triangles chunk and the
+/// frame 0 Key chunks of the bands below its level (true where every band above 0 derives its
+/// faces somewhere: proto/container.md, "Who reads what"). Only then may the Charts chunk use
+/// neighbour charts and a coarse band's values be predicted across its faces, which read them:
+/// otherwise a coarse client would have to fetch chunks the file says it does not read.
+pub fn chunks(
+    mut builder: tables::TableBuilder<'_>,
+    triangles_read: bool,
+) -> Result<Vec<(crate::ChunkKind, u32, Vec<u8>)>, crate::ContainerError> {
     use crate::ChunkKind;
     let tables = builder.finish();
     let channels = builder.info().channels();
@@ -87,7 +96,7 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
     let charts = [payload::write_charts(builder.charts()), payload::write_charts_new_runs(builder.charts())]
         .into_iter()
         .chain(payload::write_charts_recent(builder.charts()))
-        .chain(payload::write_charts_neighbours(builder.charts(), builder.triangles()))
+        .chain(triangles_read.then(|| payload::write_charts_neighbours(builder.charts(), builder.triangles())).flatten())
         .min_by_key(size)
         .unwrap_or_default();
     let mut out = vec![(ChunkKind::Charts, 0, charts), (ChunkKind::Materials, 0, materials)];
@@ -108,7 +117,7 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
             let mut codings = vec![payload::write_table(t, channels), payload::write_table_rans(t, channels)];
             let chart_of = &builder.charts().triangle_chart;
             // Band j's faces in frame 0 (band 0's are the triangles, which mode 1 uses).
-            let faces = (j > 0)
+            let faces = (j > 0 && triangles_read)
                 .then(|| (0..j).map(|i| builder.first_parent(i)).collect::<Option<Vec<_>>>())
                 .flatten()
                 .and_then(|parents| across::band_faces(builder.triangles(), chart_of, &parents));
