@@ -126,9 +126,11 @@ pub struct EncodeArgs {
     #[command(flatten)]
     pub recluster: ReclusterArgs,
     /// For a skinned input predicted by skinning, recluster only every N frames (the frames
-    /// between keep their clusters; their nodes still move).
-    #[arg(long, default_value_t = 1, value_name = "N")]
-    pub skinned_recluster_every: u32,
+    /// between keep their clusters; their nodes still move). Default: a glTF's own skin keeps
+    /// frame 0's clusters throughout (its motion is the skin's, and Houle & Poulin's coarse
+    /// nodes are points the skeleton carries), a fitted skin reclusters every frame (1).
+    #[arg(long, value_name = "N")]
+    pub skinned_recluster_every: Option<u32>,
 }
 
 /// The reclustering flags `encode` and `eval` share; a flag left out keeps the library's
@@ -315,7 +317,15 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
     for w in seq.skin.iter().flat_map(|s| &s.warnings).filter(|_| !quiet) {
         eprintln!("warning: {}: {w}", args.input.display());
     }
-    let opts = encode_options(&args)?;
+    let mut opts = encode_options(&args)?;
+    if let (Some(_), Some(_), None) = (&sampler, &seq.skin, args.skinned_recluster_every) {
+        // A glTF's own skin: its frames move exactly as the skeleton does, so frame 0's
+        // clusters stay clusters and a coarse node's skin (fitted to its frame-0 cluster) goes
+        // on predicting it, where reclustered nodes drift from theirs (a generated 6,936-vertex
+        // character: 30% fewer position bytes, and no swap search, the largest part of the
+        // reclustering thread's work).
+        opts.skinned_recluster_every = u32::MAX;
+    }
     let encoding = Instant::now();
     let what = || format!("encoding {}", args.input.display());
     let frames = if rest.is_some() || sampler.is_some() { seq.frame_names.len() } else { seq.frame_count() };
@@ -421,7 +431,7 @@ pub fn encode_options(args: &EncodeArgs) -> Result<EncodeOptions, Exit> {
         WeightsArg::Smooth => VertexWeights::Smooth,
     };
     opts.recluster = args.recluster.options()?;
-    opts.skinned_recluster_every = args.skinned_recluster_every;
+    opts.skinned_recluster_every = args.skinned_recluster_every.unwrap_or(1);
     opts.quantization = match (args.max_error, args.quant_bits) {
         (_, Some(b)) => QuantizationChoice::Bits(b),
         (Some(e), None) => QuantizationChoice::MaxError(e),
