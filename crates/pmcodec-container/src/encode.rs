@@ -87,7 +87,10 @@ pub struct EncodeOptions {
     /// only every this many frames; the frames between keep their clusters and move their
     /// nodes (0 or 1: every frame). Where the motion is the skin's, clusters fitted to one pose
     /// stay good for the next few, and the swap search is the larger part of the reclustering
-    /// thread's work (issue 17, "Encode cost").
+    /// thread's work (issue 17, "Encode cost"). A value beyond the frame count (`u32::MAX`)
+    /// keeps frame 0's clusters throughout, as `pmcodec encode` does for a glTF's own skin: a
+    /// coarse node's skin is fitted to its frame-0 cluster, and a node whose cluster swaps drifts
+    /// from its skinned prediction (a generated 34,102-vertex character: 11.2 MB -> 7.1 MB).
     pub skinned_recluster_every: u32,
 }
 
