@@ -12,6 +12,13 @@ pub(crate) const SLACK2: f64 = 0.72;
 /// cost the fewest bits), nearer to `t` on ties; the nearest grid point if none is closer.
 /// Returns the point and its residuals.
 pub(crate) fn choose(t: [f64; 3], p: [i32; 3], radius2: f64) -> ([i32; 3], [i32; 3]) {
+    // The prediction itself within reach: its zero residuals cost least, and no other point
+    // costs nothing, so the search below would return it (it is among the 27 candidates: within
+    // a radius under 1.5 of `t`, each coordinate is within 1 of `t`'s nearest grid point). Where
+    // skinning predicts exactly (a glTF's own skin) this is most vertices of most frames.
+    if (0..3).map(|a| (p[a] as f64 - t[a]).powi(2)).sum::<f64>() <= radius2 && radius2 < 2.25 {
+        return (p, [0; 3]);
+    }
     let near = t.map(|x| x.round() as i32);
     // Per axis, the three grid offsets' squared distances and residual costs: each of the 27
     // candidates' distance and cost is a sum of these, the same values added in the same

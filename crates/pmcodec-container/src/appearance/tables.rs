@@ -156,6 +156,14 @@ impl<'a> TableBuilder<'a> {
 
     /// Adds one frame's hierarchy (`parent[k][v]`, k below the top).
     pub fn observe(&mut self, parent: &[Vec<u32>]) {
+        self.observe_times(parent, 1);
+    }
+
+    /// Adds `times` frames that share one hierarchy (`parent[k][v]`, k below the top): what
+    /// [`TableBuilder::observe`] of each would add, in one pass over the triangles.
+    pub fn observe_times(&mut self, parent: &[Vec<u32>], times: u32) {
+        // One frame's weights are the triangles' own (times 1.0, exactly), as before.
+        let times = times as f64;
         if self.first_parent.is_none() {
             self.first_parent = Some(parent.to_vec());
         }
@@ -173,7 +181,7 @@ impl<'a> TableBuilder<'a> {
                 for i in 0..3 {
                     let e = sums.entry(g[i], chart, channels);
                     wedge_values(self.app, &self.info, self.app.corner_wedges[t][i] as usize, &mut self.scratch);
-                    let w = self.weight[t];
+                    let w = self.weight[t] * times;
                     sums.weight[e] += w;
                     for (s, x) in sums.sums[e * channels..].iter_mut().zip(&self.scratch) {
                         *s += w * x;
