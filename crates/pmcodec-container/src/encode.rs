@@ -692,13 +692,17 @@ fn code_frames(
         // updates), finest band first; then the bands every client from there down reads, top
         // first. So a full-resolution client's part of a frame is one contiguous span, and a
         // level-j client's span holds only the (smaller) faces and corners of coarser bands.
+        // Bands every one of which `derive_bands` will derive need not be coded first.
+        let all_derived = opts.derived_topology == DerivedTopology::Always;
         for (j, held) in held_corners.iter_mut().enumerate().skip(1) {
             if let Some(k) = &r.key {
-                chunks.push(ChunkKind::Faces, f as u32, j as u32, topology::faces_chunk(h, j, &k.bands[j].faces, held.len()))?;
+                let raw = if all_derived { vec![0] } else { topology::faces_chunk(h, j, &k.bands[j].faces, held.len()) };
+                chunks.push(ChunkKind::Faces, f as u32, j as u32, raw)?;
             }
             corners.clear();
             corners.extend(delta.corners.iter().filter(|c| c.level as usize == j).map(|c| (c.t, c.corners)));
-            chunks.push(ChunkKind::Corners, f as u32, j as u32, topology::corners_chunk(h, j, &corners, held))?;
+            let raw = if all_derived { vec![0] } else { topology::corners_chunk(h, j, &corners, held) };
+            chunks.push(ChunkKind::Corners, f as u32, j as u32, raw)?;
             for &(t, c) in &corners {
                 held[t as usize] = c;
             }
