@@ -259,7 +259,8 @@ impl Chunks {
         if crate::format::sparse_kind(kind, self.1) && crate::format::leaves_out(kind, &raw) {
             return Ok(());
         }
-        let stored = crate::format::store_chunk(&raw, ZSTD_LEVEL, self.1).map_err(|e| ContainerError::Io(format!("zstd: {e}")))?;
+        let stored = crate::format::store_chunk(&raw, crate::format::zstd_level(kind, &raw), self.1)
+            .map_err(|e| ContainerError::Io(format!("zstd: {e}")))?;
         let entry = ChunkEntry {
             kind,
             frame,
@@ -516,6 +517,11 @@ fn encode_frames<F: AsRef<[Vec3]>>(
     // corner updates are coded. The coding side keeps them by applying each frame's updates,
     // as a reader does (every corner that changes on a live triangle is in the updates).
     let held_corners: Vec<Vec<[u32; 3]>> = (0..enc.hierarchy().levels()).map(|j| enc.corners_at(j).to_vec()).collect();
+    if opts.derived_topology == DerivedTopology::Always {
+        // No band sends faces or corner updates (see `code_frames`): the reclustering thread,
+        // the longer of the two, need not follow them.
+        enc.stop_corners();
+    }
     let first = Reclustered::new(&enc);
     let quadrics = head.skin.is_some() && opts.skin.is_some() && opts.skinned_coarse.is_some();
     // Appearance is the same in every frame: its tables cover the pairs every frame's
