@@ -9,6 +9,9 @@ use pmcodec_container::{ChunkKind, Reader};
 use std::collections::BTreeMap;
 use std::time::Instant;
 
+/// Per class: chunks, raw bytes, and per level (stored bytes, seconds compressing).
+type Row = (usize, usize, Vec<(usize, f64)>);
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let path = args.first().expect("usage: zstd_levels FILE.pmc [LEVEL...]");
@@ -18,8 +21,7 @@ fn main() {
     }
     let bytes = std::fs::read(path).expect("read");
     let r = Reader::open(bytes.as_slice()).expect("open");
-    // (kind, band 0 or not) -> (chunks, raw bytes, per level (stored bytes, seconds))
-    let mut by: BTreeMap<(String, bool), (usize, usize, Vec<(usize, f64)>)> = BTreeMap::new();
+    let mut by: BTreeMap<(String, bool), Row> = BTreeMap::new();
     let entries = r.index().chunks.clone();
     for e in &entries {
         let raw = r.read_chunk(e).expect("chunk");
