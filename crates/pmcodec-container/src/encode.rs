@@ -263,7 +263,8 @@ impl Chunks {
         if crate::format::sparse_kind(kind, self.1) && crate::format::leaves_out(kind, &raw) {
             return Ok(());
         }
-        let stored = crate::format::store_chunk(&raw, ZSTD_LEVEL, self.1).map_err(|e| ContainerError::Io(format!("zstd: {e}")))?;
+        let stored = crate::format::store_chunk(&raw, crate::format::zstd_level(kind, &raw), self.1)
+            .map_err(|e| ContainerError::Io(format!("zstd: {e}")))?;
         let entry = ChunkEntry {
             kind,
             frame,
@@ -545,6 +546,11 @@ fn encode_frames<F: AsRef<[Vec3]>>(
     // corner updates are coded. The coding side keeps them by applying each frame's updates,
     // as a reader does (every corner that changes on a live triangle is in the updates).
     let held_corners: Vec<Vec<[u32; 3]>> = (0..enc.hierarchy().levels()).map(|j| enc.corners_at(j).to_vec()).collect();
+    if opts.derived_topology == DerivedTopology::Always {
+        // No band sends faces or corner updates (see `code_frames`): the reclustering thread,
+        // the longer of the two, need not follow them.
+        enc.stop_corners();
+    }
     let first = Reclustered::new(&enc);
     let quadrics = head.skin.is_some() && opts.skin.is_some() && opts.skinned_coarse.is_some();
     // Appearance is the same in every frame: its tables cover the pairs every frame's
@@ -743,13 +749,17 @@ fn code_frames(
         // updates), finest band first; then the bands every client from there down reads, top
         // first. So a full-resolution client's part of a frame is one contiguous span, and a
         // level-j client's span holds only the (smaller) faces and corners of coarser bands.
+        // Bands every one of which `derive_bands` will derive need not be coded first.
+        let all_derived = opts.derived_topology == DerivedTopology::Always;
         for (j, held) in held_corners.iter_mut().enumerate().skip(1) {
             if let Some(k) = &r.key {
-                chunks.push(ChunkKind::Faces, f as u32, j as u32, topology::faces_chunk(h, j, &k.bands[j].faces, held.len()))?;
+                let raw = if all_derived { vec![0] } else { topology::faces_chunk(h, j, &k.bands[j].faces, held.len()) };
+                chunks.push(ChunkKind::Faces, f as u32, j as u32, raw)?;
             }
             corners.clear();
             corners.extend(delta.corners.iter().filter(|c| c.level as usize == j).map(|c| (c.t, c.corners)));
-            chunks.push(ChunkKind::Corners, f as u32, j as u32, topology::corners_chunk(h, j, &corners, held))?;
+            let raw = if all_derived { vec![0] } else { topology::corners_chunk(h, j, &corners, held) };
+            chunks.push(ChunkKind::Corners, f as u32, j as u32, raw)?;
             for &(t, c) in &corners {
                 held[t as usize] = c;
             }

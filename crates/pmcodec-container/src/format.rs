@@ -34,6 +34,23 @@ pub const MAX_FRAMES: u32 = 1 << 20;
 pub const MAX_LEVELS: usize = 64;
 /// zstd level for chunks: files are written once and read many times.
 pub const ZSTD_LEVEL: i32 = 19;
+/// zstd level for a Positions payload in the rANS coding (proto/container.md, "Positions",
+/// coding 0): the rANS stream is already entropy coded (Duda, "Asymmetric numeral systems",
+/// 2013), so zstd finds only its small frequency tables, and level 1 finds them as well as
+/// level 19 does (the horse's band-0 chunks: 395,853 bytes at level 1, 395,911 at 19) at a
+/// hundredth of the time: level 19's optimal parser on these payloads was most of the coding
+/// thread's zstd time.
+pub const RANS_ZSTD_LEVEL: i32 = 1;
+
+/// The zstd level a chunk of `kind` with payload `raw` is stored at: [`ZSTD_LEVEL`], but
+/// [`RANS_ZSTD_LEVEL`] for a Positions payload in the rANS coding (its first byte is the
+/// shift, below 32; the other codings add 32 or 64). A reader needs no level.
+pub fn zstd_level(kind: ChunkKind, raw: &[u8]) -> i32 {
+    match (kind, raw.first()) {
+        (ChunkKind::Positions, Some(&b)) if b < 32 => RANS_ZSTD_LEVEL,
+        _ => ZSTD_LEVEL,
+    }
+}
 
 /// Preamble flag (version 6): a chunk whose `stored_len` equals its `raw_len` is its payload
 /// as is, not a zstd frame. The encoder stores a chunk so whenever zstd would not make it
@@ -132,7 +149,9 @@ const REMEMBERED: usize = 1 << 16;
 /// What [`compress`] keeps per thread: its context, and the last small input with its frame.
 #[derive(Default)]
 struct Compression {
-    context: Option<(i32, zstd::bulk::Compressor<'static>)>,
+    /// One context per level used (an encode uses two: [`ZSTD_LEVEL`] and
+    /// [`RANS_ZSTD_LEVEL`], chunk after chunk).
+    contexts: Vec<(i32, zstd::bulk::Compressor<'static>)>,
     last: Vec<(i32, Vec<u8>, Vec<u8>)>,
 }
 
@@ -155,13 +174,18 @@ pub fn compress(raw: &[u8], level: i32) -> std::io::Result<Vec<u8>> {
         if let Some((_, _, z)) = state.last.iter().find(|(l, r, _)| *l == level && r.as_slice() == raw) {
             return Ok(z.clone());
         }
-        if state.context.as_ref().is_none_or(|(l, _)| *l != level) {
-            state.context = Some((level, zstd::bulk::Compressor::new(level)?));
-        }
-        let z = match state.context.as_mut() {
-            Some((_, c)) => c.compress(raw)?,
-            None => zstd::bulk::compress(raw, level)?,
+        let at = match state.contexts.iter().position(|(l, _)| *l == level) {
+            Some(at) => at,
+            None => {
+                // A caller cycling through many levels keeps at most four contexts.
+                if state.contexts.len() == 4 {
+                    state.contexts.remove(0);
+                }
+                state.contexts.push((level, zstd::bulk::Compressor::new(level)?));
+                state.contexts.len() - 1
+            }
         };
+        let z = state.contexts[at].1.compress(raw)?;
         if state.last.len() == 2 {
             state.last.remove(0);
         }

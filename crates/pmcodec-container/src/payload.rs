@@ -560,7 +560,8 @@ pub fn write_positions(shift: u32, residuals: &[[i32; 3]]) -> Vec<u8> {
     }
     // Sparse first: `compress` remembers the last two inputs, and the chosen payload is
     // compressed again when stored (a sparse one is short).
-    let size = |b: &[u8]| crate::format::compress(b, crate::format::ZSTD_LEVEL).map_or(usize::MAX, |z| z.len());
+    let size =
+        |b: &[u8]| crate::format::compress(b, crate::format::zstd_level(crate::ChunkKind::Positions, b)).map_or(usize::MAX, |z| z.len());
     let sparse_size = size(&sparse);
     let (rans_size, plain_size) = (size(&rans), size(&plain));
     if sparse_size < rans_size.min(plain_size) {

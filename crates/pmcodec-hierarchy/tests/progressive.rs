@@ -171,6 +171,32 @@ fn generated_wave_replays() {
 }
 
 #[test]
+fn stopped_corners_leave_the_reclustering_unchanged() {
+    // A generated wave: swaps every frame, corner updates at several levels.
+    let seq = grid(30, 20, 8);
+    let (mut followed, _) = encoder_for(&seq, ReclusterOptions::default());
+    let (mut stopped, _) = encoder_for(&seq, ReclusterOptions::default());
+    stopped.stop_corners();
+    let mut updates = 0;
+    for (f, frame) in seq.frames.iter().enumerate() {
+        let (a, _) = followed.encode_frame(frame);
+        let (b, _) = stopped.encode_frame(frame);
+        assert_eq!(a.swaps, b.swaps, "frame {f}: swaps");
+        assert_eq!(followed.hierarchy(), stopped.hierarchy(), "frame {f}: parent maps");
+        assert_eq!(followed.node_positions(), stopped.node_positions(), "frame {f}: node positions");
+        assert!(b.corners.is_empty(), "frame {f}: corner updates after stop_corners");
+        updates += a.corners.len();
+    }
+    assert!(updates > 0, "the wave made no corner updates: nothing was skipped");
+    let key = stopped.keyframe();
+    assert!(key.bands.iter().all(|b| b.faces.is_empty()));
+    assert_eq!(
+        key.bands.iter().map(|b| &b.parent).collect::<Vec<_>>(),
+        followed.keyframe().bands.iter().map(|b| &b.parent).collect::<Vec<_>>()
+    );
+}
+
+#[test]
 fn reclustering_lowers_level_error() {
     let seq = load("horse-gallop", 16);
     let (mut enc, base) = encoder_for(&seq, ReclusterOptions::default());

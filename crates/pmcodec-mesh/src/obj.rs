@@ -191,9 +191,12 @@ impl<'a> ObjParser<'a> {
                 self.polygon.clear();
                 self.polygon_attrs.clear();
                 for word in words {
-                    // `v`, `v/vt`, `v//vn` or `v/vt/vn`.
-                    let mut parts = word.split('/');
-                    let index = parts.next().unwrap_or(word);
+                    // `v`, `v/vt`, `v//vn` or `v/vt/vn`. The first '/' found bytewise: a str
+                    // pattern search per corner was a twentieth of parsing a frame.
+                    let (index, attrs_part) = match word.bytes().position(|b| b == b'/') {
+                        Some(s) => (&word[..s], Some(&word[s + 1..])),
+                        None => (word, None),
+                    };
                     let resolved = self.resolve(lineno, index, word, self.out.positions.len())?;
                     if self.max_index.is_none_or(|(m, _)| resolved > m) {
                         self.max_index = Some((resolved, lineno));
@@ -202,7 +205,7 @@ impl<'a> ObjParser<'a> {
                     if self.attributes {
                         let mut attrs = [NONE; 2];
                         let counts = [self.out.attributes.texcoords.len(), self.out.attributes.normals.len()];
-                        for (k, part) in parts.take(2).enumerate() {
+                        for (k, part) in attrs_part.into_iter().flat_map(|p| p.split('/')).take(2).enumerate() {
                             if !part.is_empty() {
                                 let a = self.resolve(lineno, part, word, counts[k])?;
                                 if self.max_attr[k].is_none_or(|(m, _)| a > m) {
@@ -253,7 +256,12 @@ impl<'a> ObjParser<'a> {
     /// A 1-based (or negative, counting back from the latest record) OBJ index into a list of
     /// `count` records, 0-based; whether it is below the final count is checked at the end.
     fn resolve(&self, lineno: usize, index: &str, word: &str, count: usize) -> Result<u32, MeshError> {
-        let i: i64 = index.parse().map_err(|_| self.error(lineno, format!("face index {word:?} is not an integer")))?;
+        // Plain decimal digits (what exporters write) directly; anything else (a sign, a stray
+        // character) through i64's parser, which also words the error.
+        let i: i64 = match plain_digits(index) {
+            Some(i) => i,
+            None => index.parse().map_err(|_| self.error(lineno, format!("face index {word:?} is not an integer")))?,
+        };
         let resolved = match i {
             0 => return Err(self.error(lineno, "face index 0 (OBJ indices start at 1)".into())),
             i if i > 0 => i - 1,
@@ -310,6 +318,16 @@ impl<'a> ObjParser<'a> {
         }
         Ok(self.out)
     }
+}
+
+/// `s` as a number when it is 1 to 18 ASCII digits (below i64's limit whatever they are), the
+/// value `str::parse::<i64>` gives it; `None` otherwise.
+fn plain_digits(s: &str) -> Option<i64> {
+    let b = s.as_bytes();
+    if b.is_empty() || b.len() > 18 || !b.iter().all(u8::is_ascii_digit) {
+        return None;
+    }
+    Some(b.iter().fold(0i64, |v, &d| v * 10 + (d - b'0') as i64))
 }
 
 /// Resolves the frames of a sequence: a folder (every `.obj` in it), a glob whose last component
@@ -540,6 +558,26 @@ mod tests {
         let mut v = vec!["f10.obj", "f2.obj", "f1.obj", "f01.obj", "g.obj", "f002.obj"];
         v.sort_by(|a, b| natural_cmp(a, b));
         assert_eq!(v, ["f1.obj", "f01.obj", "f2.obj", "f002.obj", "f10.obj", "g.obj"]);
+    }
+
+    #[test]
+    fn plain_digits_agree_with_i64_parse() {
+        let mut words: Vec<String> =
+            ["0", "1", "007", "-3", "+4", "", "1a", " 1", "999999999999999999", "9999999999999999999", "١"].map(String::from).to_vec();
+        // Varied lengths and digits, from a fixed linear congruential sequence.
+        let mut x = 12345u64;
+        for _ in 0..500 {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            let len = 1 + (x >> 60) as usize;
+            words.push((0..len).map(|i| char::from(b'0' + ((x >> (i * 3)) % 10) as u8)).collect());
+        }
+        for w in &words {
+            match plain_digits(w) {
+                Some(v) => assert_eq!(Ok(v), w.parse::<i64>(), "{w:?}"),
+                // Only what is not 1 to 18 plain digits is left to the parser.
+                None => assert!(w.is_empty() || w.len() > 18 || !w.bytes().all(|b| b.is_ascii_digit()), "{w:?}"),
+            }
+        }
     }
 
     #[test]

@@ -13,6 +13,8 @@ pub struct Encoder {
     /// The next frame's corners while they are compared with `corners` (kept, not reallocated:
     /// on the horse they are 1.2 MB a frame).
     next_corners: Vec<Vec<[u32; 3]>>,
+    /// Whether `corners` follow the frames (see [`Encoder::stop_corners`]).
+    follow_corners: bool,
 }
 
 impl Encoder {
@@ -23,11 +25,21 @@ impl Encoder {
             node_of: Default::default(),
             corners: Vec::new(),
             next_corners: Vec::new(),
+            follow_corners: true,
         };
         let mut corners = Vec::new();
         enc.fill_corners(&mut corners);
         enc.corners = corners;
         enc
+    }
+
+    /// Stops following every level's corners from the next frame on: its deltas then carry no
+    /// corner updates and its keyframes no faces. For a caller that sends neither (a container
+    /// whose readers derive every band's faces and corner updates from the parent maps,
+    /// Kircher & Garland 2005 section 4.1), their upkeep was about a twentieth of the
+    /// reclustering thread's time on the horse.
+    pub fn stop_corners(&mut self) {
+        self.follow_corners = false;
     }
 
     /// The reclustering options, to change between frames.
@@ -60,7 +72,8 @@ impl Encoder {
         })
     }
 
-    /// Level-j ancestors of every triangle's corners, j >= 1 (distinct iff alive at j).
+    /// Level-j ancestors of every triangle's corners, j >= 1 (distinct iff alive at j), as of
+    /// the last frame they were followed ([`Encoder::stop_corners`]).
     pub fn corners_at(&self, j: usize) -> &[[u32; 3]] {
         &self.corners[j]
     }
@@ -90,6 +103,9 @@ impl Encoder {
         let mut delta = FrameDelta::default();
         let stats = self.recluster.frame(positions, &mut delta.swaps);
         self.node_of = Default::default();
+        if !self.follow_corners {
+            return (delta, stats);
+        }
         let mut corners = std::mem::take(&mut self.next_corners);
         self.fill_corners(&mut corners);
         for (j, (now, before)) in corners.iter().zip(&self.corners).enumerate().skip(1) {
@@ -109,7 +125,7 @@ impl Encoder {
         let bands = (0..h.levels())
             .map(|j| KeyBand {
                 parent: h.parent.get(j).cloned().unwrap_or_default(),
-                faces: if j == 0 {
+                faces: if j == 0 || !self.follow_corners {
                     Vec::new()
                 } else {
                     self.corners[j].iter().enumerate().filter(|(_, c)| distinct(**c)).map(|(t, c)| (t as u32, *c)).collect()
