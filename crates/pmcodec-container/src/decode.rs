@@ -551,10 +551,11 @@ impl<S: ByteSource> Decoder<S> {
         }
     }
 
-    /// Chooses the cut for `target` on the current frame and returns its mesh. Budgets and
-    /// error bounds are prefixes of the frame's split order (greedy by split priority; a
-    /// `MaxError` diagonal fraction is of the header's bounding box); a level is every node of
-    /// it. `Level(0)` (with a full-resolution decoder) gives every input vertex in input order
+    /// Chooses the cut for `target` on the current frame and returns its mesh. Budgets are
+    /// prefixes of the frame's order of partial splits (greedy by reveal priority; whole splits
+    /// on files with attribute tables), error bounds of its order of whole splits (greedy by
+    /// split priority; a `MaxError` diagonal fraction is of the header's bounding box); a level
+    /// is every node of it (proto/container.md, "Cuts"). `Level(0)` (with a full-resolution decoder) gives every input vertex in input order
     /// and the input triangles in input order.
     pub fn mesh(&mut self, target: CutTarget) -> Result<TriMesh, ContainerError> {
         let mut mesh = TriMesh::default();

@@ -458,7 +458,9 @@ fn encoding_stops_when_progress_says_so() {
 /// and the vertices of `cut_clusters` are the mesh's.
 #[test]
 fn vertex_budgets_between_levels_are_met_exactly() {
-    for (name, seq) in [("cloth", pmcodec_mesh::samples::waving_cloth(30, 24, 4)), ("tube", pmcodec_mesh::samples::twisting_tube(24, 20, 4))] {
+    for (name, seq) in
+        [("cloth", pmcodec_mesh::samples::waving_cloth(30, 24, 4)), ("tube", pmcodec_mesh::samples::twisting_tube(24, 20, 4))]
+    {
         let bytes = encode(&seq, &EncodeOptions::default(), |_| {}).expect("encode");
         let reader = Reader::open(bytes.as_slice()).expect("open");
         let sizes = reader.header().level_sizes.clone();
@@ -476,7 +478,11 @@ fn vertex_budgets_between_levels_are_met_exactly() {
             assert_eq!(distinct.len() as u32, n, "{name}: budget {n} (levels {sizes:?}): drawn nodes");
             // A drawn node all of whose fine triangles stand on it twice (a corner of the open
             // cloth) is no vertex of the mesh: rare.
-            assert!(m.positions.len() as u32 <= n && m.positions.len() as u32 + 3 >= n, "{name}: budget {n}: {} vertices", m.positions.len());
+            assert!(
+                m.positions.len() as u32 <= n && m.positions.len() as u32 + 3 >= n,
+                "{name}: budget {n}: {} vertices",
+                m.positions.len()
+            );
             partial += usize::from(!sizes.contains(&n));
             let t = 2 * n;
             assert!(d.mesh(CutTarget::Triangles(t)).expect("cut").triangles.len() as u32 <= t, "{name}: budget {t} triangles");

@@ -156,7 +156,7 @@ impl SplitOrder {
         self.corner_index.resize(h.level_sizes[replay.min_level] as usize, NONE);
     }
 
-    /// Splits ordered so far.
+    /// Steps (splits or reveals) ordered so far.
     pub fn len(&self) -> usize {
         self.priority.len()
     }
