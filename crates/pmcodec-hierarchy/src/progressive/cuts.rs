@@ -47,16 +47,14 @@ impl Replay {
     /// subtree (monotone, as [`Self::node_errors`], so every reveal above a bound is a
     /// prefix). Top-level nodes are always revealed; theirs is unused.
     ///
-    /// Measured (`pmcodec eval --sweep 12 --frames 12`, container over direct): against `dQ`
-    /// alone (`area^0`) within 2% from 1.4% of the vertices up, but 1.50x against 1.18x on
-    /// horse-gallop at 1%; against whole splits by `sqrt(Q_P(x_P) / sqrt(area))` (what budgets
-    /// split by before partial splits) better at every budget of horse-gallop, samba-60,
-    /// cat-poses and the waving cloth but one (samba at 10-25%, within 1%), most between
-    /// levels: at 50% of the vertices horse 1.91x -> 1.64x, cat 2.34x -> 1.86x, cloth
-    /// 2.75x -> 2.24x. Whole splits' priority, for the record: the RMS alone is blind to the
-    /// cluster's size (a small cluster a unit off outranks a wide one nearly as far off) and
-    /// ranking by `Q` per added vertex left small, likely elongated features coarse at the
-    /// coarsest budgets.
+    /// Measured (`pmcodec eval --sweep 12 --frames 12`, container over direct, horse-gallop):
+    /// `dQ` alone (`area^0`) is within 4% from 1.4% of the vertices up but 1.50x against 1.18x
+    /// at 1%; `dQ / area` (the mean) loses 3-22% from 2% up (1.93x against 1.64x at 50%).
+    /// Against whole splits by `sqrt(Q_P(x_P) / sqrt(area))` (what budgets split by before)
+    /// no worse than 1% at any budget of horse-gallop, samba-60, cat-poses and the waving
+    /// cloth, most better between levels: at 50% of the vertices horse 1.91x -> 1.64x, cat
+    /// 2.34x -> 1.86x, cloth 2.75x -> 2.24x. Ordering each node's children by area instead
+    /// (only how many are revealed left to `dQ`) lost 5-19% and flickered as much.
     pub fn reveal_benefits_into(&self, positions: &[Vec3], out: &mut Vec<f64>) {
         let q = self.cluster_quadrics(positions);
         let h = &self.h;
