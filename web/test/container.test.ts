@@ -1,10 +1,10 @@
 // The TypeScript container decoder against files the Rust encoder writes: same hierarchy-driven
 // cut, same triangles, positions equal to the Rust decoder's (and so within the stated bound).
-import { test } from "node:test";
+import { after, test } from "node:test";
 import { pmcodecBin, repoRoot } from "./paths.js";
 import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
-import { existsSync, mkdirSync, mkdtempSync, readdirSync, readFileSync, writeFileSync } from "node:fs";
+import { existsSync, mkdirSync, mkdtempSync, readdirSync, readFileSync, rmSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, dequantizeUv, readBand0Table, readPositions, readTable, texturedMesh } from "../src/container/index.js";
@@ -39,6 +39,8 @@ async function open(pmc: string): Promise<Reader> {
 }
 
 const { dir, pmc } = fixtures();
+// Each run writes tens of megabytes of frames and files: leave nothing behind.
+after(() => rmSync(dir, { recursive: true, force: true }));
 
 test("decodes the same cut and positions as the Rust decoder", async () => {
   const c = await open(pmc);
