@@ -32,7 +32,7 @@ test("coarsest cut shows nothing, finest shows everything", () => {
 test("budget cut never exceeds the budget", () => {
   const r = make();
   const pos = new Float32Array(13 * 3).map((_, i) => (i * 7919) % 13);
-  const err = r.splitBenefits(pos);
+  const err = r.revealBenefits(pos);
   for (const budget of [0, 1, 3, 5, 8]) {
     r.selectTriangles(budget, err);
     assert.ok(r.shown.length <= budget, `${r.shown.length} > ${budget}`);

@@ -25,7 +25,7 @@ use pmcodec_hierarchy::CutTarget;
 use pmcodec_hierarchy::NONE;
 use pmcodec_hierarchy::progressive::{CornerUpdate, FrameDelta, KeyBand, Keyframe, Replay};
 use pmcodec_hierarchy::recluster::Swap;
-use pmcodec_hierarchy::split_order::SplitOrder;
+use pmcodec_hierarchy::split_order::{SplitOrder, Steps};
 use pmcodec_mesh::TriMesh;
 
 /// Plays a container frame by frame down to a finest level. It owns its [`Reader`]; use
@@ -95,7 +95,9 @@ struct Derived {
 }
 
 /// One split order of a frame and the priorities it is grown by: split priorities (RMS error,
-/// so an error bound is a prefix) or budget priorities ([`Replay::split_benefits_into`]).
+/// whole splits, so an error bound is a prefix) or reveal priorities
+/// ([`Replay::reveal_benefits_into`], partial splits, so a budget between levels is a partial
+/// simplification).
 #[derive(Clone, Default)]
 struct Ordered {
     /// Whether `priorities` and `order` are this frame's.
@@ -579,10 +581,11 @@ impl<S: ByteSource> Decoder<S> {
         }
     }
 
-    /// Chooses the cut for `target` on the current frame and returns its mesh. Budgets and
-    /// error bounds are prefixes of the frame's split order (greedy by split priority; a
-    /// `MaxError` diagonal fraction is of the header's bounding box); a level is every node of
-    /// it. `Level(0)` (with a full-resolution decoder) gives every input vertex in input order
+    /// Chooses the cut for `target` on the current frame and returns its mesh. Budgets are
+    /// prefixes of the frame's order of partial splits (greedy by reveal priority; whole splits
+    /// on files with attribute tables), error bounds of its order of whole splits (greedy by
+    /// split priority; a `MaxError` diagonal fraction is of the header's bounding box); a level
+    /// is every node of it (proto/container.md, "Cuts"). `Level(0)` (with a full-resolution decoder) gives every input vertex in input order
     /// and the input triangles in input order.
     pub fn mesh(&mut self, target: CutTarget) -> Result<TriMesh, ContainerError> {
         let mut mesh = TriMesh::default();
@@ -628,8 +631,14 @@ impl<S: ByteSource> Decoder<S> {
             }
             CutTarget::Triangles(_) | CutTarget::Vertices(_) if !d.by_budget.ready => {
                 let o = &mut d.by_budget;
-                replay.split_benefits_into(&d.positions, &mut o.priorities);
-                o.order.reset(replay, &o.priorities);
+                replay.reveal_benefits_into(&d.positions, &mut o.priorities);
+                // Attribute tables hold a node's entries for the charts around it at its own
+                // level only: a partially split node would need its finer triangles' charts.
+                let whole = self.reader.header().appearance.as_ref().is_some_and(|a| a.channels() > 0);
+                if whole {
+                    replay.whole_split_priorities(&mut o.priorities);
+                }
+                o.order.reset_steps(replay, &o.priorities, if whole { Steps::WholeSplits } else { Steps::PartialSplits });
                 o.ready = true;
             }
             _ => {}
@@ -647,6 +656,35 @@ impl<S: ByteSource> Decoder<S> {
     /// nodes (input triangle order is not kept): what identifies a shown triangle from frame to
     /// frame, for a tool that measures how much cuts change. `Level` targets are refused.
     pub fn cut_triangles(&mut self, target: CutTarget) -> Result<Vec<[u32; 3]>, ContainerError> {
+        self.with_prefix(target, |replay, order, k| {
+            let corners = replay.corners();
+            order.shown(k).iter().filter_map(|&t| corners.get(t as usize)).map(|c| c.map(|v| order.cut_node_of(replay, v, k))).collect()
+        })
+    }
+
+    /// [`Decoder::cut_triangles`], and for every vertex of the finest level decoded (the input's
+    /// vertices at `min_level` 0) the cut node whose cluster holds it: what identifies a shown
+    /// triangle by the content of its corners' clusters, the same way for every method `pmcodec
+    /// eval` compares (node ids persist only within one file). `Level` targets are refused.
+    pub fn cut_clusters(&mut self, target: CutTarget) -> Result<(Vec<[u32; 3]>, Vec<u32>), ContainerError> {
+        self.with_prefix(target, |replay, order, k| {
+            let corners = replay.corners();
+            let n = replay.h.level_sizes[replay.min_level];
+            let nodes: Vec<u32> = (0..n).map(|v| order.cut_node_of(replay, v, k)).collect();
+            let triangles = order
+                .shown(k)
+                .iter()
+                .filter_map(|&t| corners.get(t as usize))
+                .map(|c| c.map(|v| nodes.get(v as usize).copied().unwrap_or(NONE)))
+                .collect();
+            (triangles, nodes)
+        })
+    }
+
+    /// Runs `f` on the current frame's replay, the split order `target` is a prefix of, and
+    /// the prefix's length (what [`Decoder::cut_triangles`] and [`Decoder::cut_clusters`]
+    /// read). `Level` targets are refused.
+    fn with_prefix<T>(&mut self, target: CutTarget, f: impl FnOnce(&Replay, &SplitOrder, usize) -> T) -> Result<T, ContainerError> {
         if let CutTarget::Level(l) = target {
             return Err(ContainerError::Options(format!("cut triangles of level {l}: give a budget or an error")));
         }
@@ -657,40 +695,12 @@ impl<S: ByteSource> Decoder<S> {
                 let (priorities, order) = Ordered::pick(&mut d.by_error, &mut d.by_budget, target);
                 // Never `Err`: levels are refused above.
                 let k = order.prefix(replay, priorities, target, diagonal).unwrap_or_default();
-                let corners = replay.corners();
-                Ok(order
-                    .shown(k)
-                    .iter()
-                    .filter_map(|&t| corners.get(t as usize))
-                    .map(|c| c.map(|v| order.cut_node_of(replay, v, k)))
-                    .collect())
+                Ok(f(replay, order, k))
             }
             None => Err(ContainerError::Options("seek to a frame first".into())),
         };
         self.derived = Some(d);
         result
-    }
-
-    /// [`Decoder::cut_triangles`], and for every vertex of the finest level decoded (the input's
-    /// vertices at `min_level` 0) the cut node whose cluster holds it: what identifies a shown
-    /// triangle by the content of its corners' clusters, the same way for every method `pmcodec
-    /// eval` compares (node ids persist only within one file). `Level` targets are refused.
-    pub fn cut_clusters(&mut self, target: CutTarget) -> Result<(Vec<[u32; 3]>, Vec<u32>), ContainerError> {
-        let triangles = self.cut_triangles(target)?;
-        let diagonal = self.diagonal();
-        let mut d = self.take_derived(target)?;
-        let result = match self.replay.as_ref() {
-            Some(replay) => {
-                let (priorities, order) = Ordered::pick(&mut d.by_error, &mut d.by_budget, target);
-                // Never `Err`: `cut_triangles` refused levels.
-                let k = order.prefix(replay, priorities, target, diagonal).unwrap_or_default();
-                let n = replay.h.level_sizes[replay.min_level];
-                Ok((0..n).map(|v| order.cut_node_of(replay, v, k)).collect())
-            }
-            None => Err(ContainerError::Options("seek to a frame first".into())),
-        };
-        self.derived = Some(d);
-        result.map(|nodes| (triangles, nodes))
     }
 
     fn cut(&mut self, target: CutTarget, d: &mut Derived, mesh: &mut TriMesh) -> Result<(), ContainerError> {

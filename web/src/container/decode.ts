@@ -257,6 +257,16 @@ export class Decoder {
   /** Whether `current` holds offsets from skinned positions (DecoderOptions.skinOffsets on a skinned file). */
   get holdsOffsets(): boolean { return this.skinOffsets && this.skin !== null; }
 
+  /**
+   * Whether budgets take partial splits (proto/container.md, "Cuts"): not on files with
+   * attribute tables (texture coordinates or colours), whose entries cover only the charts
+   * around a node at its own level; there they take whole splits.
+   */
+  get partialSplits(): boolean {
+    const a = this.reader.header.appearance;
+    return !a || channels(a) === 0;
+  }
+
   /** Whether the file is skinned (known once a frame is decoded). */
   get skinned(): boolean { return this.skin !== null; }
 
