@@ -1,10 +1,10 @@
 // The TypeScript container decoder against files the Rust encoder writes: same hierarchy-driven
 // cut, same triangles, positions equal to the Rust decoder's (and so within the stated bound).
-import { after, test } from "node:test";
+import { test } from "node:test";
 import { pmcodecBin, repoRoot } from "./paths.js";
 import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
-import { existsSync, mkdirSync, mkdtempSync, readdirSync, readFileSync, rmSync, writeFileSync } from "node:fs";
+import { existsSync, mkdirSync, mkdtempSync, readdirSync, readFileSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 import { FLAG_NAMES, frontDecode } from "../src/container/format.js";
@@ -41,8 +41,6 @@ async function open(pmc: string): Promise<Reader> {
 }
 
 const { dir, pmc } = fixtures();
-// Each run writes tens of megabytes of frames and files: leave nothing behind.
-after(() => rmSync(dir, { recursive: true, force: true }));
 
 test("decodes the same cut and positions as the Rust decoder", async () => {
   const c = await open(pmc);
@@ -54,7 +52,7 @@ test("decodes the same cut and positions as the Rust decoder", async () => {
     const expected = readObj(out);
     await player.seek(frame);
     const pos = player.positions();
-    player.replay.selectTriangles(budget, player.replay.revealBenefits(pos), player.partialSplits);
+    player.replay.selectTriangles(budget, player.replay.splitBenefits(pos));
     const mesh = player.orderedMesh(pos);
     assert.deepEqual(Array.from(mesh.indices), expected.indices, `frame ${frame} budget ${budget}: triangles`);
     assert.equal(mesh.positions.length, expected.positions.length);
@@ -64,7 +62,7 @@ test("decodes the same cut and positions as the Rust decoder", async () => {
   }
 });
 
-test("partial splits (budgets between levels) on a generated cloth: the same cut as the Rust decoder, and every shown triangle's corners are three distinct revealed nodes", async () => {
+test("partial splits (the option; budgets between levels) on a generated cloth, reveals ranked on the frame's or the keyframe's positions: the same cut as the Rust decoder's `decode --budget-cut partial-frame` and `partial-keyframe`, and every shown triangle's corners are three distinct revealed nodes", async () => {
   const frames = join(dir, "cloth-frames"), cloth = join(dir, "cloth.pmc");
   execFileSync(bin, ["sample", "waving-cloth", "-q", "-o", frames, "--frames", "12"]);
   execFileSync(bin, ["encode", "-q", frames, "-o", cloth, "--keyframe-interval", "8"]);
@@ -72,29 +70,29 @@ test("partial splits (budgets between levels) on a generated cloth: the same cut
   const player = new Decoder(c, 0);
   const tris = c.header.triangleCount;
   let partial = 0;
-  for (const [frame, share] of [[0, 0.03], [3, 0.17], [9, 0.41], [11, 0.63], [11, 0.9]]) {
-    const budget = Math.round(share * tris);
-    const out = join(dir, `cloth-${frame}-${budget}.obj`);
-    execFileSync(bin, ["decode", "-q", cloth, "--frame", String(frame), "--triangles", String(budget), "-o", out]);
+  for (const [frame, share, held] of [[0, 0.03, 0], [3, 0.17, 1], [3, 0.17, 0], [9, 0.41, 1], [11, 0.63, 0], [11, 0.9, 1], [10, 0.3, 1]]) {
+    const budget = Math.round(share * tris), how = held ? "partial-keyframe" : "partial-frame";
+    const out = join(dir, `cloth-${frame}-${budget}-${how}.obj`);
+    execFileSync(bin, ["decode", "-q", cloth, "--frame", String(frame), "--triangles", String(budget), "--budget-cut", how, "-o", out]);
     const expected = readObj(out);
     await player.seek(frame);
     const pos = player.positions();
     const r = player.replay;
-    r.selectTriangles(budget, r.revealBenefits(pos));
+    r.selectTriangles(budget, player.revealBenefits(held === 1), true);
     const mesh = player.orderedMesh(pos);
-    assert.deepEqual(Array.from(mesh.indices), expected.indices, `frame ${frame} budget ${budget}: triangles`);
-    assert.equal(mesh.positions.length, expected.positions.length, `frame ${frame} budget ${budget}: vertices`);
+    assert.deepEqual(Array.from(mesh.indices), expected.indices, `${how} frame ${frame} budget ${budget}: triangles`);
+    assert.equal(mesh.positions.length, expected.positions.length, `${how} frame ${frame} budget ${budget}: vertices`);
     for (let i = 0; i < expected.positions.length; i++) {
-      assert.ok(Math.abs(mesh.positions[i] - expected.positions[i]) <= 1e-5 * (1 + Math.abs(expected.positions[i])), `frame ${frame} budget ${budget}: coordinate ${i}`);
+      assert.ok(Math.abs(mesh.positions[i] - expected.positions[i]) <= 1e-5 * (1 + Math.abs(expected.positions[i])), `${how} frame ${frame} budget ${budget}: coordinate ${i}`);
     }
     assert.ok(r.shown.length <= budget);
     const rep = r.cutNodes(), base = r.offsets[r.minLevel];
     for (const t of r.shown) {
       const g = [0, 1, 2].map((i) => rep[base + r.corners[3 * t + i]]);
-      assert.ok(g[0] !== g[1] && g[1] !== g[2] && g[0] !== g[2], `frame ${frame} budget ${budget}: triangle ${t} has two corners on one node`);
+      assert.ok(g[0] !== g[1] && g[1] !== g[2] && g[0] !== g[2], `${how} frame ${frame} budget ${budget}: triangle ${t} has two corners on one node`);
       for (const x of g) {
         const p = r.parentGlobal(x);
-        assert.ok(x !== NONE && (p === NONE || r.expanded[p] || r.revealed[x]), `frame ${frame} budget ${budget}: triangle ${t} on node ${x}, not revealed`);
+        assert.ok(x !== NONE && (p === NONE || r.expanded[p] || r.revealed[x]), `${how} frame ${frame} budget ${budget}: triangle ${t} on node ${x}, not revealed`);
       }
     }
     // Revealed nodes whose parent is not expanded: the cut is partial there.
@@ -336,7 +334,7 @@ test("version 6 appearance: the same texture coordinates, colours, normals and m
     const glb = readGlb(out);
     await player.seek(frame);
     const pos = player.positions();
-    player.replay.selectTriangles(budget, player.replay.revealBenefits(pos), player.partialSplits);
+    player.replay.selectTriangles(budget, player.replay.splitBenefits(pos));
     const mesh = player.texturedMesh(pos);
     const prims = glb.json.meshes[0].primitives;
     const attr = prims[0].attributes;
@@ -389,7 +387,7 @@ test("appearance without texture coordinates or colours (RobotExpressive): no At
     const glb = readGlb(out);
     await player.seek(frame);
     const pos = player.positions();
-    player.replay.selectTriangles(budget, player.replay.revealBenefits(pos), player.partialSplits);
+    player.replay.selectTriangles(budget, player.replay.splitBenefits(pos));
     const mesh = player.texturedMesh(pos);
     const prims = glb.json.meshes[0].primitives;
     const what = `frame ${frame} budget ${budget}`;
@@ -439,7 +437,7 @@ test("appearance with band 0's entries derived from the triangles, values from t
       const glb = readGlb(out);
       await player.seek(frame);
       const pos = player.positions();
-      player.replay.selectTriangles(budget, player.replay.revealBenefits(pos), player.partialSplits);
+      player.replay.selectTriangles(budget, player.replay.splitBenefits(pos));
       const mesh = player.texturedMesh(pos);
       const attr = glb.json.meshes[0].primitives[0].attributes;
       const what = `${name} frame ${frame} budget ${budget}`;
@@ -515,7 +513,7 @@ test("entropy-coded attribute residuals (mode | 8) on generated meshes with repe
       const glb = readGlb(out);
       await player.seek(frame);
       const pos = player.positions();
-      player.replay.selectTriangles(budget, player.replay.revealBenefits(pos), player.partialSplits);
+      player.replay.selectTriangles(budget, player.replay.splitBenefits(pos));
       const mesh = player.texturedMesh(pos);
       // One primitive per material in the GLB, all over one vertex buffer.
       const attr = glb.json.meshes[0].primitives[0].attributes, what = `${name} frame ${frame} budget ${budget}`;
@@ -684,7 +682,7 @@ test("a lenient textured mesh fills in (node, chart) entries a budget cut reache
   const pos = d.positions();
   for (const share of [1, 0.5, 0.25, 0.1]) {
     const budget = Math.round(c.header.triangleCount * share);
-    d.replay.selectTriangles(budget, d.replay.revealBenefits(pos), d.partialSplits);
+    d.replay.selectTriangles(budget, d.replay.splitBenefits(pos));
     const r = d.replay, rep = r.cutNodes(), base = r.offsets[r.minLevel];
     const shown = Uint32Array.from(r.appearing), cut = new Uint32Array(3 * shown.length);
     shown.forEach((t, i) => { for (let k = 0; k < 3; k++) cut[3 * i + k] = rep[base + r.corners[3 * t + k]]; });

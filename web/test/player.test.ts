@@ -206,7 +206,7 @@ test("session: the whole-mesh shortcut draws the triangles a full budget cut sel
     assert.equal(idx.length, p.indexCount);
     await reference.seek(f);
     const all = reference.positions();
-    reference.replay.selectTriangles(h.triangleCount, reference.replay.revealBenefits(all), reference.partialSplits);
+    reference.replay.selectTriangles(h.triangleCount, reference.replay.splitBenefits(all));
     const m = reference.orderedMesh(all);
     assert.deepEqual(triples(p.positions, idx), triples(m.positions, m.indices), `frame ${f}`);
   }
@@ -293,7 +293,7 @@ test("session, authored mode on a stream with appearance: every triangle in the 
     // The same triangles (as sets of corner positions and UVs) as the decoder's own textured mesh.
     await reference.seek(f);
     const pos = reference.positions();
-    reference.replay.selectTriangles(budget, reference.replay.revealBenefits(pos), reference.partialSplits);
+    reference.replay.selectTriangles(budget, reference.replay.splitBenefits(pos));
     const want = reference.texturedMesh(pos);
     const key = (P: Float32Array, U: Float32Array, i: number[]) => i.map((v) => `${P[3 * v]},${P[3 * v + 1]},${P[3 * v + 2]}/${U[2 * v]},${U[2 * v + 1]}`).sort().join(" ");
     const got = new Map<string, number>();

@@ -30,7 +30,7 @@ async function play(bytes: Uint8Array): Promise<void> {
     const p = new Decoder(c, level);
     for (let f = 0; f < c.header.frameCount; f++) await p.seek(f);
     const pos = p.positions();
-    p.replay.selectTriangles(50, p.replay.revealBenefits(pos));
+    p.replay.selectTriangles(50, p.replay.splitBenefits(pos));
     p.orderedMesh(pos);
     await p.seek(0);
   }

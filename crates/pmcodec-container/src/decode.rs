@@ -66,6 +66,70 @@ pub struct Decoder<S> {
     /// The levels below `min_level` while the current keyframe interval derives band
     /// `min_level`'s faces and corner updates (Faces coding 2).
     below: Option<Below>,
+    /// How budgets are cut.
+    budget_cut: BudgetCut,
+    /// Dequantized positions of the current interval's keyframe (every node, global ids):
+    /// what [`BudgetPriorities::Keyframe`] ranks reveals by on each frame of the interval.
+    key_positions: Vec<Vec3>,
+}
+
+/// How a decoder cuts vertex and triangle budgets (proto/container.md, "Cuts" and "Partial
+/// splits"). Every choice is stateless: a decoder that seeks to a frame computes the same cut
+/// whatever it decoded before.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BudgetCut {
+    /// The spec's cut: whole splits by budget priority ([`Replay::split_benefits_into`]).
+    #[default]
+    WholeSplits,
+    /// An option: partial splits, reveals ranked by reveal priorities from the positions
+    /// [`BudgetPriorities`] names; a cut between levels is a partial simplification (less
+    /// error there) but changes more from frame to frame. Files with attribute tables keep
+    /// whole splits (their tables cover a node's charts at its own level only).
+    PartialSplits(BudgetPriorities),
+}
+
+/// Which positions the reveal priorities of a partial-split cut ([`BudgetCut::PartialSplits`])
+/// are computed from (proto/container.md, "Partial splits").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BudgetPriorities {
+    /// The frame's own positions: reveals ranked afresh every frame; the ranking of the
+    /// marginal reveals changes with every small motion, and the cut flickers.
+    #[default]
+    Frame,
+    /// The positions of the keyframe at or before the frame, on the frame's hierarchy: within
+    /// a keyframe interval only swaps change the ranking (steady), but the priorities go stale
+    /// as the surface moves away from the keyframe's pose.
+    Keyframe,
+    /// Both: reveals ranked by the band of the frame's own priority (`per_octave` bands per
+    /// factor 2, a power of two), and within a band by the keyframe's ([`banded_priority`]).
+    /// The frame decides what is far off; only a node crossing a band edge trades places.
+    Banded {
+        /// Bands per factor 2 of the frame's priority (1, 2, 4, ...).
+        per_octave: u32,
+    },
+}
+
+/// The key a [`BudgetPriorities::Banded`] cut ranks reveals by: the band of the frame's
+/// priority `current` (`floor(log2 current)` in `per_octave` steps, read exactly off the
+/// float's exponent and mantissa so every decoder agrees bit for bit), plus the keyframe's
+/// priority `held` squashed into [0, 1). Monotone in both, so a subtree's largest (what
+/// priorities are raised to) keeps the order's prefixes.
+pub fn banded_priority(current: f64, held: f64, per_octave: u32) -> f64 {
+    let k = i64::from(per_octave.max(1));
+    let band = if current > 0.0 && current.is_finite() {
+        let bits = current.to_bits();
+        let e = ((bits >> 52) & 0x7ff) as i64;
+        if e == 0 {
+            -2100 * k
+        } else {
+            let m = f64::from_bits((bits & ((1u64 << 52) - 1)) | (1023u64 << 52));
+            (e - 1023) * k + ((m - 1.0) * k as f64).floor() as i64
+        }
+    } else {
+        -2200 * k
+    };
+    let h = if held >= 0.0 && held.is_finite() { held } else { 0.0 };
+    band as f64 + h / (1.0 + h)
 }
 
 /// A decoder's state just after loading a keyframe: what seeking back to it restores.
@@ -143,7 +207,18 @@ impl<S: ByteSource> Decoder<S> {
             skin: None,
             fine: None,
             below: None,
+            budget_cut: BudgetCut::default(),
+            key_positions: Vec::new(),
         })
+    }
+
+    /// Chooses how budgets are cut ([`BudgetCut`]; the default is the spec's whole splits).
+    /// Error bounds and levels are unaffected.
+    pub fn set_budget_cut(&mut self, c: BudgetCut) {
+        if c != self.budget_cut {
+            self.budget_cut = c;
+            self.invalidate_derived();
+        }
     }
 
     /// Keeps the state after each of the last `n` keyframes loaded (0, the default, keeps
@@ -275,9 +350,11 @@ impl<S: ByteSource> Decoder<S> {
             }
             self.frame = Some(key);
             self.kept.push(k);
+            self.hold_key_positions();
             return Ok(());
         }
         self.load_keyframe(key)?;
+        self.hold_key_positions();
         if let (true, Some(replay)) = (self.keep > 0, &self.replay) {
             if self.kept.len() >= self.keep {
                 self.kept.remove(0);
@@ -292,6 +369,13 @@ impl<S: ByteSource> Decoder<S> {
             });
         }
         Ok(())
+    }
+
+    /// Keeps the keyframe just entered's positions for [`BudgetPriorities::Keyframe`].
+    fn hold_key_positions(&mut self) {
+        let mut key = std::mem::take(&mut self.key_positions);
+        self.positions_into(&mut key);
+        self.key_positions = key;
     }
 
     fn load_keyframe(&mut self, frame: u32) -> Result<(), ContainerError> {
@@ -582,11 +666,12 @@ impl<S: ByteSource> Decoder<S> {
     }
 
     /// Chooses the cut for `target` on the current frame and returns its mesh. Budgets are
-    /// prefixes of the frame's order of partial splits (greedy by reveal priority; whole splits
-    /// on files with attribute tables), error bounds of its order of whole splits (greedy by
-    /// split priority; a `MaxError` diagonal fraction is of the header's bounding box); a level
-    /// is every node of it (proto/container.md, "Cuts"). `Level(0)` (with a full-resolution decoder) gives every input vertex in input order
-    /// and the input triangles in input order.
+    /// prefixes of the frame's order of whole splits by budget priority (or of partial splits
+    /// by reveal priority, [`Decoder::set_budget_cut`]), error bounds of its order of whole
+    /// splits by split priority (a `MaxError` diagonal fraction is of the header's bounding
+    /// box); a level is every node of it (proto/container.md, "Cuts"). `Level(0)` (with a
+    /// full-resolution decoder) gives every input vertex in input order and the input
+    /// triangles in input order.
     pub fn mesh(&mut self, target: CutTarget) -> Result<TriMesh, ContainerError> {
         let mut mesh = TriMesh::default();
         self.mesh_into(target, &mut mesh)?;
@@ -631,14 +716,31 @@ impl<S: ByteSource> Decoder<S> {
             }
             CutTarget::Triangles(_) | CutTarget::Vertices(_) if !d.by_budget.ready => {
                 let o = &mut d.by_budget;
-                replay.reveal_benefits_into(&d.positions, &mut o.priorities);
                 // Attribute tables hold a node's entries for the charts around it at its own
                 // level only: a partially split node would need its finer triangles' charts.
-                let whole = self.reader.header().appearance.as_ref().is_some_and(|a| a.channels() > 0);
-                if whole {
-                    replay.whole_split_priorities(&mut o.priorities);
+                let attributes = self.reader.header().appearance.as_ref().is_some_and(|a| a.channels() > 0);
+                let held = self.key_positions.len() == d.positions.len();
+                match self.budget_cut {
+                    BudgetCut::PartialSplits(p) if !attributes => {
+                        match p {
+                            BudgetPriorities::Keyframe if held => replay.reveal_benefits_into(&self.key_positions, &mut o.priorities),
+                            BudgetPriorities::Banded { per_octave } if held => {
+                                replay.reveal_benefits_into(&d.positions, &mut o.priorities);
+                                let mut key = Vec::new();
+                                replay.reveal_benefits_into(&self.key_positions, &mut key);
+                                for (x, h) in o.priorities.iter_mut().zip(&key) {
+                                    *x = banded_priority(*x, *h, per_octave);
+                                }
+                            }
+                            _ => replay.reveal_benefits_into(&d.positions, &mut o.priorities),
+                        }
+                        o.order.reset_steps(replay, &o.priorities, Steps::PartialSplits);
+                    }
+                    _ => {
+                        replay.split_benefits_into(&d.positions, &mut o.priorities);
+                        o.order.reset_steps(replay, &o.priorities, Steps::WholeSplits);
+                    }
                 }
-                o.order.reset_steps(replay, &o.priorities, if whole { Steps::WholeSplits } else { Steps::PartialSplits });
                 o.ready = true;
             }
             _ => {}

@@ -16,8 +16,9 @@
 //! two decoders at the same frame produce byte-identical meshes whatever their history.
 //!
 //! Two kinds of step ([`Steps`]): *whole splits* (a step splits node P, all its children
-//! appear at once: what error bounds take) and *partial splits* (a step reveals one child c of
-//! a revealed node P: what budgets take, so a budget between two levels is a true partial
+//! appear at once: what error bounds and, by default, budgets take) and *partial splits* (a
+//! step reveals one child c of a revealed node P: what budgets take as an option,
+//! proto/container.md "Partial splits", so a budget between two levels is a true partial
 //! simplification). A partial cut is the set of revealed nodes, closed under parents (the top
 //! level always revealed); a level-L vertex stands for its deepest revealed ancestor, and a
 //! revealed node is drawn while a child of it is unrevealed, for those children. When a

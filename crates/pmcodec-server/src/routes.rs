@@ -428,9 +428,9 @@ impl MeshQuery {
 
 /// Generation of the mesh answers' bytes for a given container and request: raised whenever
 /// the cut rule or a body layout changes (2: split-order prefixes and 16-bit indices; 3: split
-/// priorities from quadrics; 4: budgets by partial splits, container.md "Cuts"), so a strong
-/// tag never names two different bodies across server versions.
-const MESH_GENERATION: u32 = 4;
+/// priorities from quadrics), so a strong tag never names two different bodies across server
+/// versions.
+const MESH_GENERATION: u32 = 3;
 
 /// A strong validator of a mesh response: the output is a function of the container's bytes,
 /// the normalised request and [`MESH_GENERATION`].

@@ -57,6 +57,8 @@ export class Decoder {
   private keyPending: { key: Int32Array; palette: BigInt64Array | null } | null = null;
   /** With offsets held: the bands whose `current` holds positions while a frame decodes. */
   private exactCur: Uint8Array;
+  /** Dequantized positions of the current interval's keyframe: what a partial-split cut with held priorities ranks reveals by. */
+  private keyPositions: Float32Array | null = null;
 
   constructor(readonly reader: Reader, readonly minLevel: number, opts: DecoderOptions = {}) {
     this.skinOffsets = opts.skinOffsets ?? false;
@@ -127,7 +129,20 @@ export class Decoder {
       if (this.holdsOffsets) { this.weights = null; this.keyPending = { key: this.current.slice(0, 3 * h.vertexCount), palette: this.skin!.palette }; }
       else this.weights = stencilWeights(this.lower, this.current, h.vertexCount);
     }
+    // With offsets held the player ranks by the bind pose instead (session.ts): no CPU skinning for it.
+    this.keyPositions = this.holdsOffsets ? null : this.positions();
     this.frame = k;
+  }
+
+  /**
+   * Reveal priorities for a partial-split cut (an option, proto/container.md "Partial splits";
+   * `selectTriangles(budget, benefits, true)`): from the frame's own positions, or with
+   * `held` from the positions of the keyframe at or before the frame, held through its
+   * interval, on the frame's own hierarchy (as the Rust decoder's
+   * `BudgetPriorities::Frame` and `Keyframe`). With offsets held, the frame's positions.
+   */
+  revealBenefits(held = false): Float64Array {
+    return this.replay.revealBenefits(held && this.keyPositions ? this.keyPositions : this.positions());
   }
 
   private async step(f: number): Promise<void> {
@@ -258,9 +273,9 @@ export class Decoder {
   get holdsOffsets(): boolean { return this.skinOffsets && this.skin !== null; }
 
   /**
-   * Whether budgets take partial splits (proto/container.md, "Cuts"): not on files with
-   * attribute tables (texture coordinates or colours), whose entries cover only the charts
-   * around a node at its own level; there they take whole splits.
+   * Whether budgets may take partial splits (an option, proto/container.md "Partial splits"):
+   * not on files with attribute tables (texture coordinates or colours), whose entries cover
+   * only the charts around a node at its own level; there they keep whole splits.
    */
   get partialSplits(): boolean {
     const a = this.reader.header.appearance;

@@ -294,7 +294,24 @@ export class Replay {
   }
 
   /**
-   * Reveal priorities (proto/container.md, "Cuts"), what `selectTriangles` is given: revealing
+   * Budget priorities (proto/container.md, "Cuts"), what `selectTriangles` is given for the
+   * spec's whole splits: a node's own benefit is sqrt(Q(x) / sqrt(area)), its RMS error scaled
+   * by the fourth root of its cluster's area (a wide cluster outranks a tiny one as far off),
+   * its priority the largest in its subtree. Every operation in the Rust decoder's order.
+   */
+  splitBenefits(positions: Float32Array): Float64Array {
+    const nodes = this.nodeCount, out = new Float64Array(nodes), q = this.clusterQuadrics(positions);
+    for (let g = this.offsets[this.minLevel + 1] ?? nodes; g < nodes; g++) {
+      const e = quadricAt(q, g, positions, g), area = q[11 * g + 10];
+      out[g] = area > 0 && e > 0 ? Math.sqrt(e / Math.sqrt(area)) : 0;
+    }
+    this.subtreeMax(out);
+    return out;
+  }
+
+  /**
+   * Reveal priorities (proto/container.md, "Partial splits"), what `selectTriangles` is given
+   * with `partial`: revealing
    * child c of node P is worth dQ = Q_c(x_P) - Q_c(x_c) with c's cluster quadric (Garland &
    * Heckbert's cost of collapsing c into P), as sqrt(dQ / sqrt(area)); a node's priority is the
    * largest in its subtree. Every operation in the Rust decoder's order.
@@ -371,14 +388,16 @@ export class Replay {
   appearing: number[] = [];
 
   /**
-   * Replaces the cut by the longest prefix of the frame's order of partial splits (greedy by
-   * reveal priority, proto/container.md "Cuts") that shows at most `budget` triangles: reveals
+   * Replaces the cut by the longest prefix of the frame's split order that shows at most
+   * `budget` triangles: by default whole splits greedy by `benefits` (budget priorities,
+   * `splitBenefits`: the spec's cut, proto/container.md "Cuts"); with `partial`, partial splits
+   * greedy by reveal priorities (an option, "Partial splits"): reveals
    * are taken until the first one that does not fit. A reveal of child c of P also reveals P's
    * last unrevealed child when only that one would be left; the triangles of D_P that then have
    * at most one corner under an unrevealed child of P appear.
    */
-  selectTriangles(budget: number, benefits: Float64Array, partial = true): void {
-    if (!partial) { this.selectWhole(budget, this.wholeSplitPriorities(benefits)); return; }
+  selectTriangles(budget: number, benefits: Float64Array, partial = false): void {
+    if (!partial) { this.selectWhole(budget, benefits); return; }
     this.expanded.fill(0);
     this.revealed.fill(0);
     for (const t of [...this.shown]) if (this.nodeOf[t] !== NONE) this.hide(t);
@@ -412,22 +431,6 @@ export class Replay {
         if (this.expandable(x)) for (const y of this.children[x]) heap.push(benefits[y], y);
       }
     }
-  }
-
-  /**
-   * Whole-split priorities from reveal priorities (proto/container.md, "Cuts"): a node's is the
-   * largest of its children's, 0 at minLevel. What budgets take on files with attribute tables.
-   */
-  wholeSplitPriorities(benefits: Float64Array): Float64Array {
-    const out = new Float64Array(this.nodeCount);
-    for (let k = this.minLevel; k < this.top; k++) {
-      const p = this.parent[k];
-      for (let v = 0; v < p.length; v++) {
-        const c = this.offsets[k] + v, a = this.offsets[k + 1] + p[v];
-        if (benefits[c] > out[a]) out[a] = benefits[c];
-      }
-    }
-    return out;
   }
 
   /**

@@ -222,12 +222,12 @@ export class Session {
       const positions = gpu ? gpu.bind : d.positions();
       memo = this.errorsOf = { decoder: d, frame: f, positions, errors: null, benefits: null };
     }
-    // Budgets reveal by reveal priorities (partial splits); the error colouring shows split priorities (RMS).
-    if (!whole && !memo.benefits) memo.benefits = r.revealBenefits(memo.positions);
+    // Budgets split by budget priorities; the error colouring shows split priorities (RMS).
+    if (!whole && !memo.benefits) memo.benefits = r.splitBenefits(memo.positions);
     if (this.colour === "error" && !memo.errors) memo.errors = r.nodeErrors(memo.positions);
     const all = memo.positions;
     if (!whole) {
-      r.selectTriangles(this.budget, memo.benefits!, d.partialSplits);
+      r.selectTriangles(this.budget, memo.benefits!);
       this.fullOn = this.budget >= this.trianglesPerLevel[d.minLevel] && allExpanded(r) ? d : null;
     }
     const cutMesh = buildCutMesh(r);

@@ -38,8 +38,8 @@ impl Replay {
     }
 
     /// Reveal priorities of every node from node positions (global ids): what vertex and
-    /// triangle budgets reveal by (partial splits, [`crate::split_order::Steps`];
-    /// proto/container.md, "Cuts"). Revealing child c of node P moves c's cluster from P's
+    /// triangle budgets reveal by when a decoder cuts them by partial splits (an option,
+    /// [`crate::split_order::Steps`]; proto/container.md, "Cuts", "Partial splits"). Revealing child c of node P moves c's cluster from P's
     /// position to c's own: its own benefit is what Garland & Heckbert's "Surface
     /// Simplification Using Quadric Error Metrics" (1997) would charge for collapsing c into
     /// P, `dQ = Q_c(x_P) - Q_c(x_c)` with c's cluster quadric, as `sqrt(dQ / sqrt(area))`
@@ -50,11 +50,13 @@ impl Replay {
     /// Measured (`pmcodec eval --sweep 12 --frames 12`, container over direct, horse-gallop):
     /// `dQ` alone (`area^0`) is within 4% from 1.4% of the vertices up but 1.50x against 1.18x
     /// at 1%; `dQ / area` (the mean) loses 3-22% from 2% up (1.93x against 1.64x at 50%).
-    /// Against whole splits by `sqrt(Q_P(x_P) / sqrt(area))` (what budgets split by before)
-    /// no worse than 1% at any budget of horse-gallop, samba-60, cat-poses and the waving
+    /// Against whole splits by [`Self::split_benefits_into`] (what budgets split by by
+    /// default) no worse than 1% at any budget of horse-gallop, samba-60, cat-poses and the waving
     /// cloth, most better between levels: at 50% of the vertices horse 1.91x -> 1.64x, cat
     /// 2.34x -> 1.86x, cloth 2.75x -> 2.24x. Ordering each node's children by area instead
-    /// (only how many are revealed left to `dQ`) lost 5-19% and flickered as much.
+    /// (only how many are revealed left to `dQ`) lost 5-19% and flickered as much. Ranked on
+    /// each frame's positions the cut flickers (issue 15): the spec keeps whole splits as the
+    /// default for that reason (proto/container.md, "Partial splits").
     pub fn reveal_benefits_into(&self, positions: &[Vec3], out: &mut Vec<f64>) {
         let q = self.cluster_quadrics(positions);
         let h = &self.h;
@@ -71,35 +73,32 @@ impl Replay {
         self.subtree_max(out);
     }
 
-    /// Turns reveal priorities ([`Self::reveal_benefits_into`]) into whole-split priorities in
-    /// place: a node's becomes the largest of its children's (0 at level L), so splitting it
-    /// ranks as its best reveal would (still monotone). What budgets take on files whose
-    /// attribute tables hold entries only for the charts around a node at its own level
-    /// (proto/container.md, "Cuts"): a partially split node would be drawn with charts of finer
-    /// triangles.
-    pub fn whole_split_priorities(&self, priorities: &mut [f64]) {
-        let h = &self.h;
-        // Top down: a level's values are read as children before they are overwritten.
-        for k in (self.min_level..h.levels() - 1).rev() {
-            for g in h.offsets[k + 1]..h.offsets[k + 2] {
-                if let Some(x) = priorities.get_mut(g as usize) {
-                    *x = 0.0;
-                }
-            }
-            for (v, &p) in h.parent[k].iter().enumerate() {
-                let (c, a) = ((h.offsets[k] + v as u32) as usize, (h.offsets[k + 1] + p) as usize);
-                if let (Some(&x), Some(_)) = (priorities.get(c), priorities.get(a))
-                    && x > priorities[a]
-                {
-                    priorities[a] = x;
-                }
-            }
+    /// Budget priorities of every node from node positions (global ids): what vertex and
+    /// triangle budgets split by (proto/container.md, "Cuts"). A node's own benefit is
+    /// `sqrt(Q(x) / sqrt(area))`, its RMS error scaled by the fourth root of its cluster's area,
+    /// and its priority the largest in its subtree (monotone, as [`Self::node_errors`]).
+    ///
+    /// The RMS alone is blind to the cluster's size: a small cluster a unit off outranks a wide
+    /// one nearly as far off, and a budget spent by it leaves the wide one coarse, although the
+    /// surface error a client sees is an integral over area (what Garland & Heckbert's
+    /// "Surface Simplification Using Quadric Error Metrics", 1997, sum as `Q(x)`). Ranking by
+    /// the drop in `Q` per added vertex cut more error between levels 0 and 1 but left small
+    /// features coarse at the coarsest budgets (horse-gallop at 1% of the vertices: 2.2x plain
+    /// QEM against 1.2x; likely elongated ones, whose plane quadrics see their radius, not
+    /// their length); ranking by `Q(x)` itself lost up to 7% at 4-8% of the vertices. The
+    /// fourth root measured within 3% of the RMS priority at every budget of horse-gallop and
+    /// samba-60, up to 8% better between levels 0 and 1 on them and 12% on cat-poses (`pmcodec
+    /// eval --sweep 12 --frames 12`); the waving cloth loses 4-12% at 35-50% (proto/container.md).
+    pub fn split_benefits_into(&self, positions: &[Vec3], out: &mut Vec<f64>) {
+        let q = self.cluster_quadrics(positions);
+        let first_above = self.first_above();
+        out.clear();
+        out.resize(self.h.node_count(), 0.0);
+        for ((o, m), x) in out.iter_mut().zip(&q).zip(positions).skip(first_above) {
+            let e = quadric_at(m, *x);
+            *o = if m[10] > 0.0 && e > 0.0 { (e / m[10].sqrt()).sqrt() } else { 0.0 };
         }
-        for g in h.offsets[self.min_level]..h.offsets[self.min_level + 1] {
-            if let Some(x) = priorities.get_mut(g as usize) {
-                *x = 0.0;
-            }
-        }
+        self.subtree_max(out);
     }
 
     /// Global id of the first node above level L (the node count with one level).
