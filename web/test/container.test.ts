@@ -8,7 +8,7 @@ import { existsSync, mkdirSync, mkdtempSync, readdirSync, readFileSync, writeFil
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 import { FLAG_NAMES, frontDecode } from "../src/container/format.js";
-import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, dequantizeUv, readBand0Table, readPositions, readTable, texturedMesh } from "../src/container/index.js";
+import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, type RevealFrom, VertexOrder, attributeEntry, dequantizeUv, readBand0Table, readPositions, readTable, texturedMesh } from "../src/container/index.js";
 import { readCornerUpdates, readDelta, readFaces, readKey } from "../src/container/payload.js";
 
 const root = repoRoot();
@@ -62,7 +62,7 @@ test("decodes the same cut and positions as the Rust decoder", async () => {
   }
 });
 
-test("partial splits (the option; budgets between levels) on a generated cloth, reveals ranked on the frame's or the keyframe's positions: the same cut as the Rust decoder's `decode --budget-cut partial-frame` and `partial-keyframe`, and every shown triangle's corners are three distinct revealed nodes", async () => {
+test("partial splits (the option; budgets between levels) on a generated cloth, reveals ranked on the frame's or the keyframe's positions or banded: the same cut as the Rust decoder's `decode --budget-cut partial-frame`, `partial-keyframe`, `partial-banded1` and `partial-banded2`, and every shown triangle's corners are three distinct revealed nodes", async () => {
   const frames = join(dir, "cloth-frames"), cloth = join(dir, "cloth.pmc");
   execFileSync(bin, ["sample", "waving-cloth", "-q", "-o", frames, "--frames", "12"]);
   execFileSync(bin, ["encode", "-q", frames, "-o", cloth, "--keyframe-interval", "8"]);
@@ -70,15 +70,16 @@ test("partial splits (the option; budgets between levels) on a generated cloth, 
   const player = new Decoder(c, 0);
   const tris = c.header.triangleCount;
   let partial = 0;
-  for (const [frame, share, held] of [[0, 0.03, 0], [3, 0.17, 1], [3, 0.17, 0], [9, 0.41, 1], [11, 0.63, 0], [11, 0.9, 1], [10, 0.3, 1]]) {
-    const budget = Math.round(share * tris), how = held ? "partial-keyframe" : "partial-frame";
+  const cases: [number, number, RevealFrom][] = [[0, 0.03, "frame"], [3, 0.17, "keyframe"], [3, 0.17, "frame"], [5, 0.2, "banded1"], [9, 0.41, "keyframe"], [11, 0.63, "frame"], [11, 0.9, "keyframe"], [10, 0.3, "keyframe"], [7, 0.35, "banded2"], [10, 0.5, "banded1"]];
+  for (const [frame, share, from] of cases) {
+    const budget = Math.round(share * tris), how = `partial-${from}`;
     const out = join(dir, `cloth-${frame}-${budget}-${how}.obj`);
     execFileSync(bin, ["decode", "-q", cloth, "--frame", String(frame), "--triangles", String(budget), "--budget-cut", how, "-o", out]);
     const expected = readObj(out);
     await player.seek(frame);
     const pos = player.positions();
     const r = player.replay;
-    r.selectTriangles(budget, player.revealBenefits(held === 1), true);
+    r.selectTriangles(budget, player.revealBenefits(from), true);
     const mesh = player.orderedMesh(pos);
     assert.deepEqual(Array.from(mesh.indices), expected.indices, `${how} frame ${frame} budget ${budget}: triangles`);
     assert.equal(mesh.positions.length, expected.positions.length, `${how} frame ${frame} budget ${budget}: vertices`);

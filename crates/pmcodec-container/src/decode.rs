@@ -69,7 +69,8 @@ pub struct Decoder<S> {
     /// How budgets are cut.
     budget_cut: BudgetCut,
     /// Dequantized positions of the current interval's keyframe (every node, global ids):
-    /// what [`BudgetPriorities::Keyframe`] ranks reveals by on each frame of the interval.
+    /// what [`BudgetPriorities::Keyframe`] ranks reveals by on each frame of the interval;
+    /// empty unless the budget cut needs them (a server's many decoder states pay nothing).
     key_positions: Vec<Vec3>,
 }
 
@@ -86,6 +87,13 @@ pub enum BudgetCut {
     /// error there) but changes more from frame to frame. Files with attribute tables keep
     /// whole splits (their tables cover a node's charts at its own level only).
     PartialSplits(BudgetPriorities),
+}
+
+impl BudgetCut {
+    /// Whether the cut ranks by the keyframe's positions (which a decoder then keeps).
+    fn holds_keyframe(self) -> bool {
+        matches!(self, BudgetCut::PartialSplits(BudgetPriorities::Keyframe | BudgetPriorities::Banded { .. }))
+    }
 }
 
 /// Which positions the reveal priorities of a partial-split cut ([`BudgetCut::PartialSplits`])
@@ -213,12 +221,24 @@ impl<S: ByteSource> Decoder<S> {
     }
 
     /// Chooses how budgets are cut ([`BudgetCut`]; the default is the spec's whole splits).
-    /// Error bounds and levels are unaffected.
-    pub fn set_budget_cut(&mut self, c: BudgetCut) {
-        if c != self.budget_cut {
-            self.budget_cut = c;
-            self.invalidate_derived();
+    /// Error bounds and levels are unaffected. A cut that ranks by the keyframe's positions
+    /// needs them: chosen at a frame, it decodes the frame again from its keyframe (the error
+    /// is that decoding's), since decoders keep them only while such a cut is chosen.
+    pub fn set_budget_cut(&mut self, c: BudgetCut) -> Result<(), ContainerError> {
+        if c == self.budget_cut {
+            return Ok(());
         }
+        let needs = c.holds_keyframe() && !self.budget_cut.holds_keyframe();
+        self.budget_cut = c;
+        self.invalidate_derived();
+        if !c.holds_keyframe() {
+            self.key_positions = Vec::new();
+        }
+        if let (true, Some(f)) = (needs, self.frame) {
+            self.frame = None;
+            self.seek(f)?;
+        }
+        Ok(())
     }
 
     /// Keeps the state after each of the last `n` keyframes loaded (0, the default, keeps
@@ -373,6 +393,9 @@ impl<S: ByteSource> Decoder<S> {
 
     /// Keeps the keyframe just entered's positions for [`BudgetPriorities::Keyframe`].
     fn hold_key_positions(&mut self) {
+        if !self.budget_cut.holds_keyframe() {
+            return;
+        }
         let mut key = std::mem::take(&mut self.key_positions);
         self.positions_into(&mut key);
         self.key_positions = key;

@@ -485,7 +485,7 @@ fn vertex_budgets_between_levels_are_met_exactly() {
         let reader = Reader::open(bytes.as_slice()).expect("open");
         let sizes = reader.header().level_sizes.clone();
         let mut d = Decoder::new(reader, 0).expect("decoder");
-        d.set_budget_cut(BudgetCut::PartialSplits(BudgetPriorities::Frame));
+        d.set_budget_cut(BudgetCut::PartialSplits(BudgetPriorities::Frame)).expect("cut");
         d.seek(3).expect("seek");
         let (top, fine) = (*sizes.last().expect("levels"), sizes[0]);
         let mut partial = 0;
@@ -527,7 +527,8 @@ fn triangle_keys(triangles: &[[u32; 3]]) -> std::collections::HashSet<[u32; 3]> 
 /// Partial-split cuts ranked by the keyframe's positions through its interval
 /// (proto/container.md, "Partial splits") are stateless (a decoder that seeks straight to a
 /// frame, one that plays up to it and one that comes back to it from a later interval cut
-/// alike), the same as ranking by the frame's own positions on a keyframe, and steadier than
+/// alike, and so does one that chooses the cut at the frame), the same as ranking by the
+/// frame's own positions on a keyframe, and steadier than
 /// it within an interval: on generated cloths and tubes fewer shown triangles change per frame,
 /// summed over budgets between levels. The default cut (whole splits) differs from both.
 #[test]
@@ -543,9 +544,9 @@ fn partial_splits_held_through_a_keyframe_interval_are_stateless_and_steadier() 
         let (mut held_churn, mut fresh_churn) = (0usize, 0usize);
         let held = BudgetCut::PartialSplits(BudgetPriorities::Keyframe);
         let mut playing = Decoder::new(reader.borrowed(), 0).expect("decoder");
-        playing.set_budget_cut(held);
+        playing.set_budget_cut(held).expect("cut");
         let mut per_frame = Decoder::new(reader.borrowed(), 0).expect("decoder");
-        per_frame.set_budget_cut(BudgetCut::PartialSplits(BudgetPriorities::Frame));
+        per_frame.set_budget_cut(BudgetCut::PartialSplits(BudgetPriorities::Frame)).expect("cut");
         let mut whole = Decoder::new(reader.borrowed(), 0).expect("decoder");
         let mut differs = 0;
         let mut last: Vec<Option<[std::collections::HashSet<[u32; 3]>; 2]>> = vec![None; budgets.len()];
@@ -554,17 +555,23 @@ fn partial_splits_held_through_a_keyframe_interval_are_stateless_and_steadier() 
             per_frame.seek(f).expect("seek");
             whole.seek(f).expect("seek");
             let mut straight = Decoder::new(reader.borrowed(), 0).expect("decoder");
-            straight.set_budget_cut(held);
+            straight.set_budget_cut(held).expect("cut");
             straight.seek(f).expect("seek");
             let mut back = Decoder::new(reader.borrowed(), 0).expect("decoder");
-            back.set_budget_cut(held);
+            back.set_budget_cut(held).expect("cut");
             back.seek(seq.frame_count() as u32 - 1).expect("seek");
             back.seek(f).expect("seek");
+            // Chosen at the frame: the decoder goes back for the keyframe's positions.
+            let mut late = Decoder::new(reader.borrowed(), 0).expect("decoder");
+            late.seek(f).expect("seek");
+            late.set_budget_cut(held).expect("cut");
+            assert_eq!(late.frame(), Some(f));
             for (i, &b) in budgets.iter().enumerate() {
                 let target = CutTarget::Triangles(b);
                 let m = playing.mesh(target).expect("cut");
                 assert_eq!(m, straight.mesh(target).expect("cut"), "{name} frame {f} budget {b}: played against seeked");
                 assert_eq!(m, back.mesh(target).expect("cut"), "{name} frame {f} budget {b}: played against seeked back");
+                assert_eq!(m, late.mesh(target).expect("cut"), "{name} frame {f} budget {b}: cut chosen at the frame");
                 if f % 6 == 0 {
                     assert_eq!(m, per_frame.mesh(target).expect("cut"), "{name} keyframe {f} budget {b}");
                 }

@@ -242,7 +242,7 @@ pub fn decode_cmd(args: DecodeArgs, quiet: bool) -> Result<(), Exit> {
     };
     let mut dec =
         Decoder::new(reader.borrowed(), min_level).map_err(|e| container_error(e, format!("reading {}", args.input.display())))?;
-    dec.set_budget_cut(args.budget_cut.into());
+    dec.set_budget_cut(args.budget_cut.into()).map_err(|e| container_error(e, format!("reading {}", args.input.display())))?;
     let written = if args.all_frames {
         decode_all(&mut dec, &args, target, quiet)?
     } else {

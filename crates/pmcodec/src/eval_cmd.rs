@@ -278,7 +278,7 @@ fn container_report(
         ));
     }
     let mut d = Decoder::new(reader.borrowed(), 0).map_err(|e| container_error(e, format!("reading {}", path.display())))?;
-    d.set_budget_cut(args.budget_cut.into());
+    d.set_budget_cut(args.budget_cut.into()).map_err(|e| container_error(e, format!("reading {}", path.display())))?;
     let bar = progress(frames as u64, "container", quiet);
     let mut meshes = Vec::with_capacity(frames);
     let mut keys: Vec<Vec<[u64; 3]>> = Vec::new();

@@ -26,6 +26,32 @@ export interface DecoderOptions {
 /** Per node (global id): bind position in bind quanta, up to four palette entries and weights (0: unused). */
 export interface SkinAttributes { bind: Float32Array; joints: Uint16Array; weights: Float32Array }
 
+/** Which positions a partial-split cut's reveal priorities come from (`Decoder.revealBenefits`). */
+export type RevealFrom = "frame" | "keyframe" | "banded1" | "banded2";
+
+/**
+ * The key a banded partial-split cut ranks reveals by (proto/container.md, "Partial splits"):
+ * the band of the frame's priority `current` in `perOctave` steps per factor 2, read off the
+ * double's exponent and mantissa (exact, as Rust's `banded_priority`), plus the keyframe's
+ * priority `held` squashed into [0, 1).
+ */
+export function bandedPriority(current: number, held: number, perOctave: number): number {
+  const k = Math.max(1, perOctave);
+  let band: number;
+  if (current > 0 && Number.isFinite(current)) {
+    const view = new DataView(new ArrayBuffer(8));
+    view.setFloat64(0, current);
+    const hi = view.getUint32(0), e = (hi >>> 20) & 0x7ff;
+    if (e === 0) band = -2100 * k;
+    else {
+      view.setUint32(0, (hi & 0xfffff) | (1023 << 20));
+      band = (e - 1023) * k + Math.floor((view.getFloat64(0) - 1) * k);
+    }
+  } else band = -2200 * k;
+  const h = held >= 0 && Number.isFinite(held) ? held : 0;
+  return band + h / (1 + h);
+}
+
 /** Plays a container down to a finest level: hierarchy (Replay) and quantized node positions. */
 export class Decoder {
   replay: Replay;
@@ -136,13 +162,20 @@ export class Decoder {
 
   /**
    * Reveal priorities for a partial-split cut (an option, proto/container.md "Partial splits";
-   * `selectTriangles(budget, benefits, true)`): from the frame's own positions, or with
-   * `held` from the positions of the keyframe at or before the frame, held through its
-   * interval, on the frame's own hierarchy (as the Rust decoder's
-   * `BudgetPriorities::Frame` and `Keyframe`). With offsets held, the frame's positions.
+   * `selectTriangles(budget, benefits, true)`), from the positions `from` names: the frame's
+   * own, the keyframe's at or before the frame (held through its interval, on the frame's own
+   * hierarchy), or banded with 1 or 2 bands per factor 2 (the band of the frame's priority,
+   * then the keyframe's): the Rust decoder's `BudgetPriorities`, bit for bit. With offsets
+   * held, the frame's positions for all.
    */
-  revealBenefits(held = false): Float64Array {
-    return this.replay.revealBenefits(held && this.keyPositions ? this.keyPositions : this.positions());
+  revealBenefits(from: RevealFrom = "frame"): Float64Array {
+    const key = this.keyPositions;
+    if (from === "frame" || !key) return this.replay.revealBenefits(this.positions());
+    if (from === "keyframe") return this.replay.revealBenefits(key);
+    const now = this.replay.revealBenefits(this.positions()), held = this.replay.revealBenefits(key);
+    const perOctave = from === "banded1" ? 1 : 2;
+    for (let g = 0; g < now.length; g++) now[g] = bandedPriority(now[g], held[g], perOctave);
+    return now;
   }
 
   private async step(f: number): Promise<void> {
