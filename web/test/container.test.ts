@@ -8,8 +8,9 @@ import { existsSync, mkdirSync, mkdtempSync, readdirSync, readFileSync, writeFil
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 import { FLAG_NAMES, frontDecode } from "../src/container/format.js";
-import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, type RevealFrom, VertexOrder, attributeEntry, dequantizeUv, readBand0Table, readPositions, readTable, texturedMesh } from "../src/container/index.js";
-import { readCornerUpdates, readDelta, readFaces, readKey } from "../src/container/payload.js";
+import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, type RevealFrom, VertexOrder, attributeEntry, bandFaces, chartsNeedTriangles, dequantizeUv, needsFaces, readBand0Table, readCharts, readPositions, readTable, texturedMesh } from "../src/container/index.js";
+import type { Faces } from "../src/container/index.js";
+import { keyFromFirst, readCornerUpdates, readDelta, readFaces, readKey, readTriangles } from "../src/container/payload.js";
 
 const root = repoRoot();
 const bin = pmcodecBin(root);
@@ -132,6 +133,67 @@ async function sameAsRust(pmc: string, name: string): Promise<Reader> {
   }
   return c;
 }
+
+test("Triangles coding 1 (a tube with its vertices renumbered at random): TS reads the triangles and every frame as the Rust decoder does; damage is a DecodeError", async () => {
+  // The same permutation for every frame, from a fixed linear congruential sequence.
+  const src = join(dir, "frames"), dst = join(dir, "shuffled");
+  mkdirSync(dst, { recursive: true });
+  const names = readdirSync(src).filter((f) => f.endsWith(".obj")).sort();
+  const n = readObj(join(src, names[0])).positions.length / 3;
+  const order = Array.from({ length: n }, (_, i) => i);
+  let s = 12345n;
+  for (let i = n - 1; i > 0; i--) {
+    s = (s * 6364136223846793005n + 1442695040888963407n) & 0xffffffffffffffffn;
+    const k = Number((s >> 33n) % BigInt(i + 1));
+    [order[i], order[k]] = [order[k], order[i]];
+  }
+  const newId = new Array<number>(n);
+  order.forEach((old, i) => { newId[old] = i; });
+  for (const name of names) {
+    const { positions, indices } = readObj(join(src, name));
+    const lines: string[] = [];
+    for (const old of order) lines.push(`v ${positions[3 * old]} ${positions[3 * old + 1]} ${positions[3 * old + 2]}`);
+    for (let t = 0; t < indices.length; t += 3) lines.push(`f ${newId[indices[t]] + 1} ${newId[indices[t + 1]] + 1} ${newId[indices[t + 2]] + 1}`);
+    writeFileSync(join(dst, name), lines.join("\n") + "\n");
+  }
+  const file = join(dir, "shuffled.pmc");
+  execFileSync(bin, ["encode", "-q", dst, "-o", file, "--keyframe-interval", "8", "--quant-bits", "12"]);
+  const c = await sameAsRust(file, "shuffled");
+  const raw = await c.chunk(c.find(ChunkKind.Triangles, 0, 0));
+  assert.deepEqual(Array.from(raw.subarray(0, 2)), [0, 1], "the encoder keeps coding 1");
+  const h = c.header, tris = readTriangles(raw, "triangles", h.triangleCount, h.vertexCount, c.version);
+  const first = readdirSync(join(dir, "shuffled-frames")).filter((f) => f.endsWith(".obj")).sort()[0];
+  assert.deepEqual(Array.from(tris), readObj(join(dir, "shuffled-frames", first)).indices);
+  assert.throws(() => readTriangles(raw, "triangles", h.triangleCount + 1, h.vertexCount, c.version), DecodeError);
+  assert.throws(() => readTriangles(raw, "triangles", h.triangleCount, 3, c.version), DecodeError);
+  assert.throws(() => readTriangles(raw.subarray(0, raw.length - 1), "triangles", h.triangleCount, h.vertexCount, c.version), DecodeError);
+  assert.throws(() => readTriangles(Uint8Array.from([0, 3, ...raw.subarray(2)]), "triangles", h.triangleCount, h.vertexCount, c.version), /topology coding 3/);
+});
+
+test("Key coding 3 (a later keyframe's changes from frame 0's parent map): TS reads every frame as the Rust decoder does, seeking straight to a late frame too", async () => {
+  const file = join(dir, "tube-key3.pmc");
+  execFileSync(bin, ["encode", "-q", join(dir, "frames"), "-o", file, "--keyframe-interval", "4", "--quant-bits", "12"]);
+  const c = await sameAsRust(file, "key3");
+  const h = c.header;
+  let coded = 0;
+  for (const e of c.index.filter((x) => x.kind === ChunkKind.Key)) {
+    const raw = await c.chunk(e);
+    if (!keyFromFirst(raw)) continue;
+    coded++;
+    assert.ok(e.frame > 0, "never in frame 0's Key chunk");
+    assert.throws(() => readKey(raw, "k", h.levelSizes, e.band, c.version), /frame 0's parents/);
+    const first = readKey(await c.chunk(c.find(ChunkKind.Key, 0, e.band)), "k0", h.levelSizes, e.band, c.version);
+    assert.throws(() => readKey(raw, "k", h.levelSizes, e.band, c.version, first.subarray(1)), DecodeError);
+    assert.throws(() => readKey(raw.subarray(0, raw.length - 1), "k", h.levelSizes, e.band, c.version, first), DecodeError);
+  }
+  assert.ok(coded > 0, "no Key chunk took coding 3");
+  // A player that seeks straight to the last frame reads frame 0's Key chunks for it.
+  const last = h.frameCount - 1, files = readdirSync(join(dir, "key3-frames")).filter((f) => f.endsWith(".obj")).sort();
+  const player = new Decoder(c, 0);
+  await player.seek(last);
+  const pos = player.positions(), expected = readObj(join(dir, "key3-frames", files[last]));
+  for (let i = 0; i < expected.positions.length; i++) assert.equal(pos[i], Math.fround(expected.positions[i]), `frame ${last}: coordinate ${i}`);
+});
 
 test("every band-0 motion and order: every frame's input vertices equal the Rust decoder's, bit for bit", async () => {
   const cases: [string, string[], Motion, VertexOrder][] = [
@@ -404,7 +466,7 @@ test("appearance without texture coordinates or colours (RobotExpressive): no At
   }
 });
 
-test("appearance with band 0's entries derived from the triangles, values from the band above and recent-chart runs (Fox, Horse): the same texture coordinates, colours and normals as the Rust decoder", async () => {
+test("appearance with band 0's entries derived from the triangles, values from the band above and recent-chart runs or neighbour charts (Fox, Horse): the same texture coordinates, colours and normals as the Rust decoder", async () => {
   for (const name of ["Fox", "Horse"]) {
     const glbIn = join(root, `../shared/data/gltf/${name}.glb`);
     if (!existsSync(glbIn)) throw new Error(`${glbIn} is absent: this test reads the real models in ../shared/data beside the repository`);
@@ -418,12 +480,15 @@ test("appearance with band 0's entries derived from the triangles, values from t
     assert.ok((band0[1] & 8) !== 0, `${name}: band 0's residuals are not rANS-coded`);
     // Band 1's values are chart-wise differences (mode 2): the cuts below read that coding too.
     const chartsRaw = await c.chunk(c.find(ChunkKind.Charts, 0, 0));
-    assert.ok(chartsRaw[0] === 0 && chartsRaw[1] === 2, `${name}: the charts are not recent-chart runs`);
-    // Recent-chart runs cut short or damaged: a DecodeError, never a crash.
+    assert.ok(chartsRaw[0] === 0 && (chartsRaw[1] === 2 || chartsRaw[1] === 3), `${name}: the charts are neither recent-chart runs nor neighbour charts`);
+    // Recent-chart runs or neighbour charts (mode 3, read with the triangles) cut short or
+    // damaged: a DecodeError, never a crash; neighbour charts without the triangles, an error.
     const { readCharts } = await import("../src/container/index.js");
-    assert.throws(() => readCharts(chartsRaw.subarray(0, chartsRaw.length - 1), a, c.header.triangleCount), DecodeError);
+    const h = c.header, tris3 = chartsRaw[1] === 3 ? readTriangles(await c.chunk(c.find(ChunkKind.Triangles, 0, 0)), "t", h.triangleCount, h.vertexCount, c.version) : null;
+    if (tris3) assert.throws(() => readCharts(chartsRaw, a, h.triangleCount), /without the triangles/);
+    assert.throws(() => readCharts(chartsRaw.subarray(0, chartsRaw.length - 1), a, h.triangleCount, tris3), DecodeError);
     for (let at = 2; at < chartsRaw.length; at += Math.max(1, chartsRaw.length >> 5)) {
-      try { readCharts(Uint8Array.from(chartsRaw, (b, i) => (i === at ? b ^ 0x5a : b)), a, c.header.triangleCount); } catch (e) { assert.ok(e instanceof DecodeError, `${name} charts byte ${at}: ${e}`); }
+      try { readCharts(Uint8Array.from(chartsRaw, (b, i) => (i === at ? b ^ 0x5a : b)), a, h.triangleCount, tris3); } catch (e) { assert.ok(e instanceof DecodeError, `${name} charts byte ${at}: ${e}`); }
     }
     // Bands above 0 predict their values from the band above (mode 3) or chart-wise (mode 2):
     // the cuts below read those codings too.
@@ -609,9 +674,11 @@ test("represented attribute values (mode | 16) and entries from the band above (
       if ((modes[j] & 16) === 0) continue;
       const parent = readKey(await c.chunk(c.find(ChunkKind.Key, 0, j)), "k", c.header.levelSizes, j, c.version);
       const above = { parent, table: player.looks!.tables[j + 1]! };
+      // (Values across the band's faces, mode | 64, need them too: the values-across test.)
+      const faces = needsFaces(raws[j]) ? bandFaces(tris, chartOf, await frame0Parents(c, j), "f") : null;
       const read = (b: Uint8Array, up: typeof above | null = above): { values: Int32Array } => j === 0
         ? readBand0Table(b, "band 0", c.header.levelSizes[0], a, tris, chartOf, up)
-        : readTable(b, `band ${j}`, c.header.levelSizes[j], a, c.header.triangleCount, up);
+        : readTable(b, `band ${j}`, c.header.levelSizes[j], a, c.header.triangleCount, up, faces);
       assert.deepEqual(Array.from(read(raws[j]).values), Array.from(player.looks!.tables[j]!.values), `${name} band ${j}`);
       assert.throws(() => read(raws[j], null), DecodeError, `${name} band ${j} without the band above`);
       assert.throws(() => read(raws[j].subarray(0, raws[j].length - 1)), DecodeError, `${name} band ${j} cut short`);
@@ -622,6 +689,127 @@ test("represented attribute values (mode | 16) and entries from the band above (
   }
   assert.ok(represented >= 3, `only ${represented} of 4 inputs took represented values`);
   assert.ok(entriesAbove >= 2, `only ${entriesAbove} of 4 inputs took entries from the band above (mode | 32)`);
+});
+
+/** Frame 0's parent maps of levels 0..j (its Key chunks of bands 0..j-1), finest first. */
+async function frame0Parents(c: Reader, j: number): Promise<Uint32Array[]> {
+  const out: Uint32Array[] = [];
+  for (let i = 0; i < j; i++) out.push(readKey(await c.chunk(c.find(ChunkKind.Key, 0, i)), `k${i}`, c.header.levelSizes, i, c.version));
+  return out;
+}
+
+/**
+ * A generated OBJ sequence of a grid of w x h quads whose texture is `charts` islands side by
+ * side (the grid's columns split into that many charts, each its own `vt`s along the seams),
+ * each island mapped smoothly with a gentle distortion, waving from frame to frame. Deterministic.
+ */
+function islandsObjSequence(out: string, w: number, h: number, charts: number): void {
+  mkdirSync(out, { recursive: true });
+  const vts: string[] = [], vt = new Map<string, number>();
+  const uv = (i: number, j: number, k: number): number => {
+    const id = `${i},${j},${k}`;
+    if (!vt.has(id)) {
+      const u = (k + 0.05 + (0.9 * (i - (k * w) / charts)) / (w / charts + 1) + 0.01 * Math.sin(j * 0.7)) / charts;
+      vts.push(`vt ${u} ${(j + 0.3 * Math.sin(i * 0.4)) / (h + 1)}`);
+      vt.set(id, vts.length);
+    }
+    return vt.get(id)!;
+  };
+  const faces: string[] = [];
+  for (let j = 0; j < h; j++) {
+    for (let i = 0; i < w; i++) {
+      const k = Math.floor((i * charts) / w), v = [j * (w + 1) + i + 1, j * (w + 1) + i + 2, (j + 1) * (w + 1) + i + 2, (j + 1) * (w + 1) + i + 1];
+      const t = [uv(i, j, k), uv(i + 1, j, k), uv(i + 1, j + 1, k), uv(i, j + 1, k)];
+      faces.push(`f ${v[0]}/${t[0]} ${v[1]}/${t[1]} ${v[2]}/${t[2]}`, `f ${v[0]}/${t[0]} ${v[2]}/${t[2]} ${v[3]}/${t[3]}`);
+    }
+  }
+  for (let f = 0; f < 3; f++) {
+    const lines: string[] = [];
+    for (let j = 0; j <= h; j++) for (let i = 0; i <= w; i++) lines.push(`v ${i * 0.1} ${j * 0.1} ${0.15 * Math.sin(i * 0.25 + f * 0.4) * Math.cos(j * 0.3)}`);
+    writeFileSync(join(out, `f${String(f).padStart(3, "0")}.obj`), [...lines, ...vts, ...faces].join("\n") + "\n");
+  }
+}
+
+test("attribute values across a band's faces (mode 3 | 64, band 0's 1 | 16 | 64) and neighbour charts (Charts mode 3) on generated seamed meshes with several charts, a cylinder, Horse and Fox: every level's tables and cuts' texture coordinates and colours as the Rust decoder's, bit for bit, at every finest level", async () => {
+  const horse = join(root, "../shared/data/gltf/Horse.glb");
+  if (!existsSync(horse)) throw new Error(`${horse} is absent: this test reads the real models in ../shared/data beside the repository`);
+  const islands = join(dir, "obj-islands"), cylinder = join(dir, "obj-across-cylinder");
+  islandsObjSequence(islands, 36, 24, 5);
+  cylinderObjSequence(cylinder, 40, 28);
+  const fox = join(root, "../shared/data/gltf/Fox.glb");
+  if (!existsSync(fox)) throw new Error(`${fox} is absent: this test reads the real models in ../shared/data beside the repository`);
+  let across = 0, band0Across = 0, neighbourCharts = 0;
+  for (const [name, input] of [["islands", islands], ["cylinder", cylinder], ["horse", horse], ["fox", fox]]) {
+    const file = join(dir, `across-${name}.pmc`);
+    execFileSync(bin, ["encode", "-q", input, "-o", file]);
+    const c = await open(file), a = c.header.appearance!, levels = c.header.levelSizes.length;
+    const raws: Uint8Array[] = [];
+    for (let j = 0; j < levels; j++) raws.push(await c.chunk(c.find(ChunkKind.Attributes, 0, j)));
+    const player = new Decoder(c, 0);
+    await player.loadAppearance();
+    for (const [frame, budget] of [[0, 100000], [1, 300], [2, 60]]) {
+      const out = join(dir, `across-${name}-${frame}-${budget}.glb`);
+      execFileSync(bin, ["decode", "-q", file, "--frame", String(frame), "--triangles", String(budget), "-o", out]);
+      const glb = readGlb(out);
+      await player.seek(frame);
+      const pos = player.positions();
+      player.replay.selectTriangles(budget, player.replay.splitBenefits(pos));
+      const mesh = player.texturedMesh(pos);
+      const attr = glb.json.meshes[0].primitives[0].attributes, what = `${name} frame ${frame} budget ${budget}`;
+      assert.deepEqual(Array.from(mesh.uv0!), Array.from(accessor(glb, attr.TEXCOORD_0)), `${what}: texture coordinates`);
+      if (a.colors) assert.deepEqual(Array.from(mesh.colors!), Array.from(accessor(glb, attr.COLOR_0)), `${what}: colours`);
+    }
+    // A coarse client (finest level L) reads bands L.. and decodes them as a full one does.
+    for (let L = 1; L < levels; L++) {
+      const coarse = new Decoder(c, L);
+      await coarse.loadAppearance();
+      for (let j = L; j < levels; j++) assert.deepEqual(Array.from(coarse.looks!.tables[j]!.values), Array.from(player.looks!.tables[j]!.values), `${name} level ${L} band ${j}`);
+    }
+    const tris = (player as unknown as { triangles: Uint32Array }).triangles, chartOf = player.looks!.charts.triangleChart;
+    const chartsRaw = await c.chunk(c.find(ChunkKind.Charts, 0, 0));
+    if (chartsNeedTriangles(chartsRaw)) {
+      // Neighbour charts (Charts mode 3): with the triangles, the player's charts; without, cut
+      // short or damaged, a DecodeError.
+      neighbourCharts++;
+      assert.deepEqual(Array.from(readCharts(chartsRaw, a, c.header.triangleCount, tris).triangleChart), Array.from(chartOf), `${name} charts`);
+      assert.throws(() => readCharts(chartsRaw, a, c.header.triangleCount), /without the triangles/);
+      assert.throws(() => readCharts(chartsRaw.subarray(0, chartsRaw.length - 1), a, c.header.triangleCount, tris), DecodeError);
+      for (let at = 2; at < chartsRaw.length; at += Math.max(1, chartsRaw.length >> 5)) {
+        try { readCharts(Uint8Array.from(chartsRaw, (b, i) => (i === at ? b ^ 0x5a : b)), a, c.header.triangleCount, tris); } catch (e) { assert.ok(e instanceof DecodeError, `${name} charts byte ${at}: ${e}`); }
+      }
+    }
+    if (needsFaces(raws[0]) && levels > 1) {
+      // Band 0 across the triangles (mode 1 | 16 | 64): derived entries, the band above needed.
+      band0Across++;
+      assert.equal(raws[0][1] & ~8, 1 | 16 | 64);
+      const above = { parent: readKey(await c.chunk(c.find(ChunkKind.Key, 0, 0)), "k", c.header.levelSizes, 0, c.version), table: player.looks!.tables[1]! };
+      const read = (b: Uint8Array, up: typeof above | null = above): Int32Array => readBand0Table(b, "band 0", c.header.levelSizes[0], a, tris, chartOf, up).values;
+      assert.deepEqual(Array.from(read(raws[0])), Array.from(player.looks!.tables[0]!.values), `${name} band 0`);
+      assert.throws(() => read(raws[0], null), DecodeError, `${name} band 0 without the band above`);
+      assert.throws(() => read(raws[0].subarray(0, raws[0].length - 1)), DecodeError, `${name} band 0 cut short`);
+      for (let at = 1; at < raws[0].length; at += Math.max(1, raws[0].length >> 5)) {
+        try { read(Uint8Array.from(raws[0], (b, i) => (i === at ? b ^ 0x5a : b))); } catch (e) { assert.ok(e instanceof DecodeError, `${name} band 0 byte ${at}: ${e}`); }
+      }
+    }
+    for (let j = 1; j < levels; j++) {
+      if (!needsFaces(raws[j])) continue;
+      across++;
+      const parents = await frame0Parents(c, j);
+      const parent = readKey(await c.chunk(c.find(ChunkKind.Key, 0, j)), "k", c.header.levelSizes, j, c.version);
+      const above = { parent, table: player.looks!.tables[j + 1]! }, faces = bandFaces(tris, chartOf, parents, "f");
+      const read = (b: Uint8Array, f: Faces | null = faces): Int32Array => readTable(b, `band ${j}`, c.header.levelSizes[j], a, c.header.triangleCount, above, f).values;
+      assert.deepEqual(Array.from(read(raws[j])), Array.from(player.looks!.tables[j]!.values), `${name} band ${j}`);
+      assert.throws(() => read(raws[j], null), /without its faces/, `${name} band ${j} without its faces`);
+      assert.throws(() => read(raws[j].subarray(0, raws[j].length - 1)), DecodeError, `${name} band ${j} cut short`);
+      for (let at = 1; at < raws[j].length; at += Math.max(1, raws[j].length >> 5)) {
+        try { read(Uint8Array.from(raws[j], (b, i) => (i === at ? b ^ 0x5a : b))); } catch (e) { assert.ok(e instanceof DecodeError, `${name} band ${j} byte ${at}: ${e}`); }
+      }
+      // A parent map missing a node is a DecodeError naming it.
+      assert.throws(() => bandFaces(tris, chartOf, [parents[0].subarray(0, 3)], "band faces"), /misses a node/);
+    }
+  }
+  assert.ok(across >= 2 && band0Across >= 1, `only ${across} tables above band 0 and ${band0Across} of band 0 took values across their band's faces`);
+  assert.ok(neighbourCharts >= 2, `only ${neighbourCharts} of 4 inputs took neighbour charts`);
 });
 
 test("a skinned glTF's stream (version 7): every frame's input vertices equal the Rust decoder's, and coarse clients agree", async () => {

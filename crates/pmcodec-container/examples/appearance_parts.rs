@@ -4,14 +4,18 @@
 //! 19, as the encoder) so the parts are comparable with the chunks' stored bytes.
 //!
 //! Per band: its coding mode (1 derived entries, 2 chart-wise, 3 from the band above; | 8
-//! rANS-coded residuals, | 16 represented values, | 32 entries from the band above), its
+//! rANS-coded residuals, | 16 represented values, | 32 entries from the band above, | 64
+//! values across the band's faces), its
 //! entries and how many of them are representatives (no residual), and what its entries would
 //! take listed. `DUMP_CHARTS=FILE` writes each triangle's chart, one a line, for experiments.
 //!
 //! `cargo build --release -p pmcodec && target/release/pmcodec encode -q IN.glb -o /tmp/a.pmc &&
 //!  cargo run --release -p pmcodec-container --example appearance_parts -- /tmp/a.pmc`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
-use pmcodec_container::appearance::payload::{Table, needs_above, read_band, read_charts, representatives};
+use pmcodec_container::appearance::across::{band_faces, write_table_across};
+use pmcodec_container::appearance::payload::{
+    QuantizedTable, Table, needs_above, read_band, read_charts_with, read_table_across, representatives,
+};
 use pmcodec_container::payload::{put, zigzag};
 use pmcodec_container::payload::{read_key, read_triangles};
 use pmcodec_container::{ChunkKind, FileSource, Reader};
@@ -53,7 +57,9 @@ fn main() {
         );
         let Some((ce, cs)) = stored(ChunkKind::Charts, 0) else { continue };
         let raw = reader.read_chunk(ce).unwrap();
-        let charts = read_charts(&raw, &info, h.triangle_count).unwrap();
+        let te = reader.index().chunks.iter().find(|e| e.kind == ChunkKind::Triangles).unwrap();
+        let tris = read_triangles(&reader.read_chunk(te).unwrap(), "t", h.triangle_count, h.vertex_count, reader.version()).unwrap();
+        let charts = read_charts_with(&raw, &info, h.triangle_count, Some(&tris)).unwrap();
         let mut mats = Vec::new();
         for &m in &charts.chart_material {
             put(&mut mats, m);
@@ -99,6 +105,10 @@ fn main() {
             }
             println!("  EXP chart runs: new-or-id {} B, delta {} B", z(&alt), z(&alt2));
         }
+        if std::env::var("EXPERIMENT").is_ok() {
+            let n = pmcodec_container::appearance::payload::write_charts_neighbours(&charts, &tris).map_or(0, |w| z(&w));
+            println!("  EXP charts with neighbour charts (mode 3): {n} B");
+        }
         println!(
             "  charts chunk: {cs} B stored ({} raw); chart materials {} B ({} raw), chart runs {} B ({} runs, {} raw), group runs {} B ({} runs, {} raw) (parts zstd alone)",
             raw.len(),
@@ -112,8 +122,6 @@ fn main() {
             group_runs.len()
         );
         let mut total = cs;
-        let te = reader.index().chunks.iter().find(|e| e.kind == ChunkKind::Triangles).unwrap();
-        let tris = read_triangles(&reader.read_chunk(te).unwrap(), "t", h.triangle_count, h.vertex_count, reader.version()).unwrap();
         let mut above: Option<Table> = None;
         for j in (0..h.levels() as u32).rev() {
             let Some((e, s)) = stored(ChunkKind::Attributes, j) else {
@@ -130,6 +138,8 @@ fn main() {
             let kind = match (mode & 7, mode & 32 != 0) {
                 (1, _) => "entries derived from the triangles",
                 (2, _) => "listed, chart-wise values",
+                (3, false) if mode & 64 != 0 => "listed, values across the band's faces",
+                (3, true) if mode & 64 != 0 => "entries from the band above, values across the band's faces",
                 (3, false) => "listed, values from the band above",
                 (3, true) => "entries and values from the band above",
                 _ => "listed",
@@ -140,7 +150,20 @@ fn main() {
             });
             let band0 = (j == 0).then(|| (&tris[..], &charts.triangle_chart[..]));
             let above_of = parent.as_ref().and_then(|p| above.as_ref().map(|t| (&p[..], t)));
-            let t = read_band(&raw, "t", h.level_sizes[j as usize], &info, h.triangle_count, band0, above_of).unwrap();
+            // Frame 0's parents of levels 0..j and band j's faces (values across them, mode | 64).
+            let parents: Vec<Vec<u32>> = (0..j)
+                .map(|i| {
+                    let ke = reader.find(ChunkKind::Key, 0, i).unwrap();
+                    read_key(&reader.read_chunk(ke).unwrap(), "k", &h.level_sizes, i as usize, reader.version()).unwrap()
+                })
+                .collect();
+            let refs: Vec<&[u32]> = parents.iter().map(Vec::as_slice).collect();
+            let (faces, fc) = band_faces(&tris, &charts.triangle_chart, &refs).unwrap();
+            let t = if j > 0 {
+                read_table_across(&raw, "t", h.level_sizes[j as usize], &info, h.triangle_count, above_of, Some((&faces, &fc))).unwrap()
+            } else {
+                read_band(&raw, "t", h.level_sizes[j as usize], &info, h.triangle_count, band0, above_of).unwrap()
+            };
             // The entries as a listed table writes them, zstd alone.
             let mut ent = Vec::new();
             let mut prev: Option<(u32, u32)> = None;
@@ -195,6 +218,39 @@ fn main() {
                     }
                 }
                 println!("  EXP band {j}: residual bit lengths vs parent {:?}, {orphans} entries without a parent entry", &hist[..16]);
+            }
+            if let (Ok(_), Some(p), Some(a)) = (std::env::var("EXPERIMENT"), &parent, &above) {
+                // The values across band j's faces in frame 0, each variant zstd'd.
+                let mut q = QuantizedTable::default();
+                for n in 0..h.level_sizes[j as usize] {
+                    for x in t.first[n as usize]..t.first[n as usize + 1] {
+                        q.entries.push((n, t.charts[x as usize]));
+                    }
+                }
+                q.values = t.values.clone();
+                let mut sizes = Vec::new();
+                for bits in 0..8 {
+                    let w = write_table_across(&q, info.channels(), p, a, (&faces, &fc), bits & 1 != 0, bits & 2 != 0, bits & 4 != 0);
+                    sizes.push(w.map_or(0, |w| z(&w)));
+                }
+                if j == 0 {
+                    let d: Vec<usize> = [false, true]
+                        .map(|r| {
+                            pmcodec_container::appearance::across::write_table_derived_across(
+                                &q,
+                                info.channels(),
+                                &tris,
+                                &charts.triangle_chart,
+                                p,
+                                a,
+                                r,
+                            )
+                            .map_or(0, |w| z(&w))
+                        })
+                        .to_vec();
+                    println!("  EXP band 0 derived across (varints, rans): {d:?}");
+                }
+                println!("  EXP band {j}: {} faces; across the faces (rans, represented, entries above bits) {sizes:?}", faces.len());
             }
             above = Some(t);
         }

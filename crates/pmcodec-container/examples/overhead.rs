@@ -142,5 +142,40 @@ fn main() {
                 }
             }
         }
+        // The Triangles chunk as the varint coding alone would store it (before its coding 1).
+        let varints = pmcodec_container::payload::write_triangles(&seq.triangles, r.version());
+        let z = pmcodec_container::format::compress(&varints, pmcodec_container::format::ZSTD_LEVEL)
+            .map_or(varints.len(), |z| z.len().min(varints.len()));
+        println!("    triangles as varint differences alone: {z} B stored ({:.3} bits/v/f)", per(z as u64));
+        // Keyframe parent maps against frame 0's (which every client reads) and against the
+        // keyframe before: how many nodes changed their parent (proto/container.md, Key coding 3).
+        let h = r.header();
+        for j in 0..h.levels().saturating_sub(1) {
+            let key = |f: u32, first: Option<&[u32]>| {
+                let e = r.find(ChunkKind::Key, f, j as u32)?;
+                pmcodec_container::payload::read_key_from(&r.read_chunk(e).ok()?, "k", &h.level_sizes, j, r.version(), first).ok()
+            };
+            let Some(first) = key(0, None) else { continue };
+            let mut coded = 0;
+            let (mut from0, mut fromprev, mut keys) = (0usize, 0usize, 0usize);
+            let mut prev = first.clone();
+            for f in (1..h.frame_count).filter(|&f| r.find(ChunkKind::Key, f, j as u32).is_some()) {
+                let Some(p) = key(f, Some(&first)) else { continue };
+                coded += r
+                    .find(ChunkKind::Key, f, j as u32)
+                    .and_then(|e| r.read_chunk(e).ok())
+                    .is_some_and(|raw| pmcodec_container::payload::key_from_first(&raw)) as usize;
+                from0 += p.iter().zip(&first).filter(|(a, b)| a != b).count();
+                fromprev += p.iter().zip(&prev).filter(|(a, b)| a != b).count();
+                keys += 1;
+                prev = p;
+            }
+            println!(
+                "      band {j}: {} nodes, {keys} keyframes after 0 ({coded} coding 3): {:.1}% of parents differ from frame 0's, {:.1}% from the keyframe before's",
+                first.len(),
+                100.0 * from0 as f64 / (keys * first.len()).max(1) as f64,
+                100.0 * fromprev as f64 / (keys * first.len()).max(1) as f64
+            );
+        }
     }
 }

@@ -282,8 +282,6 @@ impl<S: ByteSource> Decoder<S> {
         let first_delta = start + if load_key { 1 } else { 0 };
         let first_positions = if load_key { key } else { start };
         let mut out = Vec::new();
-        // Attribute tables may predict values through frame 0's hierarchy (its Key chunks).
-        let looks_keys = load_key && self.looks.is_none() && h.appearance.as_ref().is_some_and(|a| a.channels() > 0);
         // A band whose faces the interval derives reads the input triangles and the Key and
         // Delta chunks below it too.
         let derived = self.reader.derives(key, self.min_level);
@@ -296,7 +294,9 @@ impl<S: ByteSource> Decoder<S> {
         for e in self.reader.index().chunks.iter().filter(wanted) {
             let take = match e.kind {
                 ChunkKind::Triangles => load_key && self.triangles.is_none() && self.fine.is_none(),
-                ChunkKind::Key => load_key && (e.frame == key || (looks_keys && e.frame == 0)),
+                // Frame 0's too: attribute tables may predict through its hierarchy, and a
+                // keyframe's Key chunk in coding 3 codes its changes from frame 0's.
+                ChunkKind::Key => load_key && (e.frame == key || e.frame == 0),
                 ChunkKind::Faces => load_key && e.frame == key,
                 ChunkKind::Delta | ChunkKind::Corners => e.frame >= first_delta && e.frame <= frame,
                 ChunkKind::Positions | ChunkKind::Pose | ChunkKind::Palette | ChunkKind::Joints => {
@@ -408,8 +408,7 @@ impl<S: ByteSource> Decoder<S> {
         let mut key = Keyframe { bands: vec![KeyBand::default(); h.levels()] };
         for j in (self.min_level..h.levels()).rev() {
             let what = format!("frame {frame} band {j} keyframe");
-            let raw = self.chunk(ChunkKind::Key, frame, j)?;
-            key.bands[j].parent = payload::read_key(&raw, &what, sizes, j, self.reader.version())?;
+            key.bands[j].parent = self.read_parents(frame, j)?;
             // Clusters are never empty (proto/container.md, "The model the file encodes"): a
             // parent map that leaves one empty is not a hierarchy the encoder wrote.
             if let Some(&above) = sizes.get(j + 1) {

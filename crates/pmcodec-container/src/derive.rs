@@ -47,13 +47,19 @@ pub fn derives(chunks: &[ChunkEntry], interval: u32, frame: u32, level: usize) -
 /// Whether a client whose finest level is `level` reads chunk `e` of a file with entries
 /// `chunks` and keyframe interval `interval`: [`ChunkKind::read_at`], and where band `level`
 /// is derived ([`derives`]), the Triangles chunk and the Key and Delta chunks of the bands below
-/// it (proto/container.md, "Who reads what").
+/// it, and frame 0's Key chunks below it where any interval derives it (proto/container.md,
+/// "Who reads what", and "Key", coding 3).
 pub fn reads(chunks: &[ChunkEntry], interval: u32, e: &ChunkEntry, level: usize) -> bool {
     if e.kind.read_at(e.band as usize, level) {
         return true;
     }
     match e.kind {
         ChunkKind::Triangles => level > 0 && chunks.iter().any(|x| x.band as usize == level && entry_is_derived(x)),
+        // Frame 0's Key chunks below `level` too wherever band `level` is derived at all: a
+        // later keyframe's Key chunk may code its changes from frame 0's (Key coding 3).
+        ChunkKind::Key if e.frame == 0 && (e.band as usize) < level => {
+            derives(chunks, interval, 0, level) || chunks.iter().any(|x| x.band as usize == level && entry_is_derived(x))
+        }
         ChunkKind::Key | ChunkKind::Delta => (e.band as usize) < level && derives(chunks, interval, e.frame, level),
         _ => false,
     }

@@ -639,7 +639,7 @@ fn code_frames(
     let levels = header.levels();
 
     let mut chunks = Chunks(Vec::new(), opts.chunk_flags & crate::format::FLAGS);
-    chunks.push(ChunkKind::Triangles, 0, 0, payload::write_triangles(&seq.triangles, VERSION))?;
+    chunks.push(ChunkKind::Triangles, 0, 0, payload::write_triangles_best(&seq.triangles, seq.vertex_count() as u32))?;
     let total = header.level_sizes.iter().map(|&n| n as usize).sum();
     let mut coder = PositionCoder::new(
         opts.motion,
@@ -655,6 +655,8 @@ fn code_frames(
     let (mut held, mut palette) = (SkinState::default(), JointsFrame::default());
     let inv = 1.0 / step as f64;
     let mut corners: Vec<(u32, [u32; 3])> = Vec::new();
+    // Frame 0's parent maps, which later keyframes' Key chunks may code their changes from.
+    let mut first_keys: Vec<Vec<u32>> = vec![Vec::new(); levels];
     for r in frames {
         let (f, delta, h, positions) = (r.frame, &r.delta, &r.h, &r.positions);
         if let (0, Some((input, placement))) = (f, skin_input) {
@@ -715,7 +717,11 @@ fn code_frames(
         let mut mask = 0u64;
         for j in (0..levels).rev() {
             if let Some(k) = &r.key {
-                chunks.push(ChunkKind::Key, f as u32, j as u32, topology::key_chunk(h, j, &k.bands[j].parent))?;
+                let first = if f == 0 { None } else { first_keys.get(j).map(Vec::as_slice) };
+                chunks.push(ChunkKind::Key, f as u32, j as u32, topology::key_chunk(h, j, &k.bands[j].parent, first))?;
+                if f == 0 {
+                    first_keys[j] = k.bands[j].parent.clone();
+                }
             }
             chunks.push(ChunkKind::Delta, f as u32, j as u32, topology::delta_chunk(h, j, &net_moves(delta, j)))?;
             let (positions, skinned) = coder.band(j, intra, h, truth, skinning);

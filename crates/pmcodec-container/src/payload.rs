@@ -155,9 +155,36 @@ pub fn write_triangles(tris: &[[u32; 3]], version: u16) -> Vec<u8> {
     out
 }
 
+/// The TRIANGLES payload (corners below `vertices`) in whichever coding stores shorter: the
+/// varint differences of [`write_triangles`] (version 7) or coding 1, a Faces chunk's bit
+/// coding of every triangle ("Triangles"), kept only when it reads back as the same triangles.
+pub fn write_triangles_best(tris: &[[u32; 3]], vertices: u32) -> Vec<u8> {
+    let plain = write_triangles(tris, crate::format::VERSION);
+    if tris.is_empty() {
+        return plain;
+    }
+    let faces: Vec<(u32, [u32; 3])> = tris.iter().enumerate().map(|(t, &c)| (t as u32, c)).collect();
+    let bits = crate::topology::write_faces(&faces);
+    let same = read_triangles(&bits, "triangles", tris.len() as u32, vertices, crate::format::VERSION).is_ok_and(|t| t == tris);
+    if same && stored_size(&bits) < stored_size(&plain) { bits } else { plain }
+}
+
 /// Reads a TRIANGLES chunk of a file of format `version` (see [`write_triangles`]): exactly
 /// `triangles` triangles, every index below `vertices`.
 pub fn read_triangles(bytes: &[u8], what: &str, triangles: u32, vertices: u32, version: u16) -> Result<Vec<[u32; 3]>, ContainerError> {
+    if version >= 7
+        && let Some(start) = crate::topology::coded(bytes, what)?
+    {
+        // Coding 1: a Faces chunk's coding 1 of every triangle in order (each gap 0).
+        let faces = crate::topology::read_faces(bytes, start, what, vertices, triangles)?;
+        if faces.len() != triangles as usize {
+            return Err(ContainerError::Corrupt {
+                what: what.to_string(),
+                detail: format!("{} triangles where the header says {triangles}", faces.len()),
+            });
+        }
+        return Ok(faces.into_iter().map(|(_, c)| c).collect());
+    }
     let mut c = Cursor::new(bytes, what);
     let n = c.count_within(triangles as u64, 3, "triangles")?;
     if n != triangles as usize {
@@ -200,7 +227,45 @@ pub fn write_key(parent: &[u32], version: u16) -> Vec<u8> {
 /// Reads a KEY chunk of a file of format `version` (see [`write_key`]) for `band`:
 /// `sizes[band]` parents below `sizes[band + 1]` (none for the top band).
 pub fn read_key(bytes: &[u8], what: &str, sizes: &[u32], band: usize, version: u16) -> Result<Vec<u32>, ContainerError> {
+    read_key_from(bytes, what, sizes, band, version, None)
+}
+
+/// Key coding 3: the payload's coding byte (proto/container.md, "Key").
+pub const KEY_FROM_FIRST: u8 = 3;
+
+/// Whether a Key payload is in coding 3 (the changes from frame 0's parent map of its band),
+/// which [`read_key_from`] reads with frame 0's parents.
+pub fn key_from_first(bytes: &[u8]) -> bool {
+    bytes.len() > 2 && bytes[0] == 0 && bytes[1] == KEY_FROM_FIRST
+}
+
+/// [`read_key`] with `first`, the band's parents in frame 0's Key chunk, which a keyframe's Key
+/// chunk in coding 3 changes (and needs: without them such a chunk is an error that says so).
+pub fn read_key_from(
+    bytes: &[u8],
+    what: &str,
+    sizes: &[u32],
+    band: usize,
+    version: u16,
+    first: Option<&[u32]>,
+) -> Result<Vec<u32>, ContainerError> {
     let top = sizes.len() - 1;
+    if version >= 7 && key_from_first(bytes) {
+        let corrupt = |detail: String| ContainerError::Corrupt { what: what.to_string(), detail };
+        if band >= top {
+            return Err(corrupt("Key coding 3 in the top band".into()));
+        }
+        let first = first.ok_or_else(|| corrupt("Key coding 3 read without frame 0's parents (or in frame 0's Key chunk)".into()))?;
+        if first.len() != sizes[band] as usize {
+            return Err(corrupt(format!("{} parents of frame 0 for {} nodes", first.len(), sizes[band])));
+        }
+        let moves = crate::topology::read_delta(bytes, 2, what, sizes[band], sizes[band + 1])?;
+        let mut parent = first.to_vec();
+        for (v, p) in moves {
+            parent[v as usize] = p;
+        }
+        return Ok(parent);
+    }
     if let Some(start) = crate::topology::coded(bytes, what)? {
         let (expected, limit) = if band < top { (sizes[band], sizes[band + 1]) } else { (0, 0) };
         return crate::topology::read_key(bytes, start, what, expected, limit);
@@ -377,7 +442,8 @@ pub fn write_corner_updates_best(updates: &[(u32, [u32; 3])], before: &[[u32; 3]
 
 /// The KEY payload of band j (parents below `limit`) in whichever coding stores shorter: the
 /// varint coding of [`write_key`] (version 7) or the bit coding (coding 1, `topology`).
-pub fn write_key_best(parent: &[u32], limit: u32) -> Vec<u8> {
+/// With `first` (a keyframe after frame 0: frame 0's parents of the band), coding 3 too.
+pub fn write_key_best(parent: &[u32], limit: u32, first: Option<&[u32]>) -> Vec<u8> {
     let plain = write_key(parent, crate::format::VERSION);
     if parent.is_empty() {
         return plain;
@@ -385,7 +451,26 @@ pub fn write_key_best(parent: &[u32], limit: u32) -> Vec<u8> {
     let bits = crate::topology::write_key(parent);
     let start = 2;
     let same = crate::topology::read_key(&bits, start, "key", parent.len() as u32, limit).is_ok_and(|p| p == parent);
-    if same && bits.len() <= plain.len() && stored_size(&bits) < stored_size(&plain) { bits } else { plain }
+    let best = if same && bits.len() <= plain.len() && stored_size(&bits) < stored_size(&plain) { bits } else { plain };
+    match first.filter(|f| f.len() == parent.len()) {
+        Some(first) => {
+            let changes = write_key_changes(parent, first);
+            let sizes = [parent.len() as u32, limit, 0];
+            let same = read_key_from(&changes, "key", &sizes, 0, crate::format::VERSION, Some(first)).is_ok_and(|p| p == parent);
+            if same && stored_size(&changes) < stored_size(&best) { changes } else { best }
+        }
+        None => best,
+    }
+}
+
+/// KEY coding 3: the nodes whose parent differs from `first`'s (frame 0's), with their parents
+/// here, as a Delta chunk's coding 1 codes moves, after the bytes `0 3`.
+pub fn write_key_changes(parent: &[u32], first: &[u32]) -> Vec<u8> {
+    let moves: Vec<(u32, u32)> =
+        parent.iter().zip(first).enumerate().filter(|(_, (p, f))| p != f).map(|(v, (&p, _))| (v as u32, p)).collect();
+    let mut out = crate::topology::write_delta(&moves);
+    out[1] = KEY_FROM_FIRST;
+    out
 }
 
 /// The DELTA payload of band j (nodes below `nodes`, parents below `parents`) in whichever

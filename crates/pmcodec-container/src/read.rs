@@ -317,9 +317,11 @@ fn raw_len_range(h: &Header, kind: ChunkKind, band: usize) -> (u64, u64) {
     let n = h.level_sizes.get(band).map_or(0, |&n| n as u64);
     let below_top = band < h.top();
     match kind {
-        ChunkKind::Triangles => (1 + 3 * t, 5 + 15 * t),
-        // A bit-coded Key chunk (coding 1) takes at least a bit per parent.
-        ChunkKind::Key if below_top => (1 + n.div_ceil(8), 5 + 5 * n),
+        // Coding 1 (version 7) takes at least 4 bits a triangle after its two bytes `0 1`.
+        ChunkKind::Triangles => (if t == 0 { 1 } else { 2 + t.div_ceil(2) }, 5 + 15 * t),
+        // A bit-coded Key chunk (coding 1) takes at least a bit per parent; coding 3 (changes
+        // from frame 0's) three bytes.
+        ChunkKind::Key if below_top => ((1 + n.div_ceil(8)).min(3), 5 + 5 * n),
         ChunkKind::Key => (1, 5),
         ChunkKind::Delta => (1, 5 + 10 * n),
         ChunkKind::Faces => (1, 5 + 20 * t),

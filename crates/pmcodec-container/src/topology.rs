@@ -104,8 +104,9 @@ impl Numbers for BitReader<'_> {
 }
 
 /// Band j's Key payload in its shorter coding (proto/container.md, "Key").
-pub(crate) fn key_chunk(h: &pmcodec_hierarchy::Hierarchy, j: usize, parent: &[u32]) -> Vec<u8> {
-    crate::payload::write_key_best(parent, h.level_sizes.get(j + 1).copied().unwrap_or(0))
+/// `first`: on keyframes after frame 0, frame 0's parents of band j (Key coding 3).
+pub(crate) fn key_chunk(h: &pmcodec_hierarchy::Hierarchy, j: usize, parent: &[u32], first: Option<&[u32]>) -> Vec<u8> {
+    crate::payload::write_key_best(parent, h.level_sizes.get(j + 1).copied().unwrap_or(0), first)
 }
 
 /// Band j's Delta payload in its shorter coding (proto/container.md, "Delta").

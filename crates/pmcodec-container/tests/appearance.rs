@@ -80,6 +80,7 @@ fn every_level_reads_back_inside_its_charts() {
     // checks above read that coding.
     let band0 = reader.read_chunk(reader.find(ChunkKind::Attributes, 0, 0).expect("band 0 attributes")).expect("read");
     assert_eq!((band0[0], band0[1] & 7), (0, 1));
+
     let images = Decoder::new(reader.borrowed(), 0).unwrap().images().expect("images");
     assert_eq!(images.len(), 1);
     assert_eq!(images[0].bytes, input.images[0].bytes);
@@ -173,7 +174,20 @@ fn budget_cuts_mixing_levels_find_every_chart_entry() {
     // The cuts below read band 0 with derived entries and bands predicted from the band above
     // (either with its residuals entropy-coded: the mode's bit 8).
     assert!(modes[0] & 7 == 1 && modes.iter().any(|m| m & 7 == 3), "table codings by band: {modes:?}");
+    // A band above 0 predicts its values across its faces (mode 3 | 64) and band 0 takes its
+    // representatives' values from above (| 16): level 0 is then the input only if that band
+    // decodes exactly as it was written.
+    assert!(modes[0] & 16 != 0 && modes[1..].iter().any(|m| m & 64 != 0), "table codings by band: {modes:?}");
     let mut d = Decoder::new(reader.borrowed(), 0).expect("decoder");
+    d.seek(0).expect("seek");
+    let (mesh, app) = d.textured_mesh(CutTarget::Level(0)).expect("level 0");
+    let (input, step) = (seq.appearance.as_ref().expect("appearance"), reader.header().appearance.as_ref().expect("info").uv_step);
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        for i in 0..3 {
+            let (got, want) = (app.uv0[tri[i] as usize], input.uv0[input.corner_wedges[t][i] as usize]);
+            assert!((0..2).all(|a| (got[a] - want[a]).abs() <= step[a] * 0.5 + 1e-6), "triangle {t} corner {i}: {got:?} vs {want:?}");
+        }
+    }
     let n = seq.triangles.len() as u32;
     let mut mixed = 0;
     for f in 0..6 {

@@ -126,6 +126,7 @@ fn as_version_6(v7: &[u8]) -> Vec<u8> {
     let pre = Preamble::parse(v7).expect("preamble");
     let header = &v7[PREAMBLE_LEN..PREAMBLE_LEN + pre.header_len as usize];
     let (mut area, mut entries) = (Vec::new(), Vec::new());
+    let mut first_keys = std::collections::HashMap::new();
     for e in &r.index().chunks {
         let mut raw = r.read_chunk(e).expect("chunk");
         if e.kind == ChunkKind::Triangles {
@@ -133,7 +134,13 @@ fn as_version_6(v7: &[u8]) -> Vec<u8> {
             raw = payload::write_triangles(&t, 6);
         }
         if e.kind == ChunkKind::Key {
-            raw = payload::write_key(&payload::read_key(&raw, "t", &h.level_sizes, e.band as usize, 7).expect("key"), 6);
+            // Later keyframes may list their changes from frame 0's parents (Key coding 3).
+            let first = first_keys.get(&e.band).map(Vec::as_slice);
+            let parent = payload::read_key_from(&raw, "t", &h.level_sizes, e.band as usize, 7, first).expect("key");
+            if e.frame == 0 {
+                first_keys.insert(e.band, parent.clone());
+            }
+            raw = payload::write_key(&parent, 6);
         }
         let stored = store_chunk(&raw, ZSTD_LEVEL, FLAGS).expect("zstd");
         let offset = area.len() as u64;

@@ -104,15 +104,16 @@ impl LoadedAsset {
     /// order): the chunks of the bands `level..=top` of the frames from `from` on (faces and
     /// corners of band `level` only), and whatever `from` is, the frame-0 chunks every frame
     /// reads: the input triangles when `level` is 0, the skin's bind chunks of those bands, the
-    /// appearance's charts, materials and attribute tables, and (when the tables carry values,
-    /// which may be predicted through frame 0's hierarchy) frame 0's Key chunks. Images are
-    /// served at their own URLs.
+    /// appearance's charts, materials and attribute tables, and frame 0's Key chunks (attribute
+    /// values may be predicted through frame 0's hierarchy, and later keyframes' Key chunks may
+    /// code their changes from it). Images are served at their own URLs.
     pub fn chunks_for(&self, level: usize, from: u32) -> impl Iterator<Item = (usize, &ChunkEntry)> {
-        let looks_keys = self.header.appearance.as_ref().is_some_and(|a| a.channels() > 0);
         self.chunks.iter().enumerate().filter(move |(_, e)| {
             let every_frame = match e.kind {
                 ChunkKind::Triangles | ChunkKind::Bind | ChunkKind::Charts | ChunkKind::Materials | ChunkKind::Attributes => true,
-                ChunkKind::Key => looks_keys && e.frame == 0,
+                // Attribute tables may predict through frame 0's hierarchy, and a later
+                // keyframe's Key chunk may code its changes from frame 0's (Key coding 3).
+                ChunkKind::Key => e.frame == 0,
                 _ => false,
             };
             // A band whose faces are derived reads the triangles and the bands below it too.

@@ -224,8 +224,12 @@ async fn the_stream_is_the_header_then_the_chosen_bands_in_playback_order() {
         .chunks
         .iter()
         .enumerate()
-        // (A level-1 client of a file whose band 1 derives its faces reads the triangles too.)
-        .filter(|(_, e)| reader.reads(e, 1) && (e.frame >= 4 || e.kind == pmcodec_container::ChunkKind::Triangles))
+        // (A level-1 client of a file whose band 1 derives its faces reads the triangles too,
+        // and every client frame 0's Key chunks, which later keyframes' may code changes from.)
+        .filter(|(_, e)| {
+            reader.reads(e, 1)
+                && (e.frame >= 4 || e.kind == pmcodec_container::ChunkKind::Triangles || e.kind == pmcodec_container::ChunkKind::Key)
+        })
     {
         let start = head + e.offset as usize;
         let piece = &whole[start..start + e.stored_len as usize];

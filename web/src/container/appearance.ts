@@ -139,8 +139,55 @@ function recentRuns(c: Cursor, raw: Uint8Array, a: AppearanceInfo, triangles: nu
   if (at !== triangles) throw new DecodeError(`${what}: runs cover ${at} of ${triangles} triangles`);
 }
 
-/** The Charts chunk. */
-export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number): Charts {
+/** Whether a Charts payload needs the triangles (mode 3, neighbour charts). */
+export function chartsNeedTriangles(raw: Uint8Array): boolean {
+  return raw.length > 1 && raw[0] === 0 && raw[1] === 3;
+}
+
+/**
+ * Neighbour charts (the Rust `write_charts_neighbours`): a RESIDUALS section of one code per
+ * triangle: its chart's position among its candidates (the previous triangle's chart, then its
+ * earlier edge neighbours' charts, each once), 4 the next new chart, 5 + p the p-th chart of
+ * the list of charts seen, most recently used first.
+ */
+function neighbourCharts(c: Cursor, raw: Uint8Array, a: AppearanceInfo, tris: Uint32Array, out: Uint32Array, what: string): void {
+  const n = out.length, codes = readCodes(c, raw, n, 1, true, what), recent: number[] = [], cands: number[] = [];
+  let nv = 1;
+  for (let i = 0; i < 3 * n; i++) nv = Math.max(nv, tris[i] + 1);
+  const edges = new Map<number, number>(), key = (x: number, y: number): number => Math.min(x, y) * nv + Math.max(x, y);
+  let next = 0;
+  for (let t = 0; t < n; t++) {
+    cands.length = 0;
+    if (recent.length > 0) cands.push(recent[0]);
+    for (let i = 0; i < 3; i++) {
+      const u = edges.get(key(tris[3 * t + i], tris[3 * t + ((i + 1) % 3)]));
+      if (u !== undefined && !cands.includes(out[u])) cands.push(out[u]);
+    }
+    const code = codes[t];
+    let chart: number;
+    if (code < 4) {
+      if (code >= cands.length) throw new DecodeError(`${what}: candidate ${code} of ${cands.length} at triangle ${t}`);
+      chart = cands[code];
+    } else if (code === 4) chart = next;
+    else {
+      if (code - 5 >= recent.length) throw new DecodeError(`${what}: recent chart ${code} at triangle ${t}`);
+      chart = recent[code - 5];
+    }
+    if (chart >= a.charts) throw new DecodeError(`${what}: chart ${chart} out of range (< ${a.charts}) at triangle ${t}`);
+    if (chart === next) next++;
+    const at = recent.indexOf(chart);
+    if (at >= 0) recent.splice(at, 1);
+    recent.unshift(chart);
+    out[t] = chart;
+    for (let i = 0; i < 3; i++) {
+      const k = key(tris[3 * t + i], tris[3 * t + ((i + 1) % 3)]);
+      if (!edges.has(k)) edges.set(k, t);
+    }
+  }
+}
+
+/** The Charts chunk; `tris` (the Triangles chunk's corners) for a chunk with neighbour charts (mode 3). */
+export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number, tris: Uint32Array | null = null): Charts {
   const what = "charts chunk", c = new Cursor(raw, what);
   // A first byte 0 (a count of charts is at least 1): a coding mode, 1 = new-chart runs,
   // 2 = recent-chart runs.
@@ -149,7 +196,9 @@ export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number
   if (coded) {
     c.get();
     mode = c.get();
-    if (mode !== 1 && mode !== 2) throw new DecodeError(`${what}: charts coding ${mode} unknown`);
+    if (mode !== 1 && mode !== 2 && mode !== 3) throw new DecodeError(`${what}: charts coding ${mode} unknown`);
+    if (mode === 3 && !tris) throw new DecodeError(`${what}: neighbour charts without the triangles`);
+    if (mode === 3 && tris!.length !== 3 * triangles) throw new DecodeError(`${what}: ${tris!.length / 3} triangles where the header says ${triangles}`);
   }
   const newRuns = mode === 1;
   const n = c.count(a.charts, "charts");
@@ -159,6 +208,7 @@ export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number
   const triangleChart = new Uint32Array(triangles), triangleGroup = new Uint32Array(triangles);
   let next = 0;
   if (mode === 2) recentRuns(c, raw, a, triangles, triangleChart, what);
+  else if (mode === 3) neighbourCharts(c, raw, a, tris!, triangleChart, what);
   else runs(c, triangles, triangleChart, () => {
     if (!newRuns) return c.id(a.charts, "chart");
     const x = c.get(), chart = x === 0 ? next++ : x - 1;
@@ -230,28 +280,143 @@ function readEntriesAbove(c: Cursor, raw: Uint8Array, nodes: number, nCharts: nu
   return out;
 }
 
-/** Whether a table's payload needs the band above: values from it (mode 3), represented (| 16) or entries from it (| 32). */
+/** Set with mode 3: the values are predicted across the band's faces in frame 0 (`bandFaces`). */
+const ACROSS_FACES = 64;
+
+/** Whether a table's payload needs the band above: values from it (mode 3), represented (| 16), entries from it (| 32) or across the faces (| 64). */
 export function needsAbove(raw: Uint8Array): boolean {
-  return raw.length > 1 && raw[0] === 0 && ((raw[1] & ~RANS_VALUES) === 3 || (raw[1] & (REPRESENTED | ENTRIES_ABOVE)) !== 0);
+  return raw.length > 1 && raw[0] === 0 && ((raw[1] & ~RANS_VALUES) === 3 || (raw[1] & (REPRESENTED | ENTRIES_ABOVE | ACROSS_FACES)) !== 0);
+}
+
+/** Whether a table's payload predicts its values across the band's faces (mode 3 | 64; its reader needs `bandFaces`). */
+export function needsFaces(raw: Uint8Array): boolean {
+  return raw.length > 1 && raw[0] === 0 && (raw[1] & ACROSS_FACES) !== 0;
+}
+
+/** A band's faces in frame 0: corners (3 per face) and each face's chart. */
+export interface Faces { corners: Uint32Array; charts: Uint32Array }
+
+/**
+ * Band j's faces in frame 0 (the Rust `band_faces`): every input triangle, in input order,
+ * whose corners walked up `parents` (frame 0's parent maps of levels 0..j, finest first) are
+ * three distinct level-j nodes, with those nodes and the triangle's chart.
+ */
+export function bandFaces(triangles: Uint32Array, triangleChart: Uint32Array, parents: Uint32Array[], what: string): Faces {
+  const corners: number[] = [], charts: number[] = [], c = [0, 0, 0];
+  for (let t = 0; t < triangleChart.length; t++) {
+    for (let i = 0; i < 3; i++) {
+      let v = triangles[3 * t + i];
+      for (const p of parents) {
+        if (v >= p.length) throw new DecodeError(`${what}: a frame 0 parent map misses a node`);
+        v = p[v];
+      }
+      c[i] = v;
+    }
+    if (c[0] !== c[1] && c[1] !== c[2] && c[2] !== c[0]) { corners.push(c[0], c[1], c[2]); charts.push(triangleChart[t]); }
+  }
+  return { corners: Uint32Array.from(corners), charts: Uint32Array.from(charts) };
+}
+
+/**
+ * The values of a table across its faces (the Rust `across::read_values`): representatives
+ * known, then the faces traversed in order (parallelogram, mean or one known corner, each
+ * averaged with the parent entry's value above; with no known corner that value, else the
+ * chart's last, else the last), then the entries no face reached in table order (the parent
+ * entry's value, else the entry before's).
+ */
+function acrossValues(first: Uint32Array, charts: Uint32Array, nodeOf: Uint32Array, reps: Int32Array, ch: number, above: Above, faces: Faces, codes: Uint32Array, coded: number, what: string): Int32Array {
+  const m = charts.length, values = new Int32Array(m * ch), known = new Uint8Array(m), up = above.table;
+  for (let e = 0; e < m; e++) {
+    if (reps[e] < 0) continue;
+    if ((reps[e] + 1) * ch > up.values.length) throw new DecodeError(`${what}: band above without values`);
+    for (let s = 0; s < ch; s++) values[e * ch + s] = up.values[reps[e] * ch + s];
+    known[e] = 1;
+  }
+  const find = (t: Table | { first: Uint32Array; charts: Uint32Array }, v: number, k: number): number => {
+    if (v + 1 >= t.first.length) return -1;
+    for (let x = t.first[v]; x < t.first[v + 1]; x++) if (t.charts[x] === k) return x;
+    return -1;
+  };
+  // The band above's entry (parent, chart) of each entry, or -1.
+  const parentEntry = new Int32Array(m).fill(-1);
+  for (let e = 0; e < m; e++) if (nodeOf[e] < above.parent.length) parentEntry[e] = find(up, above.parent[nodeOf[e]], charts[e]);
+  const parentValue = (x: number, s: number): number | null => {
+    const a = parentEntry[x];
+    return a >= 0 && (a + 1) * ch <= up.values.length ? up.values[a * ch + s] : null;
+  };
+  let k = 0;
+  const pred = new Int32Array(ch);
+  const visit = (x: number): void => {
+    if (k >= coded) throw new DecodeError(`${what}: fewer residuals than entries`);
+    for (let s = 0; s < ch; s++) { const z = codes[s * coded + k]; values[x * ch + s] = (pred[s] + ((z >>> 1) ^ -(z & 1))) | 0; }
+    k++;
+    known[x] = 1;
+  };
+  const nf = faces.charts.length, e = [0, 0, 0];
+  let nc = 0;
+  for (let f = 0; f < nf; f++) nc = Math.max(nc, faces.charts[f] + 1);
+  const last = new Int32Array(ch), chartLast = new Int32Array(nc * ch), chartSeen = new Uint8Array(nc);
+  const opposite = new Map<number, number>(), key = (x: number, y: number): number => Math.min(x, y) * m + Math.max(x, y);
+  const entries = new Int32Array(3 * nf);
+  for (let f = 0; f < nf; f++) {
+    for (let i = 0; i < 3; i++) {
+      const x = find({ first, charts }, faces.corners[3 * f + i], faces.charts[f]);
+      if (x < 0) throw new DecodeError(`${what}: no entry for node ${faces.corners[3 * f + i]}, chart ${faces.charts[f]} of face ${f}`);
+      entries[3 * f + i] = x;
+    }
+  }
+  for (let f = 0; f < nf; f++) {
+    const chart = faces.charts[f];
+    for (let i = 0; i < 3; i++) e[i] = entries[3 * f + i];
+    for (let i = 0; i < 3; i++) {
+      const x = e[i];
+      if (known[x]) continue;
+      const a = e[(i + 1) % 3], b = e[(i + 2) % 3], ka = known[a] === 1, kb = known[b] === 1, o = opposite.get(key(a, b));
+      for (let s = 0; s < ch; s++) {
+        const va = values[a * ch + s], vb = values[b * ch + s], p = parentValue(x, s);
+        let fromCorners: number | null = null;
+        if (ka && kb) fromCorners = o !== undefined ? (va + vb - values[o * ch + s]) | 0 : ((va + vb) | 0) >> 1;
+        else if (ka) fromCorners = va;
+        else if (kb) fromCorners = vb;
+        if (fromCorners !== null) pred[s] = p !== null ? ((fromCorners + p) | 0) >> 1 : fromCorners;
+        else if (p !== null) pred[s] = p;
+        else pred[s] = chartSeen[chart] ? chartLast[chart * ch + s] : last[s];
+      }
+      visit(x);
+      for (let s = 0; s < ch; s++) last[s] = chartLast[chart * ch + s] = values[x * ch + s];
+      chartSeen[chart] = 1;
+    }
+    for (let i = 0; i < 3; i++) {
+      const kk = key(e[i], e[(i + 1) % 3]);
+      if (!opposite.has(kk)) opposite.set(kk, e[(i + 2) % 3]);
+    }
+  }
+  for (let x = 0; x < m; x++) {
+    if (known[x]) continue;
+    for (let s = 0; s < ch; s++) pred[s] = parentValue(x, s) ?? (x > 0 ? values[(x - 1) * ch + s] : 0);
+    visit(x);
+  }
+  return values;
 }
 
 /**
  * `above`: frame 0's parents of the band's nodes (its Key chunk) and the band above's table,
  * which a table predicting its values from the band above needs (mode 3).
  */
-export function readTable(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: number, above: Above | null = null): Table {
+export function readTable(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: number, above: Above | null = null, faces: Faces | null = null): Table {
   const ch = channels(a), c = new Cursor(raw, what);
   // A first byte 0 with more after it: a coding mode (2: values chart-wise; 3: from the band
   // above, else chart-wise, | 16 with represented values; 1 is band 0's).
-  let chartwise = false, rans = false, represented = false, entriesAbove = false, fromAbove: Above | null = null;
+  let chartwise = false, rans = false, represented = false, entriesAbove = false, across = false, fromAbove: Above | null = null;
   if (raw.length > 1 && raw[0] === 0) {
     c.get();
     const coding = c.get();
     rans = (coding & RANS_VALUES) !== 0;
     entriesAbove = (coding & ENTRIES_ABOVE) !== 0;
-    const mode = coding & ~(RANS_VALUES | ENTRIES_ABOVE);
-    if ((mode & ~REPRESENTED) === 1 && !entriesAbove) throw new DecodeError(`${what}: derived entries outside band 0`);
-    const known = entriesAbove ? mode === 3 || mode === (3 | REPRESENTED) : mode === 2 || mode === 3 || mode === (3 | REPRESENTED) || (mode === 0 && rans);
+    across = (coding & ACROSS_FACES) !== 0;
+    const mode = coding & ~(RANS_VALUES | ENTRIES_ABOVE | ACROSS_FACES);
+    if ((mode & ~REPRESENTED) === 1 && !entriesAbove && !across) throw new DecodeError(`${what}: derived entries outside band 0`);
+    const known = entriesAbove || across ? mode === 3 || mode === (3 | REPRESENTED) : mode === 2 || mode === 3 || mode === (3 | REPRESENTED) || (mode === 0 && rans);
     if (!known) throw new DecodeError(`${what}: table coding ${coding} unknown`);
     if ((mode & 3) === 3 && !above) throw new DecodeError(`${what}: values from the band above, at the top or without it`);
     chartwise = mode !== 0;
@@ -274,7 +439,14 @@ export function readTable(raw: Uint8Array, what: string, nodes: number, a: Appea
   const reps = represented && fromAbove ? representatives(first, charts, fromAbove) : new Int32Array(m).fill(-1);
   let coded = m;
   for (let e = 0; e < m; e++) if (reps[e] >= 0) coded--;
-  const values = new Int32Array(m * ch), codes = readCodes(c, raw, coded, ch, rans, what);
+  const codes = readCodes(c, raw, coded, ch, rans, what);
+  if (across) {
+    if (!fromAbove || !faces) throw new DecodeError(`${what}: values across the band's faces without its faces`);
+    const values = acrossValues(first, charts, nodeOf, reps, ch, fromAbove, faces, codes, coded, what);
+    c.finish();
+    return { first, charts, values };
+  }
+  const values = new Int32Array(m * ch);
   for (let k = 0; k < ch; k++) {
     // The previous value of the entry's chart (chart-wise) or of any entry (slot 0).
     const last = new Int32Array(chartwise ? a.charts : 1);
@@ -322,10 +494,11 @@ export function band0Entries(triangles: Uint32Array, triangleChart: Uint32Array)
  * Rust `read_table_with`).
  */
 export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: Uint32Array, triangleChart: Uint32Array, above: Above | null = null): Table {
-  if (raw.length <= 1 || raw[0] !== 0 || (raw[1] & ~(RANS_VALUES | REPRESENTED)) !== 1) return readTable(raw, what, nodes, a, triangleChart.length, above);
+  if (raw.length <= 1 || raw[0] !== 0 || (raw[1] & ~(RANS_VALUES | REPRESENTED | ACROSS_FACES)) !== 1) return readTable(raw, what, nodes, a, triangleChart.length, above);
   const ch = channels(a), c = new Cursor(raw, what);
   c.get();
-  const coding = c.get(), rans = (coding & RANS_VALUES) !== 0, represented = (coding & REPRESENTED) !== 0;
+  const coding = c.get(), rans = (coding & RANS_VALUES) !== 0, represented = (coding & REPRESENTED) !== 0, across = (coding & ACROSS_FACES) !== 0;
+  if (across && !represented) throw new DecodeError(`${what}: table coding ${coding} unknown`);
   if (represented && !above) throw new DecodeError(`${what}: represented values without the band above`);
   if (triangles.length !== 3 * triangleChart.length) throw new DecodeError(`${what}: triangles and charts disagree`);
   const entries = band0Entries(triangles, triangleChart), m = entries.length;
@@ -333,6 +506,16 @@ export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: 
   const first = new Uint32Array(nodes + 1), charts = new Uint32Array(m);
   entries.forEach(([n, k], e) => { first[n + 1]++; charts[e] = k; });
   for (let n = 0; n < nodes; n++) first[n + 1] += first[n];
+  if (across) {
+    // Mode 1 | 16 | 64: values across the triangles (band 0's faces), averaged with the parent entry's.
+    const nodeOf = Uint32Array.from(entries, ([n]) => n), reps = representatives(first, charts, above!);
+    let coded = m;
+    for (let e = 0; e < m; e++) if (reps[e] >= 0) coded--;
+    const codes = readCodes(c, raw, coded, ch, rans, what);
+    c.finish();
+    const values = acrossValues(first, charts, nodeOf, reps, ch, above!, bandFaces(triangles, triangleChart, [], what), codes, coded, what);
+    return { first, charts, values };
+  }
   // Representatives take their parent entry's values before the traversal, which skips them.
   const values = new Int32Array(m * ch), known = new Uint8Array(m);
   let coded = m;

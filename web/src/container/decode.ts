@@ -2,11 +2,11 @@
 // a finest level (Replay), node positions predicted and corrected band by band, and the cut a
 // triangle budget selects, ordered as the Rust decoder orders it.
 
-import { Charts, Materials, Table, TexturedMesh, needsAbove, readBand0Table, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
+import { Charts, Materials, Table, TexturedMesh, bandFaces, chartsNeedTriangles, needsAbove, needsFaces, readBand0Table, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
 import { Below, isDerived } from "./derive.js";
 import { DecodeError } from "./error.js";
 import { ChunkKind, Motion, channels } from "./format.js";
-import { readCornerUpdates, readDelta, readFaces, readKey, readPositions, readTriangles } from "./payload.js";
+import { keyFromFirst, readCornerUpdates, readDelta, readFaces, readKey, readPositions, readTriangles } from "./payload.js";
 import { LowerNeighbours, affineMotion, keyedMotion, lowerNeighbours, stencilWeights } from "./predict.js";
 import type { Reader } from "./read.js";
 import { FrameDelta, KeyBand, Replay } from "./replay.js";
@@ -107,11 +107,20 @@ export class Decoder {
     for (let g = start + 1; g <= f; g++) await this.step(g);
   }
 
+  /** Band j's parent map at keyframe k; a Key chunk in coding 3 reads frame 0's of the band too. */
+  private async readParents(k: number, j: number): Promise<Uint32Array> {
+    const c = this.reader, sizes = c.header.levelSizes;
+    const raw = await c.chunk(c.find(ChunkKind.Key, k, j));
+    let first: Uint32Array | undefined;
+    if (k > 0 && keyFromFirst(raw)) first = readKey(await c.chunk(c.find(ChunkKind.Key, 0, j)), `frame 0 band ${j} keyframe`, sizes, j, c.version);
+    return readKey(raw, `frame ${k} band ${j} keyframe`, sizes, j, c.version, first);
+  }
+
   private async loadKeyframe(k: number): Promise<void> {
     const c = this.reader, h = c.header;
     const bands: KeyBand[] = h.levelSizes.map(() => ({ parent: new Uint32Array(0), faces: [] }));
     for (let j = h.levelSizes.length - 1; j >= this.minLevel; j--) {
-      bands[j].parent = readKey(await c.chunk(c.find(ChunkKind.Key, k, j)), `frame ${k} band ${j} keyframe`, h.levelSizes, j, c.version);
+      bands[j].parent = await this.readParents(k, j);
     }
     const L = this.minLevel;
     let below: Below | null = null;
@@ -121,7 +130,7 @@ export class Decoder {
         // Faces coding 2: from the input triangles and the keyframe's parent maps below L.
         this.fine ??= readTriangles(await c.chunk(c.find(ChunkKind.Triangles, 0, 0)), "triangles chunk", h.triangleCount, h.vertexCount, c.version);
         const parents: Uint32Array[] = [];
-        for (let j = 0; j < L; j++) parents.push(readKey(await c.chunk(c.find(ChunkKind.Key, k, j)), `frame ${k} band ${j} keyframe`, h.levelSizes, j, c.version));
+        for (let j = 0; j < L; j++) parents.push(await this.readParents(k, j));
         below = new Below(this.fine, parents);
         bands[L].faces = below.faces();
       } else bands[L].faces = readFaces(raw, `frame ${k} band ${L} faces`, h.levelSizes[L], h.triangleCount, c.version);
@@ -456,7 +465,12 @@ export class Decoder {
   async loadAppearance(): Promise<void> {
     const c = this.reader, h = c.header, a = h.appearance;
     if (this.looks || !a) return;
-    const charts = readCharts(await c.chunk(c.find(ChunkKind.Charts, 0, 0)), a, h.triangleCount);
+    // The triangles: a Charts chunk with neighbour charts and band 0's derived entries are read
+    // from them, and a band's faces in frame 0 are walked up from them.
+    const triangles = async (): Promise<Uint32Array> =>
+      this.triangles ?? readTriangles(await c.chunk(c.find(ChunkKind.Triangles, 0, 0)), "triangles chunk", h.triangleCount, h.vertexCount, c.version);
+    const chartsRaw = await c.chunk(c.find(ChunkKind.Charts, 0, 0));
+    const charts = readCharts(chartsRaw, a, h.triangleCount, chartsNeedTriangles(chartsRaw) ? await triangles() : null);
     const materials = readMaterials(await c.chunk(c.find(ChunkKind.Materials, 0, 0)), a);
     const tables: (Table | null)[] = h.levelSizes.map(() => null);
     // Without channels there is nothing to look up: no Attributes chunks in files since
@@ -471,10 +485,18 @@ export class Decoder {
         const table = tables[j + 1];
         above = table ? { parent, table } : null;
       }
+      if (j > 0 && needsFaces(raw)) {
+        // Values across band j's faces in frame 0: the triangles walked up frame 0's parents
+        // of levels 0..j (their Key chunks), as a derived Faces chunk does.
+        const parents: Uint32Array[] = [];
+        for (let i = 0; i < j; i++) parents.push(readKey(await c.chunk(c.find(ChunkKind.Key, 0, i)), `frame 0 band ${i} keyframe`, h.levelSizes, i, c.version));
+        const faces = bandFaces(await triangles(), charts.triangleChart, parents, what);
+        tables[j] = readTable(raw, what, h.levelSizes[j], a, h.triangleCount, above, faces);
+        continue;
+      }
       if (j > 0) { tables[j] = readTable(raw, what, h.levelSizes[j], a, h.triangleCount, above); continue; }
-      // Band 0's entries may be derived from the triangles (a level-0 client's own).
-      const triangles = this.triangles ?? readTriangles(await c.chunk(c.find(ChunkKind.Triangles, 0, 0)), "triangles chunk", h.triangleCount, h.vertexCount, c.version);
-      tables[j] = readBand0Table(raw, what, h.levelSizes[j], a, triangles, charts.triangleChart, above);
+      const tris = await triangles();
+      tables[j] = readBand0Table(raw, what, h.levelSizes[j], a, tris, charts.triangleChart, above);
     }
     this.looks = { charts, tables, materials };
   }

@@ -238,9 +238,11 @@ export function checkTables(h: Header, index: ChunkEntry[], dataLen: number): vo
 function rawLenRange(h: Header, kind: ChunkKind, band: number): [number, number] {
   const t = h.triangleCount, n = h.levelSizes[band] ?? 0, belowTop = band < h.levelSizes.length - 1;
   switch (kind) {
-    case ChunkKind.Triangles: return [1 + 3 * t, 5 + 15 * t];
-    // A bit-coded Key chunk (coding 1) takes at least a bit per parent.
-    case ChunkKind.Key: return belowTop ? [1 + Math.ceil(n / 8), 5 + 5 * n] : [1, 5];
+    // Coding 1 (version 7) takes at least 4 bits a triangle after its two bytes `0 1`.
+    case ChunkKind.Triangles: return [t === 0 ? 1 : 2 + Math.ceil(t / 2), 5 + 15 * t];
+    // A bit-coded Key chunk (coding 1) takes at least a bit per parent; coding 3 (changes from
+    // frame 0's) three bytes.
+    case ChunkKind.Key: return belowTop ? [Math.min(1 + Math.ceil(n / 8), 3), 5 + 5 * n] : [1, 5];
     case ChunkKind.Delta: return [1, 5 + 10 * n];
     case ChunkKind.Faces: return [1, 5 + 20 * t];
     case ChunkKind.Corners: return [1, 5 + 25 * t];

@@ -18,8 +18,8 @@ export {
   VertexOrder, crc32, describe, readAt,
 } from "./format.js";
 export type { AppearanceInfo, ChunkEntry, Header } from "./format.js";
-export { attributeEntry, band0Entries, dequantizeUv, readBand0Table, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
-export type { Charts, Material, Materials, Table, TextureRef, TexturedMesh } from "./appearance.js";
+export { attributeEntry, band0Entries, bandFaces, chartsNeedTriangles, dequantizeUv, needsAbove, needsFaces, readBand0Table, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
+export type { Charts, Faces, Material, Materials, Table, TextureRef, TexturedMesh } from "./appearance.js";
 export { readPositions } from "./payload.js";
 export { affineMotion, keyedMotion, lowerNeighbours, stencilWeights } from "./predict.js";
 export type { LowerNeighbours } from "./predict.js";

@@ -77,6 +77,15 @@ export class Cursor {
  * the zigzag-coded difference from the same corner of the triangle before (32-bit wrapping).
  */
 export function readTriangles(raw: Uint8Array, what: string, triangles: number, vertices: number, version: number): Uint32Array {
+  const start = version >= 7 ? coded(raw, what) : null;
+  if (start !== null) {
+    // Coding 1: a Faces chunk's coding 1 of every triangle in order (each gap 0).
+    const faces = readFacesCoded(raw, start, what, vertices, triangles);
+    if (faces.length !== triangles) throw new DecodeError(`${what}: ${faces.length} triangles where the header says ${triangles}`);
+    const tris = new Uint32Array(3 * triangles);
+    faces.forEach((f, i) => tris.set(f.corners, 3 * i));
+    return tris;
+  }
   const p = new Cursor(raw, what);
   const n = p.count(triangles, "triangles");
   if (n !== triangles) throw new DecodeError(`${what}: ${n} triangles`);
@@ -92,12 +101,29 @@ export function readTriangles(raw: Uint8Array, what: string, triangles: number, 
   return tris;
 }
 
+/** Key coding 3: the changes from frame 0's parent map of the band (proto/container.md, "Key"). */
+export const KEY_FROM_FIRST = 3;
+
+/** Whether a Key payload is in coding 3, which `readKey` reads with frame 0's parents. */
+export function keyFromFirst(raw: Uint8Array): boolean {
+  return raw.length > 2 && raw[0] === 0 && raw[1] === KEY_FROM_FIRST;
+}
+
 /**
  * A keyframe's parent map of `band` (empty for the top band); from version 7 each parent as the
- * zigzag-coded difference from the node before's (32-bit wrapping).
+ * zigzag-coded difference from the node before's (32-bit wrapping). In coding 3, `first` (the
+ * band's parents in frame 0's Key chunk) with the nodes the chunk lists moved.
  */
-export function readKey(raw: Uint8Array, what: string, sizes: number[], band: number, version: number): Uint32Array {
+export function readKey(raw: Uint8Array, what: string, sizes: number[], band: number, version: number, first?: Uint32Array): Uint32Array {
   const top = sizes.length - 1;
+  if (version >= 7 && keyFromFirst(raw)) {
+    if (band >= top) throw new DecodeError(`${what}: Key coding 3 in the top band`);
+    if (!first) throw new DecodeError(`${what}: Key coding 3 read without frame 0's parents (or in frame 0's Key chunk)`);
+    if (first.length !== sizes[band]) throw new DecodeError(`${what}: ${first.length} parents of frame 0 for ${sizes[band]} nodes`);
+    const parent = Uint32Array.from(first);
+    for (const [v, p] of readDeltaCoded(raw, 2, what, sizes[band], sizes[band + 1])) parent[v] = p;
+    return parent;
+  }
   const start = coded(raw, what);
   if (start !== null) return readKeyCoded(raw, start, what, band < top ? sizes[band] : 0, band < top ? sizes[band + 1] : 0);
   const c = new Cursor(raw, what);

@@ -73,11 +73,15 @@ export class Reader {
 
   /**
    * Whether a client whose finest level is `level` reads chunk `e`: readAt, and where band
-   * `level` is derived, the Triangles chunk and the Key and Delta chunks of the bands below it.
+   * `level` is derived, the Triangles chunk and the Key and Delta chunks of the bands below it,
+   * and frame 0's Key chunks below it where any interval derives it (Key coding 3).
    */
   reads(e: ChunkEntry, level: number): boolean {
     if (kindReadAt(e.kind, e.band, level)) return true;
     if (e.kind === ChunkKind.Triangles) return this.index.some((x) => x.band === level && entryIsDerived(x));
+    // Frame 0's Key chunks below `level` wherever band `level` is derived at all: a later
+    // keyframe's Key chunk may code its changes from frame 0's (Key coding 3).
+    if (e.kind === ChunkKind.Key && e.frame === 0 && e.band < level) return this.derives(0, level) || this.index.some((x) => x.band === level && entryIsDerived(x));
     if (e.kind === ChunkKind.Key || e.kind === ChunkKind.Delta) return e.band < level && this.derives(e.frame, level);
     return false;
   }

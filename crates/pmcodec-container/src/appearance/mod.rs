@@ -9,6 +9,7 @@
 //! - `cut`: a decoded cut's per-corner attributes and normals.
 //! - [`mod@format`]: the raw serialized types (header field, Materials chunk).
 
+pub mod across;
 mod chart_runs;
 pub(crate) mod charts;
 mod codes;
@@ -86,6 +87,7 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
     let charts = [payload::write_charts(builder.charts()), payload::write_charts_new_runs(builder.charts())]
         .into_iter()
         .chain(payload::write_charts_recent(builder.charts()))
+        .chain(payload::write_charts_neighbours(builder.charts(), builder.triangles()))
         .min_by_key(size)
         .unwrap_or_default();
     let mut out = vec![(ChunkKind::Charts, 0, charts), (ChunkKind::Materials, 0, materials)];
@@ -105,6 +107,11 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
             // (`tables` made every coarse value one of its children's).
             let mut codings = vec![payload::write_table(t, channels), payload::write_table_rans(t, channels)];
             let chart_of = &builder.charts().triangle_chart;
+            // Band j's faces in frame 0 (band 0's are the triangles, which mode 1 uses).
+            let faces = (j > 0)
+                .then(|| (0..j).map(|i| builder.first_parent(i)).collect::<Option<Vec<_>>>())
+                .flatten()
+                .and_then(|parents| across::band_faces(builder.triangles(), chart_of, &parents));
             for rans in [false, true] {
                 codings.push(payload::write_table_chartwise(t, channels, rans));
                 if j == 0 {
@@ -118,7 +125,16 @@ pub fn chunks(mut builder: tables::TableBuilder<'_>) -> Result<Vec<(crate::Chunk
                     for represented in [false, true] {
                         codings.extend(payload::write_table_entries_above(t, channels, parent, &above, rans, represented));
                     }
+                    // Or the values predicted across the band's own faces in frame 0.
+                    if let Some(faces) = &faces {
+                        for (represented, entries_above) in [(false, false), (true, false), (false, true), (true, true)] {
+                            let f = (&faces.0[..], &faces.1[..]);
+                            codings.extend(across::write_table_across(t, channels, parent, &above, f, rans, represented, entries_above));
+                        }
+                    }
                     if j == 0 {
+                        let tris = builder.triangles();
+                        codings.extend(across::write_table_derived_across(t, channels, tris, chart_of, parent, &above, rans));
                         codings.extend(payload::write_table_derived_represented(
                             t,
                             channels,

@@ -1,7 +1,9 @@
 //! The Charts and Attributes chunk payloads (varints, as every payload; proto/container.md,
 //! "Appearance").
 
-pub use super::chart_runs::{read_charts, write_charts, write_charts_new_runs, write_charts_recent};
+pub use super::chart_runs::{
+    charts_need_triangles, read_charts, read_charts_with, write_charts, write_charts_neighbours, write_charts_new_runs, write_charts_recent,
+};
 use super::codes::{put_codes, read_codes};
 use super::entries::{put_entries, put_entries_above, read_entries, read_entries_above};
 use super::format::AppearanceInfo;
@@ -113,7 +115,7 @@ pub fn write_table_entries_above(
 }
 
 /// Whether every represented entry's values equal its parent entry's.
-fn represented_agree(reps: &[Option<u32>], values: &[i32], above: &[i32], channels: usize) -> bool {
+pub(super) fn represented_agree(reps: &[Option<u32>], values: &[i32], above: &[i32], channels: usize) -> bool {
     reps.iter().enumerate().all(|(e, r)| {
         r.is_none_or(|a| values.get(e * channels..(e + 1) * channels) == above.get(a as usize * channels..(a as usize + 1) * channels))
     })
@@ -153,7 +155,7 @@ impl QuantizedTable {
 }
 
 /// The prediction of entry (node, chart)'s channel k from the band above, if it has the entry.
-fn from_above(above: Option<(&[u32], &Table)>, node: u32, chart: u32, channels: usize, k: usize) -> Option<i32> {
+pub(super) fn from_above(above: Option<(&[u32], &Table)>, node: u32, chart: u32, channels: usize, k: usize) -> Option<i32> {
     let (parent, table) = above?;
     let p = *parent.get(node as usize)?;
     let e = table.find(p, chart)?;
@@ -210,11 +212,11 @@ fn write_values(
 
 /// Set in a table's mode (after its first byte 0): the value residuals are a rANS section
 /// ([`put_codes`]) rather than varints. Files before it never set it.
-const RANS_VALUES: u32 = 8;
+pub(super) const RANS_VALUES: u32 = 8;
 /// Set in a table's mode with [`FROM_ABOVE`] or [`DERIVED_ENTRIES`]: representatives
 /// ([`representatives`]) take their parent entry's values and have no residual. Files before
 /// it never set it.
-const REPRESENTED: u32 = 16;
+pub(super) const REPRESENTED: u32 = 16;
 /// A decoded attribute table, indexed by node: entries of node n are `first[n]..first[n+1]`.
 #[derive(Clone, Debug, Default)]
 pub struct Table {
@@ -275,17 +277,20 @@ pub fn band0_entries(triangles: &[[u32; 3]], triangle_chart: &[u32]) -> Vec<(u32
 
 /// The coding of a band-0 table with *derived entries*: after a first byte 0 (no entries
 /// listed), this mode (proto/container.md, "Attributes, band j").
-const DERIVED_ENTRIES: u32 = 1;
+pub(super) const DERIVED_ENTRIES: u32 = 1;
 /// The coding of a listed table with chart-wise value differences ([`write_table_chartwise`]).
 const CHARTWISE: u32 = 2;
 /// The coding of a listed table with values predicted from the band above
 /// ([`write_table_from_above`]).
-const FROM_ABOVE: u32 = 3;
+pub(super) const FROM_ABOVE: u32 = 3;
 /// [`FROM_ABOVE`] with [`REPRESENTED`] ([`write_table_represented`]).
 const REPRESENTED_ABOVE: u32 = FROM_ABOVE | REPRESENTED;
 /// Set with [`FROM_ABOVE`]: the entries are coded from the band above's
 /// ([`put_entries_above`]). Files before it never set it.
-const ENTRIES_ABOVE: u32 = 32;
+pub(super) const ENTRIES_ABOVE: u32 = 32;
+/// Set with [`FROM_ABOVE`]: the values are predicted across the band's faces
+/// ([`super::across`]). Files before it never set it.
+pub(super) const ACROSS_FACES: u32 = 64;
 
 /// Band 0's traversal (proto/container.md, "Attributes, band 0 with derived entries"): the
 /// triangles in input order, each one's corners in order; a corner whose entry is not yet
@@ -297,7 +302,8 @@ const ENTRIES_ABOVE: u32 = 32;
 /// of the two known corners, the one known corner, the last entry made known in the
 /// triangle's chart, or the last entry made known (zeros at first). Arithmetic wraps in 32 bits, the mean is `(a + b) >> 1` (arithmetic shift).
 /// Entries `known` at the start (the representatives of a represented table, their values in
-/// `values`) are never visited; the others see them as known corners.
+/// `values`) are never visited; the others see them as known corners; `known` ends with the
+/// visited ones set too.
 #[allow(clippy::too_many_arguments)]
 fn traverse(
     table: &Table,
@@ -305,7 +311,7 @@ fn traverse(
     triangle_chart: &[u32],
     channels: usize,
     values: &mut [i32],
-    mut known: Vec<bool>,
+    known: &mut Vec<bool>,
     mut visit: impl FnMut(&[i32], &mut [i32]) -> Result<(), ContainerError>,
     what: &str,
 ) -> Result<(), ContainerError> {
@@ -404,7 +410,7 @@ fn write_derived(
     {
         return None;
     }
-    let known: Vec<bool> = reps.iter().map(Option::is_some).collect();
+    let mut known: Vec<bool> = reps.iter().map(Option::is_some).collect();
     let coded = t.entries.len() - known.iter().filter(|&&k| k).count();
     let mut values = t.values.clone();
     let mut residuals: Vec<Vec<u32>> = vec![Vec::with_capacity(t.entries.len()); channels];
@@ -418,7 +424,7 @@ fn write_derived(
     put(&mut out, 0);
     put(&mut out, DERIVED_ENTRIES | if above.is_some() { REPRESENTED } else { 0 } | if rans { RANS_VALUES } else { 0 });
     // The entries are the triangles' own: the traversal cannot miss one.
-    traverse(&table, triangles, triangle_chart, channels, &mut values, known, visit, "band 0 attributes").ok()?;
+    traverse(&table, triangles, triangle_chart, channels, &mut values, &mut known, visit, "band 0 attributes").ok()?;
     put_codes(&mut out, &residuals.concat(), coded, channels, rans);
     Some(out)
 }
@@ -449,7 +455,7 @@ pub fn read_band(
     band0: Option<(&[[u32; 3]], &[u32])>,
     above: Option<(&[u32], &Table)>,
 ) -> Result<Table, ContainerError> {
-    let flags = (RANS_VALUES | REPRESENTED) as u8;
+    let flags = (RANS_VALUES | REPRESENTED | ACROSS_FACES) as u8;
     if bytes.first() != Some(&0) || bytes.len() < 2 || bytes[1] & !flags != DERIVED_ENTRIES as u8 {
         return read_table_above(bytes, what, nodes, info, triangles, above);
     }
@@ -459,7 +465,8 @@ pub fn read_band(
     let mode = c.get()?;
     let rans = mode & RANS_VALUES != 0;
     let corrupt = |detail: String| ContainerError::Corrupt { what: what.into(), detail };
-    if mode & !(RANS_VALUES | REPRESENTED) != DERIVED_ENTRIES {
+    let across = mode & ACROSS_FACES != 0;
+    if mode & !(RANS_VALUES | REPRESENTED | ACROSS_FACES) != DERIVED_ENTRIES || (across && mode & REPRESENTED == 0) {
         return Err(corrupt(format!("table coding {mode} unknown")));
     }
     let Some((tris, chart_of)) = band0 else {
@@ -474,6 +481,21 @@ pub fn read_band(
     }
     let m = entries.len();
     let mut table = Table::index(&entries, nodes);
+    if across {
+        // Mode 1 | 16 | 64: the values across the triangles, averaged with the parent entry's.
+        let Some((parent, above)) = above else {
+            return Err(corrupt("represented values without the band above".into()));
+        };
+        let reps = representatives(&table, parent, above);
+        let coded = m - reps.iter().filter(|r| r.is_some()).count();
+        let codes = read_codes(&mut c, coded, channels, rans)?;
+        c.finish()?;
+        let faces = super::across::band_faces(tris, chart_of, &[]).ok_or_else(|| corrupt("triangles without charts".into()))?;
+        let node_of: Vec<u32> = entries.iter().map(|e| e.0).collect();
+        let f = (&faces.0[..], &faces.1[..]);
+        table.values = super::across::read_values(&table, &node_of, &reps, channels, (parent, above), f, &codes, coded, what)?;
+        return Ok(table);
+    }
     let mut values = vec![0i32; m * channels];
     let mut known = vec![false; m];
     if mode & REPRESENTED != 0 {
@@ -500,7 +522,7 @@ pub fn read_band(
         k += 1;
         Ok(())
     };
-    traverse(&table, tris, chart_of, channels, &mut values, known, visit, what)?;
+    traverse(&table, tris, chart_of, channels, &mut values, &mut known, visit, what)?;
     table.values = values;
     Ok(table)
 }
@@ -515,7 +537,7 @@ pub fn read_table(bytes: &[u8], what: &str, nodes: u32, info: &AppearanceInfo, t
 pub fn needs_above(bytes: &[u8]) -> bool {
     bytes.len() > 1
         && bytes[0] == 0
-        && (bytes[1] & !(RANS_VALUES as u8) == FROM_ABOVE as u8 || bytes[1] & (REPRESENTED | ENTRIES_ABOVE) as u8 != 0)
+        && (bytes[1] & !(RANS_VALUES as u8) == FROM_ABOVE as u8 || bytes[1] & (REPRESENTED | ENTRIES_ABOVE | ACROSS_FACES) as u8 != 0)
 }
 
 /// [`read_table`] with `above`: frame 0's parents of this band's nodes and the band above's
@@ -528,7 +550,23 @@ pub fn read_table_above(
     triangles: u32,
     above: Option<(&[u32], &Table)>,
 ) -> Result<Table, ContainerError> {
+    read_table_across(bytes, what, nodes, info, triangles, above, None)
+}
+
+/// [`read_table_above`] with `faces`: band j's faces in frame 0 and their charts
+/// ([`super::across::band_faces`]), which a table with values across the faces (mode `3 | 64`)
+/// needs ([`super::across::needs_faces`] says whether).
+pub fn read_table_across(
+    bytes: &[u8],
+    what: &str,
+    nodes: u32,
+    info: &AppearanceInfo,
+    triangles: u32,
+    above: Option<(&[u32], &Table)>,
+    faces: Option<(&[[u32; 3]], &[u32])>,
+) -> Result<Table, ContainerError> {
     let mut c = Cursor::new(bytes, what);
+    let mut across = false;
     let mut chartwise = false;
     let mut predicted = None;
     let mut rans = false;
@@ -540,9 +578,11 @@ pub fn read_table_above(
         rans = mode & RANS_VALUES != 0;
         represented = mode & REPRESENTED != 0;
         entries_above = mode & ENTRIES_ABOVE != 0;
-        match mode & !(RANS_VALUES | if entries_above { ENTRIES_ABOVE } else { 0 }) {
-            0 if rans && !entries_above => {}
-            CHARTWISE if !entries_above => chartwise = true,
+        across = mode & ACROSS_FACES != 0;
+        let flags = RANS_VALUES | if entries_above || across { ENTRIES_ABOVE | ACROSS_FACES } else { 0 };
+        match mode & !flags {
+            0 if rans && !entries_above && !across => {}
+            CHARTWISE if !entries_above && !across => chartwise = true,
             FROM_ABOVE | REPRESENTED_ABOVE => {
                 chartwise = true;
                 predicted = Some(above.ok_or_else(|| ContainerError::Corrupt {
@@ -587,6 +627,15 @@ pub fn read_table_above(
     };
     let coded = m - reps.iter().filter(|r| r.is_some()).count();
     let codes = read_codes(&mut c, coded, channels, rans)?;
+    if across {
+        let corrupt = |detail: &str| ContainerError::Corrupt { what: what.into(), detail: detail.into() };
+        let (Some(above), Some(faces)) = (predicted, faces) else {
+            return Err(corrupt("values across the band's faces without its faces"));
+        };
+        table.values = super::across::read_values(&table, &node_of, &reps, channels, above, faces, &codes, coded, what)?;
+        c.finish()?;
+        return Ok(table);
+    }
     for k in 0..channels {
         let mut last = vec![0i32; if chartwise { info.charts as usize } else { 1 }];
         let mut at = k * coded;

@@ -56,7 +56,7 @@ fn tables_and_charts_round_trip() {
     assert_eq!(read_charts(&coded, &info(), 6).unwrap(), charts);
     assert!(read_charts(&coded[..coded.len() - 1], &info(), 6).is_err());
     let mut odd = coded.clone();
-    odd[1] = 3;
+    odd[1] = 4;
     assert!(read_charts(&odd, &info(), 6).is_err(), "unknown charts coding");
     // A "next" chart beyond the count is an error, not a panic.
     let many = Charts { triangle_chart: vec![0, 1, 2], chart_material: vec![0, 0, 0], triangle_group: vec![0, 0, 0] };
@@ -326,4 +326,62 @@ fn derived_band0_tables_round_trip_and_fail_cleanly() {
     let mut odd = raw.clone();
     odd[1] = 2;
     assert!(read_table_with(&odd, "t", 40, &info(), 90, Some((&triangles, &chart_of))).is_err());
+}
+
+#[test]
+fn neighbour_charts_round_trip_with_the_triangles_and_fail_cleanly() {
+    // A grid of 30 x 20 quads in row order, its charts patches of 7 x 5 quads (so a row goes
+    // back and forth between patches and a patch's first row follows the one above), numbered
+    // in order of first use, the groups by rows.
+    let (w, h) = (30u32, 20u32);
+    let id = |x: u32, y: u32| y * (w + 1) + x;
+    let mut triangles = Vec::new();
+    let mut patch = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            triangles.push([id(x, y), id(x + 1, y), id(x + 1, y + 1)]);
+            triangles.push([id(x, y), id(x + 1, y + 1), id(x, y + 1)]);
+            patch.extend([x / 7 + 10 * (y / 5); 2]);
+        }
+    }
+    let mut order: Vec<u32> = Vec::new();
+    let triangle_chart: Vec<u32> = patch
+        .iter()
+        .map(|p| match order.iter().position(|q| q == p) {
+            Some(i) => i as u32,
+            None => {
+                order.push(*p);
+                order.len() as u32 - 1
+            }
+        })
+        .collect();
+    let n = triangles.len() as u32;
+    let charts = Charts {
+        chart_material: (0..order.len() as u32).map(|c| c % 2).collect(),
+        triangle_group: (0..n).map(|t| t / (2 * w)).collect(),
+        triangle_chart,
+    };
+    let info = AppearanceInfo { charts: order.len() as u32, groups: h, ..info() };
+    let coded = write_charts_neighbours(&charts, &triangles).unwrap();
+    assert_eq!(&coded[..2], &[0, 3]);
+    assert!(charts_need_triangles(&coded) && !charts_need_triangles(&write_charts_recent(&charts).unwrap()));
+    assert_eq!(read_charts_with(&coded, &info, n, Some(&triangles)).unwrap(), charts);
+    // Without the triangles, with too few, cut short, with too few charts: errors; damaged: an
+    // error or other charts, never a panic.
+    assert!(read_charts(&coded, &info, n).is_err());
+    assert!(read_charts_with(&coded, &info, n, Some(&triangles[1..])).is_err());
+    for cut in [2, 3, coded.len() / 2, coded.len() - 1] {
+        assert!(read_charts_with(&coded[..cut], &info, n, Some(&triangles)).is_err(), "cut {cut}");
+    }
+    for at in 2..coded.len() {
+        let mut bad = coded.clone();
+        bad[at] ^= 0x5A;
+        let _ = read_charts_with(&bad, &info, n, Some(&triangles));
+    }
+    let fewer = AppearanceInfo { charts: info.charts - 1, ..info.clone() };
+    assert!(read_charts_with(&coded, &fewer, n, Some(&triangles)).is_err());
+    // Charts not numbered in order of first use, or triangles and charts apart: no coding.
+    let odd = Charts { triangle_chart: vec![1, 0], chart_material: vec![0, 0], triangle_group: vec![0, 0] };
+    assert!(write_charts_neighbours(&odd, &triangles[..2]).is_none());
+    assert!(write_charts_neighbours(&charts, &triangles[1..]).is_none());
 }

@@ -23,6 +23,19 @@ impl<S: ByteSource> Decoder<S> {
         payload::read_triangles(&raw, "triangles chunk", h.triangle_count, h.vertex_count, self.reader.version())
     }
 
+    /// Band j's parent map at keyframe `frame`. A Key chunk in coding 3 (the changes from
+    /// frame 0's parent map, proto/container.md "Key") reads frame 0's Key chunk of the band too.
+    pub(super) fn read_parents(&self, frame: u32, j: usize) -> Result<Vec<u32>, ContainerError> {
+        let (sizes, version) = (&self.reader.header().level_sizes, self.reader.version());
+        let raw = self.chunk(ChunkKind::Key, frame, j)?;
+        let what = format!("frame {frame} band {j} keyframe");
+        if frame > 0 && payload::key_from_first(&raw) {
+            let first = payload::read_key(&self.chunk(ChunkKind::Key, 0, j)?, &format!("frame 0 band {j} keyframe"), sizes, j, version)?;
+            return payload::read_key_from(&raw, &what, sizes, j, version, Some(&first));
+        }
+        payload::read_key(&raw, &what, sizes, j, version)
+    }
+
     /// The levels below `min_level` at keyframe `frame`, for a band whose faces are derived:
     /// the input triangles and the keyframe's Key chunks of bands 0..min_level.
     pub(super) fn derive_below(&self, frame: u32) -> Result<Below, ContainerError> {
@@ -30,11 +43,9 @@ impl<S: ByteSource> Decoder<S> {
             Some(t) => t.clone(),
             None => std::sync::Arc::new(self.read_triangles()?),
         };
-        let sizes = &self.reader.header().level_sizes;
         let mut parents = Vec::with_capacity(self.min_level);
         for j in 0..self.min_level {
-            let raw = self.chunk(ChunkKind::Key, frame, j)?;
-            parents.push(payload::read_key(&raw, &format!("frame {frame} band {j} keyframe"), sizes, j, self.reader.version())?);
+            parents.push(self.read_parents(frame, j)?);
         }
         Ok(Below::new(fine, parents))
     }

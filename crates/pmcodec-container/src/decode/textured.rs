@@ -2,9 +2,12 @@
 //! with the first keyframe, images on demand, and a cut's mesh with its appearance.
 
 use super::Decoder;
+use crate::appearance::across::{band_faces, needs_faces};
 use crate::appearance::cut::{DecodedAppearance, textured_mesh};
 use crate::appearance::format::{AppearanceInfo, MaterialsChunk};
-use crate::appearance::payload::{Table, needs_above, read_band, read_charts, read_table_above};
+use crate::appearance::payload::{
+    Table, charts_need_triangles, needs_above, read_band, read_charts, read_charts_with, read_table_above, read_table_across,
+};
 use crate::format::ChunkKind;
 use crate::payload::{read_key, read_triangles};
 use crate::{ByteSource, ContainerError};
@@ -24,7 +27,24 @@ impl<S: ByteSource> Decoder<S> {
             self.looks = Some(DecodedAppearance::default());
             return Ok(());
         };
-        let charts = read_charts(&self.chunk(ChunkKind::Charts, 0, 0)?, &info, h.triangle_count)?;
+        // The triangles: a Charts chunk with neighbour charts and band 0's derived entries are
+        // read from them, and a band's faces in frame 0 are walked up from them.
+        let triangles = |this: &Self| -> Result<Vec<[u32; 3]>, ContainerError> {
+            match &this.triangles {
+                Some(t) => Ok(t.clone()),
+                None => {
+                    let e = this.reader.index().chunks.iter().find(|e| e.kind == ChunkKind::Triangles);
+                    let e = e.ok_or_else(|| ContainerError::Corrupt { what: "index".into(), detail: "no triangles chunk".into() })?;
+                    read_triangles(&this.reader.read_chunk(e)?, "triangles chunk", h.triangle_count, h.vertex_count, this.reader.version())
+                }
+            }
+        };
+        let raw = self.chunk(ChunkKind::Charts, 0, 0)?;
+        let charts = if charts_need_triangles(&raw) {
+            read_charts_with(&raw, &info, h.triangle_count, Some(&triangles(self)?))?
+        } else {
+            read_charts(&raw, &info, h.triangle_count)?
+        };
         let raw = self.chunk(ChunkKind::Materials, 0, 0)?;
         let materials: MaterialsChunk =
             postcard::from_bytes(&raw).map_err(|e| ContainerError::Corrupt { what: "materials chunk".into(), detail: e.to_string() })?;
@@ -49,24 +69,22 @@ impl<S: ByteSource> Decoder<S> {
                 None
             };
             let above_of = parent.as_ref().and_then(|p| above.as_ref().map(|t| (&p[..], t)));
-            let table = if j > 0 {
+            let table = if j > 0 && needs_faces(&raw) {
+                // Values across band j's faces in frame 0: the triangles walked up frame 0's
+                // parents of levels 0..j (their Key chunks), as a derived Faces chunk does.
+                let mut parents = Vec::with_capacity(j);
+                for i in 0..j {
+                    let key = self.chunk(ChunkKind::Key, 0, i)?;
+                    parents.push(read_key(&key, &format!("frame 0 band {i} keyframe"), &h.level_sizes, i, self.reader.version())?);
+                }
+                let refs: Vec<&[u32]> = parents.iter().map(Vec::as_slice).collect();
+                let faces = band_faces(&triangles(self)?, &charts.triangle_chart, &refs)
+                    .ok_or_else(|| ContainerError::Corrupt { what: what.clone(), detail: "a frame 0 parent map misses a node".into() })?;
+                read_table_across(&raw, &what, h.level_sizes[j], &info, h.triangle_count, above_of, Some((&faces.0, &faces.1)))?
+            } else if j > 0 {
                 read_table_above(&raw, &what, h.level_sizes[j], &info, h.triangle_count, above_of)?
             } else {
-                // Band 0's entries may be derived from the triangles (a level-0 client's own).
-                let triangles = match &self.triangles {
-                    Some(t) => t.clone(),
-                    None => {
-                        let e = self.reader.index().chunks.iter().find(|e| e.kind == ChunkKind::Triangles);
-                        let e = e.ok_or_else(|| ContainerError::Corrupt { what: "index".into(), detail: "no triangles chunk".into() })?;
-                        read_triangles(
-                            &self.reader.read_chunk(e)?,
-                            "triangles chunk",
-                            h.triangle_count,
-                            h.vertex_count,
-                            self.reader.version(),
-                        )?
-                    }
-                };
+                let triangles = triangles(self)?;
                 read_band(&raw, &what, h.level_sizes[j], &info, h.triangle_count, Some((&triangles, &charts.triangle_chart)), above_of)?
             };
             above = Some(table.clone());
