@@ -8,7 +8,7 @@ import { existsSync, mkdirSync, mkdtempSync, readdirSync, readFileSync, writeFil
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 import { FLAG_BANDS, FLAG_NAMES, frontDecode, parseTable } from "../src/container/format.js";
-import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, VertexOrder, attributeEntry, bandFaces, chartsNeedTriangles, dequantizeUv, needsFaces, readBand0Table, readCharts, readPositions, readTable, texturedMesh } from "../src/container/index.js";
+import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, type RevealFrom, VertexOrder, attributeEntry, bandFaces, chartsNeedTriangles, dequantizeUv, needsFaces, readBand0Table, readCharts, readPositions, readTable, texturedMesh } from "../src/container/index.js";
 import type { Faces } from "../src/container/index.js";
 import { keyFromFirst, readCornerUpdates, readDelta, readFaces, readKey, readTriangles } from "../src/container/payload.js";
 
@@ -61,6 +61,46 @@ test("decodes the same cut and positions as the Rust decoder", async () => {
       assert.ok(Math.abs(mesh.positions[i] - expected.positions[i]) <= 1e-5 * (1 + Math.abs(expected.positions[i])), `frame ${frame}: coordinate ${i}`);
     }
   }
+});
+
+test("partial splits (the option; budgets between levels) on a generated cloth, reveals ranked on the frame's or the keyframe's positions or banded: the same cut as the Rust decoder's `decode --budget-cut partial-frame`, `partial-keyframe`, `partial-banded1` and `partial-banded2`, and every shown triangle's corners are three distinct revealed nodes", async () => {
+  const frames = join(dir, "cloth-frames"), cloth = join(dir, "cloth.pmc");
+  execFileSync(bin, ["sample", "waving-cloth", "-q", "-o", frames, "--frames", "12"]);
+  execFileSync(bin, ["encode", "-q", frames, "-o", cloth, "--keyframe-interval", "8"]);
+  const c = await open(cloth);
+  const player = new Decoder(c, 0);
+  const tris = c.header.triangleCount;
+  let partial = 0;
+  const cases: [number, number, RevealFrom][] = [[0, 0.03, "frame"], [3, 0.17, "keyframe"], [3, 0.17, "frame"], [5, 0.2, "banded1"], [9, 0.41, "keyframe"], [11, 0.63, "frame"], [11, 0.9, "keyframe"], [10, 0.3, "keyframe"], [7, 0.35, "banded2"], [10, 0.5, "banded1"]];
+  for (const [frame, share, from] of cases) {
+    const budget = Math.round(share * tris), how = `partial-${from}`;
+    const out = join(dir, `cloth-${frame}-${budget}-${how}.obj`);
+    execFileSync(bin, ["decode", "-q", cloth, "--frame", String(frame), "--triangles", String(budget), "--budget-cut", how, "-o", out]);
+    const expected = readObj(out);
+    await player.seek(frame);
+    const pos = player.positions();
+    const r = player.replay;
+    r.selectTriangles(budget, player.revealBenefits(from), true);
+    const mesh = player.orderedMesh(pos);
+    assert.deepEqual(Array.from(mesh.indices), expected.indices, `${how} frame ${frame} budget ${budget}: triangles`);
+    assert.equal(mesh.positions.length, expected.positions.length, `${how} frame ${frame} budget ${budget}: vertices`);
+    for (let i = 0; i < expected.positions.length; i++) {
+      assert.ok(Math.abs(mesh.positions[i] - expected.positions[i]) <= 1e-5 * (1 + Math.abs(expected.positions[i])), `${how} frame ${frame} budget ${budget}: coordinate ${i}`);
+    }
+    assert.ok(r.shown.length <= budget);
+    const rep = r.cutNodes(), base = r.offsets[r.minLevel];
+    for (const t of r.shown) {
+      const g = [0, 1, 2].map((i) => rep[base + r.corners[3 * t + i]]);
+      assert.ok(g[0] !== g[1] && g[1] !== g[2] && g[0] !== g[2], `${how} frame ${frame} budget ${budget}: triangle ${t} has two corners on one node`);
+      for (const x of g) {
+        const p = r.parentGlobal(x);
+        assert.ok(x !== NONE && (p === NONE || r.expanded[p] || r.revealed[x]), `${how} frame ${frame} budget ${budget}: triangle ${t} on node ${x}, not revealed`);
+      }
+    }
+    // Revealed nodes whose parent is not expanded: the cut is partial there.
+    for (let g = 0; g < r.nodeCount; g++) if (r.revealed[g] && !r.expanded[r.parentGlobal(g)]) partial++;
+  }
+  assert.ok(partial > 0, "no budget made a partial split");
 });
 
 test("level 0 is the input within the quantization bound", async () => {

@@ -29,13 +29,15 @@ test("coarsest cut shows nothing, finest shows everything", () => {
   assert.equal(mesh.indices.length, 24);
 });
 
-test("budget cut never exceeds the budget", () => {
+test("budget cut never exceeds the budget, by whole splits and by partial splits", () => {
   const r = make();
   const pos = new Float32Array(13 * 3).map((_, i) => (i * 7919) % 13);
-  const err = r.splitBenefits(pos);
+  const err = r.splitBenefits(pos), reveal = r.revealBenefits(pos);
   for (const budget of [0, 1, 3, 5, 8]) {
     r.selectTriangles(budget, err);
-    assert.ok(r.shown.length <= budget, `${r.shown.length} > ${budget}`);
+    assert.ok(r.shown.length <= budget, `whole: ${r.shown.length} > ${budget}`);
+    r.selectTriangles(budget, reveal, true);
+    assert.ok(r.shown.length <= budget, `partial: ${r.shown.length} > ${budget}`);
   }
 });
 

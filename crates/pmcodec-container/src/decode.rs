@@ -25,7 +25,7 @@ use pmcodec_hierarchy::CutTarget;
 use pmcodec_hierarchy::NONE;
 use pmcodec_hierarchy::progressive::{CornerUpdate, FrameDelta, KeyBand, Keyframe, Replay};
 use pmcodec_hierarchy::recluster::Swap;
-use pmcodec_hierarchy::split_order::SplitOrder;
+use pmcodec_hierarchy::split_order::{SplitOrder, Steps};
 use pmcodec_mesh::TriMesh;
 
 /// Plays a container frame by frame down to a finest level. It owns its [`Reader`]; use
@@ -66,6 +66,78 @@ pub struct Decoder<S> {
     /// The levels below `min_level` while the current keyframe interval derives band
     /// `min_level`'s faces and corner updates (Faces coding 2).
     below: Option<Below>,
+    /// How budgets are cut.
+    budget_cut: BudgetCut,
+    /// Dequantized positions of the current interval's keyframe (every node, global ids):
+    /// what [`BudgetPriorities::Keyframe`] ranks reveals by on each frame of the interval;
+    /// empty unless the budget cut needs them (a server's many decoder states pay nothing).
+    key_positions: Vec<Vec3>,
+}
+
+/// How a decoder cuts vertex and triangle budgets (proto/container.md, "Cuts" and "Partial
+/// splits"). Every choice is stateless: a decoder that seeks to a frame computes the same cut
+/// whatever it decoded before.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BudgetCut {
+    /// The spec's cut: whole splits by budget priority ([`Replay::split_benefits_into`]).
+    #[default]
+    WholeSplits,
+    /// An option: partial splits, reveals ranked by reveal priorities from the positions
+    /// [`BudgetPriorities`] names; a cut between levels is a partial simplification (less
+    /// error there) but changes more from frame to frame. Files with attribute tables keep
+    /// whole splits (their tables cover a node's charts at its own level only).
+    PartialSplits(BudgetPriorities),
+}
+
+impl BudgetCut {
+    /// Whether the cut ranks by the keyframe's positions (which a decoder then keeps).
+    fn holds_keyframe(self) -> bool {
+        matches!(self, BudgetCut::PartialSplits(BudgetPriorities::Keyframe | BudgetPriorities::Banded { .. }))
+    }
+}
+
+/// Which positions the reveal priorities of a partial-split cut ([`BudgetCut::PartialSplits`])
+/// are computed from (proto/container.md, "Partial splits").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BudgetPriorities {
+    /// The frame's own positions: reveals ranked afresh every frame; the ranking of the
+    /// marginal reveals changes with every small motion, and the cut flickers.
+    #[default]
+    Frame,
+    /// The positions of the keyframe at or before the frame, on the frame's hierarchy: within
+    /// a keyframe interval only swaps change the ranking (steady), but the priorities go stale
+    /// as the surface moves away from the keyframe's pose.
+    Keyframe,
+    /// Both: reveals ranked by the band of the frame's own priority (`per_octave` bands per
+    /// factor 2, a power of two), and within a band by the keyframe's ([`banded_priority`]).
+    /// The frame decides what is far off; only a node crossing a band edge trades places.
+    Banded {
+        /// Bands per factor 2 of the frame's priority (1, 2, 4, ...).
+        per_octave: u32,
+    },
+}
+
+/// The key a [`BudgetPriorities::Banded`] cut ranks reveals by: the band of the frame's
+/// priority `current` (`floor(log2 current)` in `per_octave` steps, read exactly off the
+/// float's exponent and mantissa so every decoder agrees bit for bit), plus the keyframe's
+/// priority `held` squashed into [0, 1). Monotone in both, so a subtree's largest (what
+/// priorities are raised to) keeps the order's prefixes.
+pub fn banded_priority(current: f64, held: f64, per_octave: u32) -> f64 {
+    let k = i64::from(per_octave.max(1));
+    let band = if current > 0.0 && current.is_finite() {
+        let bits = current.to_bits();
+        let e = ((bits >> 52) & 0x7ff) as i64;
+        if e == 0 {
+            -2100 * k
+        } else {
+            let m = f64::from_bits((bits & ((1u64 << 52) - 1)) | (1023u64 << 52));
+            (e - 1023) * k + ((m - 1.0) * k as f64).floor() as i64
+        }
+    } else {
+        -2200 * k
+    };
+    let h = if held >= 0.0 && held.is_finite() { held } else { 0.0 };
+    band as f64 + h / (1.0 + h)
 }
 
 /// A decoder's state just after loading a keyframe: what seeking back to it restores.
@@ -95,7 +167,9 @@ struct Derived {
 }
 
 /// One split order of a frame and the priorities it is grown by: split priorities (RMS error,
-/// so an error bound is a prefix) or budget priorities ([`Replay::split_benefits_into`]).
+/// whole splits, so an error bound is a prefix) or reveal priorities
+/// ([`Replay::reveal_benefits_into`], partial splits, so a budget between levels is a partial
+/// simplification).
 #[derive(Clone, Default)]
 struct Ordered {
     /// Whether `priorities` and `order` are this frame's.
@@ -144,7 +218,30 @@ impl<S: ByteSource> Decoder<S> {
             skin: None,
             fine: None,
             below: None,
+            budget_cut: BudgetCut::default(),
+            key_positions: Vec::new(),
         })
+    }
+
+    /// Chooses how budgets are cut ([`BudgetCut`]; the default is the spec's whole splits).
+    /// Error bounds and levels are unaffected. A cut that ranks by the keyframe's positions
+    /// needs them: chosen at a frame, it decodes the frame again from its keyframe (the error
+    /// is that decoding's), since decoders keep them only while such a cut is chosen.
+    pub fn set_budget_cut(&mut self, c: BudgetCut) -> Result<(), ContainerError> {
+        if c == self.budget_cut {
+            return Ok(());
+        }
+        let needs = c.holds_keyframe() && !self.budget_cut.holds_keyframe();
+        self.budget_cut = c;
+        self.invalidate_derived();
+        if !c.holds_keyframe() {
+            self.key_positions = Vec::new();
+        }
+        if let (true, Some(f)) = (needs, self.frame) {
+            self.frame = None;
+            self.seek(f)?;
+        }
+        Ok(())
     }
 
     /// Keeps the state after each of the last `n` keyframes loaded (0, the default, keeps
@@ -276,9 +373,11 @@ impl<S: ByteSource> Decoder<S> {
             }
             self.frame = Some(key);
             self.kept.push(k);
+            self.hold_key_positions();
             return Ok(());
         }
         self.load_keyframe(key)?;
+        self.hold_key_positions();
         if let (true, Some(replay)) = (self.keep > 0, &self.replay) {
             if self.kept.len() >= self.keep {
                 self.kept.remove(0);
@@ -293,6 +392,16 @@ impl<S: ByteSource> Decoder<S> {
             });
         }
         Ok(())
+    }
+
+    /// Keeps the keyframe just entered's positions for [`BudgetPriorities::Keyframe`].
+    fn hold_key_positions(&mut self) {
+        if !self.budget_cut.holds_keyframe() {
+            return;
+        }
+        let mut key = std::mem::take(&mut self.key_positions);
+        self.positions_into(&mut key);
+        self.key_positions = key;
     }
 
     fn load_keyframe(&mut self, frame: u32) -> Result<(), ContainerError> {
@@ -581,11 +690,13 @@ impl<S: ByteSource> Decoder<S> {
         }
     }
 
-    /// Chooses the cut for `target` on the current frame and returns its mesh. Budgets and
-    /// error bounds are prefixes of the frame's split order (greedy by split priority; a
-    /// `MaxError` diagonal fraction is of the header's bounding box); a level is every node of
-    /// it. `Level(0)` (with a full-resolution decoder) gives every input vertex in input order
-    /// and the input triangles in input order.
+    /// Chooses the cut for `target` on the current frame and returns its mesh. Budgets are
+    /// prefixes of the frame's order of whole splits by budget priority (or of partial splits
+    /// by reveal priority, [`Decoder::set_budget_cut`]), error bounds of its order of whole
+    /// splits by split priority (a `MaxError` diagonal fraction is of the header's bounding
+    /// box); a level is every node of it (proto/container.md, "Cuts"). `Level(0)` (with a
+    /// full-resolution decoder) gives every input vertex in input order and the input
+    /// triangles in input order.
     pub fn mesh(&mut self, target: CutTarget) -> Result<TriMesh, ContainerError> {
         let mut mesh = TriMesh::default();
         self.mesh_into(target, &mut mesh)?;
@@ -630,8 +741,31 @@ impl<S: ByteSource> Decoder<S> {
             }
             CutTarget::Triangles(_) | CutTarget::Vertices(_) if !d.by_budget.ready => {
                 let o = &mut d.by_budget;
-                replay.split_benefits_into(&d.positions, &mut o.priorities);
-                o.order.reset(replay, &o.priorities);
+                // Attribute tables hold a node's entries for the charts around it at its own
+                // level only: a partially split node would need its finer triangles' charts.
+                let attributes = self.reader.header().appearance.as_ref().is_some_and(|a| a.channels() > 0);
+                let held = self.key_positions.len() == d.positions.len();
+                match self.budget_cut {
+                    BudgetCut::PartialSplits(p) if !attributes => {
+                        match p {
+                            BudgetPriorities::Keyframe if held => replay.reveal_benefits_into(&self.key_positions, &mut o.priorities),
+                            BudgetPriorities::Banded { per_octave } if held => {
+                                replay.reveal_benefits_into(&d.positions, &mut o.priorities);
+                                let mut key = Vec::new();
+                                replay.reveal_benefits_into(&self.key_positions, &mut key);
+                                for (x, h) in o.priorities.iter_mut().zip(&key) {
+                                    *x = banded_priority(*x, *h, per_octave);
+                                }
+                            }
+                            _ => replay.reveal_benefits_into(&d.positions, &mut o.priorities),
+                        }
+                        o.order.reset_steps(replay, &o.priorities, Steps::PartialSplits);
+                    }
+                    _ => {
+                        replay.split_benefits_into(&d.positions, &mut o.priorities);
+                        o.order.reset_steps(replay, &o.priorities, Steps::WholeSplits);
+                    }
+                }
                 o.ready = true;
             }
             _ => {}
@@ -649,6 +783,35 @@ impl<S: ByteSource> Decoder<S> {
     /// nodes (input triangle order is not kept): what identifies a shown triangle from frame to
     /// frame, for a tool that measures how much cuts change. `Level` targets are refused.
     pub fn cut_triangles(&mut self, target: CutTarget) -> Result<Vec<[u32; 3]>, ContainerError> {
+        self.with_prefix(target, |replay, order, k| {
+            let corners = replay.corners();
+            order.shown(k).iter().filter_map(|&t| corners.get(t as usize)).map(|c| c.map(|v| order.cut_node_of(replay, v, k))).collect()
+        })
+    }
+
+    /// [`Decoder::cut_triangles`], and for every vertex of the finest level decoded (the input's
+    /// vertices at `min_level` 0) the cut node whose cluster holds it: what identifies a shown
+    /// triangle by the content of its corners' clusters, the same way for every method `pmcodec
+    /// eval` compares (node ids persist only within one file). `Level` targets are refused.
+    pub fn cut_clusters(&mut self, target: CutTarget) -> Result<(Vec<[u32; 3]>, Vec<u32>), ContainerError> {
+        self.with_prefix(target, |replay, order, k| {
+            let corners = replay.corners();
+            let n = replay.h.level_sizes[replay.min_level];
+            let nodes: Vec<u32> = (0..n).map(|v| order.cut_node_of(replay, v, k)).collect();
+            let triangles = order
+                .shown(k)
+                .iter()
+                .filter_map(|&t| corners.get(t as usize))
+                .map(|c| c.map(|v| nodes.get(v as usize).copied().unwrap_or(NONE)))
+                .collect();
+            (triangles, nodes)
+        })
+    }
+
+    /// Runs `f` on the current frame's replay, the split order `target` is a prefix of, and
+    /// the prefix's length (what [`Decoder::cut_triangles`] and [`Decoder::cut_clusters`]
+    /// read). `Level` targets are refused.
+    fn with_prefix<T>(&mut self, target: CutTarget, f: impl FnOnce(&Replay, &SplitOrder, usize) -> T) -> Result<T, ContainerError> {
         if let CutTarget::Level(l) = target {
             return Err(ContainerError::Options(format!("cut triangles of level {l}: give a budget or an error")));
         }
@@ -659,40 +822,12 @@ impl<S: ByteSource> Decoder<S> {
                 let (priorities, order) = Ordered::pick(&mut d.by_error, &mut d.by_budget, target);
                 // Never `Err`: levels are refused above.
                 let k = order.prefix(replay, priorities, target, diagonal).unwrap_or_default();
-                let corners = replay.corners();
-                Ok(order
-                    .shown(k)
-                    .iter()
-                    .filter_map(|&t| corners.get(t as usize))
-                    .map(|c| c.map(|v| order.cut_node_of(replay, v, k)))
-                    .collect())
+                Ok(f(replay, order, k))
             }
             None => Err(ContainerError::Options("seek to a frame first".into())),
         };
         self.derived = Some(d);
         result
-    }
-
-    /// [`Decoder::cut_triangles`], and for every vertex of the finest level decoded (the input's
-    /// vertices at `min_level` 0) the cut node whose cluster holds it: what identifies a shown
-    /// triangle by the content of its corners' clusters, the same way for every method `pmcodec
-    /// eval` compares (node ids persist only within one file). `Level` targets are refused.
-    pub fn cut_clusters(&mut self, target: CutTarget) -> Result<(Vec<[u32; 3]>, Vec<u32>), ContainerError> {
-        let triangles = self.cut_triangles(target)?;
-        let diagonal = self.diagonal();
-        let mut d = self.take_derived(target)?;
-        let result = match self.replay.as_ref() {
-            Some(replay) => {
-                let (priorities, order) = Ordered::pick(&mut d.by_error, &mut d.by_budget, target);
-                // Never `Err`: `cut_triangles` refused levels.
-                let k = order.prefix(replay, priorities, target, diagonal).unwrap_or_default();
-                let n = replay.h.level_sizes[replay.min_level];
-                Ok((0..n).map(|v| order.cut_node_of(replay, v, k)).collect())
-            }
-            None => Err(ContainerError::Options("seek to a frame first".into())),
-        };
-        self.derived = Some(d);
-        result.map(|nodes| (triangles, nodes))
     }
 
     fn cut(&mut self, target: CutTarget, d: &mut Derived, mesh: &mut TriMesh) -> Result<(), ContainerError> {

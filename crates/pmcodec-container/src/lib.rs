@@ -26,7 +26,7 @@ mod skin;
 pub mod testing;
 mod topology;
 
-pub use decode::Decoder;
+pub use decode::{BudgetCut, BudgetPriorities, Decoder, banded_priority};
 pub use derive::{derives, reads};
 pub use encode::{
     DerivedTopology, EncodeOptions, EncodeReport, FRAMES_AHEAD, PaletteCoding, QuantizationChoice, SkinPlacement, StreamError, encode,

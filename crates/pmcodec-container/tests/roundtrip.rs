@@ -469,3 +469,125 @@ fn encoding_stops_when_progress_says_so() {
     let all = encode_until(&seq, &EncodeOptions::default(), |_| std::ops::ControlFlow::Continue(())).unwrap();
     assert_eq!(all, encode(&seq, &EncodeOptions::default(), |_| {}).unwrap());
 }
+
+/// Budgets between levels cut by partial splits (an option, proto/container.md, "Partial
+/// splits"): on generated meshes
+/// every vertex budget from the coarsest level to full resolution gets exactly that many
+/// vertices (whole splits add a cluster's children less one at a time, three on these 4-ary
+/// hierarchies, and missed most budgets), every triangle budget at most that many triangles,
+/// and the vertices of `cut_clusters` are the mesh's.
+#[test]
+fn vertex_budgets_between_levels_are_met_exactly() {
+    for (name, seq) in
+        [("cloth", pmcodec_mesh::samples::waving_cloth(30, 24, 4)), ("tube", pmcodec_mesh::samples::twisting_tube(24, 20, 4))]
+    {
+        let bytes = encode(&seq, &EncodeOptions::default(), |_| {}).expect("encode");
+        let reader = Reader::open(bytes.as_slice()).expect("open");
+        let sizes = reader.header().level_sizes.clone();
+        let mut d = Decoder::new(reader, 0).expect("decoder");
+        d.set_budget_cut(BudgetCut::PartialSplits(BudgetPriorities::Frame)).expect("cut");
+        d.seek(3).expect("seek");
+        let (top, fine) = (*sizes.last().expect("levels"), sizes[0]);
+        let mut partial = 0;
+        for n in (top..=fine).step_by(7) {
+            let m = d.mesh(CutTarget::Vertices(n)).expect("cut");
+            let (triangles, nodes) = d.cut_clusters(CutTarget::Vertices(n)).expect("clusters");
+            assert_eq!(triangles.len(), m.triangles.len(), "{name}: budget {n}");
+            let mut distinct = nodes.clone();
+            distinct.sort_unstable();
+            distinct.dedup();
+            assert_eq!(distinct.len() as u32, n, "{name}: budget {n} (levels {sizes:?}): drawn nodes");
+            // A drawn node all of whose fine triangles stand on it twice (a corner of the open
+            // cloth) is no vertex of the mesh: rare.
+            assert!(
+                m.positions.len() as u32 <= n && m.positions.len() as u32 + 3 >= n,
+                "{name}: budget {n}: {} vertices",
+                m.positions.len()
+            );
+            partial += usize::from(!sizes.contains(&n));
+            let t = 2 * n;
+            assert!(d.mesh(CutTarget::Triangles(t)).expect("cut").triangles.len() as u32 <= t, "{name}: budget {t} triangles");
+        }
+        assert!(partial > 10, "{name}: {partial} budgets between levels");
+    }
+}
+
+/// Shown triangles by node ids, as sets of sorted corner triples, for churn.
+fn triangle_keys(triangles: &[[u32; 3]]) -> std::collections::HashSet<[u32; 3]> {
+    triangles
+        .iter()
+        .map(|t| {
+            let mut k = *t;
+            k.sort_unstable();
+            k
+        })
+        .collect()
+}
+
+/// Partial-split cuts ranked by the keyframe's positions through its interval
+/// (proto/container.md, "Partial splits") are stateless (a decoder that seeks straight to a
+/// frame, one that plays up to it and one that comes back to it from a later interval cut
+/// alike, and so does one that chooses the cut at the frame), the same as ranking by the
+/// frame's own positions on a keyframe, and steadier than
+/// it within an interval: on generated cloths and tubes fewer shown triangles change per frame,
+/// summed over budgets between levels. The default cut (whole splits) differs from both.
+#[test]
+fn partial_splits_held_through_a_keyframe_interval_are_stateless_and_steadier() {
+    for (name, seq) in
+        [("cloth", pmcodec_mesh::samples::waving_cloth(24, 20, 12)), ("tube", pmcodec_mesh::samples::twisting_tube(20, 16, 12))]
+    {
+        let bytes = encode(&seq, &EncodeOptions { keyframe_interval: 6, ..Default::default() }, |_| {}).expect("encode");
+        let reader = Reader::open(bytes.as_slice()).expect("open");
+        let tris = reader.header().triangle_count;
+        // Between levels: a quarter, a third and half of the triangles.
+        let budgets = [tris / 4, tris / 3, tris / 2];
+        let (mut held_churn, mut fresh_churn) = (0usize, 0usize);
+        let held = BudgetCut::PartialSplits(BudgetPriorities::Keyframe);
+        let mut playing = Decoder::new(reader.borrowed(), 0).expect("decoder");
+        playing.set_budget_cut(held).expect("cut");
+        let mut per_frame = Decoder::new(reader.borrowed(), 0).expect("decoder");
+        per_frame.set_budget_cut(BudgetCut::PartialSplits(BudgetPriorities::Frame)).expect("cut");
+        let mut whole = Decoder::new(reader.borrowed(), 0).expect("decoder");
+        let mut differs = 0;
+        let mut last: Vec<Option<[std::collections::HashSet<[u32; 3]>; 2]>> = vec![None; budgets.len()];
+        for f in 0..seq.frame_count() as u32 {
+            playing.seek(f).expect("seek");
+            per_frame.seek(f).expect("seek");
+            whole.seek(f).expect("seek");
+            let mut straight = Decoder::new(reader.borrowed(), 0).expect("decoder");
+            straight.set_budget_cut(held).expect("cut");
+            straight.seek(f).expect("seek");
+            let mut back = Decoder::new(reader.borrowed(), 0).expect("decoder");
+            back.set_budget_cut(held).expect("cut");
+            back.seek(seq.frame_count() as u32 - 1).expect("seek");
+            back.seek(f).expect("seek");
+            // Chosen at the frame: the decoder goes back for the keyframe's positions.
+            let mut late = Decoder::new(reader.borrowed(), 0).expect("decoder");
+            late.seek(f).expect("seek");
+            late.set_budget_cut(held).expect("cut");
+            assert_eq!(late.frame(), Some(f));
+            for (i, &b) in budgets.iter().enumerate() {
+                let target = CutTarget::Triangles(b);
+                let m = playing.mesh(target).expect("cut");
+                assert_eq!(m, straight.mesh(target).expect("cut"), "{name} frame {f} budget {b}: played against seeked");
+                assert_eq!(m, back.mesh(target).expect("cut"), "{name} frame {f} budget {b}: played against seeked back");
+                assert_eq!(m, late.mesh(target).expect("cut"), "{name} frame {f} budget {b}: cut chosen at the frame");
+                if f % 6 == 0 {
+                    assert_eq!(m, per_frame.mesh(target).expect("cut"), "{name} keyframe {f} budget {b}");
+                }
+                differs += usize::from(m != whole.mesh(target).expect("cut"));
+                let keys = [
+                    triangle_keys(&playing.cut_triangles(target).expect("cut")),
+                    triangle_keys(&per_frame.cut_triangles(target).expect("cut")),
+                ];
+                if let Some(prev) = &last[i] {
+                    held_churn += keys[0].difference(&prev[0]).count();
+                    fresh_churn += keys[1].difference(&prev[1]).count();
+                }
+                last[i] = Some(keys);
+            }
+        }
+        assert!(held_churn < fresh_churn, "{name}: {held_churn} triangles changed with held priorities, {fresh_churn} with each frame's");
+        assert!(differs > 0, "{name}: partial splits cut as whole splits at every budget");
+    }
+}

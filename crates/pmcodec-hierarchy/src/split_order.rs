@@ -14,6 +14,21 @@
 //! The order is a pure function of the hierarchy, the degenerate sets and the priorities:
 //! ties go to the smaller node id and each split's triangles are taken in ascending order, so
 //! two decoders at the same frame produce byte-identical meshes whatever their history.
+//!
+//! Two kinds of step ([`Steps`]): *whole splits* (a step splits node P, all its children
+//! appear at once: what error bounds and, by default, budgets take) and *partial splits* (a
+//! step reveals one child c of a revealed node P: what budgets take as an option,
+//! proto/container.md "Partial splits", so a budget between two levels is a true partial
+//! simplification). A partial cut is the set of revealed nodes, closed under parents (the top
+//! level always revealed); a level-L vertex stands for its deepest revealed ancestor, and a
+//! revealed node is drawn while a child of it is unrevealed, for those children. When a
+//! reveal leaves P one unrevealed child, that child is revealed in the same step: P would
+//! stand for that child's cluster alone, and the child's own decoded position is exact there
+//! (one vertex more per step, none when the child was P's only one). A triangle of D_P shows
+//! once at most one of the children of P holding its corners is unrevealed (before that two
+//! of its corners stand for the same node); it never leaves, so shown triangles are still a
+//! prefix of the order of appearance. Whole splits are the special case where every child of
+//! P is revealed in one step.
 
 use crate::NONE;
 use crate::cut::ByError;
@@ -23,16 +38,31 @@ use glam::Vec3;
 use pmcodec_mesh::TriMesh;
 use std::collections::BinaryHeap;
 
+/// What one step of a [`SplitOrder`] does (see the module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Steps {
+    /// A step splits a node: all its children appear; priorities are per split node
+    /// ([`Replay::node_errors`]).
+    #[default]
+    WholeSplits,
+    /// A step reveals one child of a revealed node (two when only one would be left);
+    /// priorities are per revealed node ([`Replay::reveal_benefits_into`]).
+    PartialSplits,
+}
+
 /// The split order of one frame (see the module docs). Built from a [`Replay`] and that
 /// frame's priorities; it must be rebuilt when the replay moves to another frame.
 #[derive(Clone, Debug, Default)]
 pub struct SplitOrder {
+    /// Whole or partial splits.
+    steps: Steps,
     /// Frontier of the greedy refinement not yet ordered.
     heap: BinaryHeap<ByError>,
-    /// Position in the order of each split node (global id); NONE while not (yet) ordered.
+    /// Position in the order of each split node (whole splits) or of each revealed node
+    /// (partial splits), global ids; NONE while not (yet) ordered.
     rank: Vec<u32>,
-    /// Per node (global id): its parent (global id) and the parent's rank, NONE for a top
-    /// node or a parent not (yet) ordered. A corner's walk up to its cut node reads one pair
+    /// Per node (global id): its parent (global id) and the step that reveals the node (its
+    /// parent's split, with whole splits), NONE for a top node or a step not (yet) ordered. A corner's walk up to its cut node reads one pair
     /// per level from this one array, instead of a per-level parent map and the rank array:
     /// the walk is a chain of dependent loads, and a server holding many frames' states
     /// mostly misses the caches on each of them.
@@ -48,6 +78,8 @@ pub struct SplitOrder {
     appearing: Vec<u32>,
     /// Their level-L corners, in the same order (read sequentially by `mesh`).
     appearing_corners: Vec<[u32; 3]>,
+    /// Whether each triangle is in `appearing` (partial splits show a D set piecewise).
+    appeared: Vec<bool>,
     /// Scratch of `mesh`: output index of each node, and of each level-L corner (a corner is
     /// walked up once per mesh however many triangles share it); NONE between calls.
     index: Vec<u32>,
@@ -55,16 +87,25 @@ pub struct SplitOrder {
 }
 
 impl SplitOrder {
-    /// The order's start: the coarsest cut (nothing split) of `replay`'s current frame.
+    /// The order's start: the coarsest cut (nothing split) of `replay`'s current frame, with
+    /// whole splits by split priorities `errors`.
     pub fn new(replay: &Replay, errors: &[f64]) -> SplitOrder {
         let mut order = SplitOrder::default();
         order.reset(replay, errors);
         order
     }
 
-    /// Starts the order again for `replay`'s current frame, keeping the memory (a player that
-    /// cuts every frame allocates nothing once its buffers have grown).
+    /// Starts the order again for `replay`'s current frame (whole splits), keeping the memory
+    /// (a player that cuts every frame allocates nothing once its buffers have grown).
     pub fn reset(&mut self, replay: &Replay, errors: &[f64]) {
+        self.reset_steps(replay, errors, Steps::WholeSplits);
+    }
+
+    /// Starts the order again for `replay`'s current frame with `steps`: `priorities` are per
+    /// split node (whole splits) or per revealed node (partial splits).
+    pub fn reset_steps(&mut self, replay: &Replay, priorities: &[f64], steps: Steps) {
+        let errors = priorities;
+        self.steps = steps;
         let h = &replay.h;
         let top = h.top();
         let nodes = h.node_count();
@@ -77,12 +118,20 @@ impl SplitOrder {
                 self.appearing_corners.push(corners.get(t).copied().unwrap_or([NONE; 3]));
             }
         }
+        self.appeared.clear();
+        self.appeared.resize(corners.len(), false);
         self.heap.clear();
-        self.heap.extend(
-            (h.offsets[top]..h.offsets[top + 1])
-                .filter(|&g| replay.expandable(g))
-                .map(|g| ByError(errors.get(g as usize).copied().unwrap_or(0.0), g)),
-        );
+        let priority = |g: u32| ByError(errors.get(g as usize).copied().unwrap_or(0.0), g);
+        let tops = (h.offsets[top]..h.offsets[top + 1]).filter(|&g| replay.expandable(g));
+        match steps {
+            Steps::WholeSplits => self.heap.extend(tops.map(priority)),
+            // The top level is always revealed: its children are the first candidates.
+            Steps::PartialSplits => {
+                for g in tops {
+                    self.heap.extend(replay.children_of(g).iter().map(|&c| priority(c)));
+                }
+            }
+        }
         // The parent maps change from frame to frame, so `up` is rebuilt over every node
         // anyway: ranks are too, in the same pass over memory.
         self.rank.clear();
@@ -108,7 +157,7 @@ impl SplitOrder {
         self.corner_index.resize(h.level_sizes[replay.min_level] as usize, NONE);
     }
 
-    /// Splits ordered so far.
+    /// Steps (splits or reveals) ordered so far.
     pub fn len(&self) -> usize {
         self.priority.len()
     }
@@ -118,13 +167,87 @@ impl SplitOrder {
         self.priority.is_empty()
     }
 
-    /// Position of node `g` in the order, if it has been ordered.
+    /// The step that splits node `g` (whole splits) or reveals it (partial splits), if it has
+    /// been ordered.
     pub fn rank(&self, g: u32) -> Option<u32> {
         self.rank.get(g as usize).copied().filter(|&r| r != NONE)
     }
 
-    /// Orders one more split (false when every splittable node is ordered).
+    /// Orders one more step (false when every step is ordered).
     fn grow(&mut self, replay: &Replay, errors: &[f64]) -> bool {
+        match self.steps {
+            Steps::WholeSplits => self.grow_split(replay, errors),
+            Steps::PartialSplits => self.grow_reveal(replay, errors),
+        }
+    }
+
+    /// Orders one more partial split: the candidate child with the highest priority is
+    /// revealed (with P's last unrevealed child when only that one would be left), and the
+    /// triangles of D_P that now have at most one corner in an unrevealed child appear.
+    fn grow_reveal(&mut self, replay: &Replay, benefits: &[f64]) -> bool {
+        // Candidates a step revealed as a last child are still in the heap: skipped here.
+        let (priority, c) = loop {
+            match self.heap.pop() {
+                None => return false,
+                Some(ByError(b, c)) if self.rank.get(c as usize) == Some(&NONE) => break (b, c),
+                Some(_) => {}
+            }
+        };
+        let i = self.priority.len() as u32;
+        let p = self.up.get(c as usize).map_or(NONE, |u| u[0]);
+        self.order.push(c);
+        self.priority.push(priority);
+        let mut revealed = [c, NONE];
+        let mut left = replay.children_of(p).iter().filter(|&&x| x != c && self.rank.get(x as usize) == Some(&NONE));
+        if let (Some(&last), None) = (left.next(), left.next()) {
+            revealed[1] = last;
+        }
+        for &x in revealed.iter().filter(|&&x| x != NONE) {
+            if let Some(r) = self.rank.get_mut(x as usize) {
+                *r = i;
+            }
+            if let Some(up) = self.up.get_mut(x as usize) {
+                up[1] = i;
+            }
+            if replay.expandable(x) {
+                self.heap.extend(replay.children_of(x).iter().map(|&y| ByError(benefits.get(y as usize).copied().unwrap_or(0.0), y)));
+            }
+        }
+        // Whether P is no longer drawn (every child of it revealed after this step).
+        let done = !replay.children_of(p).iter().any(|&x| self.rank.get(x as usize) == Some(&NONE));
+        let start = self.appearing.len();
+        let levels = replay.h.levels();
+        let base = replay.h.offsets[replay.min_level];
+        let corners = replay.corners();
+        for &t in replay.degenerate_set(p) {
+            if self.appeared.get(t as usize) != Some(&false) {
+                continue;
+            }
+            let Some(&c3) = corners.get(t as usize) else { continue };
+            // Corners under P lie in distinct children (two in one child would meet below P).
+            let hidden = c3
+                .iter()
+                .filter(|&&v| child_under(&self.up, base + v, p, levels).is_some_and(|x| self.rank.get(x as usize) == Some(&NONE)))
+                .count();
+            if hidden <= 1 {
+                self.appeared[t as usize] = true;
+                self.appearing.push(t);
+            }
+        }
+        self.appearing[start..].sort_unstable();
+        for i in start..self.appearing.len() {
+            let t = self.appearing[i] as usize;
+            self.appearing_corners.push(corners.get(t).copied().unwrap_or([NONE; 3]));
+        }
+        let (shown, cut) = (self.shown_after[i as usize], self.nodes_after[i as usize]);
+        let added = if revealed[1] == NONE { 1 } else { 2 };
+        self.shown_after.push(shown + (self.appearing.len() - start) as u32);
+        self.nodes_after.push(cut + added - u32::from(done));
+        true
+    }
+
+    /// Orders one more whole split (false when every splittable node is ordered).
+    fn grow_split(&mut self, replay: &Replay, errors: &[f64]) -> bool {
         let Some(ByError(priority, g)) = self.heap.pop() else { return false };
         let i = self.priority.len() as u32;
         self.rank[g as usize] = i;
@@ -273,7 +396,24 @@ impl SplitOrder {
     }
 }
 
-/// See [`SplitOrder::cut_node_of`]: walks up while the parent's rank is not below `k`.
+/// The child of `p` on the way up from node `g` (global ids), if `p` is an ancestor of `g`.
+#[inline]
+fn child_under(up: &[[u32; 2]], mut g: u32, p: u32, levels: usize) -> Option<u32> {
+    // At most `levels` steps: a corrupt map cannot loop.
+    for _ in 0..levels {
+        let parent = up.get(g as usize)?[0];
+        if parent == p {
+            return Some(g);
+        }
+        if parent == NONE {
+            return None;
+        }
+        g = parent;
+    }
+    None
+}
+
+/// See [`SplitOrder::cut_node_of`]: walks up while the node's reveal is not before step `k`.
 #[inline]
 fn cut_node_of(up: &[[u32; 2]], replay: &Replay, v: u32, k: usize) -> u32 {
     let mut g = replay.h.offsets[replay.min_level] + v;

@@ -62,6 +62,10 @@ pub struct DecodeArgs {
     /// (a finite number >= 0).
     #[arg(long, allow_hyphen_values = true)]
     pub max_error: Option<f64>,
+    /// How --triangles and --vertices budgets are cut (proto/container.md, "Cuts", "Partial
+    /// splits"): the spec's whole splits, or partial splits.
+    #[arg(long, value_enum, default_value_t = crate::eval_cmd::BudgetCutArg::Whole)]
+    pub budget_cut: crate::eval_cmd::BudgetCutArg,
     /// Output: .glb or .obj (a folder with --all-frames).
     #[arg(short, long)]
     pub output: PathBuf,
@@ -238,6 +242,7 @@ pub fn decode_cmd(args: DecodeArgs, quiet: bool) -> Result<(), Exit> {
     };
     let mut dec =
         Decoder::new(reader.borrowed(), min_level).map_err(|e| container_error(e, format!("reading {}", args.input.display())))?;
+    dec.set_budget_cut(args.budget_cut.into()).map_err(|e| container_error(e, format!("reading {}", args.input.display())))?;
     let written = if args.all_frames {
         decode_all(&mut dec, &args, target, quiet)?
     } else {

@@ -13,6 +13,36 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::path::PathBuf;
 
+/// [`pmcodec_container::BudgetCut`] on the command line (`eval --budget-cut`, `decode
+/// --budget-cut`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum BudgetCutArg {
+    /// Whole splits by budget priority (the spec's cut).
+    Whole,
+    /// Partial splits, reveals ranked on each frame's positions.
+    PartialFrame,
+    /// Partial splits, reveals ranked on the keyframe's positions through its interval.
+    PartialKeyframe,
+    /// Partial splits, reveals ranked by the band (one per factor 2) of the frame's reveal
+    /// priority, then by the keyframe's.
+    PartialBanded1,
+    /// The same with two bands per factor 2.
+    PartialBanded2,
+}
+
+impl From<BudgetCutArg> for pmcodec_container::BudgetCut {
+    fn from(a: BudgetCutArg) -> Self {
+        use pmcodec_container::{BudgetCut::*, BudgetPriorities::*};
+        match a {
+            BudgetCutArg::Whole => WholeSplits,
+            BudgetCutArg::PartialFrame => PartialSplits(Frame),
+            BudgetCutArg::PartialKeyframe => PartialSplits(Keyframe),
+            BudgetCutArg::PartialBanded1 => PartialSplits(Banded { per_octave: 1 }),
+            BudgetCutArg::PartialBanded2 => PartialSplits(Banded { per_octave: 2 }),
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum MethodArg {
     /// Frame 0's clusters for every frame, positions re-solved per frame.
@@ -70,6 +100,10 @@ pub struct EvalArgs {
     /// With --sweep: also draw the ratios to direct against the budget as a PNG.
     #[arg(long, value_name = "FILE.png", requires = "sweep")]
     pub plot: Option<std::path::PathBuf>,
+    /// How the container's budget cuts are made (proto/container.md, "Cuts", "Partial
+    /// splits"): the spec's whole splits, or partial splits for comparison.
+    #[arg(long, value_enum, default_value_t = BudgetCutArg::Whole)]
+    pub budget_cut: BudgetCutArg,
     /// Also measure a .pmc container of the same sequence as a client sees it: each frame
     /// decoded (quantized positions) and cut by the file's own split order at the same vertex
     /// count (and at the coherence budget). Reported as method `container`.
@@ -244,6 +278,7 @@ fn container_report(
         ));
     }
     let mut d = Decoder::new(reader.borrowed(), 0).map_err(|e| container_error(e, format!("reading {}", path.display())))?;
+    d.set_budget_cut(args.budget_cut.into()).map_err(|e| container_error(e, format!("reading {}", path.display())))?;
     let bar = progress(frames as u64, "container", quiet);
     let mut meshes = Vec::with_capacity(frames);
     let mut keys: Vec<Vec<[u64; 3]>> = Vec::new();

@@ -158,6 +158,7 @@ fn container_meshes(args: &EvalArgs, bytes: &[u8], seq: &Sequence, frames: &[usi
         ));
     }
     let mut d = pmcodec_container::Decoder::new(reader, 0).map_err(|e| container_error(e, format!("reading {name}")))?;
+    d.set_budget_cut(args.budget_cut.into()).map_err(|e| container_error(e, format!("reading {name}")))?;
     let mut out = Vec::with_capacity(frames.len());
     for &f in frames {
         let at = || format!("{name} frame {f}");

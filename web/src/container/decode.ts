@@ -26,6 +26,32 @@ export interface DecoderOptions {
 /** Per node (global id): bind position in bind quanta, up to four palette entries and weights (0: unused). */
 export interface SkinAttributes { bind: Float32Array; joints: Uint16Array; weights: Float32Array }
 
+/** Which positions a partial-split cut's reveal priorities come from (`Decoder.revealBenefits`). */
+export type RevealFrom = "frame" | "keyframe" | "banded1" | "banded2";
+
+/**
+ * The key a banded partial-split cut ranks reveals by (proto/container.md, "Partial splits"):
+ * the band of the frame's priority `current` in `perOctave` steps per factor 2, read off the
+ * double's exponent and mantissa (exact, as Rust's `banded_priority`), plus the keyframe's
+ * priority `held` squashed into [0, 1).
+ */
+export function bandedPriority(current: number, held: number, perOctave: number): number {
+  const k = Math.max(1, perOctave);
+  let band: number;
+  if (current > 0 && Number.isFinite(current)) {
+    const view = new DataView(new ArrayBuffer(8));
+    view.setFloat64(0, current);
+    const hi = view.getUint32(0), e = (hi >>> 20) & 0x7ff;
+    if (e === 0) band = -2100 * k;
+    else {
+      view.setUint32(0, (hi & 0xfffff) | (1023 << 20));
+      band = (e - 1023) * k + Math.floor((view.getFloat64(0) - 1) * k);
+    }
+  } else band = -2200 * k;
+  const h = held >= 0 && Number.isFinite(held) ? held : 0;
+  return band + h / (1 + h);
+}
+
 /** Plays a container down to a finest level: hierarchy (Replay) and quantized node positions. */
 export class Decoder {
   replay: Replay;
@@ -57,6 +83,8 @@ export class Decoder {
   private keyPending: { key: Int32Array; palette: BigInt64Array | null } | null = null;
   /** With offsets held: the bands whose `current` holds positions while a frame decodes. */
   private exactCur: Uint8Array;
+  /** Dequantized positions of the current interval's keyframe: what a partial-split cut with held priorities ranks reveals by. */
+  private keyPositions: Float32Array | null = null;
 
   constructor(readonly reader: Reader, readonly minLevel: number, opts: DecoderOptions = {}) {
     this.skinOffsets = opts.skinOffsets ?? false;
@@ -137,7 +165,27 @@ export class Decoder {
       if (this.holdsOffsets) { this.weights = null; this.keyPending = { key: this.current.slice(0, 3 * h.vertexCount), palette: this.skin!.palette }; }
       else this.weights = stencilWeights(this.lower, this.current, h.vertexCount);
     }
+    // With offsets held the player ranks by the bind pose instead (session.ts): no CPU skinning for it.
+    this.keyPositions = this.holdsOffsets ? null : this.positions();
     this.frame = k;
+  }
+
+  /**
+   * Reveal priorities for a partial-split cut (an option, proto/container.md "Partial splits";
+   * `selectTriangles(budget, benefits, true)`), from the positions `from` names: the frame's
+   * own, the keyframe's at or before the frame (held through its interval, on the frame's own
+   * hierarchy), or banded with 1 or 2 bands per factor 2 (the band of the frame's priority,
+   * then the keyframe's): the Rust decoder's `BudgetPriorities`, bit for bit. With offsets
+   * held, the frame's positions for all.
+   */
+  revealBenefits(from: RevealFrom = "frame"): Float64Array {
+    const key = this.keyPositions;
+    if (from === "frame" || !key) return this.replay.revealBenefits(this.positions());
+    if (from === "keyframe") return this.replay.revealBenefits(key);
+    const now = this.replay.revealBenefits(this.positions()), held = this.replay.revealBenefits(key);
+    const perOctave = from === "banded1" ? 1 : 2;
+    for (let g = 0; g < now.length; g++) now[g] = bandedPriority(now[g], held[g], perOctave);
+    return now;
   }
 
   private async step(f: number): Promise<void> {
@@ -266,6 +314,16 @@ export class Decoder {
 
   /** Whether `current` holds offsets from skinned positions (DecoderOptions.skinOffsets on a skinned file). */
   get holdsOffsets(): boolean { return this.skinOffsets && this.skin !== null; }
+
+  /**
+   * Whether budgets may take partial splits (an option, proto/container.md "Partial splits"):
+   * not on files with attribute tables (texture coordinates or colours), whose entries cover
+   * only the charts around a node at its own level; there they keep whole splits.
+   */
+  get partialSplits(): boolean {
+    const a = this.reader.header.appearance;
+    return !a || channels(a) === 0;
+  }
 
   /** Whether the file is skinned (known once a frame is decoded). */
   get skinned(): boolean { return this.skin !== null; }

@@ -25,8 +25,8 @@ export { affineMotion, keyedMotion, lowerNeighbours, stencilWeights } from "./pr
 export type { LowerNeighbours } from "./predict.js";
 export { Reader } from "./read.js";
 export type { ReadAt } from "./read.js";
-export { Decoder } from "./decode.js";
-export type { DecoderOptions, SkinAttributes } from "./decode.js";
+export { Decoder, bandedPriority } from "./decode.js";
+export type { DecoderOptions, RevealFrom, SkinAttributes } from "./decode.js";
 export type { SkinHeader } from "./skin.js";
 export { BELOW, MaxHeap, NONE, Replay } from "./replay.js";
 export type { CornerUpdate, FrameDelta, KeyBand, Swap } from "./replay.js";

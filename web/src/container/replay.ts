@@ -37,6 +37,11 @@ export class Replay {
   slotInSet: Uint32Array;
   children: number[][];
   expanded: Uint8Array;
+  /**
+   * Nodes a partial split revealed (proto/container.md, "Cuts"): a revealed node is drawn for
+   * its unrevealed children; a node every child of which is revealed is expanded.
+   */
+  revealed: Uint8Array;
   shown: number[] = [];
   slotInShown: Uint32Array;
 
@@ -55,6 +60,7 @@ export class Replay {
     this.slotInSet = new Uint32Array(triangleCount).fill(NONE);
     this.children = Array.from({ length: total }, () => []);
     this.expanded = new Uint8Array(total);
+    this.revealed = new Uint8Array(total);
     this.slotInShown = new Uint32Array(triangleCount).fill(NONE);
     this.marked = new Uint8Array(triangleCount);
   }
@@ -135,6 +141,7 @@ export class Replay {
       for (let v = 0; v < p.length; v++) this.children[this.offsets[k + 1] + p[v]].push(this.offsets[k] + v);
     }
     this.expanded.fill(0);
+    this.revealed.fill(0);
     this.shown.length = 0;
     this.slotInShown.fill(NONE);
     for (let t = 0; t < this.triangleCount; t++) if (this.nodeOf[t] === NONE) this.show(t);
@@ -252,14 +259,19 @@ export class Replay {
     if (g === NONE || (g !== BELOW && this.expanded[g])) this.show(t); else this.hide(t);
   }
 
-  /** For every node at minLevel and above, the cut node standing for it (NONE if expanded). */
+  /**
+   * For every node at minLevel and above, the cut node standing for it (NONE if expanded): its
+   * deepest ancestor (itself included) that is a top-level node, a child of an expanded node or
+   * revealed by a partial split.
+   */
   cutNodes(): Uint32Array {
     const rep = new Uint32Array(this.nodeCount).fill(NONE);
     for (let k = this.top; k >= this.minLevel; k--) {
       for (let v = 0; v < this.levelSizes[k]; v++) {
         const g = this.offsets[k] + v;
-        const above = k === this.top ? NONE : rep[this.offsets[k + 1] + this.parent[k][v]];
-        rep[g] = above !== NONE ? above : this.expanded[g] ? NONE : g;
+        const p = k === this.top ? NONE : this.offsets[k + 1] + this.parent[k][v];
+        const shownHere = p === NONE || this.expanded[p] || this.revealed[g];
+        rep[g] = !shownHere ? rep[p] : this.expanded[g] ? NONE : g;
       }
     }
     return rep;
@@ -274,7 +286,7 @@ export class Replay {
   nodeErrors(positions: Float32Array): Float64Array {
     const nodes = this.nodeCount, err = new Float64Array(nodes), q = this.clusterQuadrics(positions);
     for (let g = this.offsets[this.minLevel + 1] ?? nodes; g < nodes; g++) {
-      const e = quadricAt(q, g, positions);
+      const e = quadricAt(q, g, positions, g);
       err[g] = q[11 * g + 10] > 0 && e > 0 ? Math.sqrt(e / q[11 * g + 10]) : 0;
     }
     this.subtreeMax(err);
@@ -282,16 +294,37 @@ export class Replay {
   }
 
   /**
-   * Budget priorities (proto/container.md, "Cuts"), what `selectTriangles` is given: a node's
-   * own benefit is sqrt(Q(x) / sqrt(area)), its RMS error scaled by the fourth root of its
-   * cluster's area (a wide cluster outranks a tiny one as far off), its priority the largest in
-   * its subtree. Every operation in the Rust decoder's order.
+   * Budget priorities (proto/container.md, "Cuts"), what `selectTriangles` is given for the
+   * spec's whole splits: a node's own benefit is sqrt(Q(x) / sqrt(area)), its RMS error scaled
+   * by the fourth root of its cluster's area (a wide cluster outranks a tiny one as far off),
+   * its priority the largest in its subtree. Every operation in the Rust decoder's order.
    */
   splitBenefits(positions: Float32Array): Float64Array {
     const nodes = this.nodeCount, out = new Float64Array(nodes), q = this.clusterQuadrics(positions);
     for (let g = this.offsets[this.minLevel + 1] ?? nodes; g < nodes; g++) {
-      const e = quadricAt(q, g, positions), area = q[11 * g + 10];
+      const e = quadricAt(q, g, positions, g), area = q[11 * g + 10];
       out[g] = area > 0 && e > 0 ? Math.sqrt(e / Math.sqrt(area)) : 0;
+    }
+    this.subtreeMax(out);
+    return out;
+  }
+
+  /**
+   * Reveal priorities (proto/container.md, "Partial splits"), what `selectTriangles` is given
+   * with `partial`: revealing
+   * child c of node P is worth dQ = Q_c(x_P) - Q_c(x_c) with c's cluster quadric (Garland &
+   * Heckbert's cost of collapsing c into P), as sqrt(dQ / sqrt(area)); a node's priority is the
+   * largest in its subtree. Every operation in the Rust decoder's order.
+   */
+  revealBenefits(positions: Float32Array): Float64Array {
+    const out = new Float64Array(this.nodeCount), q = this.clusterQuadrics(positions);
+    for (let k = this.minLevel; k < this.top; k++) {
+      const p = this.parent[k];
+      for (let v = 0; v < p.length; v++) {
+        const c = this.offsets[k] + v, a = this.offsets[k + 1] + p[v], area = q[11 * c + 10];
+        const dq = quadricAt(q, c, positions, a) - quadricAt(q, c, positions, c);
+        out[c] = area > 0 && dq > 0 ? Math.sqrt(dq / Math.sqrt(area)) : 0;
+      }
     }
     this.subtreeMax(out);
     return out;
@@ -355,15 +388,63 @@ export class Replay {
   appearing: number[] = [];
 
   /**
-   * Replaces the cut by the longest prefix of the frame's split order (greedy by priority) that
-   * shows at most `budget` triangles: splits are taken until the first one that does not fit.
+   * Replaces the cut by the longest prefix of the frame's split order that shows at most
+   * `budget` triangles: by default whole splits greedy by `benefits` (budget priorities,
+   * `splitBenefits`: the spec's cut, proto/container.md "Cuts"); with `partial`, partial splits
+   * greedy by reveal priorities (an option, "Partial splits"): reveals
+   * are taken until the first one that does not fit. A reveal of child c of P also reveals P's
+   * last unrevealed child when only that one would be left; the triangles of D_P that then have
+   * at most one corner under an unrevealed child of P appear.
    */
-  selectTriangles(budget: number, errors: Float64Array): void {
-    for (let g = 0; g < this.nodeCount; g++) if (this.expanded[g]) this.collapse(g);
+  selectTriangles(budget: number, benefits: Float64Array, partial = false): void {
+    if (!partial) { this.selectWhole(budget, benefits); return; }
+    this.expanded.fill(0);
+    this.revealed.fill(0);
+    for (const t of [...this.shown]) if (this.nodeOf[t] !== NONE) this.hide(t);
     this.appearing = [...this.shown].sort((a, b) => a - b);
     let used = this.shown.length;
     const heap = new MaxHeap();
-    for (let g = this.offsets[this.top]; g < this.offsets[this.top + 1]; g++) if (this.expandable(g)) heap.push(errors[g], g);
+    for (let g = this.offsets[this.top]; g < this.offsets[this.top + 1]; g++) {
+      if (this.expandable(g)) for (const c of this.children[g]) heap.push(benefits[c], c);
+    }
+    const fresh: number[] = [];
+    while (heap.size > 0) {
+      const c = heap.pop();
+      if (this.revealed[c]) continue;
+      const p = this.parentGlobal(c);
+      let last = NONE, left = 0;
+      for (const x of this.children[p]) if (x !== c && !this.revealed[x]) { left++; last = x; }
+      this.revealed[c] = 1;
+      if (left === 1) this.revealed[last] = 1;
+      fresh.length = 0;
+      for (const t of this.sets[p].items) if (!this.isShown(t) && this.hiddenCorners(t, p) <= 1) fresh.push(t);
+      if (used + fresh.length > budget) {
+        this.revealed[c] = 0;
+        if (left === 1) this.revealed[last] = 0;
+        break;
+      }
+      fresh.sort((a, b) => a - b);
+      for (const t of fresh) { this.show(t); this.appearing.push(t); }
+      used += fresh.length;
+      if (left <= 1) this.expanded[p] = 1;
+      for (const x of left === 1 ? [c, last] : [c]) {
+        if (this.expandable(x)) for (const y of this.children[x]) heap.push(benefits[y], y);
+      }
+    }
+  }
+
+  /**
+   * The longest prefix of the frame's order of whole splits (greedy by `priorities`) that shows
+   * at most `budget` triangles: splits are taken until the first one that does not fit.
+   */
+  private selectWhole(budget: number, priorities: Float64Array): void {
+    this.revealed.fill(0);
+    for (let g = 0; g < this.nodeCount; g++) if (this.expanded[g]) this.collapse(g);
+    for (const t of [...this.shown]) if (this.nodeOf[t] !== NONE) this.hide(t);
+    this.appearing = [...this.shown].sort((a, b) => a - b);
+    let used = this.shown.length;
+    const heap = new MaxHeap();
+    for (let g = this.offsets[this.top]; g < this.offsets[this.top + 1]; g++) if (this.expandable(g)) heap.push(priorities[g], g);
     while (heap.size > 0) {
       const g = heap.pop();
       const set = this.sets[g].items;
@@ -371,14 +452,32 @@ export class Replay {
       this.expand(g);
       used += set.length;
       for (const t of [...set].sort((a, b) => a - b)) this.appearing.push(t);
-      for (const c of this.children[g]) if (this.expandable(c)) heap.push(errors[c], c);
+      for (const c of this.children[g]) if (this.expandable(c)) heap.push(priorities[c], c);
     }
+  }
+
+  /** Whether triangle t is shown. */
+  isShown(t: number): boolean { return this.slotInShown[t] !== NONE; }
+
+  /** Corners of triangle t under a child of p that is not revealed (at most 3). */
+  private hiddenCorners(t: number, p: number): number {
+    let hidden = 0;
+    for (let i = 0; i < 3; i++) {
+      let k = this.minLevel, v = this.corners[3 * t + i];
+      // Up to the child of p on the corner's chain (none when p is not its ancestor).
+      while (k < this.top) {
+        const up = this.offsets[k + 1] + this.parent[k][v];
+        if (up === p) { if (!this.revealed[this.offsets[k] + v]) hidden++; break; }
+        v = this.parent[k][v]; k++;
+      }
+    }
+    return hidden;
   }
 }
 
-/** x^T A x + 2 b.x + c of node g's quadric at its position, in the Rust decoder's operation order. */
-function quadricAt(q: Float64Array, g: number, positions: Float32Array): number {
-  const m = 11 * g, x = positions[3 * g], y = positions[3 * g + 1], z = positions[3 * g + 2];
+/** x^T A x + 2 b.x + c of node g's quadric at node at's position, in the Rust decoder's operation order. */
+function quadricAt(q: Float64Array, g: number, positions: Float32Array, at: number): number {
+  const m = 11 * g, x = positions[3 * at], y = positions[3 * at + 1], z = positions[3 * at + 2];
   const ax = q[m] * x + q[m + 1] * y + q[m + 2] * z;
   const ay = q[m + 1] * x + q[m + 3] * y + q[m + 4] * z;
   const az = q[m + 2] * x + q[m + 4] * y + q[m + 5] * z;
