@@ -135,7 +135,7 @@ fn trial_frames(frames: usize, interval: usize) -> Vec<usize> {
         return (0..frames.min(TRIAL_FRAMES)).collect();
     }
     let intervals = frames.div_ceil(interval);
-    let take = intervals.min(TRIAL_INTERVALS).max(1);
+    let take = intervals.clamp(1, TRIAL_INTERVALS);
     let mut out = Vec::new();
     for i in 0..take {
         // Evenly spread: the first and (with two or more) the last interval among them.
