@@ -337,7 +337,9 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
     let encoding = Instant::now();
     let what = || format!("encoding {}", args.input.display());
     let frames = if rest.is_some() || sampler.is_some() { seq.frame_names.len() } else { seq.frame_count() };
-    let bar = progress(frames as u64 * (1 + fitted.is_some() as u64), "encode", quiet || args.json);
+    // The exhaustive skin choice may encode twice; the trial's once.
+    let twice = fitted.is_some() && args.skin_choice == SkinChoiceArg::Exhaustive;
+    let bar = progress(frames as u64 * (1 + twice as u64), "encode", quiet || args.json);
     let mut fitted_out = None;
     // What the encoder refuses is the input or an option value out of range: bad input.
     let bytes = if let Some((fit, fit_seconds)) = fitted {
