@@ -3,10 +3,12 @@
 
 mod posed;
 mod positions;
+mod skin_choice;
 
 use posed::check_frame;
 pub use posed::encode_posed;
 pub use positions::EncodeReport;
+pub use skin_choice::{SkinTrial, skin_trial};
 
 use crate::ContainerError;
 pub use crate::derive::DerivedTopology;

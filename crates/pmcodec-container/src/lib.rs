@@ -29,8 +29,8 @@ mod topology;
 pub use decode::{BudgetCut, BudgetPriorities, Decoder, banded_priority};
 pub use derive::{derives, reads};
 pub use encode::{
-    DerivedTopology, EncodeOptions, EncodeReport, FRAMES_AHEAD, PaletteCoding, QuantizationChoice, SkinPlacement, StreamError, encode,
-    encode_posed, encode_stream, encode_until, encode_with_report, write_file,
+    DerivedTopology, EncodeOptions, EncodeReport, FRAMES_AHEAD, PaletteCoding, QuantizationChoice, SkinPlacement, SkinTrial, StreamError,
+    encode, encode_posed, encode_stream, encode_until, encode_with_report, skin_trial, write_file,
 };
 pub use format::{ChunkEntry, ChunkKind, Header, Index, Motion, VertexOrder};
 pub use pmcodec_hierarchy::{CutTarget, Distance};

@@ -5,8 +5,8 @@ use crate::{EXIT_BAD_INPUT, EXIT_FAILURE, Exit, progress};
 use anyhow::{Context, anyhow};
 use clap::{Args, ValueEnum};
 use pmcodec_container::{
-    ContainerError, DerivedTopology, EncodeOptions, FileSource, Motion, QuantizationChoice, Reader, SkinPlacement, SkinnedCoarse,
-    StreamError, VertexOrder, encode, encode_posed, encode_stream, encode_with_report, summary, write_file,
+    ContainerError, DerivedTopology, EncodeOptions, FileSource, Motion, QuantizationChoice, Reader, SkinPlacement, SkinTrial,
+    SkinnedCoarse, StreamError, VertexOrder, encode, encode_posed, encode_stream, encode_with_report, skin_trial, summary, write_file,
 };
 use pmcodec_hierarchy::base::{PoseSet, VertexWeights};
 use pmcodec_hierarchy::recluster::ReclusterOptions;
@@ -44,6 +44,15 @@ pub enum DerivedArg {
     Never,
     WhenCheaper,
     PerBand,
+}
+
+/// How `encode --fit-skin` tells whether the fitted skin pays (`--skin-choice`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SkinChoiceArg {
+    /// From a trial coding of the input vertices both ways before the encode: one encode.
+    Estimate,
+    /// From the files themselves: up to three encodes, the smallest kept.
+    Exhaustive,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -120,6 +129,12 @@ pub struct EncodeArgs {
     /// `decode --skinned-glb`, which exports a file's skin as a skinned glTF).
     #[arg(long, requires = "fit_skin")]
     pub keep_skin: bool,
+    /// With --fit-skin: how the encoder tells whether the skin pays. `estimate` codes the
+    /// input vertices both ways on a sample of keyframe intervals before the encode and
+    /// encodes once; `exhaustive` encodes with the skin and, where that does not clearly pay,
+    /// without it (and with every joint at every level), keeping the smallest file.
+    #[arg(long, value_enum, default_value_t = SkinChoiceArg::Estimate, requires = "fit_skin")]
+    pub skin_choice: SkinChoiceArg,
     /// Print what was written (sizes, times, the fitted skin and whether it was used) as JSON
     /// on stdout.
     #[arg(long)]
@@ -281,14 +296,17 @@ struct FittedSkinOutput {
     /// Whether the file predicts by the fitted skin; if not, why.
     used: bool,
     reason: String,
-    /// The file's size with the fitted skin (`bytes` when it was used), and its pose (bone
-    /// transforms, every frame), bind (every node's weights and bind position) and position
-    /// bytes.
-    bytes_with_skin: u64,
+    /// The trial that told whether the skin pays before the encode (`--skin-choice
+    /// estimate`; none with --keep-skin or `exhaustive`).
+    trial: Option<SkinTrial>,
+    /// The file's size with the fitted skin (`bytes` when it was used; none when the trial
+    /// dropped the skin and no file with it was made), and its pose (bone transforms, every
+    /// frame), bind (every node's weights and bind position) and position bytes.
+    bytes_with_skin: Option<u64>,
     pose_bytes: u64,
     bind_bytes: u64,
     positions_bytes_with_skin: u64,
-    encoder: pmcodec_container::EncodeReport,
+    encoder: Option<pmcodec_container::EncodeReport>,
 }
 
 pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
@@ -338,11 +356,19 @@ pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
     let encoding = Instant::now();
     let what = || format!("encoding {}", args.input.display());
     let frames = if rest.is_some() || sampler.is_some() { seq.frame_names.len() } else { seq.frame_count() };
-    let bar = progress(frames as u64 * (1 + fitted.is_some() as u64), "encode", quiet || args.json);
+    // The exhaustive skin choice may encode twice; the trial's once.
+    let twice = fitted.is_some() && args.skin_choice == SkinChoiceArg::Exhaustive;
+    let bar = progress(frames as u64 * (1 + twice as u64), "encode", quiet || args.json);
     let mut fitted_out = None;
     // What the encoder refuses is the input or an option value out of range: bad input.
     let bytes = if let Some((fit, fit_seconds)) = fitted {
-        let (bytes, out) = encode_fitted(&mut seq, &opts, (fit, fit_seconds, args.keep_skin), &bar, &what())?;
+        let (bytes, out) = encode_fitted(
+            &mut seq,
+            &opts,
+            (fit, fit_seconds, args.keep_skin, args.skin_choice == SkinChoiceArg::Exhaustive),
+            &bar,
+            &what(),
+        )?;
         fitted_out = Some(out);
         bytes
     } else {
@@ -526,15 +552,54 @@ fn encode_read(
     })
 }
 
-/// Encodes `seq` with its fitted skin, and without it when the skin does not pay for its
-/// bytes (unless `keep`, from --keep-skin); returns the file kept and what `--json` says of the fit.
+/// Encodes `seq` with its fitted skin, or without it when the skin does not pay for its bytes
+/// (unless `keep`, from --keep-skin); returns the file kept and what `--json` says of the fit.
+/// Whether it pays is told before the encode by [`skin_trial`] (`exhaustive` false), or by
+/// encoding with it and, where that does not clearly pay, without it too.
 fn encode_fitted(
     seq: &mut pmcodec_mesh::Sequence,
     opts: &EncodeOptions,
-    (fit, fit_seconds, keep): (pmcodec_mesh::skin_fit::FitReport, f64, bool),
+    (fit, fit_seconds, keep, exhaustive): (pmcodec_mesh::skin_fit::FitReport, f64, bool, bool),
     bar: &indicatif::ProgressBar,
     what: &str,
 ) -> Result<(Vec<u8>, FittedSkinOutput), Exit> {
+    let mut trial = None;
+    if !(keep || exhaustive) {
+        let t = skin_trial(seq, opts).map_err(|e| container_error(e, what))?;
+        if !t.pays() {
+            let reason = format!(
+                "a trial over {} of {} frames: skinning saved about {} bytes of the input vertices' residuals for {} bytes of \
+                 bones and {} of their weights",
+                t.frames_coded,
+                t.frames,
+                t.plain_bytes.saturating_sub(t.skinned_bytes),
+                t.pose_bytes,
+                t.bind_bytes
+            );
+            seq.skin = None;
+            let bytes = encode(seq, opts, |_| bar.inc(1)).map_err(|e| container_error(e, what))?;
+            let out = FittedSkinOutput {
+                bones: fit.bones,
+                rms_error: fit.rms_error,
+                max_error: fit.max_error,
+                sample_vertices: fit.sample_vertices,
+                counts_tried: fit.counts_tried,
+                alternations: fit.alternations,
+                fit_seconds,
+                fit_share: 0.0,
+                used: false,
+                reason,
+                trial: Some(t),
+                bytes_with_skin: None,
+                pose_bytes: 0,
+                bind_bytes: 0,
+                positions_bytes_with_skin: 0,
+                encoder: None,
+            };
+            return Ok((bytes, out));
+        }
+        trial = Some(t);
+    }
     let (mut bytes, report) = encode_with_report(seq, opts, |_| {
         bar.inc(1);
         ControlFlow::Continue(())
@@ -557,8 +622,8 @@ fn encode_fitted(
     let bytes_with_skin = bytes.len() as u64;
     // The estimate is about: within a quarter of the skin's cost either way (the horse at
     // 12 bits estimated 121,212 saved for 119,550 and was 0.4% larger), the plain file is
-    // encoded too and the smaller kept.
-    let mut used = saved as f64 > 1.25 * skin_bytes as f64;
+    // encoded too and the smaller kept. After a trial that said the skin pays, it is kept.
+    let mut used = trial.is_some() || saved as f64 > 1.25 * skin_bytes as f64;
     if keep && !used {
         reason.push_str("; kept as --keep-skin asks");
         used = true;
@@ -599,11 +664,12 @@ fn encode_fitted(
         fit_share: 0.0,
         used,
         reason,
-        bytes_with_skin,
+        trial,
+        bytes_with_skin: Some(bytes_with_skin),
         pose_bytes: s.pose_bytes,
         bind_bytes: s.bind_bytes.iter().sum(),
         positions_bytes_with_skin: positions,
-        encoder: report,
+        encoder: Some(report),
     };
     Ok((bytes, out))
 }

@@ -352,12 +352,12 @@ fn estimated_bits(seq: &Sequence, data: &Data, held: &Data, fit: &Fit, opts: &Fi
     let quantum = (extent / ((1u64 << opts.quant_bits) - 1) as f64).max(f64::MIN_POSITIVE);
     let near = cluster::near_bones(&held.rest, &cluster::centroids(&data.rest, &main_bones(fit), fit.bones));
     let all: Vec<usize> = (0..held.frames.len()).collect();
-    let mut counts: std::collections::HashMap<i64, u64> = std::collections::HashMap::new();
-    let mut influences = 0usize;
-    for i in 0..held.len() {
+    // Held-out vertices are independent: solved in parallel, each into a count of its residual
+    // changes, the counts summed (integer sums: the same on any number of threads).
+    type Counts = (std::collections::HashMap<i64, u64>, usize);
+    let per_vertex = |(mut counts, influences): Counts, i: usize| -> Counts {
         let c = weights::candidates(held, i, &fit.transforms, opts.candidates as usize, &near[i], &all, &[]);
         let weights_of = weights::solve_vertex(held, i, &fit.transforms, fit.bones, c.as_slice());
-        influences += weights_of.len();
         let mut before = [0i64; 3];
         for fi in 0..held.frames.len() {
             let row = &fit.transforms[fi * fit.bones..(fi + 1) * fit.bones];
@@ -371,7 +371,15 @@ fn estimated_bits(seq: &Sequence, data: &Data, held: &Data, fit: &Fit, opts: &Fi
             }
             before = e;
         }
-    }
+        (counts, influences + weights_of.len())
+    };
+    let merge = |(mut a, na): Counts, (b, nb): Counts| -> Counts {
+        for (k, c) in b {
+            *a.entry(k).or_default() += c;
+        }
+        (a, na + nb)
+    };
+    let (counts, influences) = (0..held.len()).into_par_iter().fold(Counts::default, per_vertex).reduce(Counts::default, merge);
     let total = counts.values().sum::<u64>() as f64;
     // Summed in the order of the values, so the estimate does not depend on the map's order.
     let mut sorted: Vec<(i64, u64)> = counts.into_iter().collect();
