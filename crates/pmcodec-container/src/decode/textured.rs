@@ -142,7 +142,7 @@ impl<S: ByteSource> Decoder<S> {
             if c.iter().all(|&v| v < size) { Ok(c) } else { Err(ContainerError::Options("a shown triangle without corners".into())) }
         };
         let mut shown: Vec<(u32, [u32; 3])> = Vec::new();
-        let (priorities, order) = super::Ordered::pick(&mut d.by_error, &mut d.by_budget, target);
+        let (priorities, order) = super::cut::Ordered::pick(&mut d.by_error, &mut d.by_budget, target);
         match order.prefix(replay, priorities, target, diagonal) {
             Ok(k) => {
                 for &t in order.shown(k) {
