@@ -143,34 +143,25 @@ impl<S: ByteSource> Reader<S> {
             header.frame_names = crate::format::front_decode(&header.frame_names);
         }
         let index_at = PREAMBLE_LEN as u64 + pre.header_len as u64;
-        if pre.version >= 7 && pre.flags & crate::format::FLAG_BANDS != 0 {
+        let (index, bytes_read, level) = if pre.version >= 7 && pre.flags & crate::format::FLAG_BANDS != 0 {
             check_header(&header)?;
             let (index, read, level) = read_banded(&source, &pre, &header, index_at, file_len - data_start, level)?;
-            let reader = Reader {
-                source,
-                version: pre.version,
-                flags: pre.flags,
-                header,
-                index,
-                data_start,
-                file_len,
-                bytes_read: Cell::new(index_at + read),
-                level,
-            };
-            reader.check_index()?;
-            return Ok(reader);
-        }
-        let ib = source.read_at(index_at, pre.index_len as usize)?;
-        if crc32fast::hash(&ib) != pre.index_crc {
-            return Err(ContainerError::Checksum { what: "index".into() });
-        }
-        // Version 7's index is laid out by the header's frames: the header is checked first.
-        // (Older versions keep the order of their checks, and so the errors they report.)
-        if pre.version >= 7 {
+            (index, index_at + read, level)
+        } else {
+            let ib = source.read_at(index_at, pre.index_len as usize)?;
+            if crc32fast::hash(&ib) != pre.index_crc {
+                return Err(ContainerError::Checksum { what: "index".into() });
+            }
+            // Version 7's index is laid out by the header's frames: the header is checked
+            // first. (Older versions keep the order of their checks, and so the errors they
+            // report.)
+            if pre.version >= 7 {
+                check_header(&header)?;
+            }
+            let index = Index::from_bytes(&ib, pre.version, header.frame_count)?;
             check_header(&header)?;
-        }
-        let index = Index::from_bytes(&ib, pre.version, header.frame_count)?;
-        check_header(&header)?;
+            (index, data_start, None)
+        };
         let reader = Reader {
             source,
             version: pre.version,
@@ -179,8 +170,8 @@ impl<S: ByteSource> Reader<S> {
             index,
             data_start,
             file_len,
-            bytes_read: Cell::new(data_start),
-            level: None,
+            bytes_read: Cell::new(bytes_read),
+            level,
         };
         reader.check_index()?;
         Ok(reader)

@@ -103,25 +103,7 @@ pub fn write_table_across(
     represented: bool,
     entries_above: bool,
 ) -> Option<Vec<u8>> {
-    let nodes = t.entries.last().map_or(0, |e| e.0 + 1);
-    let table = Table::index(&t.entries, nodes);
-    let reps = if represented { representatives(&table, parent, above) } else { Vec::new() };
-    if !represented_agree(&reps, &t.values, &above.values, channels) {
-        return None;
-    }
-    let mut known: Vec<bool> = reps.iter().map(Option::is_some).collect();
-    known.resize(t.entries.len(), false);
-    let coded = known.iter().filter(|&&k| !k).count();
-    let node_of: Vec<u32> = t.entries.iter().map(|e| e.0).collect();
-    let mut values = t.values.clone();
-    let mut residuals: Vec<Vec<u32>> = vec![Vec::with_capacity(coded); channels];
-    let visit = |pred: &[i32], v: &mut [i32]| {
-        for q in 0..channels {
-            residuals[q].push(zigzag(v[q].wrapping_sub(pred[q])));
-        }
-        Ok(())
-    };
-    visit_across(&table, &node_of, channels, &mut values, &mut known, (parent, above), faces, visit, "attributes").ok()?;
+    let (residuals, coded) = across_residuals(t, channels, represented, (parent, above), faces, "attributes")?;
     let mut out = Vec::new();
     put(&mut out, 0);
     let flags =
@@ -132,7 +114,7 @@ pub fn write_table_across(
     } else {
         put_entries(&mut out, &t.entries);
     }
-    put_codes(&mut out, &residuals.concat(), coded, channels, rans);
+    put_codes(&mut out, &residuals, coded, channels, rans);
     Some(out)
 }
 
@@ -152,9 +134,30 @@ pub fn write_table_derived_across(
     rans: bool,
 ) -> Option<Vec<u8>> {
     let faces = band_faces(triangles, triangle_chart, &[])?;
+    let f = (&faces.0[..], &faces.1[..]);
+    let (residuals, coded) = across_residuals(t, channels, true, (parent, above), f, "band 0 attributes")?;
+    let mut out = Vec::new();
+    put(&mut out, 0);
+    put(&mut out, DERIVED_ENTRIES | REPRESENTED | ACROSS_FACES | if rans { RANS_VALUES } else { 0 });
+    put_codes(&mut out, &residuals, coded, channels, rans);
+    Some(out)
+}
+
+/// The residual codes of table `t` against [`visit_across`]'s predictions over `faces`,
+/// channel after channel, and how many values each channel codes (those its representatives,
+/// with `represented`, leave out). `None` where a representative's value differs from its
+/// parent entry's or a face's corner has no entry.
+fn across_residuals(
+    t: &QuantizedTable,
+    channels: usize,
+    represented: bool,
+    (parent, above): (&[u32], &Table),
+    faces: (&[[u32; 3]], &[u32]),
+    what: &str,
+) -> Option<(Vec<u32>, usize)> {
     let nodes = t.entries.last().map_or(0, |e| e.0 + 1);
     let table = Table::index(&t.entries, nodes);
-    let reps = representatives(&table, parent, above);
+    let reps = if represented { representatives(&table, parent, above) } else { Vec::new() };
     if !represented_agree(&reps, &t.values, &above.values, channels) {
         return None;
     }
@@ -170,13 +173,8 @@ pub fn write_table_derived_across(
         }
         Ok(())
     };
-    let f = (&faces.0[..], &faces.1[..]);
-    visit_across(&table, &node_of, channels, &mut values, &mut known, (parent, above), f, visit, "band 0 attributes").ok()?;
-    let mut out = Vec::new();
-    put(&mut out, 0);
-    put(&mut out, DERIVED_ENTRIES | REPRESENTED | ACROSS_FACES | if rans { RANS_VALUES } else { 0 });
-    put_codes(&mut out, &residuals.concat(), coded, channels, rans);
-    Some(out)
+    visit_across(&table, &node_of, channels, &mut values, &mut known, (parent, above), faces, visit, what).ok()?;
+    Some((residuals.concat(), coded))
 }
 
 /// The values of a table with values across its faces, its entries (`table`, `node_of`) and
