@@ -309,6 +309,31 @@ struct FittedSkinOutput {
     encoder: Option<pmcodec_container::EncodeReport>,
 }
 
+impl FittedSkinOutput {
+    /// What `--json` says of `fit` before any file with the skin is measured: whether the
+    /// skin is used and why, and the trial that told.
+    fn of(fit: &pmcodec_mesh::skin_fit::FitReport, fit_seconds: f64, (used, reason): (bool, String), trial: Option<SkinTrial>) -> Self {
+        FittedSkinOutput {
+            bones: fit.bones,
+            rms_error: fit.rms_error,
+            max_error: fit.max_error,
+            sample_vertices: fit.sample_vertices,
+            counts_tried: fit.counts_tried.clone(),
+            alternations: fit.alternations,
+            fit_seconds,
+            fit_share: 0.0,
+            used,
+            reason,
+            trial,
+            bytes_with_skin: None,
+            pose_bytes: 0,
+            bind_bytes: 0,
+            positions_bytes_with_skin: 0,
+            encoder: None,
+        }
+    }
+}
+
 pub fn encode_cmd(args: EncodeArgs, quiet: bool) -> Result<(), Exit> {
     let started = Instant::now();
     check_fps(&args.input_args)?;
@@ -578,25 +603,7 @@ fn encode_fitted(
             );
             seq.skin = None;
             let bytes = encode(seq, opts, |_| bar.inc(1)).map_err(|e| container_error(e, what))?;
-            let out = FittedSkinOutput {
-                bones: fit.bones,
-                rms_error: fit.rms_error,
-                max_error: fit.max_error,
-                sample_vertices: fit.sample_vertices,
-                counts_tried: fit.counts_tried,
-                alternations: fit.alternations,
-                fit_seconds,
-                fit_share: 0.0,
-                used: false,
-                reason,
-                trial: Some(t),
-                bytes_with_skin: None,
-                pose_bytes: 0,
-                bind_bytes: 0,
-                positions_bytes_with_skin: 0,
-                encoder: None,
-            };
-            return Ok((bytes, out));
+            return Ok((bytes, FittedSkinOutput::of(&fit, fit_seconds, (false, reason), Some(t))));
         }
         trial = Some(t);
     }
@@ -654,22 +661,12 @@ fn encode_fitted(
         }
     }
     let out = FittedSkinOutput {
-        bones: fit.bones,
-        rms_error: fit.rms_error,
-        max_error: fit.max_error,
-        sample_vertices: fit.sample_vertices,
-        counts_tried: fit.counts_tried,
-        alternations: fit.alternations,
-        fit_seconds,
-        fit_share: 0.0,
-        used,
-        reason,
-        trial,
         bytes_with_skin: Some(bytes_with_skin),
         pose_bytes: s.pose_bytes,
         bind_bytes: s.bind_bytes.iter().sum(),
         positions_bytes_with_skin: positions,
         encoder: Some(report),
+        ..FittedSkinOutput::of(&fit, fit_seconds, (used, reason), trial)
     };
     Ok((bytes, out))
 }
