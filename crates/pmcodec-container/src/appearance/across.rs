@@ -17,8 +17,8 @@
 use super::codes::put_codes;
 use super::entries::{put_entries, put_entries_above};
 use super::payload::{
-    ACROSS_FACES, DERIVED_ENTRIES, ENTRIES_ABOVE, FROM_ABOVE, QuantizedTable, RANS_VALUES, REPRESENTED, Table, from_above, representatives,
-    represented_agree,
+    ACROSS_FACES, DERIVED_ENTRIES, ENTRIES_ABOVE, FROM_ABOVE, QuantizedTable, RANS_VALUES, REPRESENTED, Table, corner_prediction,
+    from_above, representatives, represented_agree,
 };
 use crate::ContainerError;
 use crate::payload::{put, unzigzag, zigzag};
@@ -267,13 +267,9 @@ fn traverse_faces(
             for q in 0..c {
                 let (va, vb) = (values[a * c + q], values[b * c + q]);
                 let p = parent_value(x, q);
-                let from_corners = match (ka, kb, opposite.get(&key(a, b))) {
-                    (true, true, Some(&o)) => Some(va.wrapping_add(vb).wrapping_sub(values[o as usize * c + q])),
-                    (true, true, None) => Some(va.wrapping_add(vb) >> 1),
-                    (true, false, _) => Some(va),
-                    (false, true, _) => Some(vb),
-                    (false, false, _) => None,
-                };
+                // The opposite corner only where both edge corners are known (its one use).
+                let o = if ka && kb { opposite.get(&key(a, b)).map(|&o| values[o as usize * c + q]) } else { None };
+                let from_corners = corner_prediction((ka, va), (kb, vb), o);
                 pred[q] = match (from_corners, p) {
                     (Some(f), Some(p)) => f.wrapping_add(p) >> 1,
                     (Some(f), None) => f,

@@ -344,13 +344,12 @@ fn traverse(
             let (ka, kb) = (known[a], known[b]);
             for q in 0..c {
                 let (va, vb) = (values[a * c + q], values[b * c + q]);
-                pred[q] = match (ka, kb, opposite.get(&key(a, b))) {
-                    (true, true, Some(&o)) => va.wrapping_add(vb).wrapping_sub(values[o as usize * c + q]),
-                    (true, true, None) => va.wrapping_add(vb) >> 1,
-                    (true, false, _) => va,
-                    (false, true, _) => vb,
-                    (false, false, _) if chart_seen[chart as usize] => chart_last[chart as usize * c + q],
-                    (false, false, _) => last[q],
+                // The opposite corner only where both edge corners are known (its one use).
+                let o = if ka && kb { opposite.get(&key(a, b)).map(|&o| values[o as usize * c + q]) } else { None };
+                pred[q] = match corner_prediction((ka, va), (kb, vb), o) {
+                    Some(p) => p,
+                    None if chart_seen[chart as usize] => chart_last[chart as usize * c + q],
+                    None => last[q],
                 };
             }
             visit(&pred, &mut values[x * c..(x + 1) * c])?;
@@ -656,6 +655,21 @@ pub fn read_table_across(
     }
     c.finish()?;
     Ok(table)
+}
+
+/// A corner's value predicted from the other two corners of its triangle, `(known, value)`
+/// each, and the value of the corner across their edge where one is known: the parallelogram
+/// rule with all three (Isenburg & Snoeyink, "Compressing texture coordinates with selective
+/// linear predictions", 2003), the edge's midpoint without the opposite corner, the one known
+/// corner, else none (the caller falls back to the chart's or the table's last value).
+pub(super) fn corner_prediction((ka, va): (bool, i32), (kb, vb): (bool, i32), opposite: Option<i32>) -> Option<i32> {
+    match (ka, kb, opposite) {
+        (true, true, Some(o)) => Some(va.wrapping_add(vb).wrapping_sub(o)),
+        (true, true, None) => Some(va.wrapping_add(vb) >> 1),
+        (true, false, _) => Some(va),
+        (false, true, _) => Some(vb),
+        (false, false, _) => None,
+    }
 }
 
 #[cfg(test)]
