@@ -335,9 +335,13 @@ async function simplified(pmc: string, glb: string, animation: number, count: nu
           const tick = (): void => {
             if (failure) { rej(failure); return; }
             player.update(performance.now());
-            // A budget change may show a coarser cut first: wait for the budget's own (a prefix
-            // of the split order stops within a few triangles of it).
-            const drawn = player.stats.frame === frame && player.stats.triangles >= 0.9 * player.budget && player.stats.triangles <= player.budget;
+            // A budget change may show a coarser cut first (a coarse decoder's stand-in): wait
+            // for a cut at this budget from a decoder at the level the budget asks for or finer,
+            // as the session itself chose it. Its triangle count is not a test: the cut stops
+            // where the level's nodes run out, which may be well under the budget (Fox, frame 22
+            // at 10%: level 2 has 58 triangles for a 57 budget, so level 3's 50 are drawn).
+            const s = player.stats;
+            const drawn = s.frame === frame && s.budget === player.budget && s.level >= 0 && s.level <= s.budgetLevel && s.triangles <= player.budget;
             if (drawn && (!info.appearance || Array.isArray(player.mesh.material))) res();
             else if (performance.now() > end) rej(new Error(`frame ${frame} at ${share}: not drawn (${player.stats.frame}, ${player.stats.triangles} triangles)`));
             else requestAnimationFrame(tick);

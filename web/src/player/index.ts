@@ -67,6 +67,9 @@ export interface PmcPlayerEventMap extends THREE.Object3DEventMap {
 /** What the player did: the last frame's worker timings and the page thread's share. */
 export interface PmcStats {
   frame: number; triangles: number; level: number; decodeMs: number; cutMs: number;
+  /** The budget the frame shown was cut at, and the level that budget asks for (the frame's
+   * `level` above it: a coarse stand-in while the budget's decoder catches up). */
+  budget: number; budgetLevel: number;
   fetched: number; requests: number; cached: number;
   /** Frames put on screen, and the page thread's milliseconds spent on them in total. */
   shown: number; mainMs: number;
@@ -83,7 +86,7 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
   /** Resolves when the container is open (its header and index read). */
   readonly ready: Promise<OpenedInfo>;
   info: OpenedInfo | null = null;
-  readonly stats: PmcStats = { frame: -1, triangles: 0, level: -1, decodeMs: 0, cutMs: 0, fetched: 0, requests: 0, cached: 0, shown: 0, mainMs: 0, stalls: 0, workerMs: 0 };
+  readonly stats: PmcStats = { frame: -1, triangles: 0, level: -1, budget: 0, budgetLevel: -1, decodeMs: 0, cutMs: 0, fetched: 0, requests: 0, cached: 0, shown: 0, mainMs: 0, stalls: 0, workerMs: 0 };
   loop: boolean;
   speed: number;
   morphMs: number;
@@ -431,7 +434,7 @@ export class PmcPlayer extends THREE.Object3D<PmcPlayerEventMap> {
     const groups = p.groups ?? null;
     if (groups !== this.groups) { this.groups = groups; this.applyMaterial(); }
     const progressed = p.fetched !== this.stats.fetched;
-    Object.assign(this.stats, { frame: p.frame, triangles: p.triangles, level: p.level, decodeMs: p.decodeMs, cutMs: p.cutMs, fetched: p.fetched, requests: p.requests, cached: p.cached });
+    Object.assign(this.stats, { frame: p.frame, triangles: p.triangles, level: p.level, budget: p.budget, budgetLevel: p.budgetLevel, decodeMs: p.decodeMs, cutMs: p.cutMs, fetched: p.fetched, requests: p.requests, cached: p.cached });
     this.stats.shown++;
     this.stats.workerMs += p.decodeMs + p.cutMs;
     this.current = p.frame;

@@ -82,6 +82,8 @@ export interface FramePayload {
   /** The seek this frame answers (frames of an older seek are dropped). */
   seq: number;
   frame: number; budget: number; level: number; triangles: number;
+  /** The level the budget asks for (the session's `levelFor`): `level` above it is a coarse stand-in. */
+  budgetLevel: number;
   /**
    * The cut's vertices (3 floats each) and their normals; its 3 indices per triangle, left out
    * when they equal those of the index version sent last (`indexVersion` names them).

@@ -285,7 +285,7 @@ export class Session {
     }
     this.last = { nodes: cutMesh.nodes, budget: this.budget, level: d.minLevel, frame: f };
     return {
-      type: "frame", seq: 0, frame: f, budget: this.budget, level: d.minLevel, triangles: mesh.indices.length / 3,
+      type: "frame", seq: 0, frame: f, budget: this.budget, level: d.minLevel, budgetLevel: this.levelFor(this.budget), triangles: mesh.indices.length / 3,
       positions, normals, indices, indexVersion: this.indexVersion, indexCount: mesh.indices.length, starts, morphId: this.morphId, colours,
       uvs: looks?.mesh.uv0?.slice() ?? undefined, uv1: looks?.mesh.uv1?.slice() ?? undefined, uvStarts, uv1Starts, groups: looks?.groups, skin,
       decodeMs, cutMs: performance.now() - t0, fetched: this.cache.fetched, requests: this.cache.requests, cached: this.cache.size,
