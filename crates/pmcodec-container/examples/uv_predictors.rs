@@ -1,0 +1,241 @@
+//! A measurement, not a coding: what band 0's texture-coordinate residuals would cost with
+//! predictions that use frame 0's decoded positions (issue 16's size bar), beside the
+//! parallelogram rule the container uses (`traverse` in appearance/payload.rs).
+//!
+//! Every variant walks band 0 as the derived coding does (triangles in input order, each
+//! one's corners in order, the representatives of band 1 known from the start) and differs
+//! only where a corner's two edge neighbours are known:
+//! - `parallelogram`: `a + b - o` across an earlier triangle's edge, else the edge's midpoint
+//!   (the container's rule; Touma & Gotsman, "Triangle mesh compression", 1998).
+//! - `positions, side from opposite`: the corner's 3D position projected onto the edge, the
+//!   ratio along it and the perpendicular distance (relative to the edge length) carried into
+//!   texture space, on the side of the edge away from the opposite corner o (Isenburg &
+//!   Snoeyink, "Compressing texture coordinates with selective linear predictions", 2003,
+//!   and Draco's texture-coordinate predictor work from the same projection); without o, the
+//!   chart's orientation (below).
+//! - `positions, side from chart`: the side from the orientation of the chart's last triangle
+//!   whose three values are known (a chart is rarely mirrored within itself), whether or not o
+//!   exists; +1 before any.
+//! - `positions, ideal side + 1 bit`: the better side each time, plus one bit per prediction
+//!   (an upper bound for coding the flip explicitly, as Draco does with its orientation bits).
+//!
+//! The cost is an estimate of the rANS residual section (`put_codes`): per channel the
+//! empirical entropy of the residual codes' bit lengths plus their raw bits below the
+//! highest; the stored chunk's own size is printed beside it.
+//!
+//! `target/debug/pmcodec encode -q IN.glb -o /tmp/a.pmc &&
+//!  cargo run -p pmcodec-container --example uv_predictors -- /tmp/a.pmc`
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+use pmcodec_container::appearance::across::band_faces;
+use pmcodec_container::appearance::payload::{Table, needs_above, read_band, read_charts_with, read_table_across, representatives};
+use pmcodec_container::payload::{read_key, read_triangles, zigzag};
+use pmcodec_container::{ChunkKind, Decoder, FileSource, Reader};
+
+#[derive(Clone, Copy, PartialEq)]
+enum Side {
+    Parallelogram,
+    Opposite,
+    Chart,
+    Ideal,
+}
+
+/// Estimated bytes of per-channel residual codes (bit-length entropy plus raw mantissa bits).
+fn cost(residuals: &[Vec<u32>]) -> f64 {
+    let mut bits = 0.0;
+    for ch in residuals {
+        let mut counts = [0usize; 33];
+        for &z in ch {
+            let b = 32 - z.leading_zeros();
+            counts[b as usize] += 1;
+            bits += b.saturating_sub(1) as f64;
+        }
+        let n = ch.len() as f64;
+        bits += counts.iter().filter(|&&c| c > 0).map(|&c| -(c as f64) * (c as f64 / n).log2()).sum::<f64>();
+    }
+    bits / 8.0
+}
+
+fn round(x: f64) -> i64 {
+    (x + 0.5).floor() as i64
+}
+
+/// The two position-based predictions of x across edge (a, b) (one per side), or None for a
+/// degenerate edge.
+fn projected(p: [[i64; 3]; 3], ua: [i64; 2], ub: [i64; 2]) -> Option<[[i64; 2]; 2]> {
+    let [pa, pb, px] = p;
+    let pn: Vec<i64> = (0..3).map(|k| pb[k] - pa[k]).collect();
+    let cn: Vec<i64> = (0..3).map(|k| px[k] - pa[k]).collect();
+    let pn2: i64 = pn.iter().map(|v| v * v).sum();
+    if pn2 == 0 {
+        return None;
+    }
+    let dot: i64 = (0..3).map(|k| pn[k] * cn[k]).sum();
+    let cn2: i64 = cn.iter().map(|v| v * v).sum();
+    let cross2 = (cn2 as i128 * pn2 as i128 - dot as i128 * dot as i128).max(0) as f64;
+    let s = dot as f64 / pn2 as f64;
+    let r = cross2.sqrt() / pn2 as f64;
+    let d = [ub[0] - ua[0], ub[1] - ua[1]];
+    let base = [ua[0] as f64 + s * d[0] as f64, ua[1] as f64 + s * d[1] as f64];
+    let off = [-(d[1] as f64) * r, d[0] as f64 * r];
+    Some([[round(base[0] + off[0]), round(base[1] + off[1])], [round(base[0] - off[0]), round(base[1] - off[1])]])
+}
+
+fn orient(u: [[i64; 2]; 3]) -> i64 {
+    ((u[1][0] - u[0][0]) * (u[2][1] - u[0][1]) - (u[1][1] - u[0][1]) * (u[2][0] - u[0][0])).signum()
+}
+
+/// Band 0's residuals under `side` (see the header), representatives `known` from the start.
+/// Only the first two channels (the texture coordinates) are measured: `c` is the stride.
+fn residuals(
+    t: &Table,
+    c: usize,
+    tris: &[[u32; 3]],
+    chart_of: &[u32],
+    pos: &[[i32; 3]],
+    known0: &[bool],
+    side: Side,
+) -> (Vec<Vec<u32>>, usize) {
+    let mut known = known0.to_vec();
+    let v = |x: usize| [t.values[c * x] as i64, t.values[c * x + 1] as i64];
+    let mut opposite = std::collections::HashMap::new();
+    let key = |a: usize, b: usize| ((a.min(b) as u64) << 32) | a.max(b) as u64;
+    let charts = chart_of.iter().map(|&c| c as usize + 1).max().unwrap_or(0);
+    let mut chart_orient = vec![1i64; charts];
+    let mut chart_last: Vec<Option<[i64; 2]>> = vec![None; charts];
+    let mut last = [0i64; 2];
+    let mut out = vec![Vec::new(), Vec::new()];
+    let mut flips = 0;
+    for (ti, tri) in tris.iter().enumerate() {
+        let chart = chart_of[ti] as usize;
+        let e: Vec<usize> = tri.iter().map(|&n| t.find(n, chart as u32).unwrap()).collect();
+        for i in 0..3 {
+            let x = e[i];
+            if known[x] {
+                continue;
+            }
+            let (a, b) = (e[(i + 1) % 3], e[(i + 2) % 3]);
+            let o = opposite.get(&key(a, b)).copied();
+            let pred: [i64; 2] = match (known[a], known[b]) {
+                (true, true) => {
+                    let (ua, ub) = (v(a), v(b));
+                    let p = [tri[(i + 1) % 3], tri[(i + 2) % 3], tri[i]].map(|n| pos[n as usize].map(i64::from));
+                    match (side, projected(p, ua, ub)) {
+                        (Side::Parallelogram, _) | (_, None) => match o {
+                            Some(o) => [0, 1].map(|q| ua[q] + ub[q] - v(o)[q]),
+                            None => [0, 1].map(|q| (ua[q] + ub[q]) >> 1),
+                        },
+                        (Side::Ideal, Some(c)) => {
+                            flips += 1;
+                            let err = |p: [i64; 2]| (p[0] - v(x)[0]).abs() + (p[1] - v(x)[1]).abs();
+                            if err(c[0]) <= err(c[1]) { c[0] } else { c[1] }
+                        }
+                        (Side::Opposite, Some(c)) if o.is_some() => {
+                            let uo = v(o.unwrap());
+                            // The side of (a, b, o) in texture space; x lies on the other.
+                            if orient([ua, ub, uo]) > 0 { c[1] } else { c[0] }
+                        }
+                        (_, Some(c)) => {
+                            if chart_orient[chart] >= 0 {
+                                c[0]
+                            } else {
+                                c[1]
+                            }
+                        }
+                    }
+                }
+                (true, false) => v(a),
+                (false, true) => v(b),
+                (false, false) => chart_last[chart].unwrap_or(last),
+            };
+            for q in 0..2 {
+                out[q].push(zigzag((v(x)[q] - pred[q]) as i32));
+            }
+            known[x] = true;
+            last = v(x);
+            chart_last[chart] = Some(v(x));
+        }
+        if e[0] != e[1] && e[1] != e[2] && e[2] != e[0] {
+            let o = orient([v(e[0]), v(e[1]), v(e[2])]);
+            if o != 0 {
+                chart_orient[chart] = o;
+            }
+            for i in 0..3 {
+                opposite.entry(key(e[i], e[(i + 1) % 3])).or_insert(e[(i + 2) % 3]);
+            }
+        }
+    }
+    (out, flips)
+}
+
+fn main() {
+    for path in std::env::args().skip(1) {
+        let reader = Reader::open(FileSource::open(std::path::Path::new(&path)).unwrap()).unwrap();
+        let h = reader.header().clone();
+        let Some(info) = h.appearance.clone() else { continue };
+        let c = info.channels();
+        if info.uv_sets == 0 {
+            continue;
+        }
+        let te = reader.index().chunks.iter().find(|e| e.kind == ChunkKind::Triangles).unwrap();
+        let tris = read_triangles(&reader.read_chunk(te).unwrap(), "t", h.triangle_count, h.vertex_count, reader.version()).unwrap();
+        let ce = reader.find(ChunkKind::Charts, 0, 0).unwrap();
+        let charts = read_charts_with(&reader.read_chunk(ce).unwrap(), &info, h.triangle_count, Some(&tris)).unwrap();
+        let key = |i: usize| {
+            read_key(
+                &reader.read_chunk(reader.find(ChunkKind::Key, 0, i as u32).unwrap()).unwrap(),
+                "k",
+                &h.level_sizes,
+                i,
+                reader.version(),
+            )
+            .unwrap()
+        };
+        // Every band's table, top down, as the decoder reads them.
+        let mut above: Option<Table> = None;
+        let mut band1: Option<Table> = None;
+        let mut stored0 = 0;
+        for j in (0..h.levels()).rev() {
+            let e = reader.find(ChunkKind::Attributes, 0, j as u32).unwrap();
+            let raw = reader.read_chunk(e).unwrap();
+            let parent = needs_above(&raw).then(|| key(j));
+            let above_of = parent.as_ref().and_then(|p| above.as_ref().map(|t| (&p[..], t)));
+            let t = if j > 0 {
+                let parents: Vec<Vec<u32>> = (0..j).map(key).collect();
+                let refs: Vec<&[u32]> = parents.iter().map(Vec::as_slice).collect();
+                let (f, fc) = band_faces(&tris, &charts.triangle_chart, &refs).unwrap();
+                read_table_across(&raw, "t", h.level_sizes[j], &info, h.triangle_count, above_of, Some((&f, &fc))).unwrap()
+            } else {
+                stored0 = e.stored_len;
+                read_band(&raw, "t", h.level_sizes[j], &info, h.triangle_count, Some((&tris, &charts.triangle_chart)), above_of).unwrap()
+            };
+            if j == 1 {
+                band1 = Some(t.clone());
+            }
+            above = Some(t);
+        }
+        let t0 = above.unwrap();
+        let known: Vec<bool> = match &band1 {
+            Some(b1) => representatives(&t0, &key(0), b1).iter().map(Option::is_some).collect(),
+            None => vec![false; t0.len()],
+        };
+        let mut d = Decoder::new(Reader::open(FileSource::open(std::path::Path::new(&path)).unwrap()).unwrap(), 0).unwrap();
+        d.seek(0).unwrap();
+        let pos = d.quantized().to_vec();
+        println!(
+            "{path}: band 0 stored {stored0} B ({c} channels, the first two measured), {} entries, {} representatives",
+            t0.len(),
+            known.iter().filter(|&&k| k).count()
+        );
+        let base = cost(&residuals(&t0, c, &tris, &charts.triangle_chart, &pos, &known, Side::Parallelogram).0);
+        for (name, side) in [
+            ("parallelogram", Side::Parallelogram),
+            ("positions, side from opposite", Side::Opposite),
+            ("positions, side from chart", Side::Chart),
+            ("positions, ideal side + 1 bit", Side::Ideal),
+        ] {
+            let (r, flips) = residuals(&t0, c, &tris, &charts.triangle_chart, &pos, &known, side);
+            let c = cost(&r) + flips as f64 / 8.0;
+            println!("  {name:32} ~{c:7.0} B residuals ({:+.1}% vs parallelogram)", 100.0 * (c - base) / base);
+        }
+    }
+}
