@@ -94,6 +94,7 @@ fn residuals(
     pos: &[[i32; 3]],
     known0: &[bool],
     side: Side,
+    (base, parent): (usize, Option<(&[u32], &Table)>),
 ) -> (Vec<Vec<u32>>, usize, usize) {
     let mut known = known0.to_vec();
     let v = |x: usize| [t.values[c * x] as i64, t.values[c * x + 1] as i64];
@@ -116,10 +117,13 @@ fn residuals(
             }
             let (a, b) = (e[(i + 1) % 3], e[(i + 2) % 3]);
             let o = opposite.get(&key(a, b)).copied();
+            // The band above's value of the corner's parent entry (averaged in, as the
+            // container's values across a band's faces do).
+            let pv = parent.and_then(|(par, above)| above.get(*par.get(tri[i] as usize)?, chart as u32, c)).map(|w| [w[0] as i64, w[1] as i64]);
             let pred: [i64; 2] = match (known[a], known[b]) {
                 (true, true) => {
                     let (ua, ub) = (v(a), v(b));
-                    let p = [tri[(i + 1) % 3], tri[(i + 2) % 3], tri[i]].map(|n| pos[n as usize].map(i64::from));
+                    let p = [tri[(i + 1) % 3], tri[(i + 2) % 3], tri[i]].map(|n| pos[base + n as usize].map(i64::from));
                     match (side, projected(p, ua, ub)) {
                         (Side::Parallelogram, _) | (_, None) => match o {
                             Some(o) => [0, 1].map(|q| ua[q] + ub[q] - v(o)[q]),
@@ -150,7 +154,11 @@ fn residuals(
                 }
                 (true, false) => v(a),
                 (false, true) => v(b),
-                (false, false) => chart_last[chart].unwrap_or(last),
+                (false, false) => pv.or(chart_last[chart]).unwrap_or(last),
+            };
+            let pred = match pv {
+                Some(p) if known[a] || known[b] => [0, 1].map(|q| (pred[q] + p[q]) >> 1),
+                _ => pred,
             };
             for q in 0..2 {
                 out[q].push(zigzag((v(x)[q] - pred[q]) as i32));
@@ -196,62 +204,61 @@ fn main() {
             .unwrap()
         };
         // Every band's table, top down, as the decoder reads them.
-        let mut above: Option<Table> = None;
-        let mut band1: Option<Table> = None;
-        let mut stored0 = 0;
+        let mut tables: Vec<Option<Table>> = vec![None; h.levels()];
+        let mut stored = vec![0u64; h.levels()];
         for j in (0..h.levels()).rev() {
             let e = reader.find(ChunkKind::Attributes, 0, j as u32).unwrap();
+            stored[j] = e.stored_len as u64;
             let raw = reader.read_chunk(e).unwrap();
             let parent = needs_above(&raw).then(|| key(j));
-            let above_of = parent.as_ref().and_then(|p| above.as_ref().map(|t| (&p[..], t)));
+            let above_of = parent.as_ref().and_then(|p| tables.get(j + 1).and_then(Option::as_ref).map(|t| (&p[..], t)));
             let t = if j > 0 {
                 let parents: Vec<Vec<u32>> = (0..j).map(key).collect();
                 let refs: Vec<&[u32]> = parents.iter().map(Vec::as_slice).collect();
                 let (f, fc) = band_faces(&tris, &charts.triangle_chart, &refs).unwrap();
                 read_table_across(&raw, "t", h.level_sizes[j], &info, h.triangle_count, above_of, Some((&f, &fc))).unwrap()
             } else {
-                stored0 = e.stored_len;
                 read_band(&raw, "t", h.level_sizes[j], &info, h.triangle_count, Some((&tris, &charts.triangle_chart)), above_of).unwrap()
             };
-            if j == 1 {
-                band1 = Some(t.clone());
-            }
-            above = Some(t);
+            tables[j] = Some(t);
         }
-        let t0 = above.unwrap();
-        let known: Vec<bool> = match &band1 {
-            Some(b1) => representatives(&t0, &key(0), b1).iter().map(Option::is_some).collect(),
-            None => vec![false; t0.len()],
-        };
+        // Frame 0 at level 0: every level's node positions (global ids, level 0 first).
         let mut d = Decoder::new(Reader::open(FileSource::open(std::path::Path::new(&path)).unwrap()).unwrap(), 0).unwrap();
         d.seek(0).unwrap();
         let pos = d.quantized().to_vec();
-        println!(
-            "{path}: band 0 stored {stored0} B ({c} channels, the first two measured), {} entries, {} representatives",
-            t0.len(),
-            known.iter().filter(|&&k| k).count()
-        );
-        let base = cost(&residuals(&t0, c, &tris, &charts.triangle_chart, &pos, &known, Side::Parallelogram).0);
-        for (name, side) in [
-            ("parallelogram", Side::Parallelogram),
-            ("positions, side from opposite", Side::Opposite),
-            ("positions, side from chart", Side::Chart),
-            ("positions, ideal side + 1 bit", Side::Ideal),
-        ] {
-            let (r, flips, against) = residuals(&t0, c, &tris, &charts.triangle_chart, &pos, &known, side);
-            let c = cost(&r) + flips as f64 / 8.0;
-            println!("  {name:32} ~{c:7.0} B residuals ({:+.1}% vs parallelogram)", 100.0 * (c - base) / base);
-            if flips > 0 {
-                // The flip coded against the chart's orientation with an ideal adaptive binary
-                // model: n H(p) bits where p is the share of flips against it.
-                let p = against as f64 / flips as f64;
-                let h = if p > 0.0 && p < 1.0 { -p * p.log2() - (1.0 - p) * (1.0 - p).log2() } else { 0.0 };
-                let c = cost(&r) + flips as f64 * h / 8.0;
-                println!(
-                    "  {:32} ~{c:7.0} B residuals ({:+.1}%): {against} of {flips} best sides against the chart's orientation",
-                    "  flip entropy-coded",
-                    100.0 * (c - base) / base
-                );
+        println!("{path}: {c} channels, the first two (texture coordinates) measured; the band's faces in frame 0 only");
+        for j in 0..h.levels() - 1 {
+            let (t, up) = (tables[j].as_ref().unwrap(), tables[j + 1].as_ref().unwrap());
+            let par = key(j);
+            let known: Vec<bool> = representatives(t, &par, up).iter().map(Option::is_some).collect();
+            let parents: Vec<Vec<u32>> = (0..j).map(key).collect();
+            let refs: Vec<&[u32]> = parents.iter().map(Vec::as_slice).collect();
+            let (f, fc) = band_faces(&tris, &charts.triangle_chart, &refs).unwrap();
+            let base_node: usize = h.level_sizes[..j].iter().map(|&n| n as usize).sum();
+            println!(
+                "  band {j}: stored {} B, {} entries, {} representatives, {} faces",
+                stored[j],
+                t.len(),
+                known.iter().filter(|&&k| k).count(),
+                f.len()
+            );
+            let run = |side, avg: bool| {
+                let (r, flips, against) = residuals(t, c, &f, &fc, &pos, &known, side, (base_node, avg.then_some((&par[..], up))));
+                (cost(&r) + flips as f64 / 8.0, flips, against)
+            };
+            let base = run(Side::Parallelogram, false).0;
+            for avg in [false, true] {
+                for (name, side) in [
+                    ("parallelogram", Side::Parallelogram),
+                    ("positions, side from opposite", Side::Opposite),
+                    ("positions, side from chart", Side::Chart),
+                    ("positions, ideal side + 1 bit", Side::Ideal),
+                ] {
+                    let (c, flips, against) = run(side, avg);
+                    let name = format!("{name}{}", if avg { ", with parent" } else { "" });
+                    let note = if flips > 0 { format!("; {against} of {flips} best sides against the chart's orientation") } else { String::new() };
+                    println!("    {name:45} ~{c:6.0} B ({:+.1}%{note})", 100.0 * (c - base) / base);
+                }
             }
         }
     }
