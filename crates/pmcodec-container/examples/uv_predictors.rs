@@ -19,6 +19,11 @@
 //! - `positions, ideal side + 1 bit`: the better side each time, plus one bit per prediction
 //!   (an upper bound for coding the flip explicitly, as Draco does with its orientation bits).
 //!
+//! Every band below the top is measured the same way over its faces in frame 0 (`band_faces`;
+//! entries no face reaches are left out, they are predicted from the band above alike), each
+//! variant also with the band above's value of the corner's parent entry averaged in, as the
+//! container's values across a band's faces (mode `| 64`) do.
+//!
 //! The cost is an estimate of the rANS residual section (`put_codes`): per channel the
 //! empirical entropy of the residual codes' bit lengths plus their raw bits below the
 //! highest; the stored chunk's own size is printed beside it.
@@ -86,6 +91,7 @@ fn orient(u: [[i64; 2]; 3]) -> i64 {
 
 /// Band 0's residuals under `side` (see the header), representatives `known` from the start.
 /// Only the first two channels (the texture coordinates) are measured: `c` is the stride.
+#[allow(clippy::too_many_arguments)]
 fn residuals(
     t: &Table,
     c: usize,
@@ -119,7 +125,8 @@ fn residuals(
             let o = opposite.get(&key(a, b)).copied();
             // The band above's value of the corner's parent entry (averaged in, as the
             // container's values across a band's faces do).
-            let pv = parent.and_then(|(par, above)| above.get(*par.get(tri[i] as usize)?, chart as u32, c)).map(|w| [w[0] as i64, w[1] as i64]);
+            let pv =
+                parent.and_then(|(par, above)| above.get(*par.get(tri[i] as usize)?, chart as u32, c)).map(|w| [w[0] as i64, w[1] as i64]);
             let pred: [i64; 2] = match (known[a], known[b]) {
                 (true, true) => {
                     let (ua, ub) = (v(a), v(b));
@@ -256,7 +263,11 @@ fn main() {
                 ] {
                     let (c, flips, against) = run(side, avg);
                     let name = format!("{name}{}", if avg { ", with parent" } else { "" });
-                    let note = if flips > 0 { format!("; {against} of {flips} best sides against the chart's orientation") } else { String::new() };
+                    let note = if flips > 0 {
+                        format!("; {against} of {flips} best sides against the chart's orientation")
+                    } else {
+                        String::new()
+                    };
                     println!("    {name:45} ~{c:6.0} B ({:+.1}%{note})", 100.0 * (c - base) / base);
                 }
             }
