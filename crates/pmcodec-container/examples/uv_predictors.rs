@@ -254,6 +254,9 @@ fn main() {
                 (cost(&r) + flips as f64 / 8.0, flips, against)
             };
             let base = run(Side::Parallelogram, false).0;
+            // How many of the coded (non-representative) entries the faces reach at all.
+            let on_faces = residuals(t, c, &f, &fc, &pos, &known, Side::Parallelogram, (base_node, None)).0[0].len();
+            println!("    {on_faces} of {} coded entries on a face of frame 0", known.iter().filter(|&&k| !k).count());
             for avg in [false, true] {
                 for (name, side) in [
                     ("parallelogram", Side::Parallelogram),
