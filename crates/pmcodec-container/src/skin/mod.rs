@@ -16,6 +16,7 @@ mod bits;
 mod fit;
 mod hierarchy;
 mod joints;
+mod linked;
 mod payload;
 mod place;
 mod rig;
