@@ -357,8 +357,21 @@ export class SkinState {
       return r.signed(k);
     };
     const allRigid = compact && r.one() === 1;
-    // The compact coding's keyframe prediction of an entry without a reference: the rigid entry decoded before it in the chunk.
+    // The compact coding's keyframe prediction of an entry without a reference: the rigid entry
+    // decoded before it in the chunk; for the chunk's first, the last rigid entry of the nearest
+    // coarser band that has one (as `linked::seed`).
     let last: { rig: bigint[]; t: bigint[] } | null = null;
+    if (compact && intra) {
+      for (let b = j + 1; b < bands.length && last === null; b++) {
+        const carried = bands[b];
+        for (let i = carried.length - 1; i >= 0; i--) {
+          const e = carried[i], g = rig[e] ?? null;
+          if (g === null) continue;
+          last = { rig: g, t: [3, 7, 11].map((k) => out[e * ENTRY + k] ?? 0n) };
+          break;
+        }
+      }
+    }
     if (linked && intra) {
       let width = 0;
       while (2 ** width < n) width++;

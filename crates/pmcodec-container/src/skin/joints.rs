@@ -11,7 +11,7 @@
 
 use super::bits::{BitReader, Bits, golomb_len, unzigzag, zigzag};
 use super::hierarchy::{Link, NO_REF, Predicted, predict, read_before};
-use super::linked::{COMPACT, LINKED_CLASSES, ZERO_CLASS, chained, ref_bits, write_joints_linked};
+use super::linked::{COMPACT, LINKED_CLASSES, ZERO_CLASS, chained, ref_bits, seed, write_joints_linked};
 use super::payload::PosePrediction;
 use super::{ENTRY, LINEAR_BITS, MAX_MATRIX};
 use crate::ContainerError;
@@ -184,9 +184,11 @@ pub(super) fn put_mask(out: &mut Vec<u8>, mask: u64) {
 /// `entries`. On keyframes the plain coding is left out whenever an entry of the chunk has a
 /// reference, since only a keyframe's chunk sends references (the frames up to the next
 /// keyframe use them).
-pub fn write_joints_best(mask: u64, entries: &[u32], frame: &JointsFrame, prediction: &JointPrediction) -> Vec<u8> {
-    let linked = write_joints_linked(mask, entries, frame, prediction, false);
-    let compact = write_joints_linked(mask, entries, frame, prediction, true);
+/// `(bands, j)`: each band's entries and the chunk's band.
+pub fn write_joints_best(mask: u64, (bands, j): (&[Vec<u32>], usize), frame: &JointsFrame, prediction: &JointPrediction) -> Vec<u8> {
+    let entries: &[u32] = bands.get(j).map(Vec::as_slice).unwrap_or_default();
+    let linked = write_joints_linked(mask, entries, frame, prediction, None);
+    let compact = write_joints_linked(mask, entries, frame, prediction, Some(seed(bands, j, &frame.palette, &frame.rig)));
     let mut best = if compact.len() < linked.len() { compact } else { linked };
     let any = matches!(prediction.pose, PosePrediction::Key)
         && entries.iter().any(|&e| frame.links.get(e as usize).is_some_and(|l| l.reference != NO_REF));
@@ -351,7 +353,7 @@ pub fn read_joints(
         }
     }
     // The compact coding's keyframe prediction of an entry without a reference.
-    let mut last: Option<(Rig, [i64; 3])> = None;
+    let mut last = if compact && key { seed(bands, j, &*palette, &*rig) } else { None };
     for &e in entries {
         let e = e as usize;
         let base = e * ENTRY;
@@ -640,8 +642,8 @@ mod tests {
             let frame = fit_frame(&fixed, |_| (12000.0, 4500.0), |_| false, &order, frame_links, (&p, &held, key));
             assert!(frame.rig.iter().all(Option::is_some), "frame {f}: every entry rigid");
             let (mut palette, mut rig, mut got) = (vec![0i64; 3 * ENTRY], vec![None; 3], vec![Link::NONE; 3]);
-            let top = write_joints_linked(0b11, &bands[1], &frame, &p, false);
-            let low = write_joints_linked(0b11, &bands[0], &frame, &p, false);
+            let top = write_joints_linked(0b11, &bands[1], &frame, &p, None);
+            let low = write_joints_linked(0b11, &bands[0], &frame, &p, None);
             assert_eq!(top[1] & 31, LINKED as u8, "the tag");
             read_joints(&top, "top", (&bands, 1), 2, &p, (&mut palette, &mut rig, &mut got)).expect("top band");
             read_joints(&low, "low", (&bands, 0), 2, &p, (&mut palette, &mut rig, &mut got)).expect("band 0");
@@ -652,7 +654,7 @@ mod tests {
             // are a zero class, every entry is rigid), and says so in its first 5 bits.
             let (mut palette2, mut rig2, mut got2) = (vec![0i64; 3 * ENTRY], vec![None; 3], vec![Link::NONE; 3]);
             for (j, linked) in [(1, &top), (0, &low)] {
-                let compact = write_joints_linked(0b11, &bands[j], &frame, &p, true);
+                let compact = write_joints_linked(0b11, &bands[j], &frame, &p, Some(seed(&bands, j, &frame.palette, &frame.rig)));
                 assert_eq!(compact[1] & 31, crate::skin::linked::COMPACT as u8, "the compact tag");
                 assert!(compact.len() <= linked.len(), "frame {f} band {j}: {} > {}", compact.len(), linked.len());
                 read_joints(&compact, "c", (&bands, j), 2, &p, (&mut palette2, &mut rig2, &mut got2)).expect("compact");
@@ -672,11 +674,11 @@ mod tests {
                 // A reference not read before its entry (2 after 1 in the same band) is refused.
                 let mut bad = frame.clone();
                 bad.links[1] = Link { reference: 2, pivot: [0; 3] };
-                let raw = write_joints_linked(0b11, &bands[0], &bad, &p, false);
+                let raw = write_joints_linked(0b11, &bands[0], &bad, &p, None);
                 let e = read_joints(&raw, "b", (&bands, 0), 2, &p, (&mut palette, &mut rig, &mut got)).expect_err("order").to_string();
                 assert!(e.contains("palette entry 1: reference 2 is not an entry read before it"), "{e}");
                 bad.links[1] = Link { reference: 0, pivot: [0, 1 << 31, 0] };
-                let raw = write_joints_linked(0b11, &bands[0], &bad, &p, false);
+                let raw = write_joints_linked(0b11, &bands[0], &bad, &p, None);
                 let e = read_joints(&raw, "b", (&bands, 0), 2, &p, (&mut palette, &mut rig, &mut got)).expect_err("pivot").to_string();
                 assert!(e.contains("pivot coordinate 2147483648 beyond the limit"), "{e}");
                 let e = read_joints(&low[..low.len() - 1], "cut", (&bands, 0), 2, &p, (&mut palette, &mut rig, &mut got))

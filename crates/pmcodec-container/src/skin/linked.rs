@@ -8,8 +8,9 @@
 //! keeps its scale costs nothing instead of a bit per frame); a bit "all rigid" drops the
 //! per-entry rigid bit where every moved entry is rigid (a skeleton's always are); and on
 //! keyframes an entry without a reference is predicted from the rigid entry decoded before it
-//! in the chunk instead of from 0, so the scale and rotation the entries of one character share
-//! are sent once per keyframe and chunk, not once per entry.
+//! (in the chunk, or for its first in the nearest coarser band: [`seed`]) instead of from 0, so
+//! the scale and rotation the entries of one character share are sent once per keyframe, not
+//! once per entry.
 
 use super::ENTRY;
 use super::bits::{Bits, golomb_len, zigzag};
@@ -38,6 +39,20 @@ pub fn chained(p: Predicted, last: Option<(Rig, [i64; 3])>) -> Predicted {
     }
 }
 
+/// The prediction of a keyframe's first rigid entry without a reference in the compact coding
+/// of band `j`'s chunk: the last rigid entry (in ascending order) of the nearest coarser band
+/// that has one, all of which a reader of band `j` has decoded this frame; `None` (from 0) when
+/// no coarser band has a rigid entry.
+pub fn seed(bands: &[Vec<u32>], j: usize, palette: &[i64], rig: &[Option<Rig>]) -> Option<(Rig, [i64; 3])> {
+    let band = |b: &Vec<u32>| {
+        b.iter().rev().find_map(|&e| {
+            let e = e as usize;
+            rig.get(e).copied().flatten().map(|r| (r, [3, 7, 11].map(|i| palette.get(e * ENTRY + i).copied().unwrap_or(0))))
+        })
+    };
+    bands.iter().skip(j + 1).find_map(band)
+}
+
 /// Bits of a reference in a palette of `n` entries: `ceil(log2 n)`.
 pub fn ref_bits(n: usize) -> u32 {
     (n.max(1) as u64).next_power_of_two().trailing_zeros()
@@ -48,11 +63,17 @@ pub fn ref_bits(n: usize) -> u32 {
 type Coded = Vec<(bool, Vec<(usize, i64)>)>;
 
 /// The numbers of the moved entries of a linked or compact chunk.
-fn code_entries(entries: &[u32], frame: &JointsFrame, prediction: &JointPrediction, link: impl Fn(usize) -> Link, compact: bool) -> Coded {
+fn code_entries(
+    entries: &[u32],
+    frame: &JointsFrame,
+    prediction: &JointPrediction,
+    link: impl Fn(usize) -> Link,
+    compact: Option<Option<(Rig, [i64; 3])>>,
+) -> Coded {
     let key = matches!(prediction.pose, PosePrediction::Key);
     let moved = |e: usize| key || !frame.held.get(e).copied().unwrap_or(false);
     let mut coded: Coded = Vec::with_capacity(entries.len());
-    let mut last: Option<(Rig, [i64; 3])> = None;
+    let mut last: Option<(Rig, [i64; 3])> = compact.flatten();
     for &e in entries.iter().filter(|&&e| moved(e as usize)) {
         let e = e as usize;
         let base = e * ENTRY;
@@ -61,7 +82,7 @@ fn code_entries(entries: &[u32], frame: &JointsFrame, prediction: &JointPredicti
         match frame.rig.get(e).copied().flatten() {
             Some(r) => {
                 let mut p = predict(e, link(e), prediction, (&frame.palette, &frame.rig));
-                if compact && key {
+                if compact.is_some() && key {
                     p = chained(p, last);
                 }
                 let (q, t) = if p.linked { (4, 5) } else { (0, 2) };
@@ -97,13 +118,22 @@ fn code_entries(entries: &[u32], frame: &JointsFrame, prediction: &JointPredicti
 /// "moved" (not on keyframes), then for a moved entry a bit "rigid" (compact: unless all are),
 /// for a rigid one a bit "exact" (its numbers all 0), then its numbers, each class's 5-bit
 /// Exp-Golomb order before its first number (compact: [`ZERO_CLASS`] where all are 0, and then
-/// none of them).
-pub fn write_joints_linked(mask: u64, entries: &[u32], frame: &JointsFrame, prediction: &JointPrediction, compact: bool) -> Vec<u8> {
+/// none of them). `compact`: `None` for the linked coding, else the compact coding with the
+/// keyframe prediction of its first entry without a reference ([`seed`]).
+pub fn write_joints_linked(
+    mask: u64,
+    entries: &[u32],
+    frame: &JointsFrame,
+    prediction: &JointPrediction,
+    compact: Option<Option<(Rig, [i64; 3])>>,
+) -> Vec<u8> {
+    let seeded = compact;
+    let compact = compact.is_some();
     let key = matches!(prediction.pose, PosePrediction::Key);
     let links = if key { frame.links.as_slice() } else { prediction.links };
     let link = |e: usize| links.get(e).copied().unwrap_or(Link::NONE);
     let moved = |e: usize| key || !frame.held.get(e).copied().unwrap_or(false);
-    let coded = code_entries(entries, frame, prediction, link, compact);
+    let coded = code_entries(entries, frame, prediction, link, seeded);
     // Keyframes: each carried entry's pivot, when it has a reference.
     let pivots: Vec<(usize, i64)> = if key {
         entries.iter().map(|&e| link(e as usize)).filter(|l| l.reference != NO_REF).flat_map(|l| l.pivot.map(|c| (6, c))).collect()
