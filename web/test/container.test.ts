@@ -919,15 +919,21 @@ test("skinned streams' palettes: the encoder writes Joints chunks, and streams w
   assert.equal(o.flags, 0);
 });
 
-test("Joints chunks in the linked coding (a deep skeleton with rigid mesh nodes) decode as Rust decodes them", async () => {
+test("Joints chunks in the linked and the compact coding (a deep skeleton with rigid mesh nodes) decode as Rust decodes them", async () => {
   const robot = join(root, "../shared/data/gltf/RobotExpressive.glb");
   const file = join(dir, "robot-linked.pmc");
   execFileSync(bin, ["encode", "-q", robot, "-o", file, "--animation", "0", "--fps", "10", "--keyframe-interval", "8", "--quant-bits", "12"]);
   const c = await sameAsRust(file, "robot-linked");
-  // Keyframe chunks that link an entry start their bits with 31 after the band mask (one byte here).
-  let linked = 0;
-  for (const e of c.index.filter((x) => x.kind === ChunkKind.Joints)) if (((await c.chunk(e))[1] & 31) === 31) linked++;
-  assert.ok(linked > 0, "some Joints chunks are in the linked coding");
+  // Chunks in the linked coding start their bits with 31 after the band mask (one byte here),
+  // those in the compact coding with 30; the encoder writes each chunk in the shortest coding.
+  let linked = 0, compact = 0;
+  for (const e of c.index.filter((x) => x.kind === ChunkKind.Joints)) {
+    const tag = (await c.chunk(e))[1] & 31;
+    if (tag === 31) linked++;
+    if (tag === 30) compact++;
+  }
+  assert.ok(linked + compact > 0, "some Joints chunks are in the linked codings");
+  assert.ok(compact > 0, "some Joints chunks are in the compact coding");
 });
 
 test("a damaged Joints chunk is refused with a DecodeError naming it", async () => {

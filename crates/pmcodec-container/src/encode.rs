@@ -666,7 +666,7 @@ fn code_frames(
         if skin.is_some() {
             // Top band first, as the bands themselves.
             for (at, j) in (pose_at..).zip((0..levels).rev().filter(|&j| has_palette_chunk(&bands, j))) {
-                let (kind, raw) = pose_chunk(opts.palette_coding, mask, &bands[j], &palette, (&held, intra));
+                let (kind, raw) = pose_chunk(opts.palette_coding, mask, (&bands, j), &palette, (&held, intra));
                 chunks.insert(at, kind, f as u32, j as u32, raw)?;
             }
             let JointsFrame { palette, rig, links, .. } = std::mem::take(&mut palette);
@@ -717,12 +717,13 @@ fn derive_bands(chunks: &mut Chunks, interval: u32, policy: DerivedTopology) -> 
 fn pose_chunk(
     coding: PaletteCoding,
     mask: u64,
-    entries: &[u32],
+    (bands, j): (&[Vec<u32>], usize),
     palette: &JointsFrame,
     (held, intra): (&SkinState, bool),
 ) -> (ChunkKind, Vec<u8>) {
+    let entries: &[u32] = bands.get(j).map(Vec::as_slice).unwrap_or_default();
     match coding {
-        PaletteCoding::Joints => (ChunkKind::Joints, write_joints_best(mask, entries, palette, &held.joint_prediction(intra))),
+        PaletteCoding::Joints => (ChunkKind::Joints, write_joints_best(mask, (bands, j), palette, &held.joint_prediction(intra))),
         PaletteCoding::JointsPlain => (ChunkKind::Joints, write_joints(mask, entries, palette, &held.joint_prediction(intra))),
         PaletteCoding::Palette => (ChunkKind::Palette, write_palette(mask, entries, &palette.palette, held.prediction(intra))),
     }

@@ -161,6 +161,10 @@ export function hasPaletteChunk(bands: number[][], j: number): boolean {
 export const NO_REF = -1;
 /** The first 5 bits of a Joints chunk in the linked coding. */
 const LINKED = 31;
+/** The first 5 bits of a Joints chunk in the compact coding. */
+const COMPACT = 30;
+/** A class's order in the compact coding that says its numbers in the chunk are all 0. */
+const ZERO_CLASS = 31;
 
 /** An entry's link (linked Joints coding): its reference entry (NO_REF: none) and pivot in bind quanta. */
 export interface Link { reference: number; pivot: bigint[] }
@@ -317,8 +321,8 @@ export class SkinState {
    * Reads band `j`'s Joints chunk (carrying `bands[j]`) into `out`, `rig` and `links` (the frame's
    * palette, rigid parameters and links; entries it does not carry left as they are, those
    * of coarser bands already read), predicted from the held palettes, rigid parameters and
-   * links; returns the band mask (proto/container.md, "Joints"). Reads the plain coding and
-   * the linked one (first 5 bits 31).
+   * links; returns the band mask (proto/container.md, "Joints"). Reads the plain coding, the
+   * linked one (first 5 bits 31) and the compact one (first 5 bits 30).
    */
   readJoints(raw: Uint8Array, what: string, bands: number[][], j: number, levels: number, intra: boolean, out: BigInt64Array, rig: (Rig | null)[], links: Link[]): bigint {
     const c = new Cursor64(raw, what);
@@ -339,7 +343,8 @@ export class SkinState {
       links[e] = intra ? NO_LINK : (this.links[e] ?? NO_LINK);
     }
     const first = r.get(5);
-    const linked = first === LINKED;
+    const compact = first === COMPACT;
+    const linked = first === LINKED || compact;
     const orders: (number | null)[] = [null, null, null, null, null, null, null];
     if (!linked) {
       orders[0] = first;
@@ -348,8 +353,25 @@ export class SkinState {
     const signed = (cls: number): bigint => {
       let k = orders[cls];
       if (k === null) k = orders[cls] = r.get(5);
+      if (compact && k === ZERO_CLASS) return 0n;
       return r.signed(k);
     };
+    const allRigid = compact && r.one() === 1;
+    // The compact coding's keyframe prediction of an entry without a reference: the rigid entry
+    // decoded before it in the chunk; for the chunk's first, the last rigid entry of the nearest
+    // coarser band that has one (as `linked::seed`).
+    let last: { rig: bigint[]; t: bigint[] } | null = null;
+    if (compact && intra) {
+      for (let b = j + 1; b < bands.length && last === null; b++) {
+        const carried = bands[b];
+        for (let i = carried.length - 1; i >= 0; i--) {
+          const e = carried[i], g = rig[e] ?? null;
+          if (g === null) continue;
+          last = { rig: g, t: [3, 7, 11].map((k) => out[e * ENTRY + k] ?? 0n) };
+          break;
+        }
+      }
+    }
     if (linked && intra) {
       let width = 0;
       while (2 ** width < n) width++;
@@ -373,12 +395,13 @@ export class SkinState {
         continue;
       }
       const values: bigint[] = new Array(ENTRY);
-      if (r.one() === 1) {
+      if (allRigid || r.one() === 1) {
         let pr: Predicted, exact = false;
         if (linked) {
           pr = predictLinked(e, links[e], { palette: p, previous: q, rig: this.rig, rigBefore: this.rigBefore, rigAt, predicted }, out, rig);
           exact = r.one() === 1;
         } else pr = { rig: rigAt(e), t: [3, 7, 11].map((i) => predicted(base + i)), linked: false, anchor: null };
+        if (compact && intra && last !== null && !pr.linked) pr = { rig: last.rig.slice(), t: last.t.slice(), linked: false, anchor: null };
         const [qc, tc] = pr.linked ? [4, 5] : [0, 2];
         const g = pr.rig.slice();
         if (!exact) for (let i = 0; i < 5; i++) g[i] = wrap(pr.rig[i] + signed(i < 4 ? qc : 1));
@@ -393,6 +416,7 @@ export class SkinState {
           values[4 * a + 3] = t[a];
         }
         rig[e] = g;
+        last = { rig: g, t: [values[3], values[7], values[11]] };
       } else {
         for (let i = 0; i < ENTRY; i++) values[i] = wrap(predicted(base + i) + signed(3));
         rig[e] = null;

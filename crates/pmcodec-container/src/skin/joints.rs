@@ -11,6 +11,7 @@
 
 use super::bits::{BitReader, Bits, golomb_len, unzigzag, zigzag};
 use super::hierarchy::{Link, NO_REF, Predicted, predict, read_before};
+use super::linked::{COMPACT, LINKED_CLASSES, ZERO_CLASS, chained, ref_bits, seed, write_joints_linked};
 use super::payload::PosePrediction;
 use super::{ENTRY, LINEAR_BITS, MAX_MATRIX};
 use crate::ContainerError;
@@ -37,9 +38,6 @@ const CLASSES: usize = 4;
 /// coding never writes for quaternions (their differences are under 2^28, which order 27 codes
 /// in fewer bits), so every file written before it reads as before.
 pub const LINKED: u64 = 31;
-/// The linked coding's number classes: the plain coding's four, then the quaternions and the
-/// translations of linked entries, and pivots.
-const LINKED_CLASSES: usize = 7;
 
 /// The integer matrix `L` (row-major, 2^-15 position quanta per bind quantum) of the rotation
 /// of quaternion `q` scaled by `s / 2^8`: `L[a][c] = floor((2 s N[a][c] + 2^8 n) / (2^9 n))`,
@@ -173,7 +171,7 @@ pub fn write_joints(mask: u64, entries: &[u32], frame: &JointsFrame, prediction:
 }
 
 /// Writes the band mask as a varint.
-fn put_mask(out: &mut Vec<u8>, mask: u64) {
+pub(super) fn put_mask(out: &mut Vec<u8>, mask: u64) {
     let mut v = mask;
     while v >= 0x80 {
         out.push((v as u8) | 0x80);
@@ -182,124 +180,25 @@ fn put_mask(out: &mut Vec<u8>, mask: u64) {
     out.push(v as u8);
 }
 
-/// Bits of a reference in a palette of `n` entries: `ceil(log2 n)`.
-fn ref_bits(n: usize) -> u32 {
-    (n.max(1) as u64).next_power_of_two().trailing_zeros()
-}
-
-/// JOINTS in the linked coding (proto/container.md, "Joints", "Linked coding"): the band mask,
-/// then bits: 5 bits [`LINKED`]; on keyframes each carried entry's reference (a bit, and when
-/// set the entry in `ceil(log2 P)` bits); per carried entry a bit "moved" (not on keyframes),
-/// then for a moved entry a bit "rigid", for a rigid one a bit "exact" (its numbers all 0),
-/// then its numbers, each class's 5-bit Exp-Golomb order before its first number.
-pub fn write_joints_linked(mask: u64, entries: &[u32], frame: &JointsFrame, prediction: &JointPrediction) -> Vec<u8> {
-    let key = matches!(prediction.pose, PosePrediction::Key);
-    let links = if key { frame.links.as_slice() } else { prediction.links };
-    let link = |e: usize| links.get(e).copied().unwrap_or(Link::NONE);
-    let moved = |e: usize| key || !frame.held.get(e).copied().unwrap_or(false);
-    // Per carried entry that moved: whether rigid, and its numbers (empty: exact).
-    let mut coded: Vec<(bool, Vec<(usize, i64)>)> = Vec::with_capacity(entries.len());
-    for &e in entries.iter().filter(|&&e| moved(e as usize)) {
-        let e = e as usize;
-        let base = e * ENTRY;
-        let value = |i: usize| frame.palette.get(base + i).copied().unwrap_or(0);
-        let mut numbers = Vec::new();
-        match frame.rig.get(e).copied().flatten() {
-            Some(r) => {
-                let p = predict(e, link(e), prediction, (&frame.palette, &frame.rig));
-                let (q, t) = if p.linked { (4, 5) } else { (0, 2) };
-                for i in 0..4 {
-                    numbers.push((q, r[i].wrapping_sub(p.rig[i])));
-                }
-                numbers.push((1, r[4].wrapping_sub(p.rig[4])));
-                let tp = rig_matrix(&r).map_or(p.t, |l| p.translation(&l));
-                for a in 0..3 {
-                    numbers.push((t, value(4 * a + 3).wrapping_sub(tp[a])));
-                }
-                if numbers.iter().all(|n| n.1 == 0) {
-                    numbers.clear();
-                }
-                coded.push((true, numbers));
-            }
-            None => {
-                for i in 0..ENTRY {
-                    numbers.push((3, value(i).wrapping_sub(prediction.pose.at(base + i))));
-                }
-                coded.push((false, numbers));
-            }
+/// The shortest of the plain, the linked and the compact coding of a frame's chunk for
+/// `entries`. On keyframes the plain coding is left out whenever an entry of the chunk has a
+/// reference, since only a keyframe's chunk sends references (the frames up to the next
+/// keyframe use them).
+/// `(bands, j)`: each band's entries and the chunk's band.
+pub fn write_joints_best(mask: u64, (bands, j): (&[Vec<u32>], usize), frame: &JointsFrame, prediction: &JointPrediction) -> Vec<u8> {
+    let entries: &[u32] = bands.get(j).map(Vec::as_slice).unwrap_or_default();
+    let linked = write_joints_linked(mask, entries, frame, prediction, None);
+    let compact = write_joints_linked(mask, entries, frame, prediction, Some(seed(bands, j, &frame.palette, &frame.rig)));
+    let mut best = if compact.len() < linked.len() { compact } else { linked };
+    let any = matches!(prediction.pose, PosePrediction::Key)
+        && entries.iter().any(|&e| frame.links.get(e as usize).is_some_and(|l| l.reference != NO_REF));
+    if !any {
+        let plain = write_joints(mask, entries, frame, prediction);
+        if plain.len() <= best.len() {
+            best = plain;
         }
     }
-    // Keyframes: each carried entry's pivot, when it has a reference.
-    let pivots: Vec<(usize, i64)> = if key {
-        entries.iter().map(|&e| link(e as usize)).filter(|l| l.reference != NO_REF).flat_map(|l| l.pivot.map(|c| (6, c))).collect()
-    } else {
-        Vec::new()
-    };
-    let orders: [u32; LINKED_CLASSES] = std::array::from_fn(|c| {
-        (0..=MAX_ORDER)
-            .min_by_key(|&k| {
-                coded.iter().flat_map(|x| &x.1).chain(&pivots).filter(|n| n.0 == c).map(|n| golomb_len(zigzag(n.1), k)).sum::<u64>()
-            })
-            .unwrap_or(0)
-    });
-    let mut sent = [false; LINKED_CLASSES];
-    let mut out = Vec::with_capacity(entries.len() * 4 + 4);
-    put_mask(&mut out, mask);
-    let mut bits = Bits::default();
-    bits.put(LINKED, 5);
-    if key {
-        let width = ref_bits(frame.palette.len() / ENTRY);
-        for &e in entries {
-            let l = link(e as usize);
-            bits.put((l.reference != NO_REF) as u64, 1);
-            if l.reference != NO_REF {
-                bits.put(l.reference as u64, width);
-                for c in l.pivot {
-                    if !sent[6] {
-                        sent[6] = true;
-                        bits.put(orders[6] as u64, 5);
-                    }
-                    bits.golomb(zigzag(c), orders[6]);
-                }
-            }
-        }
-    }
-    let mut next = coded.iter();
-    for &e in entries {
-        if !key {
-            bits.put(moved(e as usize) as u64, 1);
-        }
-        if !moved(e as usize) {
-            continue;
-        }
-        let Some((rigid, numbers)) = next.next() else { break };
-        bits.put(*rigid as u64, 1);
-        if *rigid {
-            bits.put(numbers.is_empty() as u64, 1);
-        }
-        for &(class, d) in numbers {
-            if !sent[class] {
-                sent[class] = true;
-                bits.put(orders[class] as u64, 5);
-            }
-            bits.golomb(zigzag(d), orders[class]);
-        }
-    }
-    out.extend(bits.out);
-    out
-}
-
-/// The shorter of the plain and the linked coding of a frame's chunk for `entries`. On keyframes
-/// the linked coding is taken whenever an entry of the chunk has a reference, since only a
-/// keyframe's chunk sends references (the frames up to the next keyframe use them).
-pub fn write_joints_best(mask: u64, entries: &[u32], frame: &JointsFrame, prediction: &JointPrediction) -> Vec<u8> {
-    let linked = write_joints_linked(mask, entries, frame, prediction);
-    if matches!(prediction.pose, PosePrediction::Key) {
-        let any = entries.iter().any(|&e| frame.links.get(e as usize).is_some_and(|l| l.reference != NO_REF));
-        return if any { linked } else { write_joints(mask, entries, frame, prediction) };
-    }
-    let plain = write_joints(mask, entries, frame, prediction);
-    if plain.len() <= linked.len() { plain } else { linked }
+    best
 }
 
 /// A Joints payload's band mask (a varint of at most 64 bits naming bands below `levels`) and
@@ -343,11 +242,67 @@ fn read_pivot(
     Ok(pivot)
 }
 
+/// The orders of a chunk's number classes as a reader learns them, and whether a class's
+/// order may say that its numbers are all 0 (the compact coding's [`ZERO_CLASS`]).
+struct Orders {
+    known: [Option<u32>; LINKED_CLASSES],
+    compact: bool,
+}
+
+impl Orders {
+    /// The next signed number of `class`, its order read before its first number.
+    fn signed(&mut self, r: &mut BitReader, class: usize) -> Result<i64, ContainerError> {
+        let k = match self.known[class] {
+            Some(k) => k,
+            None => {
+                let k = r.get(5)? as u32;
+                self.known[class] = Some(k);
+                k
+            }
+        };
+        if self.compact && k == ZERO_CLASS {
+            return Ok(0);
+        }
+        r.golomb(k).map(unzigzag)
+    }
+}
+
+/// A rigid entry's twelve values and parameters from its prediction `p`, reading its numbers
+/// unless `exact`.
+fn read_rigid(r: &mut BitReader, e: usize, p: &Predicted, exact: bool, orders: &mut Orders) -> Result<([i64; ENTRY], Rig), ContainerError> {
+    let (qc, tc) = if p.linked { (4, 5) } else { (0, 2) };
+    let mut q = p.rig;
+    if !exact {
+        for i in 0..5 {
+            q[i] = p.rig[i].wrapping_add(orders.signed(r, if i < 4 { qc } else { 1 })?);
+        }
+    }
+    if q[..4].iter().any(|c| c.unsigned_abs() > MAX_QUATERNION as u64) {
+        return Err(r.corrupt(format!("palette entry {e}: quaternion {:?} beyond the limit of {MAX_QUATERNION}", &q[..4])));
+    }
+    if q[4].unsigned_abs() > MAX_SCALE as u64 {
+        return Err(r.corrupt(format!("palette entry {e}: scale {} beyond the limit of {MAX_SCALE}", q[4])));
+    }
+    let Some(m) = rig_matrix(&q) else { return Err(r.corrupt(format!("palette entry {e}: the zero quaternion"))) };
+    let mut t = p.translation(&m);
+    if !exact {
+        for v in &mut t {
+            *v = v.wrapping_add(orders.signed(r, tc)?);
+        }
+    }
+    let mut values = [0i64; ENTRY];
+    for a in 0..3 {
+        values[4 * a..4 * a + 3].copy_from_slice(&m[3 * a..3 * a + 3]);
+        values[4 * a + 3] = t[a];
+    }
+    Ok((values, q))
+}
+
 /// Reads a JOINTS payload of band `j` (carrying `bands[j]`, `bands` the entries each band
 /// carries) for a file of `levels` bands into the frame's `palette`, `rig` and `links` (entries
 /// it does not carry left as they are; entries of coarser bands already read); returns the
-/// band mask. Reads either coding: the plain one, or the linked one when its first 5 bits are
-/// [`LINKED`].
+/// band mask. Reads every coding: the plain one, the linked one when its first 5 bits are
+/// [`LINKED`], the compact one when they are [`COMPACT`].
 pub fn read_joints(
     bytes: &[u8],
     what: &str,
@@ -372,27 +327,18 @@ pub fn read_joints(
         links[e] = if key { Link::NONE } else { prediction.links.get(e).copied().unwrap_or(Link::NONE) };
     }
     let first = r.get(5)?;
-    let linked = first == LINKED;
-    // Orders: the plain coding's four up front; the linked coding's each before its first number.
-    let mut orders = [None::<u32>; LINKED_CLASSES];
+    let compact = first == COMPACT;
+    let linked = first == LINKED || compact;
+    // Orders: the plain coding's four up front; the linked codings' each before its first number.
+    let mut orders = Orders { known: [None; LINKED_CLASSES], compact };
     if !linked {
-        orders[0] = Some(first as u32);
-        for k in &mut orders[1..CLASSES] {
+        orders.known[0] = Some(first as u32);
+        for k in &mut orders.known[1..CLASSES] {
             *k = Some(r.get(5)? as u32);
         }
     }
+    let all_rigid = compact && r.bit()? == 1;
     let previous = prediction.pose.previous();
-    let signed = |r: &mut BitReader, orders: &mut [Option<u32>; LINKED_CLASSES], class: usize| -> Result<i64, ContainerError> {
-        let k = match orders[class] {
-            Some(k) => k,
-            None => {
-                let k = r.get(5)? as u32;
-                orders[class] = Some(k);
-                k
-            }
-        };
-        r.golomb(k).map(unzigzag)
-    };
     if linked && key {
         let width = ref_bits(n);
         for &e in entries {
@@ -401,11 +347,13 @@ pub fn read_joints(
                 if p as usize >= n || p == e as u64 || !read_before(bands, p as u32, e) {
                     return Err(corrupt(format!("palette entry {e}: reference {p} is not an entry read before it")));
                 }
-                let pivot = read_pivot(&mut r, e, |r| signed(r, &mut orders, 6))?;
+                let pivot = read_pivot(&mut r, e, |r| orders.signed(r, 6))?;
                 links[e as usize] = Link { reference: p as u32, pivot };
             }
         }
     }
+    // The compact coding's keyframe prediction of an entry without a reference.
+    let mut last = if compact && key { seed(bands, j, &*palette, &*rig) } else { None };
     for &e in entries {
         let e = e as usize;
         let base = e * ENTRY;
@@ -417,45 +365,28 @@ pub fn read_joints(
             rig[e] = prediction.rig.get(e).copied().flatten();
             continue;
         }
-        let mut values = [0i64; ENTRY];
-        if r.bit()? == 1 {
-            let (p, exact) = if linked {
+        let values = if all_rigid || r.bit()? == 1 {
+            let (mut p, exact) = if linked {
                 (predict(e, links[e], prediction, (&*palette, &*rig)), r.bit()? == 1)
             } else {
                 let t = [3, 7, 11].map(|i| prediction.pose.at(base + i));
                 (Predicted { rig: prediction.rig_at(e), t, linked: false, anchor: None }, false)
             };
-            let (qc, tc) = if p.linked { (4, 5) } else { (0, 2) };
-            let mut q = p.rig;
-            if !exact {
-                for i in 0..5 {
-                    q[i] = p.rig[i].wrapping_add(signed(&mut r, &mut orders, if i < 4 { qc } else { 1 })?);
-                }
+            if compact && key {
+                p = chained(p, last);
             }
-            if q[..4].iter().any(|c| c.unsigned_abs() > MAX_QUATERNION as u64) {
-                return Err(corrupt(format!("palette entry {e}: quaternion {:?} beyond the limit of {MAX_QUATERNION}", &q[..4])));
-            }
-            if q[4].unsigned_abs() > MAX_SCALE as u64 {
-                return Err(corrupt(format!("palette entry {e}: scale {} beyond the limit of {MAX_SCALE}", q[4])));
-            }
-            let Some(m) = rig_matrix(&q) else { return Err(corrupt(format!("palette entry {e}: the zero quaternion"))) };
-            let mut t = p.translation(&m);
-            if !exact {
-                for v in &mut t {
-                    *v = v.wrapping_add(signed(&mut r, &mut orders, tc)?);
-                }
-            }
-            for a in 0..3 {
-                values[4 * a..4 * a + 3].copy_from_slice(&m[3 * a..3 * a + 3]);
-                values[4 * a + 3] = t[a];
-            }
+            let (values, q) = read_rigid(&mut r, e, &p, exact, &mut orders)?;
             rig[e] = Some(q);
+            last = Some((q, [values[3], values[7], values[11]]));
+            values
         } else {
+            let mut values = [0i64; ENTRY];
             for (i, v) in values.iter_mut().enumerate() {
-                *v = prediction.pose.at(base + i).wrapping_add(signed(&mut r, &mut orders, 3)?);
+                *v = prediction.pose.at(base + i).wrapping_add(orders.signed(&mut r, 3)?);
             }
             rig[e] = None;
-        }
+            values
+        };
         for (i, &v) in values.iter().enumerate() {
             if v.unsigned_abs() > MAX_MATRIX as u64 {
                 let name = if i % 4 == 3 { "translation" } else { "linear value" };
@@ -711,14 +642,24 @@ mod tests {
             let frame = fit_frame(&fixed, |_| (12000.0, 4500.0), |_| false, &order, frame_links, (&p, &held, key));
             assert!(frame.rig.iter().all(Option::is_some), "frame {f}: every entry rigid");
             let (mut palette, mut rig, mut got) = (vec![0i64; 3 * ENTRY], vec![None; 3], vec![Link::NONE; 3]);
-            let top = write_joints_linked(0b11, &bands[1], &frame, &p);
-            let low = write_joints_linked(0b11, &bands[0], &frame, &p);
+            let top = write_joints_linked(0b11, &bands[1], &frame, &p, None);
+            let low = write_joints_linked(0b11, &bands[0], &frame, &p, None);
             assert_eq!(top[1] & 31, LINKED as u8, "the tag");
             read_joints(&top, "top", (&bands, 1), 2, &p, (&mut palette, &mut rig, &mut got)).expect("top band");
             read_joints(&low, "low", (&bands, 0), 2, &p, (&mut palette, &mut rig, &mut got)).expect("band 0");
             assert_eq!(palette, frame.palette, "frame {f}");
             assert_eq!(rig, frame.rig, "frame {f}");
             assert_eq!(got, frame.links, "frame {f}");
+            // The compact coding rebuilds the same frame, never in more bytes here (its scales
+            // are a zero class, every entry is rigid), and says so in its first 5 bits.
+            let (mut palette2, mut rig2, mut got2) = (vec![0i64; 3 * ENTRY], vec![None; 3], vec![Link::NONE; 3]);
+            for (j, linked) in [(1, &top), (0, &low)] {
+                let compact = write_joints_linked(0b11, &bands[j], &frame, &p, Some(seed(&bands, j, &frame.palette, &frame.rig)));
+                assert_eq!(compact[1] & 31, crate::skin::linked::COMPACT as u8, "the compact tag");
+                assert!(compact.len() <= linked.len(), "frame {f} band {j}: {} > {}", compact.len(), linked.len());
+                read_joints(&compact, "c", (&bands, j), 2, &p, (&mut palette2, &mut rig2, &mut got2)).expect("compact");
+            }
+            assert_eq!((palette2, rig2, got2), (frame.palette.clone(), frame.rig.clone(), frame.links.clone()), "frame {f} compact");
             // The joint that holds still relative to its parent is sent as its prediction (its
             // flags alone) once the frames after the keyframe show its motion.
             if !key {
@@ -733,11 +674,11 @@ mod tests {
                 // A reference not read before its entry (2 after 1 in the same band) is refused.
                 let mut bad = frame.clone();
                 bad.links[1] = Link { reference: 2, pivot: [0; 3] };
-                let raw = write_joints_linked(0b11, &bands[0], &bad, &p);
+                let raw = write_joints_linked(0b11, &bands[0], &bad, &p, None);
                 let e = read_joints(&raw, "b", (&bands, 0), 2, &p, (&mut palette, &mut rig, &mut got)).expect_err("order").to_string();
                 assert!(e.contains("palette entry 1: reference 2 is not an entry read before it"), "{e}");
                 bad.links[1] = Link { reference: 0, pivot: [0, 1 << 31, 0] };
-                let raw = write_joints_linked(0b11, &bands[0], &bad, &p);
+                let raw = write_joints_linked(0b11, &bands[0], &bad, &p, None);
                 let e = read_joints(&raw, "b", (&bands, 0), 2, &p, (&mut palette, &mut rig, &mut got)).expect_err("pivot").to_string();
                 assert!(e.contains("pivot coordinate 2147483648 beyond the limit"), "{e}");
                 let e = read_joints(&low[..low.len() - 1], "cut", (&bands, 0), 2, &p, (&mut palette, &mut rig, &mut got))

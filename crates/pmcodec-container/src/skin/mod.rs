@@ -16,6 +16,7 @@ mod bits;
 mod fit;
 mod hierarchy;
 mod joints;
+mod linked;
 mod payload;
 mod place;
 mod rig;
@@ -244,7 +245,8 @@ pub fn raw_len_range(h: &crate::Header, kind: crate::ChunkKind, n: u64) -> (u64,
         crate::ChunkKind::Bind => (4 * n, 101 * n),
         crate::ChunkKind::Palette => (1, 10 + p / ENTRY as u64 / 8 + 1 + 10 * p),
         // Per entry at most 4 flag bits, a reference (16 bits), a pivot and twelve values (127
-        // bits each): 241 bytes; the mask, 7 orders and the last byte 16.
+        // bits each): 241 bytes; the mask, 7 orders and the last byte 16. The compact coding's
+        // one more bit (all rigid) fits in the 3 bits per entry this leaves over.
         crate::ChunkKind::Joints => (2, 16 + 241 * (p / ENTRY as u64)),
         _ => (1 + p, 10 + 10 * p),
     }
