@@ -71,6 +71,9 @@ pub(crate) fn on_grid(t: [f64; 3], p: [i32; 3], shift: u32, radius2: f64) -> ([i
 /// unquantized error, where the cheapest point within reach (of [`on_grid`]) lost up to 10%.
 pub(crate) const SURFACE_TOLERANCE2: f64 = 0.09;
 
+/// A candidate's rank in [`on_surface_grid`]: (outside the tolerance, cost, excess, distance).
+type Rank = (bool, u64, f64, f64);
+
 /// A coarse node's stored position as [`on_grid`] chooses it, but kept on its cluster's
 /// surface: among the grid points (multiples of `2^shift` quanta from the prediction `p`)
 /// within `sqrt(radius2)` grid steps of the true position `t`, those whose mean squared
@@ -97,7 +100,7 @@ pub(crate) fn on_surface_grid(
     let near = u.map(|x| x.round() as i32);
     // (taken within the tolerance, cost, excess, distance): a smaller tuple is better, a
     // point within the tolerance before any other.
-    let mut best: Option<((bool, u64, f64, f64), [i32; 3])> = None;
+    let mut best: Option<(Rank, [i32; 3])> = None;
     for dx in -1..=1 {
         for dy in -1..=1 {
             for dz in -1..=1 {
