@@ -26,7 +26,7 @@ use pmcodec_hierarchy::base::{PoseSet, VertexWeights, base_quadrics};
 use pmcodec_hierarchy::progressive::{Encoder, FrameDelta, Keyframe};
 use pmcodec_hierarchy::{FineTopology, Hierarchy, Quadric, build};
 use pmcodec_mesh::Sequence;
-use positions::{PositionCoder, Skinning};
+use positions::{PositionCoder, Skinning, Surface};
 use std::collections::HashMap;
 use std::ops::ControlFlow;
 use std::path::Path;
@@ -238,7 +238,8 @@ struct Reclustered {
     key: Option<Keyframe>,
     h: Hierarchy,
     positions: Vec<Vec3>,
-    /// The quadrics of the coarse nodes (levels 1 and up), when skinning may place them.
+    /// The quadrics of the coarse nodes (levels 1 and up), when they place them (on their
+    /// surfaces, or where skinning may place them).
     quadrics: Vec<Quadric>,
 }
 
@@ -437,7 +438,7 @@ fn encode_frames<F: AsRef<[Vec3]>>(
         enc.stop_corners();
     }
     let first = Reclustered::new(&enc);
-    let quadrics = head.skin.is_some() && opts.skin.is_some() && opts.skinned_coarse.is_some();
+    let quadrics = opts.surface_grid || (head.skin.is_some() && opts.skin.is_some() && opts.skinned_coarse.is_some());
     // Appearance is the same in every frame: its tables cover the pairs every frame's
     // hierarchy shows, so each frame's is observed here, right after its reclustering (the
     // coding side was the longer of the two threads by about this much on a 34,102-vertex
@@ -642,7 +643,8 @@ fn code_frames(
         }
         // The frame's pose goes before its bands, once they say which bands skinning predicts.
         let pose_at = chunks.len();
-        let coarse = opts.skinned_coarse.map(|t| CoarseQuadrics::new(&r.quadrics, h.level_sizes[0] as usize, (lo, step), t));
+        let n0 = h.level_sizes[0] as usize;
+        let coarse = opts.skinned_coarse.map(|t| CoarseQuadrics::new(&r.quadrics, n0, (lo, step), t));
         let skinning = skin.as_ref().map(|s| Skinning {
             nodes: &s.nodes,
             palette: &palette.palette,
@@ -659,7 +661,8 @@ fn code_frames(
                 }
             }
             chunks.push(ChunkKind::Delta, f as u32, j as u32, topology::delta_chunk(h, j, &net_moves(delta, j)))?;
-            let (positions, skinned) = coder.band(j, intra, h, truth, skinning);
+            let surface = opts.surface_grid.then_some(Surface { quadrics: &r.quadrics, first: n0, lo: lo.as_dvec3(), step: step as f64 });
+            let (positions, skinned) = coder.band(j, intra, h, truth, (skinning, surface));
             mask |= (skinned as u64) << j;
             chunks.push(ChunkKind::Positions, f as u32, j as u32, positions)?;
         }

@@ -41,3 +41,37 @@ fn waving_cloth_levels_stay_near_plain_qem_on_frame_0() {
         assert!(ours <= 1.08 * plain, "{n} vertices: {ours} against plain QEM's {plain} ({:.3}x)", ours / plain);
     }
 }
+
+/// Frame 0's mean RMS over the coarse levels of `seq` encoded with `opts`.
+fn coarse_levels_rms(seq: &pmcodec_mesh::Sequence, opts: &EncodeOptions) -> (f64, usize) {
+    let bytes = encode(seq, opts, |_| {}).expect("encode");
+    let reader = Reader::open(bytes.as_slice()).expect("open");
+    let levels = reader.header().levels();
+    let mut d = Decoder::new(reader, 0).expect("decoder");
+    d.seek(0).expect("frame 0");
+    let original = seq.frame_mesh(0).expect("frame 0");
+    let rms = |m: &pmcodec_mesh::TriMesh| pmcodec_eval::symmetric_relative(&original, m, &Default::default()).expect("measurable").rms;
+    let sum: f64 = (1..levels).map(|j| rms(&d.mesh(CutTarget::Level(j)).expect("level cut"))).sum();
+    (sum / (levels - 1).max(1) as f64, bytes.len())
+}
+
+/// Coarse nodes stored on their clusters' surfaces (`EncodeOptions::surface_grid`) against the
+/// cheapest grid point within reach, on generated meshes at a coarse quantization (8 bits, where
+/// a grid step is large beside a level's error): the surface choice must not raise the coarse
+/// levels' error, and lower it somewhere.
+#[test]
+fn coarse_nodes_on_the_surface_lower_the_coarse_levels_error() {
+    let mut lowered = 0;
+    for seq in [pmcodec_mesh::samples::waving_cloth(40, 30, 2), pmcodec_mesh::samples::twisting_tube(32, 24, 2)] {
+        let at = |surface_grid| EncodeOptions {
+            quantization: pmcodec_container::QuantizationChoice::Bits(8),
+            surface_grid,
+            ..Default::default()
+        };
+        let ((on, on_bytes), (off, off_bytes)) = (coarse_levels_rms(&seq, &at(true)), coarse_levels_rms(&seq, &at(false)));
+        eprintln!("surface grid on: {on:.5}% ({on_bytes} B), off: {off:.5}% ({off_bytes} B)");
+        assert!(on <= off * 1.005, "on the surface {on}, off {off}");
+        lowered += (on < off * 0.995) as u32;
+    }
+    assert!(lowered > 0, "the surface choice lowered no mesh's error");
+}

@@ -93,6 +93,10 @@ pub struct EncodeArgs {
     /// vertices stay within the error bound); `none` stores every node within the bound.
     #[arg(long, value_name = "K|none", default_value = "0")]
     pub coarse_grid: String,
+    /// Store coarse nodes at the cheapest grid point within reach even where it is off their
+    /// cluster's surface (as files before the surface grid; for comparison).
+    #[arg(long)]
+    pub off_surface_grid: bool,
     /// How input vertices are predicted between keyframes: `keyframe-affine` (the affine
     /// motion of their neighbourhood, weighted as the keyframe's shape gives), `affine` (the
     /// same fitted on every frame: 1% fewer bytes, decoding about half again slower) or `mean`
@@ -477,6 +481,7 @@ pub fn encode_options(args: &EncodeArgs) -> Result<EncodeOptions, Exit> {
     let mut opts = EncodeOptions {
         keyframe_interval: args.keyframe_interval,
         coarse_grid,
+        surface_grid: !args.off_surface_grid,
         motion,
         order,
         skin,

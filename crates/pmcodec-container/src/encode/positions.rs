@@ -2,11 +2,12 @@
 //! leaves smaller residuals), the stored position within the bound, and the residuals.
 
 use super::Motion;
-use crate::grid::{SLACK2, choose, on_grid};
+use crate::grid::{SLACK2, choose, on_grid, on_surface_grid};
 use crate::payload;
 use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, predict};
 use crate::skin::{CoarseQuadrics, NodeSkin, predict_skinned};
-use pmcodec_hierarchy::Hierarchy;
+use glam::DVec3;
+use pmcodec_hierarchy::{Hierarchy, Quadric};
 
 /// The state of position coding across frames: the stored positions of the previous and
 /// current frames and the predictors' scratch, as the decoder keeps them.
@@ -55,6 +56,34 @@ pub(super) struct Skinning<'a> {
     pub(super) coarse: Option<&'a CoarseQuadrics<'a>>,
 }
 
+/// A frame's coarse-node quadrics in the quantization grid's terms, so that coarse nodes are
+/// stored on their clusters' surfaces ([`on_surface_grid`]; [`super::EncodeOptions::surface_grid`]).
+#[derive(Clone, Copy)]
+pub(super) struct Surface<'a> {
+    /// The quadrics of nodes `first..`, by global id.
+    pub(super) quadrics: &'a [Quadric],
+    pub(super) first: usize,
+    /// The quantization grid's origin and step.
+    pub(super) lo: DVec3,
+    pub(super) step: f64,
+}
+
+impl Surface<'_> {
+    /// Node `g`'s excess at a point `x` (in quanta) over its true position `t`: the increase
+    /// of its quadric error per unit of its area, in quanta squared. None where the node has
+    /// no quadric or no area (it is then stored as [`on_grid`] stores it).
+    fn excess(&self, g: usize, t: [f64; 3]) -> Option<impl Fn([f64; 3]) -> f64 + '_> {
+        let q = g.checked_sub(self.first).and_then(|k| self.quadrics.get(k))?;
+        let scale = q.area * self.step * self.step;
+        if !(scale.is_finite() && scale > 0.0) {
+            return None;
+        }
+        let world = |x: [f64; 3]| self.lo + DVec3::from_array(x) * self.step;
+        let at_t = q.eval(world(t));
+        Some(move |x: [f64; 3]| (q.eval(world(x)) - at_t) / scale)
+    }
+}
+
 /// About the bits a residual costs (an Elias gamma code of its zigzag value): enough to tell
 /// which of two predictors leaves the smaller residuals.
 fn cost(residuals: &[[i32; 3]]) -> u64 {
@@ -77,9 +106,9 @@ impl PositionCoder {
         intra: bool,
         h: &Hierarchy,
         truth: impl Fn(usize) -> [f64; 3],
-        skin: Option<Skinning>,
+        (skin, surface): (Option<Skinning>, Option<Surface>),
     ) -> (Vec<u8>, bool) {
-        let plain = self.code(j, intra, h, &truth, None);
+        let plain = self.code(j, intra, h, &truth, (None, surface));
         self.report.bands += 1;
         self.report.plain_bits += plain;
         let mut chosen = plain;
@@ -89,7 +118,7 @@ impl PositionCoder {
             self.saved.clear();
             self.saved.extend_from_slice(&self.current[band.clone()]);
             std::mem::swap(&mut self.residuals, &mut self.saved_residuals);
-            let with_skin = self.code(j, intra, h, &truth, Some(s));
+            let with_skin = self.code(j, intra, h, &truth, (Some(s), surface));
             skinned = with_skin < plain;
             chosen = chosen.min(with_skin);
             self.report.skinned_bands += skinned as u64;
@@ -106,8 +135,16 @@ impl PositionCoder {
     }
 
     /// Codes band `j` with skinning's prediction or the default one into `current` and
-    /// `residuals`; returns the residuals' cost.
-    fn code(&mut self, j: usize, intra: bool, h: &Hierarchy, truth: &impl Fn(usize) -> [f64; 3], skin: Option<Skinning>) -> u64 {
+    /// `residuals` (coarse nodes on their surfaces where `surface` is given); returns the
+    /// residuals' cost.
+    fn code(
+        &mut self,
+        j: usize,
+        intra: bool,
+        h: &Hierarchy,
+        truth: &impl Fn(usize) -> [f64; 3],
+        (skin, surface): (Option<Skinning>, Option<Surface>),
+    ) -> u64 {
         let (sizes, offsets, levels) = (&h.level_sizes, &h.offsets, h.levels());
         self.residuals.clear();
         let shift = self.shifts[j];
@@ -132,7 +169,10 @@ impl PositionCoder {
                 (0, _) => choose(t, p, SLACK2),
                 // The zero residual adds nothing to the prediction, whatever the band's grid.
                 (_, true) => (p, [0; 3]),
-                _ => on_grid(t, p, shift, SLACK2),
+                _ => match surface.as_ref().and_then(|s| s.excess(g, t)) {
+                    Some(excess) => on_surface_grid(t, p, shift, SLACK2, excess),
+                    None => on_grid(t, p, shift, SLACK2),
+                },
             };
             self.current[g] = q;
             if let Some((_, local)) = parent {

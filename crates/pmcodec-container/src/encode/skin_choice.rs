@@ -107,9 +107,9 @@ pub fn skin_trial(seq: &Sequence, opts: &EncodeOptions) -> Result<SkinTrial, Con
             [p.x as f64 * inv, p.y as f64 * inv, p.z as f64 * inv]
         };
         let palette = fit.joints(f, &held, intra)?;
-        plain_bytes += stored(&plain.band(0, intra, &h, truth, None).0)?;
+        plain_bytes += stored(&plain.band(0, intra, &h, truth, (None, None)).0)?;
         let skinning = Skinning { nodes: &fit.nodes, palette: &palette.palette, previous: &held.palette, coarse: None };
-        let (payload, used) = skinned.band(0, intra, &h, truth, Some(skinning));
+        let (payload, used) = skinned.band(0, intra, &h, truth, (Some(skinning), None));
         skinned_bytes += stored(&payload)?;
         let raw = write_joints(used as u64, &entries, &palette, &held.joint_prediction(intra));
         pose += stored(&raw)?;
