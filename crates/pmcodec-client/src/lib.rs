@@ -4,11 +4,15 @@
 //! out ready-to-draw vertex and index buffers per frame.
 #![warn(missing_docs)]
 
+mod multirange;
+pub use multirange::MAX_RANGES_PER_REQUEST;
+
 use pmcodec_container::format::{FLAG_BANDS, PREAMBLE_LEN, Preamble};
 use pmcodec_container::{ByteSource, ChunkEntry, ChunkKind, ContainerError, CutTarget, Decoder, Distance, Reader};
 use pmcodec_mesh::{Appearance, TriMesh};
 use serde::Deserialize;
 use std::collections::BTreeMap;
+use std::ops::Range;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -121,10 +125,121 @@ impl Client {
         })
     }
 
+    /// What a client drawing down to `level` reads of asset `id` at `version` (`GET
+    /// /v1/assets/{id}/v/{version}/index?level=L`): whether its index is banded, its head
+    /// ranges and per frame the ranges of its chunks.
+    pub async fn index(&self, id: &str, version: &str, level: usize) -> Result<IndexAnswer, ClientError> {
+        Ok(self.get(&format!("/v1/assets/{id}/v/{version}/index?level={level}"), None).await?.json().await?)
+    }
+
+    /// The bytes of each of `ranges` of the file at `path` (end exclusive), up to
+    /// [`MAX_RANGES_PER_REQUEST`] ranges a request, adjacent and overlapping ones merged
+    /// first; with the data bytes downloaded (multipart framing not counted, as the response's
+    /// own headers are not; a server may answer with the whole file, which counts whole).
+    pub async fn range(&self, path: &str, ranges: &[Range<u64>]) -> Result<(Vec<Vec<u8>>, u64), ClientError> {
+        let mut merged: Vec<Range<u64>> = ranges.iter().filter(|r| !r.is_empty()).cloned().collect();
+        merged.sort_by_key(|r| r.start);
+        let mut spans: Vec<Range<u64>> = Vec::new();
+        for r in merged {
+            match spans.last_mut() {
+                Some(last) if r.start <= last.end => last.end = last.end.max(r.end),
+                _ => spans.push(r),
+            }
+        }
+        let mut held: Vec<(Range<u64>, Vec<u8>)> = Vec::with_capacity(spans.len());
+        let mut downloaded = 0;
+        for batch in spans.chunks(MAX_RANGES_PER_REQUEST) {
+            let url = format!("{}{path}", self.base);
+            let mut req = self.http.get(&url).header("Range", multirange::range_header(batch));
+            if let Some(t) = &self.token {
+                req = req.bearer_auth(t);
+            }
+            let resp = req.send().await?;
+            let status = resp.status().as_u16();
+            if !resp.status().is_success() {
+                let detail = resp.text().await.unwrap_or_default();
+                return Err(ClientError::Status { url, status, detail });
+            }
+            let header = |n: reqwest::header::HeaderName| resp.headers().get(n).and_then(|v| v.to_str().ok()).map(str::to_string);
+            let (ct, cr) = (header(reqwest::header::CONTENT_TYPE), header(reqwest::header::CONTENT_RANGE));
+            let body = resp.bytes().await?;
+            // Data bytes, as a single range counts them: a multipart answer's part headers
+            // are framing like the response's own headers (a whole-file answer counts whole).
+            downloaded += if status == 200 { body.len() as u64 } else { batch.iter().map(|r| r.end - r.start).sum() };
+            let parts = multirange::split_answer(batch, status, ct.as_deref(), cr.as_deref(), &body)?;
+            held.extend(batch.iter().cloned().zip(parts));
+        }
+        let out = ranges
+            .iter()
+            .map(|want| {
+                held.iter()
+                    .find(|(r, _)| r.start <= want.start && want.end <= r.end)
+                    .map(|(r, b)| b[(want.start - r.start) as usize..(want.end - r.start) as usize].to_vec())
+                    .unwrap_or_default()
+            })
+            .collect();
+        Ok((out, downloaded))
+    }
+
+    /// What a client drawing down to `level` and playing from frame `from` reads, in one
+    /// answer (`GET /v1/assets/{id}/stream?level=L&from=F`), placed back at its offsets
+    /// ([`stream_source`]); with the bytes downloaded.
+    pub async fn stream(&self, id: &str, level: usize, from: u32) -> Result<(pmcodec_container::streams::Sparse, u64), ClientError> {
+        let resp = self.get(&format!("/v1/assets/{id}/stream?level={level}&from={from}"), None).await?;
+        let start = resp
+            .headers()
+            .get("x-pmc-from")
+            .and_then(|v| v.to_str().ok())
+            .and_then(|v| v.parse().ok())
+            .ok_or_else(|| ClientError::Protocol("a stream without x-pmc-from".into()))?;
+        let body = resp.bytes().await?;
+        Ok((stream_source(&body, level, start)?, body.len() as u64))
+    }
+
     /// Opens a playback session at a triangle budget.
     pub async fn session(&self, id: &str, triangles: u32) -> Result<Session, ClientError> {
         Session::open(self.clone(), self.asset(id).await?, triangles).await
     }
+}
+
+/// The byte source a `/stream?level=L&from=F` answer holds: its head and chunk ranges placed
+/// back at their offsets, so that a [`Reader::open_at`] and a [`Decoder`] of level L read the
+/// file from it, and fail on anything else. `from` is the keyframe the server started at (its
+/// `x-pmc-from`).
+pub fn stream_source(body: &[u8], level: usize, from: u32) -> Result<pmcodec_container::streams::Sparse, ClientError> {
+    Ok(pmcodec_container::streams::stream_source(body, level, from)?)
+}
+
+/// One byte range of an [`IndexAnswer`]: `[offset, length]`.
+pub type ByteSpan = [u64; 2];
+
+/// What `GET /v1/assets/{id}/v/{version}/index?level=L` says of the bytes a client of level L
+/// reads (the chunks' own entries are left out).
+#[derive(Clone, Debug, Deserialize)]
+pub struct IndexAnswer {
+    /// The level asked for.
+    pub level: usize,
+    /// Levels of the file.
+    pub levels: usize,
+    /// Length of the file.
+    pub length: u64,
+    /// Whether the file's index is banded, so that the head is read in part.
+    pub banded: bool,
+    /// The preamble, header and index bytes the client reads.
+    pub head: Vec<ByteSpan>,
+    /// Per frame, the ranges its chunks lie in.
+    pub frames: Vec<FrameRanges>,
+}
+
+/// One frame of an [`IndexAnswer`].
+#[derive(Clone, Debug, Deserialize)]
+pub struct FrameRanges {
+    /// The frame.
+    pub frame: u32,
+    /// Whether it is a keyframe.
+    pub keyframe: bool,
+    /// The ranges its chunks lie in, adjacent ones merged.
+    pub ranges: Vec<ByteSpan>,
 }
 
 /// Parses the compact binary mesh of proto/http.md.
@@ -186,37 +301,28 @@ impl ByteSource for SharedBytes {
     }
 }
 
-/// Fetches the groups of a banded index ([`FLAG_BANDS`]) that a client of `level` reads and
-/// `source` lacks (its header and table fetched already), adjacent groups in one range; returns
-/// the bytes downloaded. The reader checks what they hold.
-async fn fetch_groups(client: &Client, file: &str, source: &SharedBytes, pre: &Preamble, level: usize) -> Result<u64, ClientError> {
-    use pmcodec_container::format::{Header, group_of, groups_for, parse_table};
-    let table_at = PREAMBLE_LEN as u64 + pre.header_len as u64;
-    let header = Header::from_bytes(&source.read_at(PREAMBLE_LEN as u64, pre.header_len as usize)?, pre.version)?;
-    let levels = header.levels();
-    let rows = parse_table(&source.read_at(table_at, pre.table_len as usize)?, levels)?;
-    let derived = rows.get(group_of(ChunkKind::Faces, level as u32, levels)).is_some_and(|r| r.derived);
-    let wanted = groups_for(levels, level, derived);
-    let mut spans: Vec<(u64, u64)> = Vec::new();
-    let mut at = table_at + pre.table_len as u64;
-    for (g, row) in rows.iter().enumerate() {
-        let end = at + row.body_len as u64;
-        if row.body_len > 0 && wanted.contains(&g) && !source.0.has(at, end - at) {
-            match spans.last_mut() {
-                Some(last) if last.1 == at => last.1 = end,
-                _ => spans.push((at, end)),
-            }
-        }
-        at = end;
+/// Fetches what a client of `level` reads of the head ([`pmcodec_container::streams::head_ranges`]:
+/// of a banded index the groups of its level) and `source` lacks, in one request; returns the
+/// bytes downloaded. The reader checks what they hold.
+async fn fetch_head(client: &Client, file: &str, source: &SharedBytes, level: usize) -> Result<u64, ClientError> {
+    let first =
+        source.read_at(0, pmcodec_container::streams::first_read(&Preamble::parse(&source.read_at(0, PREAMBLE_LEN)?)?).end as usize)?;
+    let wanted: Vec<Range<u64>> =
+        pmcodec_container::streams::head_ranges(&first, level)?.into_iter().filter(|r| !source.0.has(r.start, r.end - r.start)).collect();
+    fetch_into(client, file, source, &wanted).await
+}
+
+/// Fetches `ranges` into `source` (a few requests of several ranges); returns the bytes downloaded.
+async fn fetch_into(client: &Client, file: &str, source: &SharedBytes, ranges: &[Range<u64>]) -> Result<u64, ClientError> {
+    if ranges.is_empty() {
+        return Ok(0);
     }
-    let mut downloaded = 0;
-    for (s, e) in spans {
-        let bytes = client.get(file, Some((s, e - 1))).await?.bytes().await?.to_vec();
-        if bytes.len() as u64 != e - s {
-            return Err(ClientError::Protocol(format!("range {s}-{} returned {} bytes", e - 1, bytes.len())));
+    let (parts, downloaded) = client.range(file, ranges).await?;
+    for (r, bytes) in ranges.iter().zip(parts) {
+        if bytes.len() as u64 != r.end - r.start {
+            return Err(ClientError::Protocol(format!("range {}-{} returned {} bytes", r.start, r.end - 1, bytes.len())));
         }
-        downloaded += bytes.len() as u64;
-        source.0.insert(s, bytes);
+        source.0.insert(r.start, bytes);
     }
     Ok(downloaded)
 }
@@ -286,7 +392,7 @@ impl Session {
         source.0.insert(0, head);
         let level = level_for(&info, budget);
         if banded {
-            downloaded += fetch_groups(&client, &info.summary.file, &source, &p, level).await?;
+            downloaded += fetch_head(&client, &info.summary.file, &source, level).await?;
         }
         let reader = Reader::open_at(source.clone(), level)?;
         let decoder = Decoder::new(reader, level)?;
@@ -323,10 +429,7 @@ impl Session {
     /// Opens the level [`Session::set_budget`] asked for.
     async fn open_pending(&mut self) -> Result<(), ClientError> {
         let Some(level) = self.pending else { return Ok(()) };
-        let pre = Preamble::parse(&self.source.read_at(0, PREAMBLE_LEN)?)?;
-        if pre.version >= 7 && pre.flags & FLAG_BANDS != 0 {
-            self.bytes_downloaded += fetch_groups(&self.client, &self.info.summary.file, &self.source, &pre, level).await?;
-        }
+        self.bytes_downloaded += fetch_head(&self.client, &self.info.summary.file, &self.source, level).await?;
         self.decoder = Decoder::new(Reader::open_at(self.source.clone(), level)?, level)?;
         self.pending = None;
         Ok(())
@@ -349,30 +452,22 @@ impl Session {
                 )
         }));
         let start = self.decoder.reader().data_start();
-        let mut spans: Vec<(u64, u64)> = wanted
+        let mut spans: Vec<Range<u64>> = Vec::new();
+        let mut chunks: Vec<Range<u64>> = wanted
             .iter()
-            .map(|e| (start + e.offset, start + e.offset + e.stored_len as u64))
-            .filter(|&(s, e)| !self.source.0.has(s, e - s))
+            .map(|e| start + e.offset..start + e.offset + e.stored_len as u64)
+            .filter(|r| !r.is_empty() && !self.source.0.has(r.start, r.end - r.start))
             .collect();
-        spans.sort_unstable();
-        let mut merged: Vec<(u64, u64)> = Vec::new();
-        for (s, e) in spans {
-            match merged.last_mut() {
-                Some(last) if s <= last.1 => last.1 = last.1.max(e),
-                _ => merged.push((s, e)),
+        chunks.sort_unstable_by_key(|r| r.start);
+        for r in chunks {
+            match spans.last_mut() {
+                Some(last) if r.start <= last.end => last.end = last.end.max(r.end),
+                _ => spans.push(r),
             }
         }
-        for (s, e) in merged {
-            if e == s {
-                continue;
-            }
-            let bytes = self.client.get(&self.info.summary.file, Some((s, e - 1))).await?.bytes().await?.to_vec();
-            if bytes.len() as u64 != e - s {
-                return Err(ClientError::Protocol(format!("range {s}-{} returned {} bytes", e - 1, bytes.len())));
-            }
-            self.bytes_downloaded += bytes.len() as u64;
-            self.source.0.insert(s, bytes);
-        }
+        // Several ranges a request: a banded file keeps a band's chunks together, so a frame's
+        // chunks lie in a few ranges per band, not one span.
+        self.bytes_downloaded += fetch_into(&self.client, &self.info.summary.file, &self.source, &spans).await?;
         Ok(())
     }
 

@@ -32,6 +32,13 @@ fn main() {
     if let Ok(l) = std::env::var("PMCODEC_LEVELS") {
         opts.build.level_sizes = Some(l.split(',').filter_map(|x| x.parse().ok()).collect());
     }
+    // PMC_BANDS=1: the banded index (`pmcodec encode --banded-index`), which coarse clients
+    // read in part; PMC_BANDS=0 the plain one.
+    match std::env::var("PMC_BANDS").as_deref() {
+        Ok("1") => opts.chunk_flags |= pmcodec_container::format::FLAG_BANDS,
+        Ok("0") => opts.chunk_flags &= !pmcodec_container::format::FLAG_BANDS,
+        _ => {}
+    }
     let t = std::time::Instant::now();
     let bytes = encode(&seq, &opts, |_| {}).expect("encode");
     let secs = t.elapsed().as_secs_f64();
@@ -113,6 +120,33 @@ fn main() {
         if shown as f64 >= 0.98 * budget as f64 {
             let part: u64 = reader.index().chunks.iter().filter(|e| reader.reads(e, l)).map(|e| e.stored_len as u64).sum();
             let full: u64 = reader.index().chunks.iter().filter(|e| reader.reads(e, 0)).map(|e| e.stored_len as u64).sum();
+            // What that client is sent (`/stream?level=l`, `pmcodec_container::streams`):
+            // its head (of a banded index only its groups) and its chunks, beside level 0's.
+            let streamed = |l: usize| {
+                let head: u64 = pmcodec_container::streams::head_ranges(&bytes, l).expect("head").iter().map(|r| r.end - r.start).sum();
+                let ranges = pmcodec_container::streams::frame_ranges(&reader.index().chunks, reader.header(), reader.data_start(), l, 0);
+                head + ranges.iter().flatten().map(|r| r.end - r.start).sum::<u64>()
+            };
+            let quarter = s.header.triangle_count / 4;
+            let l25 = (0..s.header.levels())
+                .rev()
+                .find(|&l| {
+                    let mut d = pmcodec_container::Decoder::new(reader.borrowed(), l).expect("decoder");
+                    d.seek(mid).expect("seek");
+                    d.mesh(pmcodec_container::CutTarget::Triangles(quarter)).expect("mesh").triangles.len() as f64 >= 0.98 * quarter as f64
+                })
+                .unwrap_or(0);
+            println!(
+                "streamed (head and chunks, index {}): a 10% client (level {l}) reads {:.1}%, a 25% client (level {l25}) {:.1}% of a full client's {} B",
+                if pmcodec_container::streams::is_banded(&pmcodec_container::format::Preamble::parse(&bytes[..32]).expect("preamble")) {
+                    "banded"
+                } else {
+                    "plain"
+                },
+                streamed(l) as f64 * 100.0 / streamed(0) as f64,
+                streamed(l25) as f64 * 100.0 / streamed(0) as f64,
+                streamed(0)
+            );
             println!(
                 "10% of the triangles ({budget}, frame {mid}) needs levels >= {l} ({shown} shown): reads {:.1}% of what a full-resolution reader reads ({:.1}% of all chunk bytes)",
                 part as f64 * 100.0 / full as f64,

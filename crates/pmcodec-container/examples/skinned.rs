@@ -40,13 +40,21 @@ fn all_animations(path: &Path) -> pmcodec_mesh::Sequence {
 
 /// Bytes a client at `level` reads over the whole file (every chunk it needs), and of them the
 /// texture images'.
-/// The preamble, header and index it fetches count as `Reader::open_at` reads them (of a
-/// banded index, only its levels' groups).
+/// It is what the server's `/stream?level=L` sends (`pmcodec_container::streams`): the head
+/// (of a banded index, only its level's groups) and the chunks of its level.
 fn bytes_at(bytes: &[u8], level: usize) -> (u64, u64) {
     let r = Reader::open_at(bytes, level).expect("open");
-    let read = || r.index().chunks.iter().filter(|e| r.reads(e, level));
-    let images = read().filter(|e| e.kind == ChunkKind::Image).map(|e| e.stored_len as u64).sum();
-    (read().map(|e| e.stored_len as u64).sum::<u64>() + r.bytes_read(), images)
+    let len = |r: &std::ops::Range<u64>| r.end - r.start;
+    let head: u64 = pmcodec_container::streams::head_ranges(bytes, level).expect("head").iter().map(len).sum();
+    let chunks = pmcodec_container::streams::chunks_for(&r.index().chunks, r.header(), level, 0);
+    let (mut all, mut images) = (head, 0);
+    for (_, e) in chunks {
+        all += e.stored_len as u64;
+        if e.kind == ChunkKind::Image {
+            images += e.stored_len as u64;
+        }
+    }
+    (all, images)
 }
 
 /// What a client at `level` reads, by chunk kind (and band for Bind and Joints chunks), largest

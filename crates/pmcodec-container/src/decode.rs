@@ -97,7 +97,7 @@ impl<S: ByteSource> Decoder<S> {
             return Err(ContainerError::Options(format!("level {min_level}: the file has levels 0..{}", h.levels() - 1)));
         }
         if !reader.covers(min_level) {
-            return Err(ContainerError::Options(format!("level {min_level}: the reader holds the index of coarser levels only")));
+            return Err(ContainerError::Options(format!("level {min_level}: the reader holds the index entries of another level only")));
         }
         let total = h.node_count() as usize;
         Ok(Decoder {

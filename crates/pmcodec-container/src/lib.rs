@@ -22,6 +22,7 @@ pub mod predict;
 mod rans;
 mod read;
 mod skin;
+pub mod streams;
 #[cfg(feature = "test-support")]
 pub mod testing;
 mod topology;

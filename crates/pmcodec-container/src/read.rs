@@ -112,9 +112,12 @@ impl<S: ByteSource> Reader<S> {
         Self::open_with(source, Some(level))
     }
 
-    /// Whether the entries this reader holds serve a client whose finest level is `level`.
+    /// Whether the entries this reader holds serve a client whose finest level is `level`: all
+    /// of them, or those read for that very level. (A reader opened at a finer level lacks the
+    /// faces group of each coarser band, and may lack the topology below it that a coarser
+    /// band deriving its faces reads.)
     pub fn covers(&self, level: usize) -> bool {
-        self.level.is_none_or(|l| l <= level)
+        self.level.is_none_or(|l| l == level)
     }
 
     fn open_with(source: S, level: Option<usize>) -> Result<Self, ContainerError> {

@@ -6,7 +6,7 @@ use crate::lru::Lru;
 use crate::store::{AssetStore, StoredObject};
 use crate::{ApiError, AssetId};
 use bytes::Bytes;
-use pmcodec_container::{ChunkEntry, ChunkKind, CutTarget, Decoder, Header, Reader, summary};
+use pmcodec_container::{ChunkEntry, CutTarget, Decoder, Header, Reader, summary};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -100,25 +100,22 @@ impl LoadedAsset {
         start..start + e.stored_len as u64
     }
 
-    /// The chunks a client that draws down to `level` needs, in file order (which is playback
-    /// order): the chunks of the bands `level..=top` of the frames from `from` on (faces and
-    /// corners of band `level` only), and whatever `from` is, the frame-0 chunks every frame
-    /// reads: the input triangles when `level` is 0, the skin's bind chunks of those bands, the
-    /// appearance's charts, materials and attribute tables, and frame 0's Key chunks (attribute
-    /// values may be predicted through frame 0's hierarchy, and later keyframes' Key chunks may
-    /// code their changes from it). Images are served at their own URLs.
+    /// The chunks a client that draws down to `level` and plays from `from` needs, in frame
+    /// order ([`pmcodec_container::streams::chunks_for`], which the clients compute alike).
     pub fn chunks_for(&self, level: usize, from: u32) -> impl Iterator<Item = (usize, &ChunkEntry)> {
-        self.chunks.iter().enumerate().filter(move |(_, e)| {
-            let every_frame = match e.kind {
-                ChunkKind::Triangles | ChunkKind::Bind | ChunkKind::Charts | ChunkKind::Materials | ChunkKind::Attributes => true,
-                // Attribute tables may predict through frame 0's hierarchy, and a later
-                // keyframe's Key chunk may code its changes from frame 0's (Key coding 3).
-                ChunkKind::Key => e.frame == 0,
-                _ => false,
-            };
-            // A band whose faces are derived reads the triangles and the bands below it too.
-            pmcodec_container::reads(&self.chunks, self.header.keyframe_interval, e, level) && (every_frame || e.frame >= from)
-        })
+        pmcodec_container::streams::chunks_for(&self.chunks, &self.header, level, from)
+    }
+
+    /// The byte ranges a client drawing down to `level` reads before any chunk: the preamble,
+    /// the header and the index, of a banded index only its table and its level's groups.
+    pub fn head_ranges(&self, level: usize) -> Result<Vec<std::ops::Range<u64>>, String> {
+        pmcodec_container::streams::head_ranges(&self.bytes, level).map_err(|e| e.to_string())
+    }
+
+    /// Per frame, the byte ranges of the chunks a client drawing down to `level` from `from`
+    /// reads (those every frame reads counted as frame 0's), adjacent ones merged.
+    pub fn frame_ranges(&self, level: usize, from: u32) -> Vec<Vec<std::ops::Range<u64>>> {
+        pmcodec_container::streams::frame_ranges(&self.chunks, &self.header, self.data_start, level, from)
     }
 }
 

@@ -502,8 +502,11 @@ fn check_level(a: &LoadedAsset, level: usize) -> Result<(), ApiError> {
     Ok(())
 }
 
-/// `GET /v1/assets/{id}/stream?level=L&from=F`: preamble, header and index, then the chunks
-/// of bands `L..=top` of each frame from the keyframe at or before F, in playback order.
+/// `GET /v1/assets/{id}/stream?level=L&from=F`: what a client drawing down to level L reads
+/// (`pmcodec_container::streams`), one range after the other: the head (preamble, header and
+/// index; of a banded index only its table and level L's groups), then the chunks of bands
+/// `L..=top` of each frame from the keyframe at or before F, in playback order.
+/// `pmcodec_container::streams::stream_source` places them back.
 async fn stream(State(app): State<AppState>, p: Params, Q(q): Q<StreamQuery>) -> Result<Response, ApiError> {
     let a = app.assets.get(&p.asset_id()?).await?;
     let level = q.level.unwrap_or(0);
@@ -513,12 +516,11 @@ async fn stream(State(app): State<AppState>, p: Params, Q(q): Q<StreamQuery>) ->
         return Err(ApiError::BadRequest(format!("from {from}: asset {} has frames 0..={}", a.id, a.header.frame_count - 1)));
     }
     let start = a.header.keyframe_before(from);
-    let head = a.bytes.slice(0..a.data_start as usize);
-    let pieces: Vec<Bytes> = std::iter::once(head)
-        .chain(a.chunks_for(level, start).map(|(_, e)| {
-            let r = a.chunk_range(e);
-            a.bytes.slice(r.start as usize..r.end as usize)
-        }))
+    let head = a.head_ranges(level).map_err(ApiError::Internal)?;
+    let pieces: Vec<Bytes> = head
+        .into_iter()
+        .chain(a.frame_ranges(level, start).into_iter().flatten())
+        .map(|r| a.bytes.slice(r.start as usize..r.end as usize))
         .collect();
     let mut resp = Body::from_stream(futures_util::stream::iter(pieces.into_iter().map(Ok::<_, std::convert::Infallible>))).into_response();
     let h = resp.headers_mut();
@@ -559,7 +561,8 @@ struct IndexQuery {
 }
 
 /// `GET /v1/assets/{id}/v/{version}/index?level=L`: the chunks a client drawing down to level L
-/// needs, with their byte ranges and URLs, and per frame one range covering them.
+/// needs, with their byte ranges and URLs; per frame one span covering them and the ranges they lie in; and the
+/// head ranges (preamble, header and index; of a banded index, its table and level L's groups).
 async fn index(State(app): State<AppState>, p: Params, Q(q): Q<IndexQuery>, headers: HeaderMap) -> Result<Response, ApiError> {
     let a = versioned(&app, &p).await?;
     let level = q.level.unwrap_or(0);
@@ -593,10 +596,28 @@ async fn index(State(app): State<AppState>, p: Params, Q(q): Q<IndexQuery>, head
             serde_json::json!({ "frame": f, "keyframe": a.header.is_keyframe(f as u32), "offset": s, "length": t - s })
         })
         .collect();
+    // What the client reads as byte ranges (`pmcodec_container::streams`): its head, and
+    // per frame its chunks, adjacent ones merged (a banded index groups the chunks of a band,
+    // so a coarse client's chunks of a frame lie in a few ranges, not in one span).
+    let pair = |r: &std::ops::Range<u64>| [r.start, r.end - r.start];
+    let head: Vec<_> = a.head_ranges(level).map_err(ApiError::Internal)?.iter().map(pair).collect();
+    let frames: Vec<_> = frames
+        .into_iter()
+        .zip(a.frame_ranges(level, 0))
+        .map(|(mut f, ranges)| {
+            f["ranges"] = ranges.iter().map(pair).collect::<Vec<_>>().into();
+            f
+        })
+        .collect();
+    let banded = a
+        .bytes
+        .get(..pmcodec_container::format::PREAMBLE_LEN)
+        .and_then(|b| pmcodec_container::format::Preamble::parse(b).ok())
+        .is_some_and(|p| pmcodec_container::streams::is_banded(&p));
     let body = serde_json::json!({
         "id": a.id.as_str(), "version": a.version, "file": format!("{base}/file"), "length": a.bytes.len(),
         "header_length": a.data_start, "level": level, "levels": a.header.levels(), "frames_count": a.header.frame_count,
-        "keyframe_interval": a.header.keyframe_interval,
+        "keyframe_interval": a.header.keyframe_interval, "banded": banded, "head": head,
         "chunks": chunks, "frames": frames,
     });
     let bytes = serde_json::to_vec(&body).map_err(|e| ApiError::Internal(e.to_string()))?;
