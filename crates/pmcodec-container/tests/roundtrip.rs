@@ -626,9 +626,9 @@ fn level_major_budgets_at_a_level_draw_that_level() {
         let mut d = Decoder::new(reader, 0).expect("decoder");
         for frame in [0, 3] {
             d.seek(frame).expect("seek");
-            for level in 1..sizes.len() - 1 {
+            for (level, &size) in sizes.iter().enumerate().take(sizes.len() - 1).skip(1) {
                 let want = triangle_set(&d.mesh(CutTarget::Level(level)).expect("level"));
-                let targets = [CutTarget::Vertices(sizes[level]), CutTarget::Triangles(want.len() as u32)];
+                let targets = [CutTarget::Vertices(size), CutTarget::Triangles(want.len() as u32)];
                 for target in targets {
                     d.set_budget_cut(BudgetCut::WholeSplits).expect("cut");
                     greedy_differs += usize::from(triangle_set(&d.mesh(target).expect("cut")) != want);
