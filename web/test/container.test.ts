@@ -63,6 +63,46 @@ test("decodes the same cut and positions as the Rust decoder", async () => {
   }
 });
 
+test("level-major whole splits (the option `--budget-cut level`) on a generated cloth: the Rust decoder's cut at every budget, and a budget at exactly a level's triangle count is that level's cut (every cut node of that level)", async () => {
+  const frames = join(dir, "cloth-level-frames"), cloth = join(dir, "cloth-level.pmc");
+  execFileSync(bin, ["sample", "waving-cloth", "-q", "-o", frames, "--frames", "6"]);
+  execFileSync(bin, ["encode", "-q", frames, "-o", cloth, "--keyframe-interval", "4"]);
+  const c = await open(cloth);
+  const player = new Decoder(c, 0);
+  const r = player.replay;
+  const sizes = c.header.levelSizes;
+  let atLevels = 0;
+  for (const frame of [0, 5]) {
+    const budgets: [number, number | undefined][] = [];
+    for (let L = 1; L < sizes.length - 1; L++) {
+      const out = join(dir, `cloth-level-${frame}-L${L}.obj`);
+      execFileSync(bin, ["decode", "-q", cloth, "--frame", String(frame), "--level", String(L), "-o", out]);
+      const n = readObj(out).indices.length / 3;
+      budgets.push([n, L], [n + 7, undefined], [n - 1, undefined]);
+    }
+    for (const [budget, level] of budgets) {
+      const out = join(dir, `cloth-level-${frame}-${budget}.obj`);
+      execFileSync(bin, ["decode", "-q", cloth, "--frame", String(frame), "--triangles", String(budget), "--budget-cut", "level", "-o", out]);
+      const expected = readObj(out);
+      await player.seek(frame);
+      const pos = player.positions();
+      r.selectTriangles(budget, r.splitBenefits(pos), "levels");
+      const mesh = player.orderedMesh(pos);
+      assert.deepEqual(Array.from(mesh.indices), expected.indices, `frame ${frame} budget ${budget}: triangles`);
+      assert.ok(r.shown.length <= budget);
+      if (level === undefined) continue;
+      assert.equal(r.shown.length, budget, `frame ${frame} level ${level}: every triangle of the level shown`);
+      const rep = r.cutNodes(), base = r.offsets[r.minLevel];
+      for (let v = 0; v < sizes[r.minLevel]; v++) {
+        const g = rep[base + v];
+        assert.ok(g >= r.offsets[level] && g < r.offsets[level + 1], `frame ${frame} level ${level}: vertex ${v} stands for node ${g}, not of the level`);
+      }
+      atLevels++;
+    }
+  }
+  assert.ok(atLevels >= 4);
+});
+
 test("partial splits (the option; budgets between levels) on a generated cloth, reveals ranked on the frame's or the keyframe's positions or banded: the same cut as the Rust decoder's `decode --budget-cut partial-frame`, `partial-keyframe`, `partial-banded1` and `partial-banded2`, and every shown triangle's corners are three distinct revealed nodes", async () => {
   const frames = join(dir, "cloth-frames"), cloth = join(dir, "cloth.pmc");
   execFileSync(bin, ["sample", "waving-cloth", "-q", "-o", frames, "--frames", "12"]);

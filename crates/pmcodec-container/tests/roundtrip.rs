@@ -591,3 +591,52 @@ fn partial_splits_held_through_a_keyframe_interval_are_stateless_and_steadier() 
         assert!(differs > 0, "{name}: partial splits cut as whole splits at every budget");
     }
 }
+
+/// A mesh's triangles as corner positions (bit patterns), each rotated to start at its
+/// smallest corner, sorted: equal iff the same triangles on the same positions.
+fn triangle_set(m: &pmcodec_mesh::TriMesh) -> Vec<[[u32; 3]; 3]> {
+    let key = |i: u32| m.positions[i as usize].to_array().map(f32::to_bits);
+    let mut out: Vec<[[u32; 3]; 3]> = m
+        .triangles
+        .iter()
+        .map(|t| {
+            let c = t.map(key);
+            let r = (0..3).min_by_key(|&i| c[i]).unwrap_or(0);
+            [c[r], c[(r + 1) % 3], c[(r + 2) % 3]]
+        })
+        .collect();
+    out.sort_unstable();
+    out
+}
+
+/// Level-major whole splits (the option `BudgetCut::LevelSplits`, proto/container.md
+/// "Level-major whole splits"): on generated meshes, a vertex budget at exactly a level's size
+/// and a triangle budget at exactly its triangle count draw that level's mesh, and the spec's
+/// greedy cut does not always.
+#[test]
+fn level_major_budgets_at_a_level_draw_that_level() {
+    let mut greedy_differs = 0;
+    for (name, seq) in
+        [("cloth", pmcodec_mesh::samples::waving_cloth(30, 24, 4)), ("tube", pmcodec_mesh::samples::twisting_tube(24, 20, 4))]
+    {
+        let bytes = encode(&seq, &EncodeOptions::default(), |_| {}).expect("encode");
+        let reader = Reader::open(bytes.as_slice()).expect("open");
+        let sizes = reader.header().level_sizes.clone();
+        assert!(sizes.len() >= 4, "{name}: levels {sizes:?}");
+        let mut d = Decoder::new(reader, 0).expect("decoder");
+        for frame in [0, 3] {
+            d.seek(frame).expect("seek");
+            for (level, &size) in sizes.iter().enumerate().take(sizes.len() - 1).skip(1) {
+                let want = triangle_set(&d.mesh(CutTarget::Level(level)).expect("level"));
+                let targets = [CutTarget::Vertices(size), CutTarget::Triangles(want.len() as u32)];
+                for target in targets {
+                    d.set_budget_cut(BudgetCut::WholeSplits).expect("cut");
+                    greedy_differs += usize::from(triangle_set(&d.mesh(target).expect("cut")) != want);
+                    d.set_budget_cut(BudgetCut::LevelSplits).expect("cut");
+                    assert!(triangle_set(&d.mesh(target).expect("cut")) == want, "{name} frame {frame} {target:?}: not level {level}");
+                }
+            }
+        }
+    }
+    assert!(greedy_differs > 0, "the greedy cut is every level here: the test shows nothing");
+}

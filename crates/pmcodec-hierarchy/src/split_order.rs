@@ -48,6 +48,10 @@ pub enum Steps {
     /// A step reveals one child of a revealed node (two when only one would be left);
     /// priorities are per revealed node ([`Replay::reveal_benefits_into`]).
     PartialSplits,
+    /// Whole splits level-major: every splittable node of a level before any node of the
+    /// finer level below it (within a level by priority, ties the smaller id), so every
+    /// level's cut is a prefix and a budget at a level's count gets that level (issue #15).
+    LevelSplits,
 }
 
 /// The split order of one frame (see the module docs). Built from a [`Replay`] and that
@@ -58,6 +62,9 @@ pub struct SplitOrder {
     steps: Steps,
     /// Frontier of the greedy refinement not yet ordered.
     heap: BinaryHeap<ByError>,
+    /// Level-major whole splits: the finer level's candidates, held until the heap (the
+    /// current level's) is empty.
+    pending: Vec<ByError>,
     /// Position in the order of each split node (whole splits) or of each revealed node
     /// (partial splits), global ids; NONE while not (yet) ordered.
     rank: Vec<u32>,
@@ -121,10 +128,11 @@ impl SplitOrder {
         self.appeared.clear();
         self.appeared.resize(corners.len(), false);
         self.heap.clear();
+        self.pending.clear();
         let priority = |g: u32| ByError(errors.get(g as usize).copied().unwrap_or(0.0), g);
         let tops = (h.offsets[top]..h.offsets[top + 1]).filter(|&g| replay.expandable(g));
         match steps {
-            Steps::WholeSplits => self.heap.extend(tops.map(priority)),
+            Steps::WholeSplits | Steps::LevelSplits => self.heap.extend(tops.map(priority)),
             // The top level is always revealed: its children are the first candidates.
             Steps::PartialSplits => {
                 for g in tops {
@@ -176,7 +184,7 @@ impl SplitOrder {
     /// Orders one more step (false when every step is ordered).
     fn grow(&mut self, replay: &Replay, errors: &[f64]) -> bool {
         match self.steps {
-            Steps::WholeSplits => self.grow_split(replay, errors),
+            Steps::WholeSplits | Steps::LevelSplits => self.grow_split(replay, errors),
             Steps::PartialSplits => self.grow_reveal(replay, errors),
         }
     }
@@ -248,6 +256,11 @@ impl SplitOrder {
 
     /// Orders one more whole split (false when every splittable node is ordered).
     fn grow_split(&mut self, replay: &Replay, errors: &[f64]) -> bool {
+        // Level-major: a level's candidates are all in `pending` once the coarser level is
+        // exhausted (its nodes' children are all of that level).
+        if self.heap.is_empty() {
+            self.heap.extend(self.pending.drain(..));
+        }
         let Some(ByError(priority, g)) = self.heap.pop() else { return false };
         let i = self.priority.len() as u32;
         self.rank[g as usize] = i;
@@ -272,9 +285,11 @@ impl SplitOrder {
         let (shown, cut) = (self.shown_after[i as usize], self.nodes_after[i as usize]);
         self.shown_after.push(shown + set.len() as u32);
         self.nodes_after.push(cut + (children.len() as u32).saturating_sub(1));
+        let level_major = self.steps == Steps::LevelSplits;
         for &c in children {
             if replay.expandable(c) {
-                self.heap.push(ByError(errors.get(c as usize).copied().unwrap_or(0.0), c));
+                let e = ByError(errors.get(c as usize).copied().unwrap_or(0.0), c);
+                if level_major { self.pending.push(e) } else { self.heap.push(e) }
             }
         }
         true

@@ -314,3 +314,61 @@ fn partial_splits_meet_vertex_budgets_exactly_and_beat_whole_splits_between_leve
         assert!(ep < ew, "budget {n} between levels {coarse} and {finer}: partial splits {ep} against whole splits {ew}");
     }
 }
+
+/// Level-major whole splits (the option [`Steps::LevelSplits`], issue #15): on a generated
+/// wave, a vertex budget or a triangle budget at exactly a level's count is that level's cut
+/// (every fine vertex stands for its ancestor at the level, and the shown triangles are the
+/// level's), and a budget between two levels refines the coarser one (every cut node at the
+/// coarser level or the finer one).
+#[test]
+fn level_major_budgets_at_a_level_are_that_level() {
+    let seq = grid(36, 28, 3);
+    let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
+    let q = base_quadrics(&seq, &topo, &BaseOptions::default());
+    let h = build(&topo, &q, &BuildOptions::default()).expect("build");
+    let mut enc = Encoder::new(h.clone(), topo, seq.triangles.clone(), Default::default());
+    let mut replay = Replay::new(h, &seq.triangles);
+    for frame in &seq.frames {
+        let (delta, _) = enc.encode_frame(frame);
+        replay.apply(&delta).expect("apply");
+    }
+    let positions: Vec<Vec3> = enc.node_positions().to_vec();
+    let h = replay.h.clone();
+    let fine = h.level_sizes[0];
+    assert!(h.levels() >= 4, "{:?}", h.level_sizes);
+    let ancestor = |v: u32, level: usize| (0..level).fold(v, |x, k| h.parent[k][x as usize]) + h.offsets[level];
+    let mut benefits = Vec::new();
+    replay.split_benefits_into(&positions, &mut benefits);
+    let mut order = SplitOrder::default();
+    order.reset_steps(&replay, &benefits, Steps::LevelSplits);
+    let mut whole = SplitOrder::default();
+    whole.reset_steps(&replay, &benefits, Steps::WholeSplits);
+    let mut differs = false;
+    for level in 1..h.top() {
+        let mut level_replay = replay.clone();
+        level_replay.select_level(level);
+        let mut want = level_replay.shown().to_vec();
+        want.sort_unstable();
+        let targets = [CutTarget::Vertices(h.level_sizes[level]), CutTarget::Triangles(want.len() as u32)];
+        for target in targets {
+            let k = order.prefix(&replay, &benefits, target, 1.0).expect("a prefix");
+            for v in 0..fine {
+                assert_eq!(order.cut_node_of(&replay, v, k), ancestor(v, level), "{target:?}: vertex {v}");
+            }
+            let mut shown = order.shown(k).to_vec();
+            shown.sort_unstable();
+            assert_eq!(shown, want, "{target:?}: shown triangles");
+            // The greedy order across levels need not pass through the level.
+            let j = whole.prefix(&replay, &benefits, target, 1.0).expect("a prefix");
+            differs |= (0..fine).any(|v| whole.cut_node_of(&replay, v, j) != ancestor(v, level));
+        }
+        // Between this level and the finer one: cut nodes of the two levels only.
+        let between = (h.level_sizes[level] + h.level_sizes[level - 1]) / 2;
+        let k = order.prefix(&replay, &benefits, CutTarget::Vertices(between), 1.0).expect("a prefix");
+        for v in 0..fine {
+            let g = order.cut_node_of(&replay, v, k);
+            assert!(g == ancestor(v, level) || g == ancestor(v, level - 1), "budget {between}: vertex {v} on node {g}");
+        }
+    }
+    assert!(differs, "the greedy order passes through every level here: the test shows nothing");
+}

@@ -19,6 +19,8 @@ use std::path::PathBuf;
 pub enum BudgetCutArg {
     /// Whole splits by budget priority (the spec's cut).
     Whole,
+    /// Whole splits by budget priority, level-major: a budget at a level's count gets that level.
+    Level,
     /// Partial splits, reveals ranked on each frame's positions.
     PartialFrame,
     /// Partial splits, reveals ranked on the keyframe's positions through its interval.
@@ -35,6 +37,7 @@ impl From<BudgetCutArg> for pmcodec_container::BudgetCut {
         use pmcodec_container::{BudgetCut::*, BudgetPriorities::*};
         match a {
             BudgetCutArg::Whole => WholeSplits,
+            BudgetCutArg::Level => LevelSplits,
             BudgetCutArg::PartialFrame => PartialSplits(Frame),
             BudgetCutArg::PartialKeyframe => PartialSplits(Keyframe),
             BudgetCutArg::PartialBanded1 => PartialSplits(Banded { per_octave: 1 }),

@@ -394,10 +394,12 @@ export class Replay {
    * greedy by reveal priorities (an option, "Partial splits"): reveals
    * are taken until the first one that does not fit. A reveal of child c of P also reveals P's
    * last unrevealed child when only that one would be left; the triangles of D_P that then have
-   * at most one corner under an unrevealed child of P appear.
+   * at most one corner under an unrevealed child of P appear. With `partial` "levels", whole
+   * splits level-major (an option, Rust's `BudgetCut::LevelSplits`): every splittable node of a
+   * level before any of the finer level, so a budget at a level's count gets that level.
    */
-  selectTriangles(budget: number, benefits: Float64Array, partial = false): void {
-    if (!partial) { this.selectWhole(budget, benefits); return; }
+  selectTriangles(budget: number, benefits: Float64Array, partial: boolean | "levels" = false): void {
+    if (partial !== true) { this.selectWhole(budget, benefits, partial === "levels"); return; }
     this.expanded.fill(0);
     this.revealed.fill(0);
     for (const t of [...this.shown]) if (this.nodeOf[t] !== NONE) this.hide(t);
@@ -436,8 +438,9 @@ export class Replay {
   /**
    * The longest prefix of the frame's order of whole splits (greedy by `priorities`) that shows
    * at most `budget` triangles: splits are taken until the first one that does not fit.
+   * `levelMajor` holds the finer level's candidates back until the coarser level is exhausted.
    */
-  private selectWhole(budget: number, priorities: Float64Array): void {
+  private selectWhole(budget: number, priorities: Float64Array, levelMajor = false): void {
     this.revealed.fill(0);
     for (let g = 0; g < this.nodeCount; g++) if (this.expanded[g]) this.collapse(g);
     for (const t of [...this.shown]) if (this.nodeOf[t] !== NONE) this.hide(t);
@@ -445,14 +448,23 @@ export class Replay {
     let used = this.shown.length;
     const heap = new MaxHeap();
     for (let g = this.offsets[this.top]; g < this.offsets[this.top + 1]; g++) if (this.expandable(g)) heap.push(priorities[g], g);
-    while (heap.size > 0) {
+    let pending: number[] = [];
+    for (;;) {
+      if (heap.size === 0) {
+        for (const c of pending) heap.push(priorities[c], c);
+        pending = [];
+      }
+      if (heap.size === 0) break;
       const g = heap.pop();
       const set = this.sets[g].items;
       if (used + set.length > budget) break;
       this.expand(g);
       used += set.length;
       for (const t of [...set].sort((a, b) => a - b)) this.appearing.push(t);
-      for (const c of this.children[g]) if (this.expandable(c)) heap.push(priorities[c], c);
+      for (const c of this.children[g]) {
+        if (!this.expandable(c)) continue;
+        if (levelMajor) pending.push(c); else heap.push(priorities[c], c);
+      }
     }
   }
 

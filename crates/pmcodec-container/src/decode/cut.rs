@@ -23,6 +23,10 @@ pub enum BudgetCut {
     /// error there) but changes more from frame to frame. Files with attribute tables keep
     /// whole splits (their tables cover a node's charts at its own level only).
     PartialSplits(BudgetPriorities),
+    /// An option: whole splits by budget priority, level-major (every splittable node of a
+    /// coarser level before any of a finer one), so a budget at or above a level's count gets
+    /// at least that level's cut.
+    LevelSplits,
 }
 
 impl BudgetCut {
@@ -182,9 +186,10 @@ impl<S: ByteSource> Decoder<S> {
                         }
                         o.order.reset_steps(replay, &o.priorities, Steps::PartialSplits);
                     }
-                    _ => {
+                    c => {
                         replay.split_benefits_into(&d.positions, &mut o.priorities);
-                        o.order.reset_steps(replay, &o.priorities, Steps::WholeSplits);
+                        let steps = if c == BudgetCut::LevelSplits { Steps::LevelSplits } else { Steps::WholeSplits };
+                        o.order.reset_steps(replay, &o.priorities, steps);
                     }
                 }
                 o.ready = true;
