@@ -225,17 +225,7 @@ fn cut_rms(q: &[[f64; 11]], nodes: &[u32], positions: &[Vec3]) -> f64 {
 /// 4-ary hierarchy, so they cannot meet most budgets exactly.
 #[test]
 fn partial_splits_meet_vertex_budgets_exactly_and_beat_whole_splits_between_levels() {
-    let seq = grid(36, 28, 3);
-    let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
-    let q = base_quadrics(&seq, &topo, &BaseOptions::default());
-    let h = build(&topo, &q, &BuildOptions::default()).expect("build");
-    let mut enc = Encoder::new(h.clone(), topo, seq.triangles.clone(), Default::default());
-    let mut replay = Replay::new(h, &seq.triangles);
-    for frame in &seq.frames {
-        let (delta, _) = enc.encode_frame(frame);
-        replay.apply(&delta).expect("apply");
-    }
-    let positions: Vec<Vec3> = enc.node_positions().to_vec();
+    let (seq, replay, positions) = replayed_wave();
     let h = replay.h.clone();
     let fine = h.level_sizes[0] as usize;
     assert!(h.levels() >= 3, "{:?}", h.level_sizes);
@@ -322,17 +312,7 @@ fn partial_splits_meet_vertex_budgets_exactly_and_beat_whole_splits_between_leve
 /// coarser level or the finer one).
 #[test]
 fn level_major_budgets_at_a_level_are_that_level() {
-    let seq = grid(36, 28, 3);
-    let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
-    let q = base_quadrics(&seq, &topo, &BaseOptions::default());
-    let h = build(&topo, &q, &BuildOptions::default()).expect("build");
-    let mut enc = Encoder::new(h.clone(), topo, seq.triangles.clone(), Default::default());
-    let mut replay = Replay::new(h, &seq.triangles);
-    for frame in &seq.frames {
-        let (delta, _) = enc.encode_frame(frame);
-        replay.apply(&delta).expect("apply");
-    }
-    let positions: Vec<Vec3> = enc.node_positions().to_vec();
+    let (_, replay, positions) = replayed_wave();
     let h = replay.h.clone();
     let fine = h.level_sizes[0];
     assert!(h.levels() >= 4, "{:?}", h.level_sizes);
@@ -371,4 +351,21 @@ fn level_major_budgets_at_a_level_are_that_level() {
         }
     }
     assert!(differs, "the greedy order passes through every level here: the test shows nothing");
+}
+
+/// A generated 36 x 28 wave of 3 frames, built, encoded and replayed to its last frame: the
+/// sequence, the replay and the encoder's node positions there.
+fn replayed_wave() -> (pmcodec_mesh::Sequence, Replay, Vec<Vec3>) {
+    let seq = grid(36, 28, 3);
+    let topo = FineTopology::new(seq.vertex_count() as u32, &seq.triangles);
+    let q = base_quadrics(&seq, &topo, &BaseOptions::default());
+    let h = build(&topo, &q, &BuildOptions::default()).expect("build");
+    let mut enc = Encoder::new(h.clone(), topo, seq.triangles.clone(), Default::default());
+    let mut replay = Replay::new(h, &seq.triangles);
+    for frame in &seq.frames {
+        let (delta, _) = enc.encode_frame(frame);
+        replay.apply(&delta).expect("apply");
+    }
+    let positions: Vec<Vec3> = enc.node_positions().to_vec();
+    (seq, replay, positions)
 }
