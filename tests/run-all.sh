@@ -17,29 +17,35 @@ export CARGO_TERM_COLOR=never
 export CARGO_INCREMENTAL="${CARGO_INCREMENTAL:-0}"
 disk() { echo "-- disk: $(df -h . | awk 'NR==2 {print $4 " free"}'), target/ $(du -sh target 2>/dev/null | cut -f1)"; }
 disk
+# Each phase says how long the one before took (CI's budget is 25 minutes on 2 cores).
+phase_start=$SECONDS
+phase() { echo "-- $((SECONDS - phase_start)) s"; phase_start=$SECONDS; echo "== $*"; }
 
-echo "== S3-compatible server for the S3 store tests (s3s-fs, checks request signatures)"
+phase "S3-compatible server for the S3 store tests (s3s-fs, checks request signatures)"
 if ! command -v s3s-fs >/dev/null 2>&1 && [ ! -x "$HOME/.cargo/bin/s3s-fs" ]; then
   # Later versions need a newer rustc than this toolchain.
   cargo install s3s-fs@0.14.1 --features binary --locked 2>&1 | tail -n 3
 fi
 
-echo "== unused dependencies (a text check, about a second)"
+phase "unused dependencies and unbuilt test files (text checks, about a second)"
 tests/unused-deps.sh
+tests/test-files.sh
 
-echo "== cargo clippy (every crate and target, warnings are errors)"
+phase "cargo clippy (every crate and target, warnings are errors)"
 # Before the tests: it checks what they compile anyway (about a minute more on a warm build,
 # see README.md), and a lint failure should not wait for the whole test run.
 cargo clippy --workspace --all-targets --locked -- -D warnings 2>&1
 
-echo "== cargo test"
-cargo test --workspace --locked --no-fail-fast 2>&1
+phase "cargo test"
+# Libraries, binaries and tests; not the examples and benchmarks, which clippy has just checked
+# and which would only add some forty links (no test runs them; run-all builds the one it uses).
+cargo test --workspace --lib --bins --tests --locked --no-fail-fast 2>&1
 disk
 
-echo "== viewer unit tests and build"
+phase "viewer unit tests and build"
 (cd web && npm ci --no-audit --no-fund && PMCODEC_BIN="$PWD/../target/debug/pmcodec" npm test && npm run build)
 
-echo "== end to end"
+phase "end to end"
 if ! command -v chromium >/dev/null 2>&1; then
   apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null
 fi
@@ -56,7 +62,7 @@ fi
 # one skeleton, the kind that crashed `pmcodec lod` in issue 13) and of every shared model at
 # 50%, 25%, 10% and 5% (the Draco-compressed Parrot read directly) must have no validator
 # errors and no warnings. A missing model is a failure.
-echo "== glTF validator on pmcodec lod output"
+phase "glTF validator on pmcodec lod output"
 (cd tests && npm ci --no-audit --no-fund)
 bin="${CARGO_TARGET_DIR:-target}/debug/pmcodec"
 [ -x "$bin" ] || cargo build --locked -p pmcodec 2>&1
@@ -81,8 +87,9 @@ node tests/gltf-validate.mjs "$lod_out"/*.glb
 # Every level of every chain plays in three.js's stock glTF loader (web/lod.html in headless
 # Chromium): loads, skins or morphs, animates on the one shared skeleton with no track missing
 # its node, draws (textured when the file has images), and has fewer triangles than the last.
-echo "== three.js plays pmcodec lod output"
+phase "three.js plays pmcodec lod output"
 bin_abs="$(cd "$(dirname "$bin")" && pwd)/$(basename "$bin")"
 (cd web && PMCODEC_BIN="$bin_abs" node test/lod-e2e.mjs "$lod_out"/*-lod.glb)
 # ---- end of glTF validator block --------------------------------------------------------------
 disk
+echo "-- $((SECONDS - phase_start)) s, $SECONDS s in all"

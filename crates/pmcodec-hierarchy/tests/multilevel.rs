@@ -2,7 +2,7 @@
 //! sets against brute force, and cuts.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
+use crate::common;
 use common::*;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};
 use pmcodec_hierarchy::cut::{self, ChildIndex};

@@ -3,7 +3,7 @@
 //! maintained cut equals one re-derived from scratch.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
+use crate::common;
 use common::*;
 use pmcodec_hierarchy::CutTarget;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};

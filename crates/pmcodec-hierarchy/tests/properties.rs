@@ -1,7 +1,7 @@
 //! Property tests on random meshes: every cluster connected after the build and after every
 //! reclustered frame, and the degenerate-set rule equal to brute force for random cuts.
 
-mod common;
+use crate::common;
 use common::{Rng, random_cut};
 use glam::Vec3;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};

@@ -2,7 +2,7 @@
 //! their target, closed upward, and show exactly the mesh the replay shows for the same cut.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
+use crate::common;
 use common::*;
 use glam::Vec3;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};

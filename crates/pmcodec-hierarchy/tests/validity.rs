@@ -2,7 +2,7 @@
 //! against the fine triangle it stands for, and open meshes keep their boundary loops.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
+use crate::common;
 use common::*;
 use pmcodec_hierarchy::CutTarget;
 use pmcodec_hierarchy::base::{BaseOptions, base_quadrics};

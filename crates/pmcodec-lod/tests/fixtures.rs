@@ -1,7 +1,7 @@
 //! LOD chains of small rigs built in code: skin and morph validity, every placement, the
 //! written GLB read back, and clear errors for bad requests.
 
-mod common;
+use crate::common;
 
 use common::{bending_tube_and_face, check_chain, check_glb_levels, max_pose_gap};
 use pmcodec_lod::{LodError, LodOptions, Placement, PoseOptions, PoseWeights, build_chain, gltf_out};

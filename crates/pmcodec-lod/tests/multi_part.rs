@@ -3,7 +3,7 @@
 //! parts, at many budgets and with every placement. Before the fix every such character with
 //! open parts failed with "level k vertex N merged into N, which level k+1 does not use".
 
-mod common;
+use crate::common;
 
 use common::{check_chain, check_glb_levels};
 use pmcodec_lod::fixture::{CharacterSpec, multi_part_character};

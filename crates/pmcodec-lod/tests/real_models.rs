@@ -5,7 +5,7 @@
 //! reader decodes.)
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
+use crate::common;
 
 use common::{check_chain, check_glb_levels, max_pose_gap, shared_model};
 use pmcodec_eval::SampleOptions;

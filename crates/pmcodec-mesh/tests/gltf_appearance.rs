@@ -8,7 +8,7 @@ use pmcodec_mesh::{MeshError, Sequence};
 use serde_json::{Value, json};
 use std::collections::BTreeSet;
 
-mod common;
+use crate::common;
 use common::{Bin, base64, data, glb};
 
 /// Checks what every appearance must satisfy and returns it.

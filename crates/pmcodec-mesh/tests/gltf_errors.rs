@@ -7,7 +7,7 @@ use pmcodec_mesh::gltf_input::{GltfOptions, RiggedMesh, load_gltf, load_gltf_byt
 use pmcodec_mesh::{InputLimits, MeshError, Sequence};
 use serde_json::{Value, json};
 
-mod common;
+use crate::common;
 use common::{Bin, TRIANGLE, animated_triangle, base64, bent_strip, glb, load, opts};
 // ------------------------------------------------------------------------------------------------
 // Generated files: containers and errors

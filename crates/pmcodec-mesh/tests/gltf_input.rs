@@ -10,7 +10,7 @@ use pmcodec_mesh::{MeshError, Sequence};
 use serde_json::json;
 use std::collections::BTreeSet;
 
-mod common;
+use crate::common;
 use common::{Bin, TRIANGLE, animated_triangle, bent_strip, data, load, opts};
 
 // ------------------------------------------------------------------------------------------------
