@@ -39,7 +39,7 @@
 //!  cargo run -p pmcodec-container --example uv_predictors -- /tmp/a.pmc [--bind]`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::appearance::across::band_faces;
-use pmcodec_container::appearance::payload::{Table, needs_above, read_band, read_charts_with, read_table_across, representatives};
+use pmcodec_container::appearance::payload::{Table, needs_above, read_band_bind, read_charts_with, read_table_across, representatives};
 use pmcodec_container::payload::{read_key, read_triangles, zigzag};
 use pmcodec_container::{ChunkKind, Decoder, FileSource, Reader};
 
@@ -238,6 +238,14 @@ fn residuals(
     (out, flips, against)
 }
 
+/// A skinned file's bind positions of the level-0 nodes (band 0 may predict from them).
+fn bind0(path: &str) -> Option<Vec<[i64; 3]>> {
+    let mut d = pmcodec_container::Decoder::new(Reader::open(FileSource::open(std::path::Path::new(path)).ok()?).ok()?, 0).ok()?;
+    d.seek(0).ok()?;
+    let n = d.reader().header().level_sizes[0] as usize;
+    d.skin().map(|(nodes, _)| nodes[..n].iter().map(|s| s.bind).collect())
+}
+
 fn main() {
     let bind = std::env::args().any(|a| a == "--bind");
     for path in std::env::args().skip(1).filter(|a| a != "--bind") {
@@ -277,7 +285,16 @@ fn main() {
                 let (f, fc) = band_faces(&tris, &charts.triangle_chart, &refs).unwrap();
                 read_table_across(&raw, "t", h.level_sizes[j], &info, h.triangle_count, above_of, Some((&f, &fc))).unwrap()
             } else {
-                read_band(&raw, "t", h.level_sizes[j], &info, h.triangle_count, Some((&tris, &charts.triangle_chart)), above_of).unwrap()
+                read_band_bind(
+                    &raw,
+                    "t",
+                    h.level_sizes[j],
+                    &info,
+                    (h.triangle_count, Some((&tris, &charts.triangle_chart))),
+                    above_of,
+                    bind0(&path).as_deref(),
+                )
+                .unwrap()
             };
             tables[j] = Some(t);
         }
