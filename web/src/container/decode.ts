@@ -502,9 +502,12 @@ export class Decoder {
       let bind: BigInt64Array | null = null;
       if (needsBind(raw)) {
         if (!h.skin) throw new DecodeError(`${what}: bind positions in a file without a skin`);
-        const skins = nodeSkins(h.levelSizes[0]);
-        readBinds(await c.chunk(c.find(ChunkKind.Bind, 0, 0)), "band 0 bind", h.levelSizes[0], h.skin.paletteLen, skins, 0);
-        bind = skins.bind;
+        if (this.skin) bind = this.skin.nodes.bind; // level 0 first: read already
+        else {
+          const skins = nodeSkins(h.levelSizes[0]);
+          readBinds(await c.chunk(c.find(ChunkKind.Bind, 0, 0)), "band 0 bind", h.levelSizes[0], h.skin.paletteLen, skins, 0);
+          bind = skins.bind;
+        }
       }
       tables[j] = readBand0Table(raw, what, h.levelSizes[j], a, tris, charts.triangleChart, above, bind);
     }

@@ -89,15 +89,18 @@ impl<S: ByteSource> Decoder<S> {
                 let triangles = triangles(self)?;
                 // Texture coordinates placed by the bind pose: the Bind chunk of band 0, which a
                 // level-0 client of a skinned file reads anyway.
-                let bind = if needs_bind(&raw) {
-                    let skin = h.skin.as_ref().ok_or_else(|| ContainerError::Corrupt {
-                        what: what.clone(),
-                        detail: "bind positions in a file without a skin".into(),
-                    })?;
-                    let raw = self.chunk(ChunkKind::Bind, 0, 0)?;
-                    Some(read_binds(&raw, "band 0 bind", h.level_sizes[0], skin.palette_len)?.iter().map(|n| n.bind).collect::<Vec<_>>())
-                } else {
-                    None
+                // (The skin's when the decoder holds it already, else read here.)
+                let n = h.level_sizes[0] as usize;
+                let bind = match (needs_bind(&raw), &self.skin, &h.skin) {
+                    (false, _, _) => None,
+                    (true, Some(s), _) if s.nodes.len() >= n => Some(s.nodes[..n].iter().map(|s| s.bind).collect::<Vec<_>>()),
+                    (true, _, Some(skin)) => {
+                        let raw = self.chunk(ChunkKind::Bind, 0, 0)?;
+                        Some(read_binds(&raw, "band 0 bind", h.level_sizes[0], skin.palette_len)?.iter().map(|n| n.bind).collect())
+                    }
+                    (true, _, None) => {
+                        return Err(ContainerError::Corrupt { what, detail: "bind positions in a file without a skin".into() });
+                    }
                 };
                 let band0 = (h.triangle_count, Some((&triangles[..], &charts.triangle_chart[..])));
                 read_band_bind(&raw, &what, h.level_sizes[j], &info, band0, above_of, bind.as_deref())?
