@@ -238,6 +238,42 @@ fn residuals(
     (out, flips, against)
 }
 
+/// `faces` (with charts `chart_of`) reordered: charts in order of their first face, each
+/// chart's faces breadth first over shared edges from its first face (then any left, likewise).
+fn breadth_first(faces: &[[u32; 3]], chart_of: &[u32]) -> (Vec<[u32; 3]>, Vec<u32>) {
+    let mut by_edge: std::collections::HashMap<(u32, u32, u32), Vec<usize>> = Default::default();
+    for (i, f) in faces.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            by_edge.entry((a.min(b), a.max(b), chart_of[i])).or_default().push(i);
+        }
+    }
+    let mut seen = vec![false; faces.len()];
+    let (mut out, mut out_c) = (Vec::new(), Vec::new());
+    for start in 0..faces.len() {
+        if seen[start] {
+            continue;
+        }
+        seen[start] = true;
+        let mut queue = std::collections::VecDeque::from([start]);
+        while let Some(i) = queue.pop_front() {
+            out.push(faces[i]);
+            out_c.push(chart_of[i]);
+            let f = faces[i];
+            for k in 0..3 {
+                let (a, b) = (f[k], f[(k + 1) % 3]);
+                for &j in &by_edge[&(a.min(b), a.max(b), chart_of[i])] {
+                    if !seen[j] {
+                        seen[j] = true;
+                        queue.push_back(j);
+                    }
+                }
+            }
+        }
+    }
+    (out, out_c)
+}
+
 /// A skinned file's bind positions of the level-0 nodes (band 0 may predict from them).
 fn bind0(path: &str) -> Option<Vec<[i64; 3]>> {
     let mut d = pmcodec_container::Decoder::new(Reader::open(FileSource::open(std::path::Path::new(path)).ok()?).ok()?, 0).ok()?;
@@ -338,6 +374,17 @@ fn main() {
                 (cost(&r) + flips as f64 / 8.0, flips, against)
             };
             let base = run(Side::Parallelogram, false).0;
+            // The same faces in a breadth-first order within each chart (charts by first face,
+            // each grown from its first face over shared edges), as an Edgebreaker-like
+            // traversal visits them: more corners find their edge known with an opposite.
+            let (bf, bfc) = breadth_first(&f, &fc);
+            let bfs = |side| cost(&residuals(t, c, &bf, &bfc, &pos, &known, side, (base_node, None)).0);
+            for (name, side) in
+                [("parallelogram, faces breadth first", Side::Parallelogram), ("positions, faces breadth first", Side::Chart)]
+            {
+                let v = bfs(side);
+                println!("    {name:45} ~{v:6.0} B ({:+.1}%)", 100.0 * (v - base) / base);
+            }
             // How many of the coded (non-representative) entries the faces reach at all.
             let on_faces = residuals(t, c, &f, &fc, &pos, &known, Side::Parallelogram, (base_node, None)).0[0].len();
             println!("    {on_faces} of {} coded entries on a face of frame 0", known.iter().filter(|&&k| !k).count());

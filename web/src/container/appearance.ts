@@ -2,7 +2,7 @@
 // "Appearance"): the Charts, Attributes and Materials chunks read, and a cut's per-corner
 // texture coordinates, colours and normals computed bit for bit as the Rust decoder does.
 
-import { orientation, predictUv } from "./project.js";
+import { breadthFirst, orientation, predictUv } from "./project.js";
 import { DecodeError } from "./error.js";
 import { AppearanceInfo, channels } from "./format.js";
 import { Cursor, Postcard } from "./payload.js";
@@ -563,8 +563,10 @@ export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: 
   // With bind positions, each chart's orientation in texture space: its last whole triangle's.
   const side = new Int32Array(nc).fill(1), uv = (x: number): [number, number] => [values[x * ch], values[x * ch + 1]];
   let visited = 0;
-  for (let t = 0; t < triangleChart.length; t++) {
-    const chart = triangleChart[t];
+  // With bind positions, the triangles breadth first within their charts; else in input order.
+  const order = bind ? breadthFirst(triangles, triangleChart) : null;
+  for (let o = 0; o < triangleChart.length; o++) {
+    const t = order ? order[o] : o, chart = triangleChart[t];
     for (let i = 0; i < 3; i++) {
       e[i] = find(triangles[3 * t + i], chart);
       if (e[i] < 0) throw new DecodeError(`${what}: no entry for vertex ${triangles[3 * t + i]}, chart ${chart} of triangle ${t}`);

@@ -47,3 +47,44 @@ export function orientation(a: [number, number], b: [number, number], c: [number
   const z = x1 * y2 - y1 * x2;
   return z > 0n ? 1 : z < 0n ? -1 : 0;
 }
+
+/**
+ * The order band 0's traversal visits the triangles in with bind positions (the Rust
+ * `breadth_first`): breadth first within each chart over shared edges, from each triangle not
+ * yet reached in input order.
+ */
+export function breadthFirst(triangles: Uint32Array, chartOf: Uint32Array): Uint32Array {
+  const count = triangles.length / 3;
+  let n = 0;
+  for (const v of triangles) n = Math.max(n, v + 1);
+  // The triangles at each vertex, ascending, each once.
+  const start = new Uint32Array(n + 1);
+  const distinct = (j: number, i: number): boolean => (i < 1 || triangles[3 * j + i] !== triangles[3 * j]) && (i < 2 || triangles[3 * j + 2] !== triangles[3 * j + 1]);
+  for (let j = 0; j < count; j++) for (let i = 0; i < 3; i++) if (distinct(j, i)) start[triangles[3 * j + i] + 1]++;
+  for (let v = 0; v < n; v++) start[v + 1] += start[v];
+  const at = start.slice(), incident = new Uint32Array(start[n]);
+  for (let j = 0; j < count; j++) for (let i = 0; i < 3; i++) if (distinct(j, i)) incident[at[triangles[3 * j + i]]++] = j;
+  const reached = new Uint8Array(count), order = new Uint32Array(count), queue = new Uint32Array(count);
+  let out = 0;
+  for (let s = 0; s < count; s++) {
+    if (reached[s]) continue;
+    reached[s] = 1;
+    let head = 0, tail = 0;
+    queue[tail++] = s;
+    while (head < tail) {
+      const i = queue[head++];
+      order[out++] = i;
+      for (let k = 0; k < 3; k++) {
+        const a = triangles[3 * i + k], b = triangles[3 * i + ((k + 1) % 3)];
+        for (let x = start[a]; x < start[a + 1]; x++) {
+          const j = incident[x];
+          if (!reached[j] && chartOf[j] === chartOf[i] && (triangles[3 * j] === b || triangles[3 * j + 1] === b || triangles[3 * j + 2] === b)) {
+            reached[j] = 1;
+            queue[tail++] = j;
+          }
+        }
+      }
+    }
+  }
+  return order;
+}

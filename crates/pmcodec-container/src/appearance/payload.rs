@@ -333,7 +333,11 @@ fn traverse(
     let mut chart_last = vec![0i32; charts * c];
     let mut chart_seen = vec![false; charts];
     let mut pred = vec![0i32; c];
-    for (t, tri) in triangles.iter().enumerate() {
+    // With positions, the triangles breadth first within their charts; else in input order.
+    let order: Vec<u32> =
+        if positions.is_some() { super::project::breadth_first(triangles, triangle_chart) } else { (0..triangles.len() as u32).collect() };
+    for &t in &order {
+        let (t, tri) = (t as usize, &triangles[t as usize]);
         let chart = triangle_chart.get(t).copied().unwrap_or(u32::MAX);
         let mut e = [0usize; 3];
         for i in 0..3 {

@@ -64,9 +64,80 @@ pub fn orientation(a: [i32; 2], b: [i32; 2], c: [i32; 2]) -> i32 {
     (d1[0] * d2[1] - d1[1] * d2[0]).signum() as i32
 }
 
+/// The order band 0's traversal visits the triangles in with bind positions: breadth first
+/// within each chart, as an Edgebreaker-like traversal goes, so that a corner finds its edge's
+/// two corners known (the projection's case) far more often than in input order (Fox's band
+/// 0, estimated: 461 -> 363 B). For each triangle s ascending not yet reached, s is reached
+/// and queued; a triangle taken from the queue goes into the order, and for its edges (v0 v1,
+/// v1 v2, v2 v0) in turn, every triangle not yet reached of the same chart with both of the
+/// edge's vertices as corners, ascending, is reached and queued.
+pub fn breadth_first(triangles: &[[u32; 3]], chart_of: &[u32]) -> Vec<u32> {
+    let n = triangles.iter().flatten().map(|&v| v as usize + 1).max().unwrap_or(0);
+    // The triangles at each vertex, ascending, each once.
+    let mut start = vec![0usize; n + 1];
+    let distinct = |t: &[u32; 3], i: usize| !t[..i].contains(&t[i]);
+    for t in triangles {
+        for i in 0..3 {
+            if distinct(t, i) {
+                start[t[i] as usize + 1] += 1;
+            }
+        }
+    }
+    for v in 0..n {
+        start[v + 1] += start[v];
+    }
+    let mut at = start.clone();
+    let mut incident = vec![0u32; start[n]];
+    for (j, t) in triangles.iter().enumerate() {
+        for i in 0..3 {
+            if distinct(t, i) {
+                incident[at[t[i] as usize]] = j as u32;
+                at[t[i] as usize] += 1;
+            }
+        }
+    }
+    let mut reached = vec![false; triangles.len()];
+    let mut order = Vec::with_capacity(triangles.len());
+    let mut queue = std::collections::VecDeque::new();
+    for s in 0..triangles.len() {
+        if reached[s] {
+            continue;
+        }
+        reached[s] = true;
+        queue.push_back(s);
+        while let Some(i) = queue.pop_front() {
+            order.push(i as u32);
+            let f = triangles[i];
+            for k in 0..3 {
+                let (a, b) = (f[k] as usize, f[(k + 1) % 3]);
+                for &j in &incident[start[a]..start[a + 1]] {
+                    let j = j as usize;
+                    if !reached[j] && chart_of.get(j) == chart_of.get(i) && triangles[j].contains(&b) {
+                        reached[j] = true;
+                        queue.push_back(j);
+                    }
+                }
+            }
+        }
+    }
+    order
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn breadth_first_grows_each_chart_over_its_edges() {
+        // A strip 0-1-2-3 in input order 3, 0, 2, 1 (chart 0), then a lone triangle of chart 1
+        // sharing an edge with the strip, and a degenerate one.
+        let tris = [[3, 4, 5], [0, 1, 2], [2, 3, 4], [1, 2, 3], [4, 5, 6], [7, 7, 8]];
+        let charts = [0, 0, 0, 0, 1, 0];
+        // From 0 ([3 4 5]): edge 3 4 reaches 2; then from 2: edge 2 3 reaches 3; from 3: edge
+        // 1 2 reaches 1. Triangle 4 is another chart's: it starts its own.
+        assert_eq!(breadth_first(&tris, &charts), vec![0, 2, 3, 1, 4, 5]);
+        assert!(breadth_first(&[], &[]).is_empty());
+    }
 
     #[test]
     fn isqrt_is_the_floor_of_the_root() {
