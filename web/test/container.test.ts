@@ -8,9 +8,10 @@ import { existsSync, mkdirSync, mkdtempSync, readdirSync, readFileSync, writeFil
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 import { FLAG_BANDS, FLAG_NAMES, frontDecode, parseTable } from "../src/container/format.js";
-import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, type RevealFrom, VertexOrder, attributeEntry, bandFaces, chartsNeedTriangles, dequantizeUv, needsFaces, readBand0Table, readCharts, readPositions, readTable, texturedMesh } from "../src/container/index.js";
+import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, type RevealFrom, VertexOrder, attributeEntry, bandFaces, chartsNeedTriangles, dequantizeUv, needsBind, needsFaces, readBand0Table, readCharts, readPositions, readTable, texturedMesh } from "../src/container/index.js";
 import type { Faces } from "../src/container/index.js";
 import { keyFromFirst, readCornerUpdates, readDelta, readFaces, readKey, readTriangles } from "../src/container/payload.js";
+import { nodeSkins, readBinds } from "../src/container/skin.js";
 
 const root = repoRoot();
 const bin = pmcodecBin(root);
@@ -515,9 +516,13 @@ test("appearance with band 0's entries derived from the triangles, values from t
     const c = await open(file);
     const a = c.header.appearance!;
     const band0 = await c.chunk(c.find(ChunkKind.Attributes, 0, 0));
-    // Mode 1, or 1 | 8 with its residuals entropy-coded (rANS over their bit lengths).
-    assert.ok(band0.length > 1 && band0[0] === 0 && (band0[1] & 7) === 1, `${name}: band 0 is not coded with derived entries`);
-    assert.ok((band0[1] & 8) !== 0, `${name}: band 0's residuals are not rANS-coded`);
+    // Mode 1, or 1 | 8 with its residuals entropy-coded (rANS over their bit lengths); the
+    // skinned Fox's with its texture coordinates placed by the bind pose (| 4), which reads
+    // the Bind chunk of band 0.
+    assert.ok(band0.length > 1 && band0[0] === 0 && (band0[1] & 3) === 1, `${name}: band 0 is not coded with derived entries`);
+    // (Fox's residuals, small with bind positions, may be shorter as varints.)
+    assert.ok(name === "Fox" || (band0[1] & 8) !== 0, `${name}: band 0's residuals are not rANS-coded`);
+    assert.equal(needsBind(band0), name === "Fox", `${name}: band 0 ${name === "Fox" ? "does not predict" : "predicts"} from bind positions`);
     // Band 1's values are chart-wise differences (mode 2): the cuts below read that coding too.
     const chartsRaw = await c.chunk(c.find(ChunkKind.Charts, 0, 0));
     assert.ok(chartsRaw[0] === 0 && (chartsRaw[1] === 2 || chartsRaw[1] === 3), `${name}: the charts are neither recent-chart runs nor neighbour charts`);
@@ -557,13 +562,21 @@ test("appearance with band 0's entries derived from the triangles, values from t
     const tris = (player as unknown as { triangles: Uint32Array }).triangles, chartOf = player.looks!.charts.triangleChart;
     // With represented values (mode | 16), band 0 reads band 1's table through frame 0's parents.
     const above = { parent: readKey(await c.chunk(c.find(ChunkKind.Key, 0, 0)), "k", c.header.levelSizes, 0, c.version), table: player.looks!.tables[1]! };
-    const whole = readBand0Table(band0, "band 0", c.header.levelSizes[0], a, tris, chartOf, above);
+    let bind: BigInt64Array | null = null;
+    if (needsBind(band0)) {
+      const skins = nodeSkins(c.header.levelSizes[0]);
+      readBinds(await c.chunk(c.find(ChunkKind.Bind, 0, 0)), "bind", c.header.levelSizes[0], c.header.skin!.paletteLen, skins, 0);
+      bind = skins.bind;
+      // Without them: an error, not other values.
+      assert.throws(() => readBand0Table(band0, "band 0", c.header.levelSizes[0], a, tris, chartOf, above), /bind positions needed/);
+    }
+    const whole = readBand0Table(band0, "band 0", c.header.levelSizes[0], a, tris, chartOf, above, bind);
     assert.deepEqual(Array.from(whole.values), Array.from(player.looks!.tables[0]!.values));
-    assert.throws(() => readBand0Table(band0.subarray(0, band0.length - 1), "band 0", c.header.levelSizes[0], a, tris, chartOf, above), DecodeError);
+    assert.throws(() => readBand0Table(band0.subarray(0, band0.length - 1), "band 0", c.header.levelSizes[0], a, tris, chartOf, above, bind), DecodeError);
     // An unknown coding mode is an error too.
     const odd = band0.slice();
     odd[1] = 7;
-    assert.throws(() => readBand0Table(odd, "band 0", c.header.levelSizes[0], a, tris, chartOf, above), /coding 7 unknown/);
+    assert.throws(() => readBand0Table(odd, "band 0", c.header.levelSizes[0], a, tris, chartOf, above, bind), /coding 7 unknown/);
   }
 });
 

@@ -4,7 +4,8 @@
 //! 19, as the encoder) so the parts are comparable with the chunks' stored bytes.
 //!
 //! Per band: its coding mode (1 derived entries, 2 chart-wise, 3 from the band above; | 8
-//! rANS-coded residuals, | 16 represented values, | 32 entries from the band above, | 64
+//! rANS-coded residuals, | 16 represented values, | 32 entries from the band above, | 4 with 1
+//! texture coordinates from bind positions, | 64
 //! values across the band's faces), its
 //! entries and how many of them are representatives (no residual), and what its entries would
 //! take listed. `DUMP_CHARTS=FILE` writes each triangle's chart, one a line, for experiments.
@@ -14,7 +15,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::appearance::across::{band_faces, write_table_across};
 use pmcodec_container::appearance::payload::{
-    QuantizedTable, Table, needs_above, read_band, read_charts_with, read_table_across, representatives,
+    QuantizedTable, Table, needs_above, read_band_bind, read_charts_with, read_table_across, representatives,
 };
 use pmcodec_container::payload::{put, zigzag};
 use pmcodec_container::payload::{read_key, read_triangles};
@@ -33,6 +34,14 @@ fn runs(values: &[u32]) -> Vec<(u32, u32)> {
         }
     }
     r
+}
+
+/// A skinned file's bind positions of the level-0 nodes (band 0 may predict from them).
+fn bind0(path: &str) -> Option<Vec<[i64; 3]>> {
+    let mut d = pmcodec_container::Decoder::new(Reader::open(FileSource::open(std::path::Path::new(path)).ok()?).ok()?, 0).ok()?;
+    d.seek(0).ok()?;
+    let n = d.reader().header().level_sizes[0] as usize;
+    d.skin().map(|(nodes, _)| nodes[..n].iter().map(|s| s.bind).collect())
 }
 
 fn main() {
@@ -132,10 +141,11 @@ fn main() {
             let raw = reader.read_chunk(e).unwrap();
             // The coding mode after a first byte 0: 1 derived entries, 2 chart-wise, 3 from the
             // band above; | 8 value residuals rANS-coded; | 16 represented values; | 32 entries
-            // coded from the band above's.
+            // coded from the band above's; with 1, | 4 texture coordinates from bind positions.
             let mode = if raw.len() > 1 && raw[0] == 0 { raw[1] } else { 0 };
             let coded = if mode & 8 != 0 { "rANS-coded" } else { "varints" };
-            let kind = match (mode & 7, mode & 32 != 0) {
+            let kind = match (mode & 3, mode & 32 != 0) {
+                (1, _) if mode & 4 != 0 => "entries derived from the triangles, texture coordinates from bind positions",
                 (1, _) => "entries derived from the triangles",
                 (2, _) => "listed, chart-wise values",
                 (3, false) if mode & 64 != 0 => "listed, values across the band's faces",
@@ -162,7 +172,8 @@ fn main() {
             let t = if j > 0 {
                 read_table_across(&raw, "t", h.level_sizes[j as usize], &info, h.triangle_count, above_of, Some((&faces, &fc))).unwrap()
             } else {
-                read_band(&raw, "t", h.level_sizes[j as usize], &info, h.triangle_count, band0, above_of).unwrap()
+                read_band_bind(&raw, "t", h.level_sizes[j as usize], &info, (h.triangle_count, band0), above_of, bind0(&path).as_deref())
+                    .unwrap()
             };
             // The entries as a listed table writes them, zstd alone.
             let mut ent = Vec::new();

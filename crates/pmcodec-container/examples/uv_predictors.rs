@@ -28,11 +28,18 @@
 //! empirical entropy of the residual codes' bit lengths plus their raw bits below the
 //! highest; the stored chunk's own size is printed beside it.
 //!
+//! - `positions, side from chart, integers`: the same in integers only (`projected_int`), as a
+//!   coding both decoders compute alike would.
+//!
+//! With `--bind`, the positions are a skinned file's bind positions (its Bind chunks, which
+//! every skinned client reads) instead of frame 0's decoded ones (which a client starting at a
+//! later keyframe would have to read besides its own: printed as "frame 0's position chunks").
+//!
 //! `target/debug/pmcodec encode -q IN.glb -o /tmp/a.pmc &&
-//!  cargo run -p pmcodec-container --example uv_predictors -- /tmp/a.pmc`
+//!  cargo run -p pmcodec-container --example uv_predictors -- /tmp/a.pmc [--bind]`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::appearance::across::band_faces;
-use pmcodec_container::appearance::payload::{Table, needs_above, read_band, read_charts_with, read_table_across, representatives};
+use pmcodec_container::appearance::payload::{Table, needs_above, read_band_bind, read_charts_with, read_table_across, representatives};
 use pmcodec_container::payload::{read_key, read_triangles, zigzag};
 use pmcodec_container::{ChunkKind, Decoder, FileSource, Reader};
 
@@ -42,6 +49,8 @@ enum Side {
     Opposite,
     Chart,
     Ideal,
+    /// Side from the chart, [`projected_int`] (integers only).
+    ChartInt,
 }
 
 /// Estimated bytes of per-channel residual codes (bit-length entropy plus raw mantissa bits).
@@ -83,6 +92,47 @@ fn projected(p: [[i64; 3]; 3], ua: [i64; 2], ub: [i64; 2]) -> Option<[[i64; 2]; 
     let base = [ua[0] as f64 + s * d[0] as f64, ua[1] as f64 + s * d[1] as f64];
     let off = [-(d[1] as f64) * r, d[0] as f64 * r];
     Some([[round(base[0] + off[0]), round(base[1] + off[1])], [round(base[0] - off[0]), round(base[1] - off[1])]])
+}
+
+/// [`projected`] in integers only, as a decoder in any language could compute it: the
+/// ratio along the edge and the perpendicular distance scaled by the edge's squared length,
+/// `isqrt` of the squared cross product, one rounding (half up) per axis. `None` for a
+/// degenerate edge or a coordinate difference of 2^28 or more (i128 then cannot hold the
+/// squared cross product).
+fn projected_int(p: [[i64; 3]; 3], ua: [i64; 2], ub: [i64; 2]) -> Option<[[i64; 2]; 2]> {
+    let [pa, pb, px] = p;
+    let pn: Vec<i128> = (0..3).map(|k| (pb[k] - pa[k]) as i128).collect();
+    let cn: Vec<i128> = (0..3).map(|k| (px[k] - pa[k]) as i128).collect();
+    if pn.iter().chain(&cn).any(|v| v.unsigned_abs() >= 1 << 28) {
+        return None;
+    }
+    let pn2: i128 = pn.iter().map(|v| v * v).sum();
+    if pn2 == 0 {
+        return None;
+    }
+    let dot: i128 = (0..3).map(|k| pn[k] * cn[k]).sum();
+    let cn2: i128 = cn.iter().map(|v| v * v).sum();
+    let cross2 = (cn2 * pn2 - dot * dot).max(0);
+    let h = isqrt(cross2);
+    let d = [(ub[0] - ua[0]) as i128, (ub[1] - ua[1]) as i128];
+    let div = |n: i128| (2 * n + pn2).div_euclid(2 * pn2) as i64;
+    let side = |s: i128| [ua[0] + div(dot * d[0] - s * h * d[1]), ua[1] + div(dot * d[1] + s * h * d[0])];
+    Some([side(1), side(-1)])
+}
+
+/// The floor of the square root of `x` >= 0 (Newton's method from above).
+fn isqrt(x: i128) -> i128 {
+    if x < 2 {
+        return x;
+    }
+    let mut r = 1i128 << ((128 - x.leading_zeros()).div_ceil(2));
+    loop {
+        let next = (r + x / r) / 2;
+        if next >= r {
+            return r;
+        }
+        r = next;
+    }
 }
 
 fn orient(u: [[i64; 2]; 3]) -> i64 {
@@ -131,7 +181,8 @@ fn residuals(
                 (true, true) => {
                     let (ua, ub) = (v(a), v(b));
                     let p = [tri[(i + 1) % 3], tri[(i + 2) % 3], tri[i]].map(|n| pos[base + n as usize].map(i64::from));
-                    match (side, projected(p, ua, ub)) {
+                    let proj = if side == Side::ChartInt { projected_int(p, ua, ub) } else { projected(p, ua, ub) };
+                    match (side, proj) {
                         (Side::Parallelogram, _) | (_, None) => match o {
                             Some(o) => [0, 1].map(|q| ua[q] + ub[q] - v(o)[q]),
                             None => [0, 1].map(|q| (ua[q] + ub[q]) >> 1),
@@ -187,8 +238,53 @@ fn residuals(
     (out, flips, against)
 }
 
+/// `faces` (with charts `chart_of`) reordered: charts in order of their first face, each
+/// chart's faces breadth first over shared edges from its first face (then any left, likewise).
+fn breadth_first(faces: &[[u32; 3]], chart_of: &[u32]) -> (Vec<[u32; 3]>, Vec<u32>) {
+    let mut by_edge: std::collections::HashMap<(u32, u32, u32), Vec<usize>> = Default::default();
+    for (i, f) in faces.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            by_edge.entry((a.min(b), a.max(b), chart_of[i])).or_default().push(i);
+        }
+    }
+    let mut seen = vec![false; faces.len()];
+    let (mut out, mut out_c) = (Vec::new(), Vec::new());
+    for start in 0..faces.len() {
+        if seen[start] {
+            continue;
+        }
+        seen[start] = true;
+        let mut queue = std::collections::VecDeque::from([start]);
+        while let Some(i) = queue.pop_front() {
+            out.push(faces[i]);
+            out_c.push(chart_of[i]);
+            let f = faces[i];
+            for k in 0..3 {
+                let (a, b) = (f[k], f[(k + 1) % 3]);
+                for &j in &by_edge[&(a.min(b), a.max(b), chart_of[i])] {
+                    if !seen[j] {
+                        seen[j] = true;
+                        queue.push_back(j);
+                    }
+                }
+            }
+        }
+    }
+    (out, out_c)
+}
+
+/// A skinned file's bind positions of the level-0 nodes (band 0 may predict from them).
+fn bind0(path: &str) -> Option<Vec<[i64; 3]>> {
+    let mut d = pmcodec_container::Decoder::new(Reader::open(FileSource::open(std::path::Path::new(path)).ok()?).ok()?, 0).ok()?;
+    d.seek(0).ok()?;
+    let n = d.reader().header().level_sizes[0] as usize;
+    d.skin().map(|(nodes, _)| nodes[..n].iter().map(|s| s.bind).collect())
+}
+
 fn main() {
-    for path in std::env::args().skip(1) {
+    let bind = std::env::args().any(|a| a == "--bind");
+    for path in std::env::args().skip(1).filter(|a| a != "--bind") {
         let reader = Reader::open(FileSource::open(std::path::Path::new(&path)).unwrap()).unwrap();
         let h = reader.header().clone();
         let Some(info) = h.appearance.clone() else { continue };
@@ -225,14 +321,38 @@ fn main() {
                 let (f, fc) = band_faces(&tris, &charts.triangle_chart, &refs).unwrap();
                 read_table_across(&raw, "t", h.level_sizes[j], &info, h.triangle_count, above_of, Some((&f, &fc))).unwrap()
             } else {
-                read_band(&raw, "t", h.level_sizes[j], &info, h.triangle_count, Some((&tris, &charts.triangle_chart)), above_of).unwrap()
+                read_band_bind(
+                    &raw,
+                    "t",
+                    h.level_sizes[j],
+                    &info,
+                    (h.triangle_count, Some((&tris, &charts.triangle_chart))),
+                    above_of,
+                    bind0(&path).as_deref(),
+                )
+                .unwrap()
             };
             tables[j] = Some(t);
         }
         // Frame 0 at level 0: every level's node positions (global ids, level 0 first).
         let mut d = Decoder::new(Reader::open(FileSource::open(std::path::Path::new(&path)).unwrap()).unwrap(), 0).unwrap();
         d.seek(0).unwrap();
-        let pos = d.quantized().to_vec();
+        let pos: Vec<[i32; 3]> = if bind {
+            // Bind positions (skinned files): every skinned client reads them, frame 0's or not.
+            let Some((nodes, _)) = d.skin() else { continue };
+            nodes.iter().map(|n| n.bind.map(|x| x as i32)).collect()
+        } else {
+            d.quantized().to_vec()
+        };
+        // What a client starting at a later keyframe would read more to have frame 0's positions.
+        let frame0: u64 = reader
+            .index()
+            .chunks
+            .iter()
+            .filter(|e| e.frame == 0 && matches!(e.kind, ChunkKind::Positions | ChunkKind::Pose | ChunkKind::Palette | ChunkKind::Joints))
+            .map(|e| e.stored_len as u64)
+            .sum();
+        println!("  frame 0's position (or pose) chunks, every band: {frame0} B");
         println!("{path}: {c} channels, the first two (texture coordinates) measured; the band's faces in frame 0 only");
         for j in 0..h.levels() - 1 {
             let (t, up) = (tables[j].as_ref().unwrap(), tables[j + 1].as_ref().unwrap());
@@ -254,6 +374,17 @@ fn main() {
                 (cost(&r) + flips as f64 / 8.0, flips, against)
             };
             let base = run(Side::Parallelogram, false).0;
+            // The same faces in a breadth-first order within each chart (charts by first face,
+            // each grown from its first face over shared edges), as an Edgebreaker-like
+            // traversal visits them: more corners find their edge known with an opposite.
+            let (bf, bfc) = breadth_first(&f, &fc);
+            let bfs = |side| cost(&residuals(t, c, &bf, &bfc, &pos, &known, side, (base_node, None)).0);
+            for (name, side) in
+                [("parallelogram, faces breadth first", Side::Parallelogram), ("positions, faces breadth first", Side::Chart)]
+            {
+                let v = bfs(side);
+                println!("    {name:45} ~{v:6.0} B ({:+.1}%)", 100.0 * (v - base) / base);
+            }
             // How many of the coded (non-representative) entries the faces reach at all.
             let on_faces = residuals(t, c, &f, &fc, &pos, &known, Side::Parallelogram, (base_node, None)).0[0].len();
             println!("    {on_faces} of {} coded entries on a face of frame 0", known.iter().filter(|&&k| !k).count());
@@ -262,6 +393,7 @@ fn main() {
                     ("parallelogram", Side::Parallelogram),
                     ("positions, side from opposite", Side::Opposite),
                     ("positions, side from chart", Side::Chart),
+                    ("positions, side from chart, integers", Side::ChartInt),
                     ("positions, ideal side + 1 bit", Side::Ideal),
                 ] {
                     let (c, flips, against) = run(side, avg);

@@ -306,6 +306,10 @@ impl<S: ByteSource> Decoder<S> {
     }
 
     fn load_keyframe(&mut self, frame: u32) -> Result<(), ContainerError> {
+        // The skin first: band 0's texture coordinates may be predicted from its bind positions.
+        if self.reader.header().skin.is_some() && self.skin.is_none() {
+            self.skin = Some(self.load_skin()?);
+        }
         self.load_appearance()?;
         let h = self.reader.header();
         let sizes = &h.level_sizes;
@@ -348,9 +352,6 @@ impl<S: ByteSource> Decoder<S> {
             self.triangles = Some(triangles);
         }
         self.below = below;
-        if self.reader.header().skin.is_some() && self.skin.is_none() {
-            self.skin = Some(self.load_skin()?);
-        }
         let pose = self.read_pose(frame, true)?;
         let h = self.reader.header();
         let fail = |source| ContainerError::Delta { what: format!("frame {frame} keyframe"), source };

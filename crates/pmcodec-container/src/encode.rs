@@ -513,14 +513,31 @@ fn encode_frames<F: AsRef<[Vec3]>>(
             // every band above 0 derives its faces somewhere (`derive::reads`).
             let derived = |b: usize| chunks.0.iter().any(|(e, _)| e.band as usize == b && crate::derive::entry_is_derived(e));
             let triangles_read = (1..header.levels()).all(derived);
+            let bind = bind_positions(&header, &chunks)?;
             let mut after = chunks.0.split_off(1);
-            for (kind, band, raw) in crate::appearance::chunks(l, triangles_read)? {
+            for (kind, band, raw) in crate::appearance::chunks(l, triangles_read, bind.as_deref())? {
                 chunks.push(kind, 0, band, raw)?;
             }
             chunks.0.append(&mut after);
         }
         Ok((assemble(&header, chunks)?, report))
     })
+}
+
+/// A skinned file's bind positions of the level-0 nodes, read back from its Bind chunk of band
+/// 0 as a decoder reads them (band 0's texture coordinates may be predicted from them).
+fn bind_positions(header: &Header, chunks: &Chunks) -> Result<Option<Vec<[i64; 3]>>, ContainerError> {
+    let (Some(skin), Some(&count)) = (&header.skin, header.level_sizes.first()) else { return Ok(None) };
+    let Some((e, stored)) = chunks.0.iter().find(|(e, _)| e.kind == ChunkKind::Bind && e.frame == 0 && e.band == 0) else {
+        return Ok(None);
+    };
+    let raw = if chunks.1 & crate::format::FLAG_STORED != 0 && e.stored_len == e.raw_len {
+        stored.clone()
+    } else {
+        zstd::bulk::decompress(stored, e.raw_len as usize).map_err(|err| ContainerError::Io(format!("zstd: {err}")))?
+    };
+    let nodes = crate::skin::read_binds(&raw, "band 0 bind", count, skin.palette_len)?;
+    Ok(Some(nodes.iter().map(|n| n.bind).collect()))
 }
 
 /// Whether frame `f` is a keyframe under `opts` (as [`Header::is_keyframe`] says it).

@@ -2,6 +2,7 @@
 // "Appearance"): the Charts, Attributes and Materials chunks read, and a cut's per-corner
 // texture coordinates, colours and normals computed bit for bit as the Rust decoder does.
 
+import { breadthFirst, orientation, predictUv } from "./project.js";
 import { DecodeError } from "./error.js";
 import { AppearanceInfo, channels } from "./format.js";
 import { Cursor, Postcard } from "./payload.js";
@@ -493,12 +494,22 @@ export function band0Entries(triangles: Uint32Array, triangleChart: Uint32Array)
  * across the triangles (proto/container.md, "Attributes, band 0 with derived entries"; the
  * Rust `read_table_with`).
  */
-export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: Uint32Array, triangleChart: Uint32Array, above: Above | null = null): Table {
-  if (raw.length <= 1 || raw[0] !== 0 || (raw[1] & ~(RANS_VALUES | REPRESENTED | ACROSS_FACES)) !== 1) return readTable(raw, what, nodes, a, triangleChart.length, above);
+/** Set with mode 1 (band 0): texture coordinate set 0 predicted from the bind positions of the Bind chunk of band 0 (`predictUv`). */
+const BIND_POSITIONS = 4;
+
+/** Whether band 0's payload predicts texture coordinates from the bind positions of the level-0 nodes (`readBand0Table` then needs them). */
+export function needsBind(raw: Uint8Array): boolean {
+  return raw.length > 1 && raw[0] === 0 && (raw[1] & ~(RANS_VALUES | REPRESENTED | ACROSS_FACES | BIND_POSITIONS)) === 1 && (raw[1] & BIND_POSITIONS) !== 0;
+}
+
+export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: AppearanceInfo, triangles: Uint32Array, triangleChart: Uint32Array, above: Above | null = null, bind: BigInt64Array | null = null): Table {
+  if (raw.length <= 1 || raw[0] !== 0 || (raw[1] & ~(RANS_VALUES | REPRESENTED | ACROSS_FACES | BIND_POSITIONS)) !== 1) return readTable(raw, what, nodes, a, triangleChart.length, above);
   const ch = channels(a), c = new Cursor(raw, what);
   c.get();
   const coding = c.get(), rans = (coding & RANS_VALUES) !== 0, represented = (coding & REPRESENTED) !== 0, across = (coding & ACROSS_FACES) !== 0;
-  if (across && !represented) throw new DecodeError(`${what}: table coding ${coding} unknown`);
+  const byBind = (coding & BIND_POSITIONS) !== 0;
+  if ((across && (!represented || byBind)) || (byBind && a.uvSets === 0)) throw new DecodeError(`${what}: table coding ${coding} unknown`);
+  if (byBind && !bind) throw new DecodeError(`${what}: bind positions needed and not given`);
   if (represented && !above) throw new DecodeError(`${what}: represented values without the band above`);
   if (triangles.length !== 3 * triangleChart.length) throw new DecodeError(`${what}: triangles and charts disagree`);
   const entries = band0Entries(triangles, triangleChart), m = entries.length;
@@ -542,16 +553,20 @@ export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: 
   // unknown corner is predicted by the parallelogram across an earlier triangle's edge, else
   // the mean of two known corners, else one known corner, else the last entry made known in
   // the triangle's chart, else the last entry made known.
-  const last = new Int32Array(ch), e = [0, 0, 0];
+  const last = new Int32Array(ch), e = [0, 0, 0], predicted = new Int32Array(ch);
   // The last entry made known in each chart, if any.
   let nc = 0;
   for (let t = 0; t < triangleChart.length; t++) nc = Math.max(nc, triangleChart[t] + 1);
   const chartLast = new Int32Array(nc * ch), chartSeen = new Uint8Array(nc);
   const opposite = new Map<number, number>();
   const key = (x: number, y: number): number => Math.min(x, y) * m + Math.max(x, y);
+  // With bind positions, each chart's orientation in texture space: its last whole triangle's.
+  const side = new Int32Array(nc).fill(1), uv = (x: number): [number, number] => [values[x * ch], values[x * ch + 1]];
   let visited = 0;
-  for (let t = 0; t < triangleChart.length; t++) {
-    const chart = triangleChart[t];
+  // With bind positions, the triangles breadth first within their charts; else in input order.
+  const order = bind ? breadthFirst(triangles, triangleChart) : null;
+  for (let o = 0; o < triangleChart.length; o++) {
+    const t = order ? order[o] : o, chart = triangleChart[t];
     for (let i = 0; i < 3; i++) {
       e[i] = find(triangles[3 * t + i], chart);
       if (e[i] < 0) throw new DecodeError(`${what}: no entry for vertex ${triangles[3 * t + i]}, chart ${chart} of triangle ${t}`);
@@ -567,8 +582,16 @@ export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: 
         else if (kp) pred = vp;
         else if (kq) pred = vq;
         else pred = chartSeen[chart] ? chartLast[chart * ch + s] : last[s];
-        values[x * ch + s] = (pred + residuals[s * coded + visited]) | 0;
+        predicted[s] = pred;
       }
+      // Texture coordinate set 0 from the bind positions, where both edge corners are known.
+      if (bind && kp && kq && ch >= 2) {
+        const [va, vb, vx] = [1, 2, 0].map((r) => triangles[3 * t + ((i + r) % 3)]);
+        if (3 * Math.max(va, vb, vx) + 2 >= bind.length) throw new DecodeError(`${what}: no position for vertex ${Math.max(va, vb, vx)} of triangle ${t}`);
+        const uvx = predictUv(bind, va, vb, vx, uv(p), uv(q), side[chart]);
+        if (uvx) [predicted[0], predicted[1]] = uvx;
+      }
+      for (let s = 0; s < ch; s++) values[x * ch + s] = (predicted[s] + residuals[s * coded + visited]) | 0;
       visited++;
       known[x] = 1;
       for (let s = 0; s < ch; s++) last[s] = chartLast[chart * ch + s] = values[x * ch + s];
@@ -578,6 +601,10 @@ export function readBand0Table(raw: Uint8Array, what: string, nodes: number, a: 
       for (let i = 0; i < 3; i++) {
         const k = key(e[i], e[(i + 1) % 3]);
         if (!opposite.has(k)) opposite.set(k, e[(i + 2) % 3]);
+      }
+      if (bind && ch >= 2) {
+        const o = orientation(uv(e[0]), uv(e[1]), uv(e[2]));
+        if (o !== 0) side[chart] = o;
       }
     }
   }

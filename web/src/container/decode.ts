@@ -2,7 +2,7 @@
 // a finest level (Replay), node positions predicted and corrected band by band, and the cut a
 // triangle budget selects, ordered as the Rust decoder orders it.
 
-import { Charts, Materials, Table, TexturedMesh, bandFaces, chartsNeedTriangles, needsAbove, needsFaces, readBand0Table, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
+import { Charts, Materials, Table, TexturedMesh, bandFaces, chartsNeedTriangles, needsAbove, needsBind, needsFaces, readBand0Table, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
 import { Below, isDerived } from "./derive.js";
 import { DecodeError } from "./error.js";
 import { ChunkKind, Motion, channels } from "./format.js";
@@ -497,7 +497,19 @@ export class Decoder {
       }
       if (j > 0) { tables[j] = readTable(raw, what, h.levelSizes[j], a, h.triangleCount, above); continue; }
       const tris = await triangles();
-      tables[j] = readBand0Table(raw, what, h.levelSizes[j], a, tris, charts.triangleChart, above);
+      // Texture coordinates placed by the bind pose: the Bind chunk of band 0, which a level-0
+      // client of a skinned file reads anyway.
+      let bind: BigInt64Array | null = null;
+      if (needsBind(raw)) {
+        if (!h.skin) throw new DecodeError(`${what}: bind positions in a file without a skin`);
+        if (this.skin) bind = this.skin.nodes.bind; // level 0 first: read already
+        else {
+          const skins = nodeSkins(h.levelSizes[0]);
+          readBinds(await c.chunk(c.find(ChunkKind.Bind, 0, 0)), "band 0 bind", h.levelSizes[0], h.skin.paletteLen, skins, 0);
+          bind = skins.bind;
+        }
+      }
+      tables[j] = readBand0Table(raw, what, h.levelSizes[j], a, tris, charts.triangleChart, above, bind);
     }
     this.looks = { charts, tables, materials };
   }

@@ -18,7 +18,7 @@ export {
   VertexOrder, crc32, describe, readAt,
 } from "./format.js";
 export type { AppearanceInfo, ChunkEntry, Header } from "./format.js";
-export { attributeEntry, band0Entries, bandFaces, chartsNeedTriangles, dequantizeUv, needsAbove, needsFaces, readBand0Table, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
+export { attributeEntry, band0Entries, bandFaces, chartsNeedTriangles, dequantizeUv, needsAbove, needsBind, needsFaces, readBand0Table, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
 export type { Charts, Faces, Material, Materials, Table, TextureRef, TexturedMesh } from "./appearance.js";
 export { readPositions } from "./payload.js";
 export { affineMotion, keyedMotion, lowerNeighbours, stencilWeights } from "./predict.js";

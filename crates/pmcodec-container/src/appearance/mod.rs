@@ -18,6 +18,7 @@ mod entries;
 pub mod export;
 pub mod format;
 pub mod payload;
+mod project;
 pub(crate) mod tables;
 
 pub use charts::Charts;
@@ -81,9 +82,13 @@ pub fn builder<'a>(seq: &'a pmcodec_mesh::Sequence, app: &'a Appearance, levels:
 /// faces somewhere: proto/container.md, "Who reads what"). Only then may the Charts chunk use
 /// neighbour charts and a coarse band's values be predicted across its faces, which read them:
 /// otherwise a coarse client would have to fetch chunks the file says it does not read.
+///
+/// `bind` is a skinned file's bind positions of the level-0 nodes (its Bind chunk of band 0,
+/// which every level-0 client reads): band 0 may then predict texture coordinates from them.
 pub fn chunks(
     mut builder: tables::TableBuilder<'_>,
     triangles_read: bool,
+    bind: Option<&[[i64; 3]]>,
 ) -> Result<Vec<(crate::ChunkKind, u32, Vec<u8>)>, crate::ContainerError> {
     use crate::ChunkKind;
     let tables = builder.finish();
@@ -125,6 +130,16 @@ pub fn chunks(
                 codings.push(payload::write_table_chartwise(t, channels, rans));
                 if j == 0 {
                     codings.push(payload::write_table_derived(t, channels, builder.triangles(), chart_of, rans));
+                    // Texture coordinates placed by the bind pose, the mesh their unwrap was
+                    // made on (Fox's band 0: 695 -> 540 B).
+                    if let Some(bind) = bind {
+                        let tris = (builder.triangles(), &chart_of[..]);
+                        codings.extend(payload::write_table_derived_bind(t, channels, tris, None, bind, rans));
+                        let above = builder.first_parent(0).zip(tables.get(1).map(|a| a.to_table()));
+                        if let Some((parent, above)) = &above {
+                            codings.extend(payload::write_table_derived_bind(t, channels, tris, Some((parent, above)), bind, rans));
+                        }
+                    }
                 }
                 if let (Some(parent), Some(above)) = (builder.first_parent(j), tables.get(j + 1)) {
                     let above = above.to_table();

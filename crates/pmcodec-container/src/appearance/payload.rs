@@ -278,6 +278,10 @@ pub fn band0_entries(triangles: &[[u32; 3]], triangle_chart: &[u32]) -> Vec<(u32
 /// The coding of a band-0 table with *derived entries*: after a first byte 0 (no entries
 /// listed), this mode (proto/container.md, "Attributes, band j").
 pub(super) const DERIVED_ENTRIES: u32 = 1;
+/// Set with [`DERIVED_ENTRIES`] (band 0): texture coordinate set 0 is predicted from the
+/// bind positions of the Bind chunk of band 0 where a triangle's edge is known
+/// ([`super::project`]). Files before it never set it.
+pub(super) const BIND_POSITIONS: u32 = 4;
 /// The coding of a listed table with chart-wise value differences ([`write_table_chartwise`]).
 const CHARTWISE: u32 = 2;
 /// The coding of a listed table with values predicted from the band above
@@ -312,11 +316,14 @@ fn traverse(
     channels: usize,
     values: &mut [i32],
     known: &mut Vec<bool>,
+    positions: Option<&[[i64; 3]]>,
     mut visit: impl FnMut(&[i32], &mut [i32]) -> Result<(), ContainerError>,
     what: &str,
 ) -> Result<(), ContainerError> {
     let c = channels;
     known.resize(table.len(), false);
+    // With positions, each chart's orientation in texture space: its last whole triangle's.
+    let mut side = vec![1i32; triangle_chart.iter().map(|&k| k as usize + 1).max().unwrap_or(0)];
     // Edge (entry a, entry b), a < b, of an earlier triangle -> that triangle's third entry.
     let mut opposite: std::collections::HashMap<u64, u32> = std::collections::HashMap::new();
     let key = |a: usize, b: usize| ((a.min(b) as u64) << 32) | a.max(b) as u64;
@@ -326,7 +333,11 @@ fn traverse(
     let mut chart_last = vec![0i32; charts * c];
     let mut chart_seen = vec![false; charts];
     let mut pred = vec![0i32; c];
-    for (t, tri) in triangles.iter().enumerate() {
+    // With positions, the triangles breadth first within their charts; else in input order.
+    let order: Vec<u32> =
+        if positions.is_some() { super::project::breadth_first(triangles, triangle_chart) } else { (0..triangles.len() as u32).collect() };
+    for &t in &order {
+        let (t, tri) = (t as usize, &triangles[t as usize]);
         let chart = triangle_chart.get(t).copied().unwrap_or(u32::MAX);
         let mut e = [0usize; 3];
         for i in 0..3 {
@@ -352,6 +363,20 @@ fn traverse(
                     None => last[q],
                 };
             }
+            // Texture coordinate set 0 from the positions, where both edge corners are known.
+            if let (Some(pos), true, true) = (positions, ka && kb, c >= 2) {
+                let at = |v: u32| {
+                    pos.get(v as usize).copied().ok_or_else(|| ContainerError::Corrupt {
+                        what: what.into(),
+                        detail: format!("no position for vertex {v} of triangle {t}"),
+                    })
+                };
+                let uv = |e: usize| [values[e * c], values[e * c + 1]];
+                let (pa, pb, px) = (at(tri[(i + 1) % 3])?, at(tri[(i + 2) % 3])?, at(tri[i])?);
+                if let Some(p) = super::project::predict(pa, pb, px, uv(a), uv(b), side[chart as usize]) {
+                    pred[..2].copy_from_slice(&p);
+                }
+            }
             visit(&pred, &mut values[x * c..(x + 1) * c])?;
             known[x] = true;
             last.copy_from_slice(&values[x * c..(x + 1) * c]);
@@ -361,6 +386,13 @@ fn traverse(
         if e[0] != e[1] && e[1] != e[2] && e[2] != e[0] {
             for i in 0..3 {
                 opposite.entry(key(e[i], e[(i + 1) % 3])).or_insert(e[(i + 2) % 3] as u32);
+            }
+            if positions.is_some() && c >= 2 {
+                let uv = |e: usize| [values[e * c], values[e * c + 1]];
+                let o = super::project::orientation(uv(e[0]), uv(e[1]), uv(e[2]));
+                if o != 0 {
+                    side[chart as usize] = o;
+                }
             }
         }
     }
@@ -372,7 +404,23 @@ fn traverse(
 /// entries. `t`'s entries must be [`band0_entries`] of the same triangles and charts.
 /// With `rans`, the mode is `1 | 8` and the residuals a [`put_codes`] rANS section.
 pub fn write_table_derived(t: &QuantizedTable, channels: usize, triangles: &[[u32; 3]], triangle_chart: &[u32], rans: bool) -> Vec<u8> {
-    write_derived(t, channels, triangles, triangle_chart, None, rans).unwrap_or_else(|| write_table(t, channels))
+    write_derived(t, channels, triangles, triangle_chart, None, None, rans).unwrap_or_else(|| write_table(t, channels))
+}
+
+/// [`write_table_derived`] (`above` None) or [`write_table_derived_represented`] with *bind
+/// positions*: the mode also has [`BIND_POSITIONS`], and where a corner's two edge corners are
+/// known its texture coordinates (set 0) are predicted from `bind`, the bind positions of
+/// the level-0 nodes (the Bind chunk of band 0), as [`super::project::predict`] places them.
+/// `None` without texture coordinates, or where the other codings would be.
+pub fn write_table_derived_bind(
+    t: &QuantizedTable,
+    channels: usize,
+    (triangles, triangle_chart): (&[[u32; 3]], &[u32]),
+    above: Option<(&[u32], &Table)>,
+    bind: &[[i64; 3]],
+    rans: bool,
+) -> Option<Vec<u8>> {
+    (channels >= 2).then(|| write_derived(t, channels, triangles, triangle_chart, above, Some(bind), rans)).flatten()
 }
 
 /// ATTRIBUTES, band 0 with derived entries and *represented values*: `0`, `1 | 16` (with
@@ -390,7 +438,7 @@ pub fn write_table_derived_represented(
     above: &Table,
     rans: bool,
 ) -> Option<Vec<u8>> {
-    write_derived(t, channels, triangles, triangle_chart, Some((parent, above)), rans)
+    write_derived(t, channels, triangles, triangle_chart, Some((parent, above)), None, rans)
 }
 
 fn write_derived(
@@ -399,6 +447,7 @@ fn write_derived(
     triangles: &[[u32; 3]],
     triangle_chart: &[u32],
     above: Option<(&[u32], &Table)>,
+    bind: Option<&[[i64; 3]]>,
     rans: bool,
 ) -> Option<Vec<u8>> {
     let nodes = t.entries.last().map_or(0, |e| e.0 + 1);
@@ -421,9 +470,12 @@ fn write_derived(
     };
     let mut out = Vec::new();
     put(&mut out, 0);
-    put(&mut out, DERIVED_ENTRIES | if above.is_some() { REPRESENTED } else { 0 } | if rans { RANS_VALUES } else { 0 });
+    let flags = if above.is_some() { REPRESENTED } else { 0 }
+        | if rans { RANS_VALUES } else { 0 }
+        | if bind.is_some() { BIND_POSITIONS } else { 0 };
+    put(&mut out, DERIVED_ENTRIES | flags);
     // The entries are the triangles' own: the traversal cannot miss one.
-    traverse(&table, triangles, triangle_chart, channels, &mut values, &mut known, visit, "band 0 attributes").ok()?;
+    traverse(&table, triangles, triangle_chart, channels, &mut values, &mut known, bind, visit, "band 0 attributes").ok()?;
     put_codes(&mut out, &residuals.concat(), coded, channels, rans);
     Some(out)
 }
@@ -454,7 +506,31 @@ pub fn read_band(
     band0: Option<(&[[u32; 3]], &[u32])>,
     above: Option<(&[u32], &Table)>,
 ) -> Result<Table, ContainerError> {
-    let flags = (RANS_VALUES | REPRESENTED | ACROSS_FACES) as u8;
+    read_band_bind(bytes, what, nodes, info, (triangles, band0), above, None)
+}
+
+/// Whether a table's payload predicts texture coordinates from the bind positions of the
+/// level-0 nodes (the Bind chunk of frame 0, band 0), which [`read_band_bind`] then needs.
+pub fn needs_bind(bytes: &[u8]) -> bool {
+    let flags = (RANS_VALUES | REPRESENTED | ACROSS_FACES | BIND_POSITIONS) as u8;
+    bytes.len() > 1 && bytes[0] == 0 && bytes[1] & !flags == DERIVED_ENTRIES as u8 && bytes[1] & BIND_POSITIONS as u8 != 0
+}
+
+/// Band 0's triangles and their charts, as [`read_band`] takes them.
+pub type Band0<'a> = Option<(&'a [[u32; 3]], &'a [u32])>;
+
+/// [`read_band`] with `bind`, the bind positions of the level-0 nodes, which a band 0 with
+/// bind positions ([`needs_bind`]) needs.
+pub fn read_band_bind(
+    bytes: &[u8],
+    what: &str,
+    nodes: u32,
+    info: &AppearanceInfo,
+    (triangles, band0): (u32, Band0<'_>),
+    above: Option<(&[u32], &Table)>,
+    bind: Option<&[[i64; 3]]>,
+) -> Result<Table, ContainerError> {
+    let flags = (RANS_VALUES | REPRESENTED | ACROSS_FACES | BIND_POSITIONS) as u8;
     if bytes.first() != Some(&0) || bytes.len() < 2 || bytes[1] & !flags != DERIVED_ENTRIES as u8 {
         return read_table_above(bytes, what, nodes, info, triangles, above);
     }
@@ -465,9 +541,14 @@ pub fn read_band(
     let rans = mode & RANS_VALUES != 0;
     let corrupt = |detail: String| ContainerError::Corrupt { what: what.into(), detail };
     let across = mode & ACROSS_FACES != 0;
-    if mode & !(RANS_VALUES | REPRESENTED | ACROSS_FACES) != DERIVED_ENTRIES || (across && mode & REPRESENTED == 0) {
+    let by_bind = mode & BIND_POSITIONS != 0;
+    if mode & !(RANS_VALUES | REPRESENTED | ACROSS_FACES | BIND_POSITIONS) != DERIVED_ENTRIES
+        || (across && (mode & REPRESENTED == 0 || by_bind))
+        || (by_bind && info.uv_sets == 0)
+    {
         return Err(corrupt(format!("table coding {mode} unknown")));
     }
+    let bind = if by_bind { Some(bind.ok_or_else(|| corrupt("bind positions needed and not given".into()))?) } else { None };
     let Some((tris, chart_of)) = band0 else {
         return Err(corrupt("derived entries outside band 0".into()));
     };
@@ -521,7 +602,7 @@ pub fn read_band(
         k += 1;
         Ok(())
     };
-    traverse(&table, tris, chart_of, channels, &mut values, &mut known, visit, what)?;
+    traverse(&table, tris, chart_of, channels, &mut values, &mut known, bind, visit, what)?;
     table.values = values;
     Ok(table)
 }

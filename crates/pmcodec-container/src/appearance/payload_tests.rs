@@ -385,3 +385,87 @@ fn neighbour_charts_round_trip_with_the_triangles_and_fail_cleanly() {
     assert!(write_charts_neighbours(&odd, &triangles[..2]).is_none());
     assert!(write_charts_neighbours(&charts, &triangles[1..]).is_none());
 }
+
+#[test]
+fn band0_with_bind_positions_round_trips_and_fails_cleanly() {
+    // A bent grid of 16 x 12 quads (a 3D surface: a quarter cylinder), unwrapped without
+    // distortion (u along the arc, v along the axis) in two charts, left and right halves,
+    // quads' diagonals alternating; a third chart of scattered triangles with random values
+    // anywhere in 32 bits and positions up to and beyond the 2^28 limit (the projection falls
+    // back there), some corners repeated (degenerate).
+    let (w, h) = (16u32, 12u32);
+    let id = |x: u32, y: u32| y * (w + 1) + x;
+    let mut bind: Vec<[i64; 3]> = Vec::new();
+    for y in 0..=h {
+        for x in 0..=w {
+            let a = std::f64::consts::FRAC_PI_2 * x as f64 / w as f64;
+            bind.push([(4000.0 * a.cos()).round() as i64, (4000.0 * a.sin()).round() as i64, 400 * y as i64]);
+        }
+    }
+    let mut triangles = Vec::new();
+    let mut chart_of = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            let q = if (x + y) % 2 == 0 {
+                [[id(x, y), id(x + 1, y), id(x + 1, y + 1)], [id(x, y), id(x + 1, y + 1), id(x, y + 1)]]
+            } else {
+                [[id(x, y), id(x + 1, y), id(x, y + 1)], [id(x + 1, y), id(x + 1, y + 1), id(x, y + 1)]]
+            };
+            triangles.extend(q);
+            chart_of.extend([u32::from(x >= w / 2); 2]);
+        }
+    }
+    let grid = bind.len() as u32;
+    let mut seed = 0x9E37_79B9u32;
+    let mut rnd = |m: u32| {
+        seed ^= seed << 13;
+        seed ^= seed >> 17;
+        seed ^= seed << 5;
+        seed % m
+    };
+    for i in 0..40u32 {
+        bind.push([0, 1, 2].map(|_| rnd(1 << 30) as i64 - (1 << 29)));
+        let t = [grid + i, grid + rnd(40), if i % 5 == 0 { grid + i } else { grid + rnd(40) }];
+        triangles.push(t);
+        chart_of.push(2);
+    }
+    let entries = band0_entries(&triangles, &chart_of);
+    let values = entries
+        .iter()
+        .flat_map(|&(n, _)| {
+            if n < grid {
+                // The arc's length is pi/2 * 4000 ~ 6283 bind quanta over 16 columns: 10 per
+                // quantum in u (about 628 texels), v likewise 400 per row / 10.
+                let (x, y) = (n % (w + 1), n / (w + 1));
+                [(6283 * x / w) as i32 / 10, 40 * y as i32]
+            } else {
+                [rnd(u32::MAX) as i32, rnd(u32::MAX) as i32]
+            }
+        })
+        .collect();
+    let t = QuantizedTable { entries, values };
+    let tris = (&triangles[..], &chart_of[..]);
+    let nodes = bind.len() as u32;
+    let raw = write_table_derived_bind(&t, 2, tris, None, &bind, true).unwrap();
+    assert_eq!(&raw[..2], &[0, 1 | 4 | 8]);
+    assert!(needs_bind(&raw));
+    let band0 = (triangles.len() as u32, Some(tris));
+    let table = read_band_bind(&raw, "t", nodes, &info(), band0, None, Some(&bind)).unwrap();
+    for (e, &(n, k)) in t.entries.iter().enumerate() {
+        assert_eq!(table.get(n, k, 2), Some(&t.values[2 * e..2 * e + 2]), "entry ({n}, {k})");
+    }
+    // The bind pose places the grid's coordinates: fewer bytes than the parallelogram rule.
+    let plain = write_table_derived(&t, 2, &triangles, &chart_of, true);
+    assert!(!needs_bind(&plain));
+    assert!(raw.len() < plain.len(), "{} bytes with bind positions, {} without", raw.len(), plain.len());
+    // Without the bind positions, with too few, cut short, without texture coordinates, or
+    // beside values across the faces (mode 1 | 16 | 64): errors.
+    assert!(read_band_bind(&raw, "t", nodes, &info(), band0, None, None).is_err());
+    assert!(read_band_bind(&raw, "t", nodes, &info(), band0, None, Some(&bind[..10])).is_err());
+    assert!(read_band_bind(&raw[..raw.len() - 1], "t", nodes, &info(), band0, None, Some(&bind)).is_err());
+    let bare = AppearanceInfo { uv_sets: 0, colors: true, ..info() };
+    assert!(read_band_bind(&raw, "t", nodes, &bare, band0, None, Some(&bind)).is_err());
+    let mut odd = raw.clone();
+    odd[1] |= 16 | 64;
+    assert!(read_band_bind(&odd, "t", nodes, &info(), band0, None, Some(&bind)).is_err());
+}

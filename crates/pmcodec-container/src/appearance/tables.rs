@@ -215,6 +215,8 @@ impl<'a> TableBuilder<'a> {
             wedge_values(self.app, &self.info, w as usize, &mut self.scratch);
             t0.values.extend(self.scratch.iter().enumerate().map(|(k, &x)| quantize(&self.info, k, x)));
         }
+        // Per band, per entry: whether it represents an entry above or is represented below.
+        let mut tied: Vec<Vec<bool>> = vec![vec![false; t0.entries.len()]];
         out.push(t0);
         let info = &self.info;
         for (l, sums) in self.levels.iter().enumerate().skip(1) {
@@ -222,6 +224,7 @@ impl<'a> TableBuilder<'a> {
                 sums.keys.iter().enumerate().filter(|&(e, _)| sums.needed[e]).map(|(e, &k)| (k, e)).collect();
             keys.sort_unstable();
             let mut table = QuantizedTable::default();
+            tied.push(vec![false; keys.len()]);
             for (key, e) in keys {
                 table.entries.push(key);
                 let w = sums.weight[e];
@@ -239,12 +242,46 @@ impl<'a> TableBuilder<'a> {
                 for (e, r) in reps.into_iter().enumerate() {
                     if let Some(a) = r {
                         let a = a as usize;
+                        tied[l - 1][e] = true;
+                        tied[l][a] = true;
                         table.values[a * channels..(a + 1) * channels].copy_from_slice(&below.values[e * channels..(e + 1) * channels]);
                     }
                 }
             }
             out.push(table);
         }
+        self.free_from_above(&mut out, &tied);
         out
     }
+
+    /// Gives each *free* entry of a band between 0 and the top (one that no entry below
+    /// represents and that represents none above: a pair only other frames' swaps make, whose
+    /// value no other entry copies) the value of its parent entry in the band above (the
+    /// node's parent in frame 0's hierarchy, same chart), where that entry exists, instead of
+    /// its cluster's mean. Every coding of a band below the top predicts such an entry from
+    /// that parent entry (proto/container.md, modes 3 and 19 and the leftovers of `| 64`), so
+    /// its residual there is 0. The value is one of the chart's input values under the
+    /// parent's cluster, which holds the node's, so it errs by at most that cluster's extent
+    /// in the texture, one level coarser than the mean, and only in the frames whose swaps
+    /// make the pair. Bands go top down, so each parent value is final when copied.
+    fn free_from_above(&self, out: &mut [QuantizedTable], tied: &[Vec<bool>]) {
+        let channels = self.info.channels();
+        for l in (1..out.len().saturating_sub(1)).rev() {
+            let Some(parent) = self.first_parent(l) else { continue };
+            let (below, above) = out.split_at_mut(l + 1);
+            let (table, up) = (&mut below[l], &above[0]);
+            let index = Table::index(&up.entries, up.entries.last().map_or(0, |e| e.0 + 1));
+            for (e, &(node, chart)) in table.entries.iter().enumerate() {
+                if tied.get(l).and_then(|t| t.get(e)).copied().unwrap_or(true) {
+                    continue;
+                }
+                let Some(a) = parent.get(node as usize).and_then(|&p| index.find(p, chart)) else { continue };
+                table.values[e * channels..(e + 1) * channels].copy_from_slice(&up.values[a * channels..(a + 1) * channels]);
+            }
+        }
+    }
 }
+
+#[cfg(test)]
+#[path = "tables_tests.rs"]
+mod tests;

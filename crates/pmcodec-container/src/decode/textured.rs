@@ -6,10 +6,12 @@ use crate::appearance::across::{band_faces, needs_faces};
 use crate::appearance::cut::{DecodedAppearance, textured_mesh};
 use crate::appearance::format::{AppearanceInfo, MaterialsChunk};
 use crate::appearance::payload::{
-    Table, charts_need_triangles, needs_above, read_band, read_charts, read_charts_with, read_table_above, read_table_across,
+    Table, charts_need_triangles, needs_above, needs_bind, read_band_bind, read_charts, read_charts_with, read_table_above,
+    read_table_across,
 };
 use crate::format::ChunkKind;
 use crate::payload::{read_key, read_triangles};
+use crate::skin::read_binds;
 use crate::{ByteSource, ContainerError};
 use pmcodec_hierarchy::CutTarget;
 use pmcodec_mesh::appearance::Image;
@@ -85,7 +87,23 @@ impl<S: ByteSource> Decoder<S> {
                 read_table_above(&raw, &what, h.level_sizes[j], &info, h.triangle_count, above_of)?
             } else {
                 let triangles = triangles(self)?;
-                read_band(&raw, &what, h.level_sizes[j], &info, h.triangle_count, Some((&triangles, &charts.triangle_chart)), above_of)?
+                // Texture coordinates placed by the bind pose: the Bind chunk of band 0, which a
+                // level-0 client of a skinned file reads anyway.
+                // (The skin's when the decoder holds it already, else read here.)
+                let n = h.level_sizes[0] as usize;
+                let bind = match (needs_bind(&raw), &self.skin, &h.skin) {
+                    (false, _, _) => None,
+                    (true, Some(s), _) if s.nodes.len() >= n => Some(s.nodes[..n].iter().map(|s| s.bind).collect::<Vec<_>>()),
+                    (true, _, Some(skin)) => {
+                        let raw = self.chunk(ChunkKind::Bind, 0, 0)?;
+                        Some(read_binds(&raw, "band 0 bind", h.level_sizes[0], skin.palette_len)?.iter().map(|n| n.bind).collect())
+                    }
+                    (true, _, None) => {
+                        return Err(ContainerError::Corrupt { what, detail: "bind positions in a file without a skin".into() });
+                    }
+                };
+                let band0 = (h.triangle_count, Some((&triangles[..], &charts.triangle_chart[..])));
+                read_band_bind(&raw, &what, h.level_sizes[j], &info, band0, above_of, bind.as_deref())?
             };
             above = Some(table.clone());
             *slot = Some(table);
