@@ -2,6 +2,7 @@
 //! a fresh build's test time was linking); each file below is a module, as it was a crate.
 
 mod appearance;
+mod appearance_bind;
 mod banded;
 mod compat;
 mod corpus;
