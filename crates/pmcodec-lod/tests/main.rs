@@ -1,5 +1,5 @@
-//! The crate's integration tests in one binary: one compile and link of the test harness and
-//! the crate's dependencies instead of one per file. Each file below is a module, as it was a
+//! The crate's integration tests in one binary: one binary to compile and link instead of
+//! one per file (each linked every dependency again). Each file below is a module, as it was a
 //! crate; a new file joins this list (tests/test-files.sh fails on one that does not).
 
 mod common;
