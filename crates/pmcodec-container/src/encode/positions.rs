@@ -5,7 +5,7 @@ use super::Motion;
 use crate::grid::{SLACK2, choose, on_grid, on_surface_grid};
 use crate::payload;
 use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, predict};
-use crate::skin::{CoarseQuadrics, NodeSkin, predict_skinned};
+use crate::skin::{CoarseQuadrics, NodeSkin, lbs, skinned_motion};
 use glam::DVec3;
 use pmcodec_hierarchy::{Hierarchy, Quadric};
 
@@ -25,7 +25,36 @@ pub(super) struct PositionCoder {
     /// A band's positions and residuals from the other predictor, while the two are compared.
     saved: Vec<[i32; 3]>,
     saved_residuals: Vec<[i32; 3]>,
+    /// Every node's skinned position under this frame's palette, kept for the next frame, whose
+    /// prediction moves each node by its skinned position now less the one before: each
+    /// palette poses each node once, not twice (the same values, so the same bytes).
+    posed: [Posed; 2],
+    /// The last generation given to a [`Posed`].
+    generation: u32,
     pub(super) report: EncodeReport,
+}
+
+/// Nodes posed by one palette: `at[g]` is [`lbs`] of node `g`'s skin (of the skins at `nodes`)
+/// by `palette` where `stamp[g]` is `generation`.
+#[derive(Default)]
+struct Posed {
+    palette: Vec<i64>,
+    nodes: usize,
+    generation: u32,
+    at: Vec<[i32; 3]>,
+    stamp: Vec<u32>,
+}
+
+impl Posed {
+    /// Whether this holds poses of the skins at `nodes` by `palette`.
+    fn holds(&self, nodes: &[NodeSkin], palette: &[i64]) -> bool {
+        self.generation != 0 && self.nodes == nodes.as_ptr() as usize && self.palette == palette
+    }
+
+    /// Node `g` posed, if this holds it.
+    fn get(&self, g: usize) -> Option<[i32; 3]> {
+        (self.stamp.get(g) == Some(&self.generation)).then(|| self.at[g])
+    }
 }
 
 /// What an encode found beside its bytes: how often skinning predicted a band and about how
@@ -150,6 +179,7 @@ impl PositionCoder {
         let shift = self.shifts[j];
         self.siblings.reset(if j + 1 < levels { sizes[j + 1] as usize } else { 0 });
         let n0 = sizes[0] as usize;
+        let reuse = skin.is_some_and(|s| self.pose_by(s));
         let motion = Band0Motion::select(self.motion, j == 0 && !intra, &self.lower, &self.previous, n0, &mut self.fits, &self.weights);
         // Band 0 in its decoding order, coarser bands in node order.
         let sequence = (j == 0).then(|| self.lower.sequence());
@@ -159,7 +189,18 @@ impl PositionCoder {
             let g = offsets[j] as usize + v;
             let parent = (j + 1 < levels).then(|| ((offsets[j + 1] + h.parent[j][v]) as usize, h.parent[j][v] as usize));
             let p = match skin {
-                Some(s) => predict_skinned(&s.nodes[g], s.palette, s.previous, intra, self.previous[g]),
+                Some(s) => {
+                    let [now, before] = &mut self.posed;
+                    let at = lbs(&s.nodes[g], s.palette);
+                    now.at[g] = at;
+                    now.stamp[g] = now.generation;
+                    if intra {
+                        at
+                    } else {
+                        let was = if reuse { before.get(g) } else { None };
+                        skinned_motion(at, was.unwrap_or_else(|| lbs(&s.nodes[g], s.previous)), self.previous[g])
+                    }
+                }
                 None => predict(j, v, g, before, parent, &self.lower, motion, &self.siblings, intra, &self.current, &self.previous),
             };
             before = Some(g);
@@ -183,8 +224,27 @@ impl PositionCoder {
         cost(&self.residuals)
     }
 
-    /// Ends a frame: its positions become the previous frame's.
+    /// Readies `posed[0]` for the nodes posed by `s.palette` (kept if it already holds that
+    /// palette's, else emptied), and says whether `posed[1]` holds their poses by the
+    /// previous frame's palette.
+    fn pose_by(&mut self, s: Skinning) -> bool {
+        let total = self.current.len();
+        let [now, before] = &mut self.posed;
+        if !now.holds(s.nodes, s.palette) {
+            self.generation = self.generation.wrapping_add(1).max(1);
+            now.generation = self.generation;
+            now.nodes = s.nodes.as_ptr() as usize;
+            now.palette.clear();
+            now.palette.extend_from_slice(s.palette);
+            now.at.resize(total, [0; 3]);
+            now.stamp.resize(total, 0);
+        }
+        before.holds(s.nodes, s.previous)
+    }
+
+    /// Ends a frame: its positions become the previous frame's, and so do its nodes' poses.
     pub(super) fn next_frame(&mut self) {
         std::mem::swap(&mut self.previous, &mut self.current);
+        self.posed.swap(0, 1);
     }
 }
