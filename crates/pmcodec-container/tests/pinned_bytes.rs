@@ -4,7 +4,7 @@
 //! that means to alter the bytes updates them and says why in its commit.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use pmcodec_container::{EncodeOptions, QuantizationChoice, encode};
+use pmcodec_container::{EncodeOptions, QuantizationChoice, encode, encode_with_report};
 use pmcodec_mesh::skin::bending_tube;
 use pmcodec_mesh::skin_fit::{FitOptions, fit_skin};
 use pmcodec_mesh::{Sequence, samples};
@@ -55,4 +55,19 @@ fn generated_files_keep_their_bytes() {
     ];
     let got = files();
     assert_eq!(got, pinned, "the encoder's bytes changed: {got:?}");
+}
+
+/// `encode` stops the default prediction's coding of a band once skinning's costs less;
+/// `encode_with_report` codes it whole for its report: the same bytes, and the same choices.
+#[test]
+fn the_report_s_exact_coding_writes_the_same_bytes() {
+    for (name, seq, opts) in [
+        ("bending tube", bending_tube(12, 24, 12), options(4)),
+        ("rigid parts, fitted", fitted(samples::rigid_parts(5, 12), 5), options(8)),
+    ] {
+        let fast = encode(&seq, &opts, |_| {}).expect(name);
+        let (exact, report) = encode_with_report(&seq, &opts, |_| std::ops::ControlFlow::Continue(())).expect(name);
+        assert_eq!(fast, exact, "{name}");
+        assert!(report.skinned_bands > 0 && report.stored_bits < report.plain_bits, "{name}: {report:?}");
+    }
 }

@@ -31,6 +31,11 @@ pub(super) struct PositionCoder {
     posed: [Posed; 2],
     /// The last generation given to a [`Posed`].
     generation: u32,
+    /// Whether the report's `plain_bits` must be exact where skinning competes: the default
+    /// prediction's coding then runs to the band's end even once it lost.
+    pub(super) exact_plain: bool,
+    /// What a stopped coding had cost (see [`Self::code`]).
+    stopped_at: u64,
     pub(super) report: EncodeReport,
 }
 
@@ -67,7 +72,10 @@ pub struct EncodeReport {
     /// Of `bands`, those whose nodes skinning predicted.
     pub skinned_bands: u64,
     /// About the bits of every band's residuals (an Elias gamma code of each) under the default
-    /// prediction, and as stored (the smaller of the two where skinning competed).
+    /// prediction, and as stored (the smaller of the two where skinning competed). Exact from
+    /// [`super::encode_with_report`]; from [`super::encode_posed`], where skinning predicted
+    /// a band, what the default prediction had cost when it came to cost more (a lower bound:
+    /// its coding stops there).
     pub plain_bits: u64,
     /// The same estimate as stored; `plain_bits - stored_bits` is about what skinning saved.
     pub stored_bits: u64,
@@ -137,25 +145,16 @@ impl PositionCoder {
         truth: impl Fn(usize) -> [f64; 3],
         (skin, surface): (Option<Skinning>, Option<Surface>),
     ) -> (Vec<u8>, bool) {
-        let plain = self.code(j, intra, h, &truth, (None, surface));
         self.report.bands += 1;
-        self.report.plain_bits += plain;
-        let mut chosen = plain;
-        let mut skinned = false;
-        if let Some(s) = skin {
-            let band = h.offsets[j] as usize..h.offsets[j + 1] as usize;
-            self.saved.clear();
-            self.saved.extend_from_slice(&self.current[band.clone()]);
-            std::mem::swap(&mut self.residuals, &mut self.saved_residuals);
-            let with_skin = self.code(j, intra, h, &truth, (Some(s), surface));
-            skinned = with_skin < plain;
-            chosen = chosen.min(with_skin);
-            self.report.skinned_bands += skinned as u64;
-            if !skinned {
-                self.current[band].copy_from_slice(&self.saved);
-                std::mem::swap(&mut self.residuals, &mut self.saved_residuals);
+        let (chosen, skinned) = match skin {
+            None => {
+                let plain = self.code(j, intra, h, &truth, (None, surface), u64::MAX).unwrap_or(u64::MAX);
+                self.report.plain_bits += plain;
+                (plain, false)
             }
-        }
+            Some(s) => self.compete(j, intra, h, &truth, (s, surface)),
+        };
+        self.report.skinned_bands += skinned as u64;
         self.report.stored_bits += chosen;
         if j == 0 && intra && self.motion == Motion::KeyframeAffine {
             self.weights.compute(&self.lower, &self.current, h.level_sizes[0] as usize);
@@ -163,9 +162,46 @@ impl PositionCoder {
         (payload::write_positions(self.shifts[j], &self.residuals), skinned)
     }
 
+    /// Codes band `j` under both predictions and keeps skinning's where its residuals cost
+    /// less (the default prediction's on ties); returns the kept residuals' cost and whether
+    /// they are skinning's. Skinning's are coded first: unless the report must say exactly what
+    /// the default prediction costs ([`Self::exact_plain`]), its coding stops as soon as it
+    /// costs more (where skinning is exact, as for a glTF's own skin, that is early in every
+    /// band). Each coding reads only what it wrote of the band (as a decoder would), so the
+    /// order changes nothing of what is kept.
+    fn compete(
+        &mut self,
+        j: usize,
+        intra: bool,
+        h: &Hierarchy,
+        truth: &impl Fn(usize) -> [f64; 3],
+        (s, surface): (Skinning, Option<Surface>),
+    ) -> (u64, bool) {
+        let band = h.offsets[j] as usize..h.offsets[j + 1] as usize;
+        let with_skin = self.code(j, intra, h, truth, (Some(s), surface), u64::MAX).unwrap_or(u64::MAX);
+        self.saved.clear();
+        self.saved.extend_from_slice(&self.current[band.clone()]);
+        std::mem::swap(&mut self.residuals, &mut self.saved_residuals);
+        let limit = if self.exact_plain { u64::MAX } else { with_skin };
+        let plain = self.code(j, intra, h, truth, (None, surface), limit);
+        // Stopped: the default prediction costs more than `with_skin`, by at least what it
+        // had cost so far (what the report counts).
+        let (plain, skinned) = match plain {
+            Some(p) => (p, with_skin < p),
+            None => (self.stopped_at, true),
+        };
+        self.report.plain_bits += plain;
+        if skinned {
+            self.current[band].copy_from_slice(&self.saved);
+            std::mem::swap(&mut self.residuals, &mut self.saved_residuals);
+        }
+        (plain.min(with_skin), skinned)
+    }
+
     /// Codes band `j` with skinning's prediction or the default one into `current` and
     /// `residuals` (coarse nodes on their surfaces where `surface` is given); returns the
-    /// residuals' cost.
+    /// residuals' cost, or None (the cost so far in `stopped_at`) as soon as it exceeds
+    /// `limit`, leaving the band's other nodes uncoded.
     fn code(
         &mut self,
         j: usize,
@@ -173,7 +209,8 @@ impl PositionCoder {
         h: &Hierarchy,
         truth: &impl Fn(usize) -> [f64; 3],
         (skin, surface): (Option<Skinning>, Option<Surface>),
-    ) -> u64 {
+        limit: u64,
+    ) -> Option<u64> {
         let (sizes, offsets, levels) = (&h.level_sizes, &h.offsets, h.levels());
         self.residuals.clear();
         let shift = self.shifts[j];
@@ -184,6 +221,7 @@ impl PositionCoder {
         // Band 0 in its decoding order, coarser bands in node order.
         let sequence = (j == 0).then(|| self.lower.sequence());
         let mut before = None;
+        let mut spent = 0u64;
         for k in 0..sizes[j] as usize {
             let v = sequence.map_or(k, |s| s[k] as usize);
             let g = offsets[j] as usize + v;
@@ -220,8 +258,13 @@ impl PositionCoder {
                 self.siblings.add(local, q, self.previous[g]);
             }
             self.residuals.push(r);
+            spent += cost(&[r]);
+            if spent > limit {
+                self.stopped_at = spent;
+                return None;
+            }
         }
-        cost(&self.residuals)
+        Some(spent)
     }
 
     /// Readies `posed[0]` for the nodes posed by `s.palette` (kept if it already holds that
