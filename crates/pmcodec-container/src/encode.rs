@@ -291,7 +291,7 @@ pub fn encode_until(
     opts: &EncodeOptions,
     progress: impl FnMut(usize) -> ControlFlow<()>,
 ) -> Result<Vec<u8>, ContainerError> {
-    encode_with_report(seq, opts, progress).map(|(bytes, _)| bytes)
+    encode_sequence(seq, opts, progress, false).map(|(bytes, _)| bytes)
 }
 
 /// [`encode_until`], with what the encoder found about skinning's prediction.
@@ -300,10 +300,21 @@ pub fn encode_with_report(
     opts: &EncodeOptions,
     progress: impl FnMut(usize) -> ControlFlow<()>,
 ) -> Result<(Vec<u8>, EncodeReport), ContainerError> {
+    encode_sequence(seq, opts, progress, true)
+}
+
+/// [`encode_with_report`], its report's `plain_bits` exact or not (`exact`; the bytes are the
+/// same either way).
+fn encode_sequence(
+    seq: &Sequence,
+    opts: &EncodeOptions,
+    progress: impl FnMut(usize) -> ControlFlow<()>,
+    exact: bool,
+) -> Result<(Vec<u8>, EncodeReport), ContainerError> {
     seq.validate()?;
     let (lo, hi) = seq.bounds().ok_or_else(|| ContainerError::Options("empty sequence".into()))?;
     quantization_step(opts, lo, hi)?;
-    encode_frames(seq, seq.frame_count(), seq.frames.iter(), || Ok((lo, hi)), opts, progress)
+    encode_frames(seq, seq.frame_count(), seq.frames.iter(), || Ok((lo, hi)), opts, (progress, exact))
 }
 
 /// Encodes a sequence whose frames after the first are still to be read: `head` holds frame 0
@@ -374,7 +385,7 @@ pub fn encode_stream<E: Send>(
         });
         let first = std::borrow::Cow::Borrowed(head.frames[0].as_slice());
         let all = std::iter::once(first).chain(frames.into_iter().map(std::borrow::Cow::Owned));
-        encode_frames(head, frame_count, all, move || bounds.recv().unwrap_or(Err(ContainerError::Cancelled)), opts, progress)
+        encode_frames(head, frame_count, all, move || bounds.recv().unwrap_or(Err(ContainerError::Cancelled)), opts, (progress, false))
             .map(|(bytes, _)| bytes)
     });
     match input_error.into_inner().ok().flatten() {
@@ -414,7 +425,8 @@ fn encode_frames<F: AsRef<[Vec3]>>(
     frames: impl Iterator<Item = F>,
     bounds: impl FnOnce() -> Result<(Vec3, Vec3), ContainerError> + Send,
     opts: &EncodeOptions,
-    mut progress: impl FnMut(usize) -> ControlFlow<()>,
+    // `exact`: whether the report's `plain_bits` must be exact (see [`EncodeReport`]).
+    (mut progress, exact): (impl FnMut(usize) -> ControlFlow<()>, bool),
 ) -> Result<(Vec<u8>, EncodeReport), ContainerError> {
     let topo = FineTopology::new(head.vertex_count() as u32, &head.triangles);
     let q = base_quadrics(head, &topo, &opts.base);
@@ -453,7 +465,7 @@ fn encode_frames<F: AsRef<[Vec3]>>(
             let step = quantization_step(opts, lo, hi)?;
             let mut header = header(head, frame_count, opts, (lo, hi), step, level_sizes);
             header.appearance = looks_info;
-            code_frames(head, opts, header, held_corners, (lo, step, &level_error), reclustered, recycle)
+            code_frames(head, opts, header, held_corners, (lo, step, &level_error, exact), reclustered, recycle)
         });
         let mut spare = Some(first);
         let mut cancelled = false;
@@ -589,8 +601,9 @@ fn code_frames(
     opts: &EncodeOptions,
     mut header: Header,
     mut held_corners: Vec<Vec<[u32; 3]>>,
-    // The grid's origin and step, and each level's frame-0 error (see [`band_shift`]).
-    (lo, step, level_error): (Vec3, f32, &[f64]),
+    // The grid's origin and step, each level's frame-0 error (see [`band_shift`]), and
+    // whether the report's `plain_bits` must be exact.
+    (lo, step, level_error, exact): (Vec3, f32, &[f64], bool),
     frames: std::sync::mpsc::Receiver<Reclustered>,
     recycle: std::sync::mpsc::Sender<Reclustered>,
 ) -> Result<(Header, Chunks, EncodeReport), ContainerError> {
@@ -605,6 +618,7 @@ fn code_frames(
         (0..levels).map(|j| band_shift(&header, j, opts.coarse_grid, level_error.get(j).copied())).collect(),
         total,
     );
+    coder.exact_plain = exact;
     let skin_input = seq.skin.as_ref().zip(opts.skin);
     let mut skin: Option<SkinFit> = None;
     // The palette entries each band's Joints chunk carries.

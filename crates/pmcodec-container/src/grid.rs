@@ -100,24 +100,41 @@ pub(crate) fn on_surface_grid(
     let near = u.map(|x| x.round() as i32);
     // (taken within the tolerance, cost, excess, distance): a smaller tuple is better, a
     // point within the tolerance before any other.
+    let cost_of = |r: [i32; 3]| -> u64 { r.iter().map(|&x| x.unsigned_abs() as u64).sum() };
+    let excess_of = |r: [i32; 3]| {
+        let q = [0, 1, 2].map(|a| p[a] as f64 + r[a] as f64 * unit);
+        let e = excess(q) / (unit * unit);
+        // NaN (a degenerate quadric) is never within the tolerance, and ranks last.
+        if e.is_nan() { f64::INFINITY } else { e }
+    };
+    // The centre (the nearest grid point) is always a candidate: evaluated first, its rank
+    // bounds the others'. A candidate costing more than a point known to be within the
+    // tolerance ranks after it whatever its excess, so its quadric is not evaluated (the
+    // choice is the same as evaluating all 27 in order: see the test against that).
+    let centre = excess_of(near);
+    let mut bound = (centre <= SURFACE_TOLERANCE2).then(|| cost_of(near));
     let mut best: Option<(Rank, [i32; 3])> = None;
     for dx in -1..=1 {
         for dy in -1..=1 {
             for dz in -1..=1 {
                 let r = [near[0] + dx, near[1] + dy, near[2] + dz];
                 let d2: f64 = (0..3).map(|a| (r[a] as f64 - u[a]).powi(2)).sum();
-                if d2 > radius2 && (dx, dy, dz) != (0, 0, 0) {
+                let is_centre = (dx, dy, dz) == (0, 0, 0);
+                if d2 > radius2 && !is_centre {
                     continue;
                 }
-                let q = [0, 1, 2].map(|a| p[a] as f64 + r[a] as f64 * unit);
-                let e = excess(q) / (unit * unit);
-                // NaN (a degenerate quadric) is never within the tolerance, and ranks last.
-                let e = if e.is_nan() { f64::INFINITY } else { e };
+                let cost = cost_of(r);
+                if bound.is_some_and(|b| cost > b) {
+                    continue;
+                }
+                let e = if is_centre { centre } else { excess_of(r) };
                 let within = e <= SURFACE_TOLERANCE2;
-                let cost: u64 = r.iter().map(|&x| x.unsigned_abs() as u64).sum();
                 let key = if within { (false, cost, e, d2) } else { (true, 0, e, d2) };
                 if best.as_ref().is_none_or(|(k, _)| key.partial_cmp(k) == Some(std::cmp::Ordering::Less)) {
                     best = Some((key, r));
+                    if within {
+                        bound = Some(bound.map_or(cost, |b| b.min(cost)));
+                    }
                 }
             }
         }
@@ -178,6 +195,84 @@ mod tests {
     }
     /// A flat cluster in the plane z = 0.5 quanta (excess: squared height over it, less the true
     /// position's).
+    /// [`on_surface_grid`] as first written: all 27 candidates' excesses evaluated in order.
+    fn on_surface_grid_whole(t: [f64; 3], p: [i32; 3], shift: u32, radius2: f64, excess: impl Fn([f64; 3]) -> f64) -> ([i32; 3], [i32; 3]) {
+        let unit = (1u64 << shift) as f64;
+        let u = [0, 1, 2].map(|a| (t[a] - p[a] as f64) / unit);
+        let near = u.map(|x| x.round() as i32);
+        let mut best: Option<(Rank, [i32; 3])> = None;
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let r = [near[0] + dx, near[1] + dy, near[2] + dz];
+                    let d2: f64 = (0..3).map(|a| (r[a] as f64 - u[a]).powi(2)).sum();
+                    if d2 > radius2 && (dx, dy, dz) != (0, 0, 0) {
+                        continue;
+                    }
+                    let q = [0, 1, 2].map(|a| p[a] as f64 + r[a] as f64 * unit);
+                    let e = excess(q) / (unit * unit);
+                    let e = if e.is_nan() { f64::INFINITY } else { e };
+                    let within = e <= SURFACE_TOLERANCE2;
+                    let cost: u64 = r.iter().map(|&x| x.unsigned_abs() as u64).sum();
+                    let key = if within { (false, cost, e, d2) } else { (true, 0, e, d2) };
+                    if best.as_ref().is_none_or(|(k, _)| key.partial_cmp(k) == Some(std::cmp::Ordering::Less)) {
+                        best = Some((key, r));
+                    }
+                }
+            }
+        }
+        let r = best.map_or(near, |(_, r)| r);
+        ([0, 1, 2].map(|a| p[a].wrapping_add(r[a].wrapping_shl(shift))), r)
+    }
+
+    /// The pruned search (candidates costing more than a point within the tolerance are not
+    /// evaluated) chooses what evaluating every candidate chose: on random truths, predictions,
+    /// planes and grids, grid-aligned truths (ties) among them, and NaN excesses.
+    #[test]
+    fn surface_grid_pruned_is_surface_grid_whole() {
+        let mut s = 0x5851_f42d_4c95_7f2du64;
+        let mut next = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            s
+        };
+        let (mut evaluated, mut whole, mut moved) = (0usize, 0usize, 0usize);
+        for i in 0..20_000 {
+            let t = [0; 3].map(|_| (next() % 4000) as f64 / 7.0 - 280.0);
+            let t = if i % 5 == 0 { t.map(|x| (x * 2.0).round() / 2.0) } else { t };
+            let p = t.map(|x| x.round() as i32 + (next() % 9) as i32 - 4);
+            let shift = (next() % 3) as u32;
+            // A plane through a point near t, of a random normal (a tolerance's worth off t
+            // now and then, so that no candidate is within it).
+            let n = [0; 3].map(|_| (next() % 200) as f64 / 100.0 - 1.0);
+            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt().max(1e-3);
+            let off = (next() % 5) as f64 * 0.4;
+            let d = |x: [f64; 3]| ((x[0] - t[0]) * n[0] + (x[1] - t[1]) * n[1] + (x[2] - t[2]) * n[2]) / len - off;
+            let nan = i % 97 == 0;
+            let excess = |x: [f64; 3]| if nan { f64::NAN } else { d(x).powi(2) - off * off };
+            for radius2 in [0.25, SLACK2, 1.0, 3.0] {
+                let calls = std::cell::Cell::new(0);
+                let counted = |x: [f64; 3]| {
+                    calls.set(calls.get() + 1);
+                    excess(x)
+                };
+                let got = on_surface_grid(t, p, shift, radius2, counted);
+                evaluated += calls.get();
+                let all = std::cell::Cell::new(0);
+                let want = on_surface_grid_whole(t, p, shift, radius2, |x| {
+                    all.set(all.get() + 1);
+                    excess(x)
+                });
+                whole += all.get();
+                assert_eq!(got, want, "t {t:?} p {p:?} shift {shift} radius2 {radius2}");
+                moved += (got.1 != [0, 1, 2].map(|a| ((t[a] - p[a] as f64) / (1u64 << shift) as f64).round() as i32)) as usize;
+            }
+        }
+        assert!(moved > 1000, "the search hardly ever left the nearest point: {moved}");
+        assert!(evaluated * 10 < whole * 9, "pruning evaluated {evaluated} of {whole}");
+    }
+
     #[test]
     fn surface_grid_stays_on_the_surface() {
         let plane = |z0: f64| move |x: [f64; 3]| (x[2] - z0).powi(2);

@@ -81,7 +81,7 @@ pub fn encode_posed(
             }
             Ok(b)
         };
-        encode_frames(head, frame_count, all, joined, opts, progress)
+        encode_frames(head, frame_count, all, joined, opts, (progress, false))
     });
     if let Some(e) = bad.into_inner() {
         return Err(e);

@@ -20,6 +20,11 @@ pub fn store_chunk(raw: &[u8], level: i32, flags: u16) -> std::io::Result<Vec<u8
 /// memory, while creating a context costs little beside compressing that much.
 const REMEMBERED: usize = 1 << 16;
 
+/// How many of the last small inputs [`compress`] remembers: a small band's Positions payload
+/// tries three codings (sparse, rANS, varints) and the chosen one is compressed again when
+/// stored; with two remembered, a chosen sparse payload (tried first) was compressed twice.
+const REMEMBERED_INPUTS: usize = 3;
+
 /// What [`compress`] keeps per thread: its context, and the last small input with its frame.
 #[derive(Default)]
 struct Compression {
@@ -35,7 +40,7 @@ thread_local! {
 
 /// `raw` as one zstd frame at `level`, the same bytes as `zstd::bulk::compress` gives. Small
 /// inputs go through one context per thread (creating a level-19 context per chunk cost about
-/// 2% of a whole encode of the horse), and the last two are remembered with their frames, so a
+/// 2% of a whole encode of the horse), and the last three are remembered with their frames, so a
 /// payload compressed once to measure it and once to store it is compressed once.
 pub fn compress(raw: &[u8], level: i32) -> std::io::Result<Vec<u8>> {
     if raw.len() > REMEMBERED {
@@ -60,7 +65,7 @@ pub fn compress(raw: &[u8], level: i32) -> std::io::Result<Vec<u8>> {
             }
         };
         let z = state.contexts[at].1.compress(raw)?;
-        if state.last.len() == 2 {
+        if state.last.len() == REMEMBERED_INPUTS {
             state.last.remove(0);
         }
         state.last.push((level, raw.to_vec(), z.clone()));

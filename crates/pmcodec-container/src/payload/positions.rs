@@ -39,8 +39,8 @@ pub fn write_positions(shift: u32, residuals: &[[i32; 3]]) -> Vec<u8> {
             put(&mut plain, zigzag(x));
         }
     }
-    // Sparse first: `compress` remembers the last two inputs, and the chosen payload is
-    // compressed again when stored (a sparse one is short).
+    // `compress` remembers the last three inputs, so the chosen payload, compressed again when
+    // stored, is not compressed twice.
     let size =
         |b: &[u8]| crate::format::compress(b, crate::format::zstd_level(crate::ChunkKind::Positions, b)).map_or(usize::MAX, |z| z.len());
     let sparse_size = size(&sparse);

@@ -103,7 +103,14 @@ pub fn predict_skinned(skin: &NodeSkin, palette: &[i64], previous_palette: &[i64
     if intra {
         return now;
     }
-    let before = lbs(skin, previous_palette);
+    skinned_motion(now, lbs(skin, previous_palette), prev)
+}
+
+/// [`predict_skinned`] off a keyframe from the node's skinned positions under the frame's
+/// palette (`now`) and the previous frame's (`before`): its previous position `prev` moved as
+/// skinning moves it.
+#[inline]
+pub fn skinned_motion(now: [i32; 3], before: [i32; 3], prev: [i32; 3]) -> [i32; 3] {
     [0, 1, 2].map(|a| prev[a].wrapping_add(now[a].wrapping_sub(before[a])))
 }
 
