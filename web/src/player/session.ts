@@ -6,7 +6,7 @@
 
 import { ChunkEntry, ChunkKind, Decoder, Reader, attributeEntry, dequantizeUv, readMaterials, texturedMesh } from "../container/index.js";
 import { buildCutMesh, morphAttributeStarts, morphStarts } from "../geomorph.js";
-import { FetchRange, RangeCache } from "./ranges.js";
+import { FetchRanges, RangeCache } from "./ranges.js";
 import type { ColourMode, FramePayload, LooksPayload, MaterialGroup, OpenedInfo, SkinFrame } from "./protocol.js";
 
 /** The first request of a container: its preamble, header and index, and usually more. */
@@ -80,14 +80,10 @@ export class Session {
   }
 
   /** Opens a container: one range request for its start, which tells the file's length too. */
-  static async open(fetchRange: FetchRange, opts: SessionOptions = {}): Promise<Session> {
-    let total = 0;
-    const cache = new RangeCache(async (s, e) => {
-      const r = await fetchRange(s, e);
-      if (s === 0) total = r.total;
-      return r;
-    }, opts.cacheBytes);
+  static async open(fetchRanges: FetchRanges, opts: SessionOptions = {}): Promise<Session> {
+    const cache = new RangeCache(fetchRanges, opts.cacheBytes);
     await cache.ensure([[0, FIRST_READ]]).catch((e) => { throw new Error(`reading the container's start: ${e instanceof Error ? e.message : e}`); });
+    const total = cache.total;
     if (!(total > 0)) throw new Error("the server did not say how long the container is (no Content-Range)");
     // The first span may be shorter than FIRST_READ: the whole file.
     const container = await Reader.open((o, n) => cache.read(o, n), total);
