@@ -9,7 +9,7 @@ import { execFileSync } from "node:child_process";
 import { existsSync, mkdtempSync, readFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
-import { ChunkKind, Decoder, NONE, VERSION } from "../src/container/index.js";
+import { ChunkKind, Decoder, NONE, Reader, VERSION } from "../src/container/index.js";
 import { morphAttributeStarts } from "../src/geomorph.js";
 import type { Materials, TextureRef } from "../src/container/appearance.js";
 import { httpRanges, RangeCache, type FetchRanges } from "../src/player/ranges.js";
@@ -105,6 +105,8 @@ function sample(): string {
   return pmc;
 }
 const file = new Uint8Array(readFileSync(sample()));
+/** A reader of the whole index (a session's reader of a banded file holds its level's groups). */
+const wholeReader = (bytes: Uint8Array) => Reader.open(async (o, n) => bytes.slice(o, o + n), bytes.length);
 
 test("session: one request per frame at full resolution, and a second loop fetches nothing", async () => {
   const { fetch, log, calls } = recorder(file);
@@ -128,7 +130,7 @@ test("session: one request per frame at full resolution, and a second loop fetch
 test("session: a lowered budget stops fetching finer bands at the next keyframe; a raised one fetches them at once", async () => {
   const { fetch, log } = recorder(file);
   const s = await Session.open(fetch, { readAhead: 4 });
-  const c = s.container, h = c.header;
+  const c = await wholeReader(file), h = c.header;
   const band0 = c.index.filter((e) => e.kind === ChunkKind.Positions && e.band === 0).map((e) => [c.dataStart + e.offset, c.dataStart + e.offset + e.storedLen]);
   const finest = (from: number) => log.slice(from).filter(([a, b]) => band0.some(([x, y]) => x < b && a < y)).length;
   await s.frame(0);
@@ -192,7 +194,7 @@ test("session: after a jump, a coarse cut comes from a coarse decoder, then the 
 test("session: the whole-mesh shortcut draws the triangles a full budget cut selects, and sends unchanged indices once", async () => {
   const { fetch } = recorder(file);
   const s = await Session.open(fetch, { readAhead: 0 });
-  const c = s.container, h = c.header;
+  const c = await wholeReader(file), h = c.header;
   const reference = new Decoder(c, 0);
   const triples = (pos: Float32Array, idx: Uint32Array) => {
     const out: string[] = [];
@@ -418,7 +420,7 @@ test("GPU skinning (gpuSkin): frames carry the cut's skin with each new cut, the
   assert.ok(gpu.info().gpuSkinJoints > 0 && cpu.info().gpuSkinJoints === 0);
   gpu.colour = "plain";
   // The exact positions of every node, from the default decoder.
-  const exact = new Decoder(gpu.container, 0);
+  const exact = new Decoder(await wholeReader(bytes), 0);
   // The page's side: skins and offsets by version, offsets given as changes applied to the last.
   const skins = new Map<number, NonNullable<Awaited<ReturnType<Session["frame"]>>["skin"]>>(), offsets = new Map<number, Float32Array>();
   let sparse = 0, kept = 0, skinsSent = 0, indicesSent = 0;
