@@ -9,25 +9,29 @@ import { execFileSync } from "node:child_process";
 import { existsSync, mkdtempSync, readFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
-import { ChunkKind, Decoder, NONE, VERSION } from "../src/container/index.js";
+import { ChunkKind, Decoder, NONE, Reader, VERSION } from "../src/container/index.js";
 import { morphAttributeStarts } from "../src/geomorph.js";
 import type { Materials, TextureRef } from "../src/container/appearance.js";
-import { httpRange, RangeCache, type FetchRange } from "../src/player/ranges.js";
+import { httpRanges, RangeCache, type FetchRanges } from "../src/player/ranges.js";
 import { Session } from "../src/player/session.js";
 
 const root = repoRoot();
 const bin = pmcodecBin(root);
 
-/** A range source over bytes in memory that records every request. */
-function recorder(bytes: Uint8Array): { fetch: FetchRange; log: [number, number][] } {
-  const log: [number, number][] = [];
-  const fetch: FetchRange = async (s, e) => {
-    const end = Math.min(e, bytes.length);
-    log.push([s, end]);
+/**
+ * A range source over bytes in memory that answers several ranges at once and records every
+ * request: `calls` the ranges of each request, `log` every range asked.
+ */
+function recorder(bytes: Uint8Array): { fetch: FetchRanges; log: [number, number][]; calls: [number, number][][] } {
+  const log: [number, number][] = [], calls: [number, number][][] = [];
+  const fetch: FetchRanges = async (ranges) => {
+    const asked = ranges.map(([s, e]): [number, number] => [s, Math.min(e, bytes.length)]);
+    calls.push(asked);
+    log.push(...asked);
     await new Promise((r) => setTimeout(r, 1));
-    return { bytes: bytes.slice(s, end), total: bytes.length };
+    return { parts: asked.map(([s, e]) => ({ start: s, bytes: bytes.slice(s, e) })), total: bytes.length };
   };
-  return { fetch, log };
+  return { fetch, log, calls };
 }
 
 /** Bytes fetched more than once in a request log. */
@@ -54,16 +58,17 @@ test("range cache: a range that begins inside a held span asks for the rest only
 
 test("range cache: adjacent ranges share a request, nothing is fetched twice, waiting reads share one request", async () => {
   const bytes = Uint8Array.from({ length: 1000 }, (_, i) => i & 0xff);
-  const { fetch, log } = recorder(bytes);
+  const { fetch, log, calls } = recorder(bytes);
   const c = new RangeCache(fetch, 1 << 20);
   await c.ensure([[10, 20], [20, 35], [50, 60]]);
-  assert.deepEqual(log, [[10, 35], [50, 60]]);
+  assert.deepEqual(calls, [[[10, 35], [50, 60]]], "adjacent ranges merged, disjoint ones in one request");
   // Two readers of one missing range at once: one request.
   const [a, b] = await Promise.all([c.read(100, 10), c.read(102, 4)]);
   assert.deepEqual(Array.from(b), [102, 103, 104, 105]);
   assert.equal(a.length, 10);
   await c.ensure([[10, 35], [12, 14], [50, 60]]);
-  assert.equal(log.length, 3, `requests: ${JSON.stringify(log)}`);
+  assert.equal(calls.length, 2, `requests: ${JSON.stringify(calls)}`);
+  assert.equal(c.requests, 2);
   assert.equal(twice(log, bytes.length), 0);
   assert.equal(c.fetched, 25 + 10 + 10);
 });
@@ -71,7 +76,7 @@ test("range cache: adjacent ranges share a request, nothing is fetched twice, wa
 test("range cache: a host that sends the whole file is asked once", async () => {
   const bytes = Uint8Array.from({ length: 5000 }, (_, i) => i & 0xff);
   let calls = 0;
-  const c = new RangeCache(async () => { calls++; return { bytes: bytes.slice(), total: bytes.length, at: 0 }; });
+  const c = new RangeCache(async () => { calls++; return { parts: [{ start: 0, bytes: bytes.slice() }], total: bytes.length }; });
   assert.deepEqual(Array.from(await c.read(300, 3)), [300 & 0xff, 301 & 0xff, 302 & 0xff]);
   await c.ensure([[4000, 4100], [10, 20]]);
   assert.deepEqual(Array.from(await c.read(4999, 1)), [4999 & 0xff]);
@@ -80,15 +85,15 @@ test("range cache: a host that sends the whole file is asked once", async () => 
 
 test("range cache: holds at most its limit, forgetting the least recently used", async () => {
   const bytes = new Uint8Array(10_000);
-  const { fetch, log } = recorder(bytes);
+  const { fetch, calls } = recorder(bytes);
   const c = new RangeCache(fetch, 2500);
   for (let i = 0; i < 5; i++) await c.ensure([[1000 * i, 1000 * i + 1000]]);
   assert.ok(c.size <= 2500, `${c.size} bytes held`);
   // The most recent spans are held, the oldest is fetched again.
   await c.read(4000, 10);
-  assert.equal(log.length, 5);
+  assert.equal(calls.length, 5);
   await c.read(0, 10);
-  assert.equal(log.length, 6);
+  assert.equal(calls.length, 6);
 });
 
 function sample(): string {
@@ -100,30 +105,32 @@ function sample(): string {
   return pmc;
 }
 const file = new Uint8Array(readFileSync(sample()));
+/** A reader of the whole index (a session's reader of a banded file holds its level's groups). */
+const wholeReader = (bytes: Uint8Array) => Reader.open(async (o, n) => bytes.slice(o, o + n), bytes.length);
 
 test("session: one request per frame at full resolution, and a second loop fetches nothing", async () => {
-  const { fetch, log } = recorder(file);
+  const { fetch, log, calls } = recorder(file);
   const s = await Session.open(fetch, { readAhead: 0 });
   const frames = s.container.header.frameCount;
   for (let f = 0; f < frames; f++) {
-    const before = log.length;
+    const before = calls.length;
     const p = await s.frame(f);
-    assert.ok(log.length - before <= 2, `frame ${f}: ${log.length - before} requests`);
+    assert.ok(calls.length - before <= 1, `frame ${f}: ${calls.length - before} requests`);
     assert.equal(p.triangles, s.container.header.triangleCount);
     // One unit normal per vertex.
     assert.equal(p.normals.length, p.positions.length);
     for (let i = 0; i < p.normals.length; i += 3) assert.ok(Math.abs(Math.hypot(p.normals[i], p.normals[i + 1], p.normals[i + 2]) - 1) < 1e-4);
   }
-  const firstLoop = log.length;
+  const firstLoop = calls.length;
   for (let f = 0; f < frames; f++) await s.frame(f);
-  assert.equal(log.length, firstLoop, "the second loop made requests");
+  assert.equal(calls.length, firstLoop, "the second loop made requests");
   assert.equal(twice(log, file.length), 0);
 });
 
 test("session: a lowered budget stops fetching finer bands at the next keyframe; a raised one fetches them at once", async () => {
   const { fetch, log } = recorder(file);
   const s = await Session.open(fetch, { readAhead: 4 });
-  const c = s.container, h = c.header;
+  const c = await wholeReader(file), h = c.header;
   const band0 = c.index.filter((e) => e.kind === ChunkKind.Positions && e.band === 0).map((e) => [c.dataStart + e.offset, c.dataStart + e.offset + e.storedLen]);
   const finest = (from: number) => log.slice(from).filter(([a, b]) => band0.some(([x, y]) => x < b && a < y)).length;
   await s.frame(0);
@@ -187,7 +194,7 @@ test("session: after a jump, a coarse cut comes from a coarse decoder, then the 
 test("session: the whole-mesh shortcut draws the triangles a full budget cut selects, and sends unchanged indices once", async () => {
   const { fetch } = recorder(file);
   const s = await Session.open(fetch, { readAhead: 0 });
-  const c = s.container, h = c.header;
+  const c = await wholeReader(file), h = c.header;
   const reference = new Decoder(c, 0);
   const triples = (pos: Float32Array, idx: Uint32Array) => {
     const out: string[] = [];
@@ -213,7 +220,7 @@ test("session: the whole-mesh shortcut draws the triangles a full budget cut sel
   assert.ok(omitted > 0, "every frame sent its index buffer");
 });
 
-test("httpRange: ranges from a real server, a whole file from one that ignores Range, and an oversized answer refused", async () => {
+test("httpRanges: ranges from a real server, a whole file from one that ignores Range, and an oversized answer refused", async () => {
   const { createServer } = await import("node:http");
   const body = Buffer.from(Uint8Array.from({ length: 3000 }, (_, i) => (i * 7) & 0xff));
   const server = createServer((req, res) => {
@@ -234,13 +241,14 @@ test("httpRange: ranges from a real server, a whole file from one that ignores R
   await new Promise<void>((r) => server.listen(0, "127.0.0.1", r));
   const port = (server.address() as { port: number }).port;
   try {
-    const ranged = await httpRange(`http://127.0.0.1:${port}/ranges`)(100, 110);
+    const ranged = await httpRanges(`http://127.0.0.1:${port}/ranges`)([[100, 110]]);
     assert.equal(ranged.total, 3000);
-    assert.deepEqual(Array.from(ranged.bytes), Array.from(body.subarray(100, 110)));
-    const whole = await httpRange(`http://127.0.0.1:${port}/whole`)(100, 110);
-    assert.equal(whole.at, 0);
-    assert.equal(whole.bytes.length, 3000);
-    await assert.rejects(httpRange(`http://127.0.0.1:${port}/liar`)(0, 10), /3000 bytes for a range of 10/);
+    assert.equal(ranged.parts[0].start, 100);
+    assert.deepEqual(Array.from(ranged.parts[0].bytes), Array.from(body.subarray(100, 110)));
+    const whole = await httpRanges(`http://127.0.0.1:${port}/whole`)([[100, 110]]);
+    assert.equal(whole.parts[0].start, 0);
+    assert.equal(whole.parts[0].bytes.length, 3000);
+    await assert.rejects(httpRanges(`http://127.0.0.1:${port}/liar`)([[0, 10]]), /\/liar: 3000 bytes for a range of 10/);
   } finally {
     server.close();
   }
@@ -412,7 +420,7 @@ test("GPU skinning (gpuSkin): frames carry the cut's skin with each new cut, the
   assert.ok(gpu.info().gpuSkinJoints > 0 && cpu.info().gpuSkinJoints === 0);
   gpu.colour = "plain";
   // The exact positions of every node, from the default decoder.
-  const exact = new Decoder(gpu.container, 0);
+  const exact = new Decoder(await wholeReader(bytes), 0);
   // The page's side: skins and offsets by version, offsets given as changes applied to the last.
   const skins = new Map<number, NonNullable<Awaited<ReturnType<Session["frame"]>>["skin"]>>(), offsets = new Map<number, Float32Array>();
   let sparse = 0, kept = 0, skinsSent = 0, indicesSent = 0;

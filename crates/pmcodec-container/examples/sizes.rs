@@ -32,8 +32,8 @@ fn main() {
     if let Ok(l) = std::env::var("PMCODEC_LEVELS") {
         opts.build.level_sizes = Some(l.split(',').filter_map(|x| x.parse().ok()).collect());
     }
-    // PMC_BANDS=1: the banded index (`pmcodec encode --banded-index`), which coarse clients
-    // read in part; PMC_BANDS=0 the plain one.
+    // PMC_BANDS=1: the banded index (the default), which coarse clients read in part;
+    // PMC_BANDS=0 the frame-by-frame one (`pmcodec encode --frame-index`).
     match std::env::var("PMC_BANDS").as_deref() {
         Ok("1") => opts.chunk_flags |= pmcodec_container::format::FLAG_BANDS,
         Ok("0") => opts.chunk_flags &= !pmcodec_container::format::FLAG_BANDS,

@@ -110,11 +110,16 @@ fn derived_topology() -> pmcodec_container::DerivedTopology {
     }
 }
 
-/// `PMC_BANDS=1`: the banded index (`pmcodec encode --banded-index`), which coarse clients read
-/// in part (default: the encoder's flags).
+/// `PMC_BANDS=1`: the banded index (the default), which coarse clients read in part;
+/// `PMC_BANDS=0` the frame-by-frame one (`pmcodec encode --frame-index`); unset: the encoder's
+/// flags.
 fn chunk_flags() -> u16 {
     let flags = EncodeOptions::default().chunk_flags;
-    if std::env::var("PMC_BANDS").as_deref() == Ok("1") { flags | pmcodec_container::format::FLAG_BANDS } else { flags }
+    match std::env::var("PMC_BANDS").as_deref() {
+        Ok("1") => flags | pmcodec_container::format::FLAG_BANDS,
+        Ok("0") => flags & !pmcodec_container::format::FLAG_BANDS,
+        _ => flags,
+    }
 }
 
 fn main() {

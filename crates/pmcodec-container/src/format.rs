@@ -73,12 +73,17 @@ pub const FLAG_NAMES: u16 = 4;
 /// chunk area in the same order, a table of the groups' lengths and CRCs first, and preamble
 /// bytes 28..32 the table's length. A client at level L fetches the table and only its bands'
 /// groups: on RobotExpressive a 10% client read the whole 28 KB index, 15% of its bytes.
-/// Written only when asked ([`crate::EncodeOptions::chunk_flags`], `pmcodec encode
-/// --banded-index`): its chunk area is no longer frame after frame, so a frame's chunks are no
-/// longer one byte range (proto/http.md's per-frame ranges, the players' one request a frame).
+/// Written by default ([`DEFAULT_FLAGS`]) where it is no longer than the frame-by-frame index
+/// (`pmcodec encode --frame-index` opts out): its chunk area is no longer frame after frame, so
+/// a frame's chunks lie in one byte range per group, which the HTTP index's per-frame `ranges`
+/// (proto/http.md) and the players' multi-range requests fetch together.
 pub const FLAG_BANDS: u16 = 8;
-/// The flags this encoder sets by default.
+/// The flags of how chunks are stored and named: what every file of this encoder has, with or
+/// without the banded index.
 pub const FLAGS: u16 = FLAG_STORED | FLAG_SPARSE | FLAG_NAMES;
+/// The flags this encoder sets by default ([`crate::EncodeOptions::chunk_flags`]): [`FLAGS`]
+/// and the banded index (dropped where it would be longer than the frame-by-frame one).
+pub const DEFAULT_FLAGS: u16 = FLAGS | FLAG_BANDS;
 /// The flags this encoder may set and this reader knows.
 pub const KNOWN_FLAGS: u16 = FLAGS | FLAG_BANDS;
 

@@ -114,10 +114,14 @@ pub struct EncodeArgs {
     /// read no more bytes over the whole file, the triangles counted).
     #[arg(long, value_enum, default_value_t = DerivedArg::Always)]
     pub derived_topology: DerivedArg,
-    /// Write the banded index (proto/container.md, "Index") where it is no longer than the
-    /// frame-by-frame one: a client at a coarse level then fetches only its bands' index
-    /// entries, but a frame's chunks are no longer one byte range.
-    #[arg(long)]
+    /// Write the frame-by-frame index (proto/container.md, "Index") instead of the banded one,
+    /// the default: a frame's chunks are then one byte range, but a client at a coarse level
+    /// fetches every band's index entries.
+    #[arg(long, conflicts_with = "banded_index")]
+    pub frame_index: bool,
+    /// The banded index where it is no longer than the frame-by-frame one: the default, kept
+    /// for scripts that ask for it.
+    #[arg(long, hide = true)]
     pub banded_index: bool,
     /// For a skinned glTF, where coarse nodes sit in bind space for prediction by skinning:
     /// `back-propagated` (their frame-0 position through their blended transform, Houle &
@@ -488,8 +492,8 @@ pub fn encode_options(args: &EncodeArgs) -> Result<EncodeOptions, Exit> {
         derived_topology,
         ..Default::default()
     };
-    if args.banded_index {
-        opts.chunk_flags |= pmcodec_container::format::FLAG_BANDS;
+    if args.frame_index {
+        opts.chunk_flags &= !pmcodec_container::format::FLAG_BANDS;
     }
     opts.build.branching = args.branching;
     opts.build.anchors = parse_anchors(&args.level_anchors)?;

@@ -23,7 +23,9 @@ export class Reader {
   /**
    * Opens a container. With `level`, a banded index (FLAG_BANDS) is read in part: its table and
    * the groups a client whose finest level is `level` reads (as `Reader::open_at`); the reader
-   * then serves levels `level..` only. Other files are read whole.
+   * then serves levels `level..` only (`level` past the top: the top, the coarsest). Other
+   * files are read whole. The groups are asked for at once, so that a `readAt` that batches
+   * concurrent reads (the player's RangeCache) fetches them in one request.
    */
   static async open(readAt: ReadAt, fileLen: number, level?: number): Promise<Reader> {
     if (fileLen < PREAMBLE_LEN) throw new DecodeError("not a .pmc file (too short)");
@@ -46,19 +48,20 @@ export class Reader {
       if (chunks > fileLen - dataStart) throw new DecodeError("chunk area: the file ends before it does");
       if (chunks < fileLen - dataStart) throw new DecodeError(`${fileLen - dataStart - chunks} bytes after the end of the container`);
       // (Level 0 reads every group but the faces of the bands above it.)
-      const partial = level !== undefined && level >= 0 && level < levels ? level : undefined;
+      const partial = level !== undefined && level >= 0 ? Math.min(level, levels - 1) : undefined;
       const wanted = partial === undefined ? rows.map((_, g) => g) : groupsFor(levels, partial, rows[groupOf(ChunkKind.Faces, partial, levels)]?.derived ?? false);
       let bodyAt = PREAMBLE_LEN + headerLen + tableLen, chunkAt = 0, read = PREAMBLE_LEN + headerLen + tableLen;
-      const entries: ChunkEntry[] = [];
+      const reads: Promise<ChunkEntry[]>[] = [];
       for (let g = 0; g < rows.length; g++) {
         if (wanted.includes(g)) {
-          const body = await readAt(bodyAt, rows[g].bodyLen);
-          read += body.length;
-          entries.push(...parseGroup(body, g, rows[g], chunkAt, levels, header.frameCount));
+          const [row, at] = [rows[g], chunkAt];
+          const body = row.bodyLen === 0 ? Promise.resolve(new Uint8Array(0)) : readAt(bodyAt, row.bodyLen);
+          reads.push(body.then((b) => { read += b.length; return parseGroup(b, g, row, at, levels, header.frameCount); }));
         }
         bodyAt += rows[g].bodyLen;
         chunkAt += rows[g].chunksLen;
       }
+      const entries = (await Promise.all(reads)).flat();
       const index = frameOrder(entries);
       checkTables(header, index, fileLen - dataStart, true);
       const r = new Reader(readAt, version, flags, header, index, dataStart, fileLen, partial ?? 0);

@@ -1,16 +1,27 @@
 // The decoding side of a player (it runs in the worker; nothing here touches the DOM, so Node
 // tests drive it too): opens a container through a RangeCache, keeps one Decoder
-// (container/decode.ts) at the finest level the triangle budget needs, fetches each frame's bands in one
-// request a few frames ahead, and turns a decoded frame into render-ready buffers: the budget
-// cut's vertices, smooth normals and indices, computed once per decoded frame.
+// (container/decode.ts) at the finest level the triangle budget needs, fetches the chunks that
+// level reads ahead of the playhead, in blocks of frames (to the end of a keyframe interval) so
+// that a banded file's groups (proto/container.md, "Index": each group's chunks lie frame after
+// frame) are a few long runs, fetched in one multi-range request; and turns a decoded frame
+// into render-ready buffers: the budget cut's vertices, smooth normals and indices, computed
+// once per decoded frame. Of a banded index it reads the groups of the levels it plays only
+// (the coarsest at first, finer ones when a budget needs them).
 
 import { ChunkEntry, ChunkKind, Decoder, Reader, attributeEntry, dequantizeUv, readMaterials, texturedMesh } from "../container/index.js";
+import { FLAG_BANDS } from "../container/format.js";
 import { buildCutMesh, morphAttributeStarts, morphStarts } from "../geomorph.js";
-import { FetchRange, RangeCache } from "./ranges.js";
+import { FetchRanges, RangeCache } from "./ranges.js";
 import type { ColourMode, FramePayload, LooksPayload, MaterialGroup, OpenedInfo, SkinFrame } from "./protocol.js";
 
-/** The first request of a container: its preamble, header and index, and usually more. */
-const FIRST_READ = 64 << 10;
+/**
+ * The first request of a container: its preamble, header and (a small file's) index. Small, as
+ * a coarse client of a banded file reads a small share of its index: what lies past it comes
+ * in a second request, with only the groups the level needs.
+ */
+const FIRST_READ = 16 << 10;
+/** Most frames one read-ahead block spans, in multiples of the read-ahead (a long keyframe interval). */
+const BLOCK_READS = 4;
 /**
  * Budgets within 2% of a level's triangle count take that level (as the Rust client's
  * LEVEL_SLACK: anchored levels come out a few triangles short of round shares).
@@ -36,6 +47,11 @@ export interface SessionOptions {
 
 export class Session {
   readonly cache: RangeCache;
+  /** The container; of a banded index, the entries of the level played (or all of them). */
+  container: Reader;
+  /** Whether the reader holds the whole index; whether a decoder reads through it. */
+  private wholeIndex: boolean;
+  private readerUsed = false;
   private byFrame: ChunkEntry[][] = [];
   private triangles: ChunkEntry | undefined;
   private decoder: Decoder | null = null;
@@ -63,8 +79,10 @@ export class Session {
   /** GPU skinning: the last cut's appearance (built from bind positions), while the cut stays. */
   private looksOf: { decoder: Decoder; shown: Uint32Array; nodes: Uint32Array; indices: Uint32Array; looks: NonNullable<ReturnType<typeof texturedCut>> } | null = null;
 
-  private constructor(readonly container: Reader, cache: RangeCache, opts: SessionOptions) {
+  private constructor(container: Reader, cache: RangeCache, opts: SessionOptions) {
     this.cache = cache;
+    this.container = container;
+    this.wholeIndex = (container.flags & FLAG_BANDS) === 0 || container.version < 7;
     const h = container.header;
     this.trianglesPerLevel = opts.trianglesPerLevel?.length === h.levelSizes.length
       ? opts.trianglesPerLevel
@@ -72,25 +90,54 @@ export class Session {
     this.readAhead = Math.max(0, opts.readAhead ?? 8);
     this.gpuSkin = (opts.gpuSkin ?? false) && h.skin !== null;
     this.budget = h.triangleCount;
-    for (let f = 0; f < h.frameCount; f++) this.byFrame.push([]);
-    for (const e of container.index) {
+    this.holdIndex();
+  }
+
+  /** The container's index entries by frame (and its Triangles chunk), as the reader holds them. */
+  private holdIndex(): void {
+    const c = this.container, h = c.header;
+    this.byFrame = Array.from({ length: h.frameCount }, () => []);
+    this.triangles = undefined;
+    for (const e of c.index) {
       if (e.kind === ChunkKind.Triangles) this.triangles = e;
       else if (e.frame < h.frameCount) this.byFrame[e.frame].push(e);
     }
   }
 
+  /**
+   * The reader, holding the index entries a level-`level` decoder reads. Of a banded index, a
+   * reader opened for a level holds that level's groups only (not the faces of coarser bands,
+   * proto/container.md "Index"): a reader no decoder uses yet is opened again for `level`; one
+   * in use, for the whole index, which serves every level (a budget that moves once reads the
+   * rest of the index once). The bytes held are not fetched again.
+   */
+  private async readerFor(level: number): Promise<Reader> {
+    const c = this.container;
+    if (this.wholeIndex || c.level === level) return c;
+    const part = !this.readerUsed;
+    this.container = await Reader.open((o, n) => this.cache.read(o, n), c.fileLen, part ? level : undefined);
+    this.wholeIndex = !part;
+    this.readerUsed = false;
+    this.holdIndex();
+    return this.container;
+  }
+
+  /** A decoder of `level` over the reader for it. */
+  private async decoderFor(level: number): Promise<Decoder> {
+    const c = await this.readerFor(level);
+    this.readerUsed = true;
+    return new Decoder(c, level, { skinOffsets: this.gpuSkin });
+  }
+
   /** Opens a container: one range request for its start, which tells the file's length too. */
-  static async open(fetchRange: FetchRange, opts: SessionOptions = {}): Promise<Session> {
-    let total = 0;
-    const cache = new RangeCache(async (s, e) => {
-      const r = await fetchRange(s, e);
-      if (s === 0) total = r.total;
-      return r;
-    }, opts.cacheBytes);
+  static async open(fetchRanges: FetchRanges, opts: SessionOptions = {}): Promise<Session> {
+    const cache = new RangeCache(fetchRanges, opts.cacheBytes);
     await cache.ensure([[0, FIRST_READ]]).catch((e) => { throw new Error(`reading the container's start: ${e instanceof Error ? e.message : e}`); });
+    const total = cache.total;
     if (!(total > 0)) throw new Error("the server did not say how long the container is (no Content-Range)");
-    // The first span may be shorter than FIRST_READ: the whole file.
-    const container = await Reader.open((o, n) => cache.read(o, n), total);
+    // The first span may be shorter than FIRST_READ: the whole file. Of a banded index, the
+    // coarsest level's groups (frames read finer ones when their budget needs them).
+    const container = await Reader.open((o, n) => cache.read(o, n), total, Number.MAX_SAFE_INTEGER);
     return new Session(container, cache, opts);
   }
 
@@ -135,6 +182,35 @@ export class Session {
   /** The level of the decoder now (what is being fetched), or -1 before the first frame. */
   get level(): number { return this.decoder?.minLevel ?? -1; }
 
+  /**
+   * What to fetch ahead of frame f (decoded at `level`; from the next keyframe on at `want`, the
+   * level the budget wants, a loop restarting at keyframe 0): nothing while the next
+   * `readAhead` frames are held or on their way; else a block from the first that is not to
+   * the end of the keyframe interval holding frame f + readAhead (at most BLOCK_READS times the
+   * read-ahead), so that each group of a banded file is one run of many frames and a block
+   * is one request, about once a keyframe interval.
+   */
+  private ahead(f: number, level: number, want: number): [number, number][] {
+    const c = this.container, n = c.header.frameCount, horizon = Math.min(this.readAhead, n - 1);
+    const out: [number, number][] = [];
+    let passedKey = false, first = 0;
+    for (let i = 1; i <= horizon; i++) {
+      const g = (f + i) % n;
+      if (c.isKeyframe(g)) passedKey = true;
+      const at = out.length;
+      this.spans(g, passedKey ? want : level, out);
+      if (first === 0 && out.slice(at).some(([a, b]) => !this.cache.has(a, b))) first = i;
+    }
+    if (first === 0) return [];
+    const last = Math.min(n - 1, first + BLOCK_READS * horizon - 1);
+    for (let i = horizon + 1; i <= last; i++) {
+      const g = (f + i) % n;
+      if (c.isKeyframe(g)) break;
+      this.spans(g, passedKey ? want : level, out);
+    }
+    return out;
+  }
+
   /** Byte ranges of what a level-L decoder reads of frame f. */
   private spans(f: number, level: number, out: [number, number][]): void {
     const base = this.container.dataStart;
@@ -148,29 +224,25 @@ export class Session {
    */
   async frame(f: number): Promise<FramePayload> {
     const t0 = performance.now();
-    const c = this.container, h = c.header;
+    const h = this.container.header;
     if (!(f >= 0 && f < h.frameCount)) throw new Error(`frame ${f} is beyond the ${h.frameCount} frames`);
     if (this.aheadError) { const e = this.aheadError; this.aheadError = null; throw e; }
     const want = this.levelFor(this.budget);
-    const key = c.keyframeBefore(f);
     let d = this.decoder;
+    const key = this.container.keyframeBefore(f);
     const continues = d !== null && d.frame >= key && d.frame <= f;
-    if (!d || want < d.minLevel || (want > d.minLevel && (!continues || f === key))) d = this.decoder = new Decoder(c, want, { skinOffsets: this.gpuSkin });
+    if (!d || want < d.minLevel || (want > d.minLevel && (!continues || f === key))) d = this.decoder = await this.decoderFor(want);
+    // (The reader serves `want` too, for the read-ahead past the next keyframe.)
+    const c = await this.readerFor(want);
     const from = d.frame >= key && d.frame <= f ? d.frame + 1 : key;
     const need: [number, number][] = [];
     // Above level 0, an interval that derives its faces reads the triangles too.
     if ((d.minLevel === 0 || c.derives(key, d.minLevel)) && this.triangles) need.push([c.dataStart + this.triangles.offset, c.dataStart + this.triangles.offset + this.triangles.storedLen]);
     for (let g = from; g <= f; g++) this.spans(g, d.minLevel, need);
-    const ahead: [number, number][] = [];
-    let passedKey = false;
-    for (let i = 1; i <= Math.min(this.readAhead, h.frameCount - 1); i++) {
-      const g = (f + i) % h.frameCount;
-      // From the next keyframe on, the level the budget wants (a loop restarts at keyframe 0).
-      if (c.isKeyframe(g)) passedKey = true;
-      this.spans(g, passedKey ? want : d.minLevel, ahead);
-    }
-    await this.cache.ensure(need);
-    this.cache.ensure(ahead).catch((e) => { this.aheadError = e; });
+    // Asked for in the same tick: the frame's ranges and the block ahead share requests.
+    const ready = this.cache.ensure(need);
+    this.cache.ensure(this.ahead(f, d.minLevel, want)).catch((e) => { this.aheadError = e; });
+    await ready;
     await d.seek(f);
     if (this.textured) await d.loadAppearance();
     const tDecode = performance.now();
@@ -190,7 +262,7 @@ export class Session {
     const d = this.decoder, key = c.keyframeBefore(f);
     if (level <= want || (d && d.frame >= key && d.frame <= f && d.minLevel <= want)) return null;
     let cd = this.coarseDecoder;
-    if (!cd || cd.minLevel !== level) cd = this.coarseDecoder = new Decoder(c, level, { skinOffsets: this.gpuSkin });
+    if (!cd || cd.minLevel !== level) cd = this.coarseDecoder = await this.decoderFor(level);
     const from = cd.frame >= key && cd.frame <= f ? cd.frame + 1 : key;
     const need: [number, number][] = [];
     for (let g = from; g <= f; g++) this.spans(g, level, need);

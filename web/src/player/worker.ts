@@ -2,7 +2,7 @@
 // the frame the page shows and, while playing, a few after it; results go back by transfer.
 
 import { Session } from "./session.js";
-import { httpRange } from "./ranges.js";
+import { httpRanges } from "./ranges.js";
 import type { ColourMode, FramePayload, FromWorker, Source, ToWorker } from "./protocol.js";
 
 /** Decoded frames kept ready ahead of the playhead while playing (a tenth of a second at 30 fps). */
@@ -116,7 +116,7 @@ self.onmessage = (ev: MessageEvent<ToWorker>) => {
   switch (m.type) {
     case "open":
       containerUrl(m.source, m.headers)
-        .then(({ url, trianglesPerLevel }) => Session.open(httpRange(url, { headers: m.headers }), { cacheBytes: m.cacheBytes, readAhead: m.readAhead, trianglesPerLevel, gpuSkin: m.gpuSkin }))
+        .then(({ url, trianglesPerLevel }) => Session.open(httpRanges(url, { headers: m.headers }), { cacheBytes: m.cacheBytes, readAhead: m.readAhead, trianglesPerLevel, gpuSkin: m.gpuSkin }))
         .then((s) => {
           session = s;
           if (budget !== null) s.budget = budget;

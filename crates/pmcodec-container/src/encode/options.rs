@@ -57,10 +57,11 @@ pub struct EncodeOptions {
     /// [`SkinnedCoarse`]; Houle and Poulin's coarse vertices are bind-space points). `None`
     /// stores them near their per-frame quadric-optimal points, as files before it did.
     pub skinned_coarse: Option<SkinnedCoarse>,
-    /// The preamble flags to write with (`format::FLAGS`, the default: small chunks stored as
-    /// they are, empty Delta and Corners chunks left out; 0: every chunk a zstd frame, as files
-    /// before the flags, for comparison; with `format::FLAG_BANDS`, the banded index where it
-    /// is no longer, which coarse clients read in part). Unknown bits are dropped.
+    /// The preamble flags to write with (`format::DEFAULT_FLAGS`, the default: small chunks
+    /// stored as they are, empty Delta and Corners chunks left out, front-coded names, and the
+    /// banded index where it is no longer, which coarse clients read in part; `format::FLAGS`:
+    /// the same with the frame-by-frame index; 0: every chunk a zstd frame, as files before
+    /// the flags, for comparison). Unknown bits are dropped.
     pub chunk_flags: u16,
     /// How a skinned file codes each frame's palette: Joints chunks (the default) or the
     /// Palette chunks files had before them (kept for comparison and for tests of readers).
@@ -125,7 +126,7 @@ impl Default for EncodeOptions {
             order: VertexOrder::BreadthFirst,
             skin: Some(SkinPlacement::default()),
             skinned_coarse: Some(SkinnedCoarse::default()),
-            chunk_flags: crate::format::FLAGS,
+            chunk_flags: crate::format::DEFAULT_FLAGS,
             palette_coding: PaletteCoding::Joints,
             derived_topology: DerivedTopology::Always,
             skinned_recluster_every: 1,
