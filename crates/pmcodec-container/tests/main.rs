@@ -11,6 +11,7 @@ mod encode_posed;
 mod fitted_skin;
 mod frame0_levels;
 mod key_changes;
+mod pinned_bytes;
 mod resealed;
 mod resealed_appearance;
 mod roundtrip;

@@ -14,6 +14,9 @@ fn options(keyframe_interval: u32) -> EncodeOptions {
         build: pmcodec_hierarchy::BuildOptions { min_coarsest: 4, ..EncodeOptions::default().build },
         keyframe_interval,
         quantization: QuantizationChoice::Bits(12),
+        // The frame-by-frame index these were pinned with (the banded one, the default since,
+        // lays out the same chunks; "default options" below follows the default).
+        chunk_flags: pmcodec_container::format::FLAGS,
         ..Default::default()
     }
 }
