@@ -193,8 +193,7 @@ mod tests {
         }
         assert!(differs_from_nearest > 1000, "the slack was hardly ever used: {differs_from_nearest}");
     }
-    /// A flat cluster in the plane z = 0.5 quanta (excess: squared height over it, less the true
-    /// position's).
+
     /// [`on_surface_grid`] as first written: all 27 candidates' excesses evaluated in order.
     fn on_surface_grid_whole(t: [f64; 3], p: [i32; 3], shift: u32, radius2: f64, excess: impl Fn([f64; 3]) -> f64) -> ([i32; 3], [i32; 3]) {
         let unit = (1u64 << shift) as f64;
@@ -273,6 +272,8 @@ mod tests {
         assert!(evaluated * 10 < whole * 9, "pruning evaluated {evaluated} of {whole}");
     }
 
+    /// A flat cluster in the plane z = 0.5 quanta (excess: squared height over it, less the true
+    /// position's).
     #[test]
     fn surface_grid_stays_on_the_surface() {
         let plane = |z0: f64| move |x: [f64; 3]| (x[2] - z0).powi(2);
