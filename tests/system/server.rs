@@ -359,56 +359,45 @@ async fn cut_off_and_unsatisfiable_range_requests_leave_the_server_serving() {
     assert_eq!(http.get(format!("{base}/readyz")).send().await.unwrap().status(), 200);
 }
 
-/// s3s-fs (an S3-compatible server that checks request signatures) on a free port over a
-/// temporary folder. `./tests/run-all.sh` installs it; run that, or
-/// `cargo install s3s-fs@0.14.1 --features binary --locked`.
+/// s3s-fs (an S3-compatible server that checks request signatures), served in this process on
+/// a free port over a temporary folder: the s3s and s3s-fs crates are dev-dependencies, built
+/// with the tests, so no server is installed first (a `cargo install` of it was 4 of CI's minutes).
 struct S3Server {
-    child: std::process::Child,
     port: u16,
+    task: tokio::task::JoinHandle<()>,
     _root: tempfile::TempDir,
 }
 
 impl Drop for S3Server {
     fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+        self.task.abort();
     }
 }
 
-fn s3s_fs() -> S3Server {
-    let exe = std::env::var_os("S3S_FS")
-        .map(PathBuf::from)
-        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cargo/bin/s3s-fs")).filter(|p| p.is_file()))
-        .unwrap_or_else(|| PathBuf::from("s3s-fs"));
+async fn s3s_fs() -> S3Server {
+    use hyper_util::rt::{TokioExecutor, TokioIo};
     let root = tempfile::tempdir().unwrap();
     std::fs::create_dir(root.path().join("assets")).unwrap();
-    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-    let child = std::process::Command::new(&exe)
-        .args(["--host", "127.0.0.1", "--port", &port.to_string(), "--access-key", "AKTEST", "--secret-key", "SKTEST"])
-        .arg(root.path())
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .unwrap_or_else(|e| {
-            panic!(
-                "{}: {e}; install it with `cargo install s3s-fs@0.14.1 --features binary --locked` (./tests/run-all.sh does)",
-                exe.display()
-            )
-        });
-    // Owned at once, so that the child is killed and waited for on every path.
-    let server = S3Server { child, port, _root: root };
-    for _ in 0..100 {
-        if std::net::TcpStream::connect(("127.0.0.1", port)).is_ok() {
-            return server;
+    let mut service = s3s::service::S3ServiceBuilder::new(s3s_fs::FileSystem::new(root.path()).unwrap());
+    service.set_auth(s3s::auth::SimpleAuth::from_single("AKTEST", "SKTEST"));
+    let service = service.build();
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let task = tokio::spawn(async move {
+        let http = hyper_util::server::conn::auto::Builder::new(TokioExecutor::new());
+        while let Ok((socket, _)) = listener.accept().await {
+            let conn = http.serve_connection(TokioIo::new(socket), service.clone()).into_owned();
+            tokio::spawn(async move {
+                let _ = conn.await;
+            });
         }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    panic!("s3s-fs did not listen on port {port}");
+    });
+    S3Server { port, task, _root: root }
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn two_servers_share_one_s3_bucket() {
-    let s3 = s3s_fs();
+    let s3 = s3s_fs().await;
     let s3_config = S3Config {
         bucket: "assets".into(),
         endpoint: Some(format!("http://127.0.0.1:{}", s3.port)),
