@@ -2,8 +2,8 @@
 //! one per file (each linked every dependency again). Each file below is a module, as it was a
 //! crate; a new file joins this list (tests/test-files.sh fails on one that does not).
 
-mod common;
 mod binmesh;
+mod common;
 mod compressed_gltf;
 mod glb_writer;
 mod gltf_appearance;
