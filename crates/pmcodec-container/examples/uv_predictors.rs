@@ -40,6 +40,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 use pmcodec_container::appearance::across::band_faces;
 use pmcodec_container::appearance::payload::{Table, needs_above, read_band_bind, read_charts_with, read_table_across, representatives};
+use pmcodec_container::appearance::project::predict;
 use pmcodec_container::payload::{read_key, read_triangles, zigzag};
 use pmcodec_container::{ChunkKind, Decoder, FileSource, Reader};
 
@@ -94,45 +95,12 @@ fn projected(p: [[i64; 3]; 3], ua: [i64; 2], ub: [i64; 2]) -> Option<[[i64; 2]; 
     Some([[round(base[0] + off[0]), round(base[1] + off[1])], [round(base[0] - off[0]), round(base[1] - off[1])]])
 }
 
-/// [`projected`] in integers only, as a decoder in any language could compute it: the
-/// ratio along the edge and the perpendicular distance scaled by the edge's squared length,
-/// `isqrt` of the squared cross product, one rounding (half up) per axis. `None` for a
-/// degenerate edge or a coordinate difference of 2^28 or more (i128 then cannot hold the
-/// squared cross product).
+/// [`projected`] in integers only, as the decoders compute it (the library's
+/// `appearance::project::predict`, the *bind positions* coding), for both sides of the edge.
 fn projected_int(p: [[i64; 3]; 3], ua: [i64; 2], ub: [i64; 2]) -> Option<[[i64; 2]; 2]> {
-    let [pa, pb, px] = p;
-    let pn: Vec<i128> = (0..3).map(|k| (pb[k] - pa[k]) as i128).collect();
-    let cn: Vec<i128> = (0..3).map(|k| (px[k] - pa[k]) as i128).collect();
-    if pn.iter().chain(&cn).any(|v| v.unsigned_abs() >= 1 << 28) {
-        return None;
-    }
-    let pn2: i128 = pn.iter().map(|v| v * v).sum();
-    if pn2 == 0 {
-        return None;
-    }
-    let dot: i128 = (0..3).map(|k| pn[k] * cn[k]).sum();
-    let cn2: i128 = cn.iter().map(|v| v * v).sum();
-    let cross2 = (cn2 * pn2 - dot * dot).max(0);
-    let h = isqrt(cross2);
-    let d = [(ub[0] - ua[0]) as i128, (ub[1] - ua[1]) as i128];
-    let div = |n: i128| (2 * n + pn2).div_euclid(2 * pn2) as i64;
-    let side = |s: i128| [ua[0] + div(dot * d[0] - s * h * d[1]), ua[1] + div(dot * d[1] + s * h * d[0])];
-    Some([side(1), side(-1)])
-}
-
-/// The floor of the square root of `x` >= 0 (Newton's method from above).
-fn isqrt(x: i128) -> i128 {
-    if x < 2 {
-        return x;
-    }
-    let mut r = 1i128 << ((128 - x.leading_zeros()).div_ceil(2));
-    loop {
-        let next = (r + x / r) / 2;
-        if next >= r {
-            return r;
-        }
-        r = next;
-    }
+    let (ua, ub) = (ua.map(|x| x as i32), ub.map(|x| x as i32));
+    let side = |s: i32| predict(p[0], p[1], p[2], ua, ub, s).map(|u| u.map(i64::from));
+    Some([side(1)?, side(-1)?])
 }
 
 fn orient(u: [[i64; 2]; 3]) -> i64 {

@@ -18,7 +18,7 @@ mod entries;
 pub mod export;
 pub mod format;
 pub mod payload;
-mod project;
+pub mod project;
 pub(crate) mod tables;
 
 pub use charts::Charts;
