@@ -507,7 +507,7 @@ test("appearance without texture coordinates or colours (RobotExpressive): no At
   }
 });
 
-test("appearance with band 0's entries derived from the triangles, values from the band above and recent-chart runs or neighbour charts (Fox, Horse): the same texture coordinates, colours and normals as the Rust decoder", async () => {
+test("appearance with band 0's entries derived from the triangles, values from the band above and recent-chart runs, neighbour or grown charts (Fox, Horse): the same texture coordinates, colours and normals as the Rust decoder", async () => {
   for (const name of ["Fox", "Horse"]) {
     const glbIn = join(root, `../shared/data/gltf/${name}.glb`);
     if (!existsSync(glbIn)) throw new Error(`${glbIn} is absent: this test reads the real models in ../shared/data beside the repository`);
@@ -525,11 +525,11 @@ test("appearance with band 0's entries derived from the triangles, values from t
     assert.equal(needsBind(band0), name === "Fox", `${name}: band 0 ${name === "Fox" ? "does not predict" : "predicts"} from bind positions`);
     // Band 1's values are chart-wise differences (mode 2): the cuts below read that coding too.
     const chartsRaw = await c.chunk(c.find(ChunkKind.Charts, 0, 0));
-    assert.ok(chartsRaw[0] === 0 && (chartsRaw[1] === 2 || chartsRaw[1] === 3), `${name}: the charts are neither recent-chart runs nor neighbour charts`);
-    // Recent-chart runs or neighbour charts (mode 3, read with the triangles) cut short or
-    // damaged: a DecodeError, never a crash; neighbour charts without the triangles, an error.
+    assert.ok(chartsRaw[0] === 0 && chartsRaw[1] >= 2 && chartsRaw[1] <= 4, `${name}: the charts are neither recent-chart runs nor neighbour nor grown charts`);
+    // Recent-chart runs, neighbour or grown charts (modes 3 and 4, read with the triangles) cut
+    // short or damaged: a DecodeError, never a crash; modes 3 and 4 without the triangles, an error.
     const { readCharts } = await import("../src/container/index.js");
-    const h = c.header, tris3 = chartsRaw[1] === 3 ? readTriangles(await c.chunk(c.find(ChunkKind.Triangles, 0, 0)), "t", h.triangleCount, h.vertexCount, c.version) : null;
+    const h = c.header, tris3 = chartsRaw[1] >= 3 ? readTriangles(await c.chunk(c.find(ChunkKind.Triangles, 0, 0)), "t", h.triangleCount, h.vertexCount, c.version) : null;
     if (tris3) assert.throws(() => readCharts(chartsRaw, a, h.triangleCount), /without the triangles/);
     assert.throws(() => readCharts(chartsRaw.subarray(0, chartsRaw.length - 1), a, h.triangleCount, tris3), DecodeError);
     for (let at = 2; at < chartsRaw.length; at += Math.max(1, chartsRaw.length >> 5)) {
@@ -783,7 +783,7 @@ function islandsObjSequence(out: string, w: number, h: number, charts: number): 
   }
 }
 
-test("attribute values across a band's faces (mode 3 | 64, band 0's 1 | 16 | 64) and neighbour charts (Charts mode 3) on generated seamed meshes with several charts, a cylinder, Horse and Fox: every level's tables and cuts' texture coordinates and colours as the Rust decoder's, bit for bit, at every finest level", async () => {
+test("attribute values across a band's faces (mode 3 | 64, band 0's 1 | 16 | 64) and neighbour or grown charts (Charts modes 3, 4) on generated seamed meshes with several charts, a cylinder, Horse and Fox: every level's tables and cuts' texture coordinates and colours as the Rust decoder's, bit for bit, at every finest level", async () => {
   const horse = join(root, "../shared/data/gltf/Horse.glb");
   if (!existsSync(horse)) throw new Error(`${horse} is absent: this test reads the real models in ../shared/data beside the repository`);
   const islands = join(dir, "obj-islands"), cylinder = join(dir, "obj-across-cylinder");
@@ -791,7 +791,7 @@ test("attribute values across a band's faces (mode 3 | 64, band 0's 1 | 16 | 64)
   cylinderObjSequence(cylinder, 40, 28);
   const fox = join(root, "../shared/data/gltf/Fox.glb");
   if (!existsSync(fox)) throw new Error(`${fox} is absent: this test reads the real models in ../shared/data beside the repository`);
-  let across = 0, band0Across = 0, neighbourCharts = 0;
+  let across = 0, band0Across = 0, neighbourCharts = 0, grownCharts = 0;
   for (const [name, input] of [["islands", islands], ["cylinder", cylinder], ["horse", horse], ["fox", fox]]) {
     const file = join(dir, `across-${name}.pmc`);
     execFileSync(bin, ["encode", "-q", input, "-o", file]);
@@ -821,9 +821,10 @@ test("attribute values across a band's faces (mode 3 | 64, band 0's 1 | 16 | 64)
     const tris = (player as unknown as { triangles: Uint32Array }).triangles, chartOf = player.looks!.charts.triangleChart;
     const chartsRaw = await c.chunk(c.find(ChunkKind.Charts, 0, 0));
     if (chartsNeedTriangles(chartsRaw)) {
-      // Neighbour charts (Charts mode 3): with the triangles, the player's charts; without, cut
-      // short or damaged, a DecodeError.
+      // Neighbour or grown charts (Charts mode 3 or 4): with the triangles, the player's charts;
+      // without, cut short or damaged, a DecodeError.
       neighbourCharts++;
+      if (chartsRaw[1] === 4) grownCharts++;
       assert.deepEqual(Array.from(readCharts(chartsRaw, a, c.header.triangleCount, tris).triangleChart), Array.from(chartOf), `${name} charts`);
       assert.throws(() => readCharts(chartsRaw, a, c.header.triangleCount), /without the triangles/);
       assert.throws(() => readCharts(chartsRaw.subarray(0, chartsRaw.length - 1), a, c.header.triangleCount, tris), DecodeError);
@@ -862,7 +863,8 @@ test("attribute values across a band's faces (mode 3 | 64, band 0's 1 | 16 | 64)
     }
   }
   assert.ok(across >= 2 && band0Across >= 1, `only ${across} tables above band 0 and ${band0Across} of band 0 took values across their band's faces`);
-  assert.ok(neighbourCharts >= 2, `only ${neighbourCharts} of 4 inputs took neighbour charts`);
+  assert.ok(neighbourCharts >= 2, `only ${neighbourCharts} of 4 inputs took neighbour or grown charts`);
+  assert.ok(grownCharts >= 2, `only ${grownCharts} of 4 inputs took grown charts`);
 });
 
 test("a skinned glTF's stream (version 7): every frame's input vertices equal the Rust decoder's, and coarse clients agree", async () => {

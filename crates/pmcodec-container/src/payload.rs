@@ -38,6 +38,11 @@ impl<'a> Cursor<'a> {
         Cursor { bytes, pos: 0, what }
     }
 
+    /// The next byte, not consumed.
+    pub fn peek(&self) -> Option<u8> {
+        self.bytes.get(self.pos).copied()
+    }
+
     fn corrupt(&self, detail: impl Into<String>) -> ContainerError {
         ContainerError::Corrupt { what: self.what.to_string(), detail: detail.into() }
     }

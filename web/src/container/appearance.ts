@@ -6,7 +6,8 @@ import { breadthFirst, orientation, predictUv } from "./project.js";
 import { DecodeError } from "./error.js";
 import { AppearanceInfo, channels } from "./format.js";
 import { Cursor, Postcard } from "./payload.js";
-import { MAX_SYMBOLS, decodeSymbols, rAnsTable } from "./rans.js";
+import { readCodes } from "./codes.js";
+import { grownCharts } from "./grown.js";
 
 /** Set in a table's mode (after its first byte 0): value residuals as a rANS section. */
 const RANS_VALUES = 8;
@@ -35,54 +36,6 @@ export function representatives(first: Uint32Array, charts: Uint32Array, above: 
     }
   }
   return out;
-}
-
-/**
- * `m * ch` residual codes (zigzag, channel after channel) as varints or, with `rans`, as the
- * RESIDUALS section of the Rust `put_codes`: per channel a frequency table over the codes' bit
- * lengths, the rANS stream of the lengths (code i on state i % 3 with its channel's table),
- * the mantissa bytes (b - 1 bits below the highest of a code of length b in 2..30, least
- * significant first), then escaped codes (length 31) as varints.
- */
-function readCodes(c: Cursor, raw: Uint8Array, m: number, ch: number, rans: boolean, what: string): Uint32Array {
-  const n = m * ch, codes = new Uint32Array(n);
-  if (!rans) {
-    for (let i = 0; i < n; i++) codes[i] = c.get();
-    return codes;
-  }
-  const tables: Uint32Array[] = [];
-  for (let k = 0; k < ch; k++) {
-    const count = c.count(MAX_SYMBOLS, "symbols"), f: number[] = [];
-    for (let s = 0; s < count; s++) f.push(c.get());
-    tables.push(rAnsTable(f, what));
-  }
-  const take = (): Uint8Array => {
-    const len = c.get();
-    if (c.pos + len > raw.length) throw new DecodeError(`${what}: ${len} bytes wanted at byte ${c.pos} of ${raw.length}`);
-    const out = raw.subarray(c.pos, c.pos + len);
-    c.pos += len;
-    return out;
-  };
-  const stream = take();
-  const lengths = decodeSymbols(stream, n, (i) => tables[Math.floor(i / Math.max(m, 1))], what);
-  const bits = take();
-  let at = 0;
-  for (let i = 0; i < n; i++) {
-    const b = lengths[i];
-    if (b <= 1) { codes[i] = b; continue; }
-    if (b === 31) {
-      const z = c.get();
-      if (z < 2 ** 30) throw new DecodeError(`${what}: an escaped residual that a length codes`);
-      codes[i] = z;
-      continue;
-    }
-    if (at + b - 1 > bits.length * 8) throw new DecodeError(`${what}: mantissa bits end early`);
-    let z = 2 ** (b - 1);
-    for (let x = 0; x < b - 1; x++, at++) z += ((bits[at >> 3] >> (at & 7)) & 1) * 2 ** x;
-    codes[i] = z;
-  }
-  if (Math.ceil(at / 8) !== bits.length) throw new DecodeError(`${what}: mantissa bytes left over`);
-  return codes;
 }
 
 /** Each triangle's chart and smoothing group, each chart's material. */
@@ -140,9 +93,9 @@ function recentRuns(c: Cursor, raw: Uint8Array, a: AppearanceInfo, triangles: nu
   if (at !== triangles) throw new DecodeError(`${what}: runs cover ${at} of ${triangles} triangles`);
 }
 
-/** Whether a Charts payload needs the triangles (mode 3, neighbour charts). */
+/** Whether a Charts payload needs the triangles (mode 3, neighbour charts; mode 4, grown charts). */
 export function chartsNeedTriangles(raw: Uint8Array): boolean {
-  return raw.length > 1 && raw[0] === 0 && raw[1] === 3;
+  return raw.length > 1 && raw[0] === 0 && (raw[1] === 3 || raw[1] === 4);
 }
 
 /**
@@ -187,19 +140,19 @@ function neighbourCharts(c: Cursor, raw: Uint8Array, a: AppearanceInfo, tris: Ui
   }
 }
 
-/** The Charts chunk; `tris` (the Triangles chunk's corners) for a chunk with neighbour charts (mode 3). */
+/** The Charts chunk; `tris` (the Triangles chunk's corners) for a chunk with neighbour or grown charts (modes 3, 4). */
 export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number, tris: Uint32Array | null = null): Charts {
   const what = "charts chunk", c = new Cursor(raw, what);
   // A first byte 0 (a count of charts is at least 1): a coding mode, 1 = new-chart runs,
-  // 2 = recent-chart runs.
+  // 2 = recent-chart runs, 3 = neighbour charts, 4 = grown charts.
   const coded = raw.length > 0 && raw[0] === 0;
   let mode = 0;
   if (coded) {
     c.get();
     mode = c.get();
-    if (mode !== 1 && mode !== 2 && mode !== 3) throw new DecodeError(`${what}: charts coding ${mode} unknown`);
-    if (mode === 3 && !tris) throw new DecodeError(`${what}: neighbour charts without the triangles`);
-    if (mode === 3 && tris!.length !== 3 * triangles) throw new DecodeError(`${what}: ${tris!.length / 3} triangles where the header says ${triangles}`);
+    if (mode < 1 || mode > 4) throw new DecodeError(`${what}: charts coding ${mode} unknown`);
+    if (mode >= 3 && !tris) throw new DecodeError(`${what}: neighbour charts without the triangles`);
+    if (mode >= 3 && tris!.length !== 3 * triangles) throw new DecodeError(`${what}: ${tris!.length / 3} triangles where the header says ${triangles}`);
   }
   const newRuns = mode === 1;
   const n = c.count(a.charts, "charts");
@@ -210,6 +163,7 @@ export function readCharts(raw: Uint8Array, a: AppearanceInfo, triangles: number
   let next = 0;
   if (mode === 2) recentRuns(c, raw, a, triangles, triangleChart, what);
   else if (mode === 3) neighbourCharts(c, raw, a, tris!, triangleChart, what);
+  else if (mode === 4) grownCharts(c, raw, a.charts, tris!, triangleChart, what);
   else runs(c, triangles, triangleChart, () => {
     if (!newRuns) return c.id(a.charts, "chart");
     const x = c.get(), chart = x === 0 ? next++ : x - 1;

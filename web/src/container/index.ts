@@ -9,7 +9,8 @@
 // - decode.ts: `Decoder`, which replays frames and selects cuts (`Decoder`);
 // - replay.ts: the progressive hierarchy's replay (`pmcodec_hierarchy::progressive::Replay`);
 // - appearance.ts: version 6's charts, attribute tables, materials and a cut's appearance
-//   (`appearance`);
+//   (`appearance`); codes.ts: their residual sections, rANS or adaptive Rice
+//   (`appearance::codes`); grown.ts: charts grown over the triangles (`appearance::grown_charts`);
 // - error.ts: `DecodeError` (`ContainerError`).
 
 export { DecodeError } from "./error.js";
@@ -20,7 +21,8 @@ export {
 export type { AppearanceInfo, ChunkEntry, Header } from "./format.js";
 export { attributeEntry, band0Entries, bandFaces, chartsNeedTriangles, dequantizeUv, needsAbove, needsBind, needsFaces, readBand0Table, readCharts, readMaterials, readTable, texturedMesh } from "./appearance.js";
 export type { Charts, Faces, Material, Materials, Table, TextureRef, TexturedMesh } from "./appearance.js";
-export { readPositions } from "./payload.js";
+export { readCodes } from "./codes.js";
+export { Cursor, readPositions } from "./payload.js";
 export { affineMotion, keyedMotion, lowerNeighbours, stencilWeights } from "./predict.js";
 export type { LowerNeighbours } from "./predict.js";
 export { Reader } from "./read.js";

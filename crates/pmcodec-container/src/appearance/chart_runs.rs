@@ -162,9 +162,33 @@ pub fn write_charts_neighbours(c: &Charts, triangles: &[[u32; 3]]) -> Option<Vec
     Some(out)
 }
 
-/// Whether a Charts payload needs the triangles (mode 3, [`write_charts_neighbours`]).
+/// The mode of [`write_charts_grown`].
+const GROWN_CHARTS: u32 = 4;
+
+/// CHARTS with *grown charts*: `0`, `4`, `C` and the charts' materials as [`write_charts`];
+/// then each chart grown from seeds over the triangles' edges ([`super::grown_charts`]); then
+/// the group runs as [`write_charts`]. It needs the Triangles chunk. `None` without triangles
+/// or when the triangles and charts disagree in number.
+pub fn write_charts_grown(c: &Charts, triangles: &[[u32; 3]]) -> Option<Vec<u8>> {
+    if triangles.is_empty() {
+        return None;
+    }
+    let mut out = Vec::new();
+    put(&mut out, 0);
+    put(&mut out, GROWN_CHARTS);
+    put(&mut out, c.count() as u32);
+    for &m in &c.chart_material {
+        put(&mut out, m);
+    }
+    super::grown_charts::put_grown(&mut out, &c.triangle_chart, triangles)?;
+    put_group_runs(&mut out, c);
+    Some(out)
+}
+
+/// Whether a Charts payload needs the triangles (mode 3, [`write_charts_neighbours`], and mode
+/// 4, [`write_charts_grown`]).
 pub fn charts_need_triangles(bytes: &[u8]) -> bool {
-    bytes.len() > 1 && bytes[0] == 0 && bytes[1] == NEIGHBOUR_CHARTS as u8
+    bytes.len() > 1 && bytes[0] == 0 && (bytes[1] == NEIGHBOUR_CHARTS as u8 || bytes[1] == GROWN_CHARTS as u8)
 }
 
 /// The charts of [`write_charts_neighbours`] (after the materials), appended to `chart_of`.
@@ -261,11 +285,13 @@ pub fn read_charts_with(bytes: &[u8], info: &AppearanceInfo, triangles: u32, tri
     let coded = bytes.first() == Some(&0);
     let mut recent_runs = false;
     let mut neighbours = None;
+    let mut grown = false;
     if coded {
         c.get()?;
         let mode = c.get()?;
         recent_runs = mode == RECENT_CHART_RUNS;
-        if mode == NEIGHBOUR_CHARTS {
+        grown = mode == GROWN_CHARTS;
+        if mode == NEIGHBOUR_CHARTS || grown {
             let t = tris.ok_or_else(|| bad("neighbour charts without the triangles".into()))?;
             if t.len() != triangles as usize {
                 return Err(bad(format!("{} triangles where the header says {triangles}", t.len())));
@@ -287,8 +313,10 @@ pub fn read_charts_with(bytes: &[u8], info: &AppearanceInfo, triangles: u32, tri
     if recent_runs {
         read_recent_runs(&mut c, info, triangles, &mut charts.triangle_chart)?;
     }
-    if let Some(t) = neighbours {
-        read_neighbour_charts(&mut c, info, t, &mut charts.triangle_chart)?;
+    match neighbours {
+        Some(t) if grown => charts.triangle_chart = super::grown_charts::read_grown(&mut c, info.charts, t)?,
+        Some(t) => read_neighbour_charts(&mut c, info, t, &mut charts.triangle_chart)?,
+        None => {}
     }
     let n = if recent_runs || neighbours.is_some() { 0 } else { c.count_within(triangles as u64, 2, "chart runs")? };
     let mut next = 0u32;

@@ -1,9 +1,12 @@
-//! An attribute table's value residuals, as varints or as a rANS section (proto/container.md,
-//! "Attributes", RESIDUALS): the bit length of each residual code entropy-coded per channel
-//! with the crate's rANS coder, the bits below its highest stored raw, longer codes whole.
+//! An attribute table's value residuals, as varints or as a RESIDUALS section
+//! (proto/container.md, "Attributes"): the bit length of each residual code entropy-coded per
+//! channel with the crate's rANS coder, the bits below its highest stored raw, longer codes
+//! whole; or, where shorter, the codes adaptive-Rice coded (`rice`).
 
 use crate::ContainerError;
 use crate::payload::{Cursor, put};
+
+mod rice;
 
 /// The residual codes a rANS table codes directly: bit lengths 0 to 30; [`rans::ESCAPE`]
 /// (31) stands for a longer code, stored whole as a varint.
@@ -26,15 +29,28 @@ pub(super) fn bit_length(z: u32) -> u32 {
 /// (Fox's band 0: about 7 below the highest on average) while their lengths cluster, so coding the length
 /// with a per-channel model and the bits below it raw is what Draco's tagged residual coding
 /// does too (its "RAnsSymbolEncoder" over bit lengths); varints under zstd spend a byte or
-/// two per code whatever the distribution.
+/// two per code whatever the distribution. The section may instead take the *adaptive Rice*
+/// form ([`rice::section`], first varint 0 where a frequency table's count is at least 1),
+/// whichever is shorter: a small band's tables and final states cost more than its codes.
 pub(super) fn put_codes(out: &mut Vec<u8>, codes: &[u32], m: usize, channels: usize, rans: bool) {
-    use crate::rans::{self, ESCAPE, SYMBOLS};
     if !rans {
         for &z in codes {
             put(out, z);
         }
         return;
     }
+    let at = out.len();
+    put_rans_section(out, codes, m, channels);
+    let rice = rice::section(codes, m, channels);
+    if rice.len() < out.len() - at {
+        out.truncate(at);
+        out.extend_from_slice(&rice);
+    }
+}
+
+/// The rANS form of the RESIDUALS section (see [`put_codes`]).
+fn put_rans_section(out: &mut Vec<u8>, codes: &[u32], m: usize, channels: usize) {
+    use crate::rans::{self, ESCAPE, SYMBOLS};
     let sym = |z: u32| if bit_length(z) > LONGEST_DIRECT { ESCAPE } else { bit_length(z) };
     let mut counts = vec![[0u64; SYMBOLS]; channels];
     for (i, &z) in codes.iter().enumerate() {
@@ -88,6 +104,9 @@ pub(super) fn read_codes(c: &mut Cursor<'_>, m: usize, channels: usize, rans: bo
             codes.push(c.get()?);
         }
         return Ok(codes);
+    }
+    if c.peek() == Some(0) {
+        return rice::read_section(c, m, channels);
     }
     let mut tables = Vec::with_capacity(channels);
     for _ in 0..channels {

@@ -5,7 +5,9 @@
 //! - `charts`: the charts and smoothing groups of the input triangles.
 //! - `tables`: the encoder's per-level (node, chart) attribute tables.
 //! - `payload`: the Attributes chunk payloads (and the Charts chunk's, from `chart_runs`);
-//!   `entries`: a table's entries, listed or from the band above.
+//!   `entries`: a table's entries, listed or from the band above; `grown_charts`: the charts
+//!   grown over the triangles' edges (Charts mode 4); `codes`: residual sections (rANS or
+//!   adaptive Rice).
 //! - `cut`: a decoded cut's per-corner attributes and normals.
 //! - [`mod@format`]: the raw serialized types (header field, Materials chunk).
 
@@ -17,6 +19,7 @@ pub(crate) mod cut;
 mod entries;
 pub mod export;
 pub mod format;
+mod grown_charts;
 pub mod payload;
 pub mod project;
 pub(crate) mod tables;
@@ -102,6 +105,7 @@ pub fn chunks(
         .into_iter()
         .chain(payload::write_charts_recent(builder.charts()))
         .chain(triangles_read.then(|| payload::write_charts_neighbours(builder.charts(), builder.triangles())).flatten())
+        .chain(triangles_read.then(|| payload::write_charts_grown(builder.charts(), builder.triangles())).flatten())
         .min_by_key(size)
         .unwrap_or_default();
     let mut out = vec![(ChunkKind::Charts, 0, charts), (ChunkKind::Materials, 0, materials)];

@@ -2,7 +2,8 @@
 //! "Appearance").
 
 pub use super::chart_runs::{
-    charts_need_triangles, read_charts, read_charts_with, write_charts, write_charts_neighbours, write_charts_new_runs, write_charts_recent,
+    charts_need_triangles, read_charts, read_charts_with, write_charts, write_charts_grown, write_charts_neighbours, write_charts_new_runs,
+    write_charts_recent,
 };
 use super::codes::{put_codes, read_codes};
 use super::entries::{put_entries, put_entries_above, read_entries, read_entries_above};
