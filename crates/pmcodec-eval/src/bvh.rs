@@ -78,6 +78,8 @@ pub struct SurfaceIndex {
     tris: Vec<[Vec3; 3]>,
     /// The mesh's index of each triangle in `tris`.
     ids: Vec<u32>,
+    /// The slot in `tris` of each mesh triangle (the inverse of `ids`).
+    slots: Vec<u32>,
 }
 
 /// Where the build writes a finished subtree: the root, or one side of a pair.
@@ -156,8 +158,12 @@ impl SurfaceIndex {
         }
 
         let tris = items.iter().map(|it| mesh.triangles[it.id as usize].map(|i| mesh.positions[i as usize])).collect();
-        let ids = items.iter().map(|it| it.id).collect();
-        Ok(SurfaceIndex { root, root_lo, root_hi, pairs, tris, ids })
+        let ids: Vec<u32> = items.iter().map(|it| it.id).collect();
+        let mut slots = vec![0u32; ids.len()];
+        for (slot, &id) in ids.iter().enumerate() {
+            slots[id as usize] = slot as u32;
+        }
+        Ok(SurfaceIndex { root, root_lo, root_hi, pairs, tris, ids, slots })
     }
 
     /// Number of indexed triangles.
@@ -169,6 +175,17 @@ impl SurfaceIndex {
     /// mesh) of a triangle that point lies on. A NaN point gets `(inf, u32::MAX)`.
     pub fn closest(&self, p: Vec3) -> (f32, u32) {
         let (d2, slot) = self.query(p, None, &mut new_stack());
+        (d2 as f32, self.ids.get(slot as usize).copied().unwrap_or(u32::MAX))
+    }
+
+    /// [`SurfaceIndex::closest`] starting from mesh triangle `near` (the answer for a nearby
+    /// point, or for the same point on a slightly different surface; anything out of range is
+    /// no hint): its distance bounds the walk from the start, so most of the tree is pruned.
+    /// The same distance as `closest`; among triangles at exactly that distance, `near` is
+    /// kept.
+    pub fn closest_near(&self, p: Vec3, near: u32) -> (f32, u32) {
+        let hint = self.slots.get(near as usize).copied();
+        let (d2, slot) = self.query(p, hint, &mut new_stack());
         (d2 as f32, self.ids.get(slot as usize).copied().unwrap_or(u32::MAX))
     }
 

@@ -379,3 +379,23 @@ fn degenerate_meshes_are_measured() {
     let d = symmetric(&square(0.0), &square(0.1), &SampleOptions { samples: 0, seed: 1 }).unwrap();
     assert!(close(d, 0.1, 1e-6), "{d:?}");
 }
+
+#[test]
+fn a_hinted_walk_finds_the_closest_distance_from_any_hint() {
+    // The hint only bounds the walk: a far, a near, an out-of-range or no hint give the same
+    // distance as the unhinted query.
+    let m = torus(40, 16, 1.0, 0.3);
+    let index = SurfaceIndex::new(&m).unwrap();
+    let n = m.triangles.len() as u32;
+    let mut rng = pmcodec_eval::SplitMix64::new(3);
+    let mut unit = || (rng.next_u64() >> 11) as f32 / (1u64 << 53) as f32;
+    for i in 0..2000u32 {
+        let p = Vec3::new(unit() * 3.0 - 1.5, unit() * 3.0 - 1.5, unit() - 0.5);
+        let (d, t) = index.closest(p);
+        for hint in [0, i % n, (i * 7919) % n, t, n, u32::MAX] {
+            let (dh, th) = index.closest_near(p, hint);
+            assert_eq!(dh, d, "point {p} hint {hint}");
+            assert!(th < n);
+        }
+    }
+}

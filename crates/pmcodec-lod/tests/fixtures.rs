@@ -134,6 +134,22 @@ fn geomorph_targets_are_nearby_in_every_pose() {
 }
 
 #[test]
+fn the_refit_does_not_depend_on_the_thread_count() {
+    // Its closest-point walks run in parallel; their answers are accumulated in sample order.
+    use pmcodec_lod::{RefitOptions, build_chain_with};
+    let rig = bending_tube_and_face(12, 10);
+    let target = rig.triangles.len() / 6;
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
+        pool.install(|| build_chain_with(rig.clone(), &[target], &LodOptions::default(), &RefitOptions::default())).expect("chain")
+    };
+    let (one, three) = (run(1), run(3));
+    assert_eq!(one.levels[1].rig.positions, three.levels[1].rig.positions);
+    assert_eq!(one.levels[1].rig.weights, three.levels[1].rig.weights);
+    assert_eq!(one.levels[1].rig.triangles, three.levels[1].rig.triangles);
+}
+
+#[test]
 fn refit_does_not_increase_the_error() {
     use pmcodec_eval::SampleOptions;
     use pmcodec_lod::measure::{MeasureOptions, animation_error};

@@ -6,6 +6,11 @@
 
 use super::flips::{Moves, repair_flips};
 use super::*;
+use rayon::prelude::*;
+
+/// Samples per parallel task of the closest-point walks: enough to be worth a task, few enough
+/// that two cores share a pose's 3,000-odd samples a direction.
+const CHUNK: usize = 512;
 
 /// An affine map from a vertex's combined unknowns to one pose.
 type Map = (DMat3, DVec3);
@@ -46,6 +51,9 @@ pub(super) struct Refit<'a> {
     skins: Vec<Skin>,
     /// Per vertex and pose, the affine map of its skin (`[v * f + k]`).
     maps: Vec<Map>,
+    /// Per pose, each input sample's closest LOD triangle, then each LOD sample's closest input
+    /// triangle, from the last round (`u32::MAX`: none yet).
+    hints: Vec<Vec<u32>>,
 }
 
 /// What a refit found: per LOD vertex (input id), its unknowns and skin.
@@ -131,7 +139,9 @@ impl<'a> Refit<'a> {
             x,
             skins,
             maps: Vec::new(),
+            hints: Vec::new(),
         };
+        fit.hints = vec![Vec::new(); fit.poses.len()];
         fit.maps = fit.build_maps(&fit.skins);
         fit.combinations();
         if fit.input_triangles.len().saturating_mul(fit.poses.len()) <= MAX_CACHED_TRIANGLES {
@@ -313,12 +323,29 @@ impl<'a> Refit<'a> {
                 }
             }
         };
+        // Each sample's answer in this pose last round starts its query: the surfaces move
+        // little from one round to the next. The walks (most of the refit's time) run in
+        // parallel; their answers are accumulated in sample order, so the result does not depend
+        // on the schedule.
+        let hints = &mut self.hints[k];
+        hints.resize(self.input_samples.len() + lod_samples.len(), u32::MAX);
+        let (in_hints, lod_hints) = hints.split_at_mut(self.input_samples.len());
+        let (input_triangles, tris) = (self.input_triangles, &self.tris);
         // Input points to their closest LOD points.
-        for &(t, b) in &self.input_samples {
-            let tri = self.input_triangles[t as usize];
-            let y: DVec3 = (0..3).map(|j| input.positions[tri[j] as usize].as_dvec3() * b[j]).sum();
-            let (_, lt) = lod_index.closest(y.as_vec3());
-            let Some(&ltri) = self.tris.get(lt as usize) else { continue };
+        let found: Vec<(DVec3, u32)> = self
+            .input_samples
+            .par_iter()
+            .zip(in_hints.par_iter_mut())
+            .with_min_len(CHUNK)
+            .map(|(&(t, b), hint)| {
+                let tri = input_triangles[t as usize];
+                let y: DVec3 = (0..3).map(|j| input.positions[tri[j] as usize].as_dvec3() * b[j]).sum();
+                *hint = lod_index.closest_near(y.as_vec3(), *hint).1;
+                (y, *hint)
+            })
+            .collect();
+        for (y, lt) in found {
+            let Some(&ltri) = tris.get(lt as usize) else { continue };
             let corners = ltri.map(|v| posed[v as usize]);
             let q = closest_point(y, corners);
             *objective += w * (q - y).length_squared();
@@ -326,11 +353,20 @@ impl<'a> Refit<'a> {
             add(ltri, barycentric(q, corners), y, n);
         }
         // LOD points to their closest input points.
-        for &(t, b) in lod_samples {
-            let ltri = self.tris[t as usize];
-            let p: DVec3 = (0..3).map(|j| posed[ltri[j] as usize] * b[j]).sum();
-            let (_, it) = input_index.closest(p.as_vec3());
-            let Some(&itri) = self.input_triangles.get(it as usize) else { continue };
+        let found: Vec<(DVec3, u32)> = lod_samples
+            .par_iter()
+            .zip(lod_hints.par_iter_mut())
+            .with_min_len(CHUNK)
+            .map(|(&(t, b), hint)| {
+                let ltri = tris[t as usize];
+                let p: DVec3 = (0..3).map(|j| posed[ltri[j] as usize] * b[j]).sum();
+                *hint = input_index.closest_near(p.as_vec3(), *hint).1;
+                (p, *hint)
+            })
+            .collect();
+        for (&(t, b), (p, it)) in lod_samples.iter().zip(found) {
+            let ltri = tris[t as usize];
+            let Some(&itri) = input_triangles.get(it as usize) else { continue };
             let ic = itri.map(|v| input.positions[v as usize].as_dvec3());
             let y = closest_point(p, ic);
             *objective += w * (p - y).length_squared();
