@@ -232,21 +232,11 @@ mod tests {
         }
         let n = tris.len() as u32;
         let charts = Charts {
-            chart_material: (0..order.len() as u32).map(|c| c % 3).collect(),
+            chart_material: (0..order.len() as u32).map(|c| c % 2).collect(),
             triangle_group: vec![0; n as usize],
             triangle_chart: patch,
         };
-        let info = AppearanceInfo {
-            charts: order.len() as u32,
-            groups: 1,
-            materials: 3,
-            images: 0,
-            uv_sets: 1,
-            uv_min: [0.0; 2],
-            uv_step: [1.0; 2],
-            colors: false,
-            normals: false,
-        };
+        let info = AppearanceInfo { charts: order.len() as u32, groups: 1, ..super::super::payload::tests::info() };
         (tris.into_iter().map(|(t, _)| t).collect(), charts, info)
     }
 

@@ -756,4 +756,4 @@ pub(super) fn corner_prediction((ka, va): (bool, i32), (kb, vb): (bool, i32), op
 
 #[cfg(test)]
 #[path = "payload_tests.rs"]
-mod tests;
+pub(crate) mod tests;

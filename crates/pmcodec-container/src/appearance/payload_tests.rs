@@ -3,7 +3,7 @@
 use super::*;
 use crate::appearance::charts::Charts;
 
-fn info() -> AppearanceInfo {
+pub(crate) fn info() -> AppearanceInfo {
     AppearanceInfo {
         charts: 3,
         groups: 3,
