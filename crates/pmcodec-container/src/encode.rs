@@ -4,6 +4,7 @@
 mod options;
 mod posed;
 mod positions;
+mod rate;
 mod skin_choice;
 
 pub use options::{EncodeOptions, PaletteCoding, QuantizationChoice, SkinPlacement};

@@ -143,6 +143,68 @@ pub(crate) fn on_surface_grid(
     ([0, 1, 2].map(|a| p[a].wrapping_add(r[a].wrapping_shl(shift))), r)
 }
 
+/// Bits that a grid step squared of a coarse node's excess (its squared distance from its
+/// cluster's surface) is worth, per node whose residuals are not all zero: what the band's
+/// next finer grid would pay for as much. A coarse band's grid is a power of two quanta
+/// (`crate::coarse_shift`); halving its step `d` costs about a bit per axis of each node whose
+/// residuals are not all zero (they double; a node predicted exactly stays at zero) and takes
+/// three quarters of the rounding's squared error along a normal, `d^2 / 12`, away: `d^2 / 16`
+/// for 3 bits, 48 bits per `d^2`. Sullivan & Wiegand ("Rate-distortion optimization for video
+/// compression", 1998) weigh a coding choice's bits against its squared error at the slope
+/// of the quantizer's own rate-distortion curve the same way.
+pub(crate) const BITS_PER_EXCESS: f64 = 48.0;
+
+/// [`on_surface_grid`] weighing each point's distance from the surface against what its
+/// residuals cost: among the grid points within reach, the one of least
+/// `bits(r) + worth * max(0, excess - SURFACE_TOLERANCE2)`, nearer the surface, then nearer the
+/// true position, on ties (`bits` in bits, `worth` in bits per grid step squared). Within the
+/// tolerance this is the cheapest point, as in [`on_surface_grid`] (which counts a residual's
+/// steps where this counts its bits); beyond it a node stays off the surface where reaching
+/// it costs more bits than its excess is worth: where skinning predicts a band almost exactly,
+/// a residual where there would be none costs a listed node of the sparse coding (about 20
+/// bits) in every frame, and the node stays a fraction of a step off the surface.
+pub(crate) fn on_surface_grid_rated(
+    t: [f64; 3],
+    p: [i32; 3],
+    shift: u32,
+    radius2: f64,
+    excess: impl Fn([f64; 3]) -> f64,
+    (bits, worth): (impl Fn([i32; 3]) -> f64, f64),
+) -> ([i32; 3], [i32; 3]) {
+    let unit = (1u64 << shift) as f64;
+    let u = [0, 1, 2].map(|a| (t[a] - p[a] as f64) / unit);
+    let near = u.map(|x| x.round() as i32);
+    // (bits plus the excess's worth, excess, distance): smaller is better.
+    let mut best: Option<((f64, f64, f64), [i32; 3])> = None;
+    for dx in -1..=1 {
+        for dy in -1..=1 {
+            for dz in -1..=1 {
+                let r = [near[0] + dx, near[1] + dy, near[2] + dz];
+                let d2: f64 = (0..3).map(|a| (r[a] as f64 - u[a]).powi(2)).sum();
+                if d2 > radius2 && (dx, dy, dz) != (0, 0, 0) {
+                    continue;
+                }
+                let b = bits(r);
+                // The excess's worth is never negative: a point whose bits alone exceed the
+                // best total cannot win, and its quadric is not evaluated.
+                if best.as_ref().is_some_and(|((j, _, _), _)| b > *j) {
+                    continue;
+                }
+                let q = [0, 1, 2].map(|a| p[a] as f64 + r[a] as f64 * unit);
+                let e = excess(q) / (unit * unit);
+                // NaN (a degenerate quadric) ranks last.
+                let e = if e.is_nan() { f64::INFINITY } else { e };
+                let key = (b + worth * (e - SURFACE_TOLERANCE2).max(0.0), e, d2);
+                if best.as_ref().is_none_or(|(k, _)| key.partial_cmp(k) == Some(std::cmp::Ordering::Less)) {
+                    best = Some((key, r));
+                }
+            }
+        }
+    }
+    let r = best.map_or(near, |(_, r)| r);
+    ([0, 1, 2].map(|a| p[a].wrapping_add(r[a].wrapping_shl(shift))), r)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -295,6 +357,102 @@ mod tests {
         let (q, r) = on_surface_grid(t, [1, 1, 1], 2, SLACK2, plane(37.0));
         assert_eq!(q, [0, 1, 2].map(|a| 1 + 4 * r[a]));
         assert!((q[2] as f64 - 37.0).abs() <= 2.0, "{q:?}");
+    }
+
+    /// [`on_surface_grid_rated`] without its pruning: every candidate's excess evaluated.
+    fn rated_whole(
+        t: [f64; 3],
+        p: [i32; 3],
+        shift: u32,
+        excess: impl Fn([f64; 3]) -> f64,
+        bits: impl Fn([i32; 3]) -> f64,
+        worth: f64,
+    ) -> [i32; 3] {
+        let unit = (1u64 << shift) as f64;
+        let u = [0, 1, 2].map(|a| (t[a] - p[a] as f64) / unit);
+        let near = u.map(|x| x.round() as i32);
+        let mut best: Option<((f64, f64, f64), [i32; 3])> = None;
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let r = [near[0] + dx, near[1] + dy, near[2] + dz];
+                    let d2: f64 = (0..3).map(|a| (r[a] as f64 - u[a]).powi(2)).sum();
+                    if d2 > SLACK2 && (dx, dy, dz) != (0, 0, 0) {
+                        continue;
+                    }
+                    let e = excess([0, 1, 2].map(|a| p[a] as f64 + r[a] as f64 * unit)) / (unit * unit);
+                    let e = if e.is_nan() { f64::INFINITY } else { e };
+                    let key = (bits(r) + worth * (e - SURFACE_TOLERANCE2).max(0.0), e, d2);
+                    if best.as_ref().is_none_or(|(k, _)| key.partial_cmp(k) == Some(std::cmp::Ordering::Less)) {
+                        best = Some((key, r));
+                    }
+                }
+            }
+        }
+        best.map_or(near, |(_, r)| r)
+    }
+
+    /// The rated search's pruning changes no choice, and where steps are its bits and the
+    /// excess is worth more than any bits, it chooses what [`on_surface_grid`] chooses whenever
+    /// that is within the tolerance.
+    #[test]
+    fn rated_surface_grid_is_its_whole_search_and_the_plain_one_at_steps() {
+        let mut s = 0x0123_4567_89ab_cdefu64;
+        let mut next = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            s
+        };
+        let (mut same_as_plain, mut moved) = (0, 0);
+        for i in 0..20_000 {
+            let t = [0; 3].map(|_| (next() % 4000) as f64 / 7.0 - 280.0);
+            let t = if i % 5 == 0 { t.map(|x| (x * 2.0).round() / 2.0) } else { t };
+            let p = t.map(|x| x.round() as i32 + (next() % 9) as i32 - 4);
+            let shift = (next() % 3) as u32;
+            let n = [0; 3].map(|_| (next() % 200) as f64 / 100.0 - 1.0);
+            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt().max(1e-3);
+            let off = (next() % 5) as f64 * 0.4;
+            let d = |x: [f64; 3]| ((x[0] - t[0]) * n[0] + (x[1] - t[1]) * n[1] + (x[2] - t[2]) * n[2]) / len - off;
+            let nan = i % 97 == 0;
+            let excess = |x: [f64; 3]| if nan { f64::NAN } else { d(x).powi(2) - off * off };
+            // Bits of a skewed code: zero nearly free, each axis's steps dearer on x.
+            let skew = |r: [i32; 3]| {
+                if r == [0; 3] { 0.05 } else { 3.0 + 2.5 * r[0].unsigned_abs() as f64 + (r[1].unsigned_abs() + r[2].unsigned_abs()) as f64 }
+            };
+            let steps = |r: [i32; 3]| r.iter().map(|x| x.unsigned_abs() as f64).sum::<f64>();
+            for worth in [0.0, 4.0, 48.0] {
+                let (_, r) = on_surface_grid_rated(t, p, shift, SLACK2, excess, (skew, worth));
+                assert_eq!(r, rated_whole(t, p, shift, excess, skew, worth), "t {t:?} p {p:?} shift {shift} worth {worth}");
+                moved += (r != [0, 1, 2].map(|a| ((t[a] - p[a] as f64) / (1u64 << shift) as f64).round() as i32)) as u32;
+            }
+            let (plain, r) = on_surface_grid(t, p, shift, SLACK2, excess);
+            let unit = (1u64 << shift) as f64;
+            if excess(plain.map(f64::from)) / (unit * unit) <= SURFACE_TOLERANCE2 {
+                assert_eq!(on_surface_grid_rated(t, p, shift, SLACK2, excess, (steps, 1e12)).1, r, "t {t:?} p {p:?} shift {shift}");
+                same_as_plain += 1;
+            }
+        }
+        assert!(same_as_plain > 5000 && moved > 1000, "{same_as_plain} within the tolerance, {moved} moved");
+    }
+
+    /// A node whose prediction is a step below its flat cluster's surface: where every residual
+    /// costs about the same bits, it moves onto the surface; where a zero residual is nearly
+    /// free and any other costs 20 bits, it stays at the prediction unless the excess is worth
+    /// more than those bits.
+    #[test]
+    fn rated_surface_grid_weighs_the_surface_against_bits() {
+        let plane = |x: [f64; 3]| (x[2] - 10.6).powi(2);
+        let (t, p) = ([10.2, 10.0, 10.6], [10, 10, 10]);
+        let wide = |r: [i32; 3]| 6.0 + 0.1 * r.iter().map(|x| x.unsigned_abs() as f64).sum::<f64>();
+        let sparse = |r: [i32; 3]| if r == [0; 3] { 0.1 } else { 20.0 };
+        assert_eq!(on_surface_grid(t, p, 0, SLACK2, plane).0, [10, 10, 11], "the surface choice");
+        assert_eq!(on_surface_grid_rated(t, p, 0, SLACK2, plane, (wide, BITS_PER_EXCESS)).0, [10, 10, 11]);
+        // 0.6 below: 0.36 - 0.09 steps squared over the tolerance, 13 bits at 48 per step
+        // squared, 2.6 at a fifth of the nodes listed.
+        assert_eq!(on_surface_grid_rated(t, p, 0, SLACK2, plane, (sparse, BITS_PER_EXCESS)).0, p);
+        assert_eq!(on_surface_grid_rated(t, p, 0, SLACK2, plane, (sparse, 0.2 * BITS_PER_EXCESS)).0, p);
+        assert_eq!(on_surface_grid_rated(t, p, 0, SLACK2, plane, (sparse, 100.0)).0, [10, 10, 11], "27 bits of excess");
     }
 
     #[test]

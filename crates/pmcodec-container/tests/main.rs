@@ -18,5 +18,6 @@ mod roundtrip;
 mod skinned;
 mod stream;
 mod streams;
+mod surface_cost;
 mod topology;
 mod triangles;

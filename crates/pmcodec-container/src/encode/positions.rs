@@ -2,7 +2,8 @@
 //! leaves smaller residuals), the stored position within the bound, and the residuals.
 
 use super::Motion;
-use crate::grid::{SLACK2, choose, on_grid, on_surface_grid};
+use super::rate::RateModel;
+use crate::grid::{SLACK2, choose, on_grid, on_surface_grid, on_surface_grid_rated};
 use crate::payload;
 use crate::predict::{AffineFits, Band0Motion, LowerNeighbours, Siblings, StencilWeights, predict};
 use crate::skin::{CoarseQuadrics, NodeSkin, lbs, skinned_motion};
@@ -34,6 +35,9 @@ pub(super) struct PositionCoder {
     /// Whether the report's `plain_bits` must be exact where skinning competes: the default
     /// prediction's coding then runs to the band's end even once it lost.
     pub(super) exact_plain: bool,
+    /// Per coarse band, on keyframes and between them (index `2 j + intra`), the counts of
+    /// its stored residuals that [`on_surface_grid_rated`] weighs the surface against.
+    rates: Vec<RateModel>,
     /// What a stopped coding had cost (see [`Self::code`]).
     stopped_at: u64,
     pub(super) report: EncodeReport,
@@ -156,6 +160,16 @@ impl PositionCoder {
         };
         self.report.skinned_bands += skinned as u64;
         self.report.stored_bits += chosen;
+        if j > 0 && surface.is_some() {
+            // The stored residuals whichever prediction made them: both codings of a later
+            // frame weigh the surface against the same counts, whether or not the default
+            // prediction's coding stopped early here.
+            let k = 2 * j + intra as usize;
+            if self.rates.len() <= k {
+                self.rates.resize(k + 1, RateModel::default());
+            }
+            self.rates[k].add(&self.residuals);
+        }
         if j == 0 && intra && self.motion == Motion::KeyframeAffine {
             self.weights.compute(&self.lower, &self.current, h.level_sizes[0] as usize);
         }
@@ -222,6 +236,7 @@ impl PositionCoder {
         let sequence = (j == 0).then(|| self.lower.sequence());
         let mut before = None;
         let mut spent = 0u64;
+        let rates = if j > 0 && surface.is_some() { self.rates.get(2 * j + intra as usize).and_then(RateModel::rates) } else { None };
         for k in 0..sizes[j] as usize {
             let v = sequence.map_or(k, |s| s[k] as usize);
             let g = offsets[j] as usize + v;
@@ -249,7 +264,10 @@ impl PositionCoder {
                 // The zero residual adds nothing to the prediction, whatever the band's grid.
                 (_, true) => (p, [0; 3]),
                 _ => match surface.as_ref().and_then(|s| s.excess(g, t)) {
-                    Some(excess) => on_surface_grid(t, p, shift, SLACK2, excess),
+                    Some(excess) => match &rates {
+                        Some(rates) => on_surface_grid_rated(t, p, shift, SLACK2, excess, (|r| rates.bits(r), rates.excess_worth())),
+                        None => on_surface_grid(t, p, shift, SLACK2, excess),
+                    },
                     None => on_grid(t, p, shift, SLACK2),
                 },
             };
