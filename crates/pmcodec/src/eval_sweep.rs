@@ -4,7 +4,8 @@
 //! decoded and cut by the file's split order, so budgets between levels are partial cuts)
 //! beside *direct* (plain QEM of every frame, Garland & Heckbert 1997) and *first-frame static*
 //! (Kircher & Garland figure 11's baselines), each with its mean RMS, the ratios, and drift
-//! (last quarter of the measured frames against the first).
+//! (last quarter of the measured frames against the first). Budgets at which some method's cut
+//! has no triangles (a mesh of many small parts collapses them to points) are left out and named.
 
 use crate::eval_cmd::EvalArgs;
 use crate::{EXIT_BAD_INPUT, Exit, progress};
@@ -87,6 +88,8 @@ struct SweepReport {
     vertices: usize,
     frames_measured: Vec<usize>,
     rows: Vec<Row>,
+    /// Budgets (vertices) left out: some approximation there has no triangles.
+    left_out: Vec<u32>,
     worst_container_over_direct: f64,
     worst_container_over_static: f64,
     worst_frame0_container_over_direct: f64,
@@ -170,6 +173,40 @@ fn container_meshes(args: &EvalArgs, bytes: &[u8], seq: &Sequence, frames: &[usi
     Ok(out)
 }
 
+/// Approximations of the measured frames at the sweep's budgets, `[frame][budget]`.
+type Cuts = Vec<Vec<TriMesh>>;
+
+/// The budgets at which every method's approximation of every measured frame has a surface,
+/// and the approximations at those budgets (`[frame][budget]`). A mesh of many small parts
+/// (RobotExpressive: 19) collapses each part to a point before a sweep's 1%, so its coarsest
+/// cuts have no triangles and no distance to measure: those budgets are left out with a
+/// warning naming them, rather than failing the sweep; none left is an error.
+fn drop_surfaceless(sizes: &[u32], container: Cuts, methods: &mut [Cuts], quiet: bool) -> Result<(Vec<u32>, Cuts, Vec<u32>), Exit> {
+    let all = std::iter::once(&container).chain(methods.iter());
+    let keep: Vec<bool> =
+        (0..sizes.len()).map(|j| all.clone().all(|m| m.iter().all(|row| row.get(j).is_some_and(|t| !t.triangles.is_empty())))).collect();
+    let dropped: Vec<u32> = sizes.iter().zip(&keep).filter(|(_, k)| !**k).map(|(&s, _)| s).collect();
+    if dropped.len() == sizes.len() {
+        return Err(Exit(
+            EXIT_BAD_INPUT,
+            anyhow::anyhow!("no budget of the sweep ({sizes:?} vertices) has a surface to measure in every method"),
+        ));
+    }
+    if !dropped.is_empty() && !quiet {
+        eprintln!(
+            "warning: budgets of {dropped:?} vertices left out: some approximation there has no triangles (parts collapsed to points)"
+        );
+    }
+    let filter = |rows: Cuts| -> Cuts {
+        rows.into_iter().map(|row| row.into_iter().zip(&keep).filter(|(_, k)| **k).map(|(m, _)| m).collect()).collect()
+    };
+    for m in methods.iter_mut() {
+        *m = filter(std::mem::take(m));
+    }
+    let kept = sizes.iter().zip(&keep).filter(|(_, k)| **k).map(|(&s, _)| s).collect();
+    Ok((kept, filter(container), dropped))
+}
+
 /// Per budget, per measured frame: the relative symmetric RMS of each approximation against the
 /// original frame (the original's surface index built once per frame). `out[j][i]`.
 fn distances(
@@ -220,6 +257,7 @@ pub fn run(args: &EvalArgs, n: usize, quiet: bool) -> Result<(), Exit> {
         bar.finish_and_clear();
         by_method.push(m);
     }
+    let (sizes, container, left_out) = drop_surfaceless(&sizes, container, &mut by_method, quiet)?;
     let originals: Vec<(TriMesh, SurfaceIndex)> = frames
         .iter()
         .filter_map(|&f| seq.frame_mesh(f))
@@ -260,6 +298,7 @@ pub fn run(args: &EvalArgs, n: usize, quiet: bool) -> Result<(), Exit> {
         input: args.input.display().to_string(),
         vertices,
         frames_measured: frames,
+        left_out,
         worst_container_over_direct: worst(|r| r.container_over_direct),
         worst_container_over_static: worst(|r| r.container_over_static),
         worst_frame0_container_over_direct: worst(|r| r.frame0_container_over_direct),

@@ -359,6 +359,46 @@ fn eval_sweep_table_and_plot() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// A sweep over a mesh of many small parts (12 bumpy 5 x 5 grids): its coarsest cuts collapse
+/// every part to a point or a line and have no surface, so those budgets are left out (named in
+/// `left_out` and a warning) instead of failing the sweep, as it did on RobotExpressive.
+#[test]
+fn eval_sweep_leaves_out_budgets_without_a_surface() {
+    let dir = temp("sweepparts");
+    let frames_dir = dir.join("in");
+    std::fs::create_dir_all(&frames_dir).unwrap();
+    for f in 0..3 {
+        let mut obj = String::new();
+        for p in 0..12 {
+            let (x0, y0) = ((p % 4) as f32 * 6.0, (p / 4) as f32 * 6.0);
+            for j in 0..5 {
+                for i in 0..5 {
+                    let z = ((i * 7 + j * 3 + p) % 5) as f32 * 0.2 + 0.1 * f as f32 * (i as f32);
+                    obj += &format!("v {} {} {}\n", x0 + i as f32, y0 + j as f32, z);
+                }
+            }
+            let b = 25 * p + 1;
+            for j in 0..4 {
+                for i in 0..4 {
+                    let v = b + 5 * j + i;
+                    obj += &format!("f {} {} {}\nf {} {} {}\n", v, v + 1, v + 6, v, v + 6, v + 5);
+                }
+            }
+        }
+        std::fs::write(frames_dir.join(format!("f{}.obj", f + 1)), obj).unwrap();
+    }
+    let out = bin().args(["eval", "--sweep", "12", "--samples", "300", "--json"]).arg(&frames_dir).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let left_out: Vec<u64> = report["left_out"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap()).collect();
+    assert!(!left_out.is_empty() && left_out.iter().all(|&v| v < 36), "{left_out:?}");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("left out"), "the warning names the budgets");
+    let rows = report["rows"].as_array().unwrap();
+    assert!(rows.len() >= 3, "{rows:?}");
+    assert!(rows.iter().all(|r| r["vertices"].as_u64().unwrap() >= 12 && r["container"]["mean_rms"].as_f64().unwrap() > 0.0));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// `eval` checks its values before any work: out of range is bad input naming the value and the
 /// range (`--vertices 0` used to never return).
 #[test]
