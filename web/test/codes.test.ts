@@ -13,6 +13,8 @@ test("an adaptive Rice section the Rust encoder wrote reads as the same codes, a
   const c = new Cursor(GOLDEN, "golden");
   assert.deepEqual(Array.from(readCodes(c, GOLDEN, 8, 2, true, "golden")), CODES);
   c.finish();
+  // More codes than the section has bits: refused before any is read.
+  assert.throws(() => readCodes(new Cursor(GOLDEN, "many"), GOLDEN, 1_000_000, 2, true, "many"), /codes in/);
   for (let cut = 1; cut < GOLDEN.length; cut++) {
     const b = GOLDEN.subarray(0, cut);
     assert.throws(() => readCodes(new Cursor(b, "cut"), b, 8, 2, true, "cut"), DecodeError, `cut at ${cut}`);

@@ -22,7 +22,6 @@ const LARGEST_START = 16;
  * bits and its bits below the highest. The sums and count halve when the count reaches RESET.
  */
 function readRice(c: Cursor, raw: Uint8Array, m: number, ch: number, what: string): Uint32Array {
-  const codes = new Uint32Array(m * ch);
   c.get();
   const starts: number[] = [];
   for (let q = 0; q < ch; q++) starts.push(c.count(LARGEST_START, "Rice start parameter"));
@@ -30,6 +29,9 @@ function readRice(c: Cursor, raw: Uint8Array, m: number, ch: number, what: strin
   if (c.pos + len > raw.length) throw new DecodeError(`${what}: ${len} bytes wanted at byte ${c.pos} of ${raw.length}`);
   const bytes = raw.subarray(c.pos, c.pos + len);
   c.pos += len;
+  // Every code takes a bit at least: more codes than bits is a corrupt section.
+  if (m * ch > 8 * len) throw new DecodeError(`${what}: ${m * ch} codes in ${len} bytes`);
+  const codes = new Uint32Array(m * ch);
   let at = 0;
   const bit = (): number => {
     if (at >= 8 * bytes.length) throw new DecodeError(`${what}: Rice bits end early`);

@@ -142,6 +142,11 @@ pub(super) fn read_section(c: &mut Cursor<'_>, m: usize, channels: usize) -> Res
     }
     let len = c.get()? as usize;
     let bytes = c.take(len)?;
+    // Every code takes a bit at least: more codes than bits is a corrupt section, refused before
+    // anything is allocated for them.
+    if m.saturating_mul(channels) > 8 * len {
+        return Err(corrupt(format!("{} codes in {len} bytes", m.saturating_mul(channels))));
+    }
     let mut at = 0usize;
     let mut bit = || -> Result<u32, ContainerError> {
         let b = bytes.get(at / 8).ok_or_else(|| corrupt("Rice bits end early".into()))?;
@@ -233,6 +238,9 @@ mod tests {
         let c = [0u32, 1, 2, 3, 100, 7, 0, 5_000_000, 1, 9, 4, 4000, 4001, 3990, 0, 2];
         assert_eq!(section(&c, 8, 2), GOLDEN);
         assert_eq!(read_section(&mut Cursor::new(&GOLDEN, "t"), 8, 2).unwrap(), c);
+        // More codes than the section has bits: refused before any is read.
+        let err = read_section(&mut Cursor::new(&GOLDEN, "t"), 1_000_000, 2).unwrap_err();
+        assert!(err.to_string().contains("codes in"), "{err}");
     }
 
     #[test]
