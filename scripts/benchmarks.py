@@ -135,8 +135,7 @@ ROWS = [
     # 2003; Houle & Poulin, "Simplification and Real-time Smooth Transitions of Articulated
     # Meshes", 2001).
     Row("lod-eval", "pmcodec lod at 25% and 10% of the triangles against meshoptimizer (rest pose, Regularize), mean / max per-frame RMS over every animation, % of bbox diagonal",
-        f"(cd tests && npm ci --no-audit --no-fund -s) && node tests/draco-decompress.mjs {DATA}/gltf/Parrot.glb target/benchmarks/Parrot.glb && "
-        + example("pmcodec-lod", "lod_eval", f"{DATA}/gltf/Fox.glb {DATA}/gltf/RobotExpressive.glb {DATA}/gltf/Horse.glb target/benchmarks/Parrot.glb"),
+        example("pmcodec-lod", "lod_eval", f"{DATA}/gltf/Fox.glb {DATA}/gltf/RobotExpressive.glb {DATA}/gltf/Horse.glb {DATA}/gltf/Parrot.glb"),
         r"^\S+\s+\d+%|^\S+.*(meshopt|houle|refit)"),
     # The server.
     Row("loadtest", "server under load (wrk and oha on the same 2 cores, 64 connections): LOD on demand closed and open loop, transfer ceiling, chunk ranges, playback bytes",
