@@ -1,9 +1,54 @@
 //! Bit I/O shared by the bit-coded chunks (proto/container.md: Key, Faces, Delta and Corners
-//! coding 1, and the Joints chunk): bits least significant first within each byte, Exp-Golomb
-//! codes of a given order, and a stream that ends in the byte of its last bit with the later
-//! bits 0. The reader's errors name the chunk.
+//! coding 1, the Joints chunk and the adaptive Rice residuals of the appearance chunks): bits
+//! least significant first within each byte, Exp-Golomb codes of a given order, a stream that
+//! ends in the byte of its last bit with the later bits 0, and the running sum an adaptive
+//! code's order follows. The reader's errors name the chunk.
 
 use crate::ContainerError;
+
+/// When a [`Running`] state has counted this many numbers, its sum and count are halved, so the
+/// order follows the recent ones.
+const HALVE_AT: u64 = 16;
+
+/// The running sum and count an adaptive code's order is chosen from: the smallest k with
+/// `count * 2^k >= sum`, as LOCO-I chooses its Golomb parameter (Weinberger, Seroussi &
+/// Sapiro, "The LOCO-I lossless image compression algorithm", 2000).
+#[derive(Clone, Copy)]
+pub(crate) struct Running {
+    sum: u64,
+    count: u64,
+}
+
+impl Running {
+    /// A state whose first order follows a sum of 1 (order 0).
+    pub(crate) fn new() -> Self {
+        Running::starting(1)
+    }
+
+    /// A state whose first order follows a sum of `sum` over a count of 1.
+    pub(crate) fn starting(sum: u64) -> Self {
+        Running { sum, count: 1 }
+    }
+
+    /// The smallest k, at most `most`, with `count * 2^k >= sum`.
+    pub(crate) fn order(&self, most: u32) -> u32 {
+        let mut k = 0;
+        while k < most && (self.count << k) < self.sum {
+            k += 1;
+        }
+        k
+    }
+
+    /// Counts `u`; at [`HALVE_AT`] numbers the sum and count are halved.
+    pub(crate) fn update(&mut self, u: u32) {
+        self.sum += u as u64;
+        self.count += 1;
+        if self.count >= HALVE_AT {
+            self.sum >>= 1;
+            self.count >>= 1;
+        }
+    }
+}
 
 /// Bits, least significant first within each byte, after the bytes it starts with.
 #[derive(Default)]

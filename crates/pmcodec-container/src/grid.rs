@@ -286,6 +286,40 @@ mod tests {
         ([0, 1, 2].map(|a| p[a].wrapping_add(r[a].wrapping_shl(shift))), r)
     }
 
+    /// A random case of the surface searches' tests: a truth (on the half-quantum lattice every
+    /// fifth case, for ties), a prediction a few quanta off, a grid shift, and a plane through a
+    /// point near the truth of a random normal (a tolerance's worth off it now and then, so that
+    /// no candidate is within it); NaN excesses every 97th case.
+    struct Case {
+        t: [f64; 3],
+        p: [i32; 3],
+        shift: u32,
+        n: [f64; 3],
+        len: f64,
+        off: f64,
+        nan: bool,
+    }
+
+    impl Case {
+        fn new(next: &mut impl FnMut() -> u64, i: usize) -> Case {
+            let t = [0; 3].map(|_| (next() % 4000) as f64 / 7.0 - 280.0);
+            let t = if i.is_multiple_of(5) { t.map(|x| (x * 2.0).round() / 2.0) } else { t };
+            let p = t.map(|x| x.round() as i32 + (next() % 9) as i32 - 4);
+            let shift = (next() % 3) as u32;
+            let n = [0; 3].map(|_| (next() % 200) as f64 / 100.0 - 1.0);
+            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt().max(1e-3);
+            let off = (next() % 5) as f64 * 0.4;
+            Case { t, p, shift, n, len, off, nan: i.is_multiple_of(97) }
+        }
+
+        /// The squared distance of `x` from the plane, less the truth's.
+        fn excess(&self, x: [f64; 3]) -> f64 {
+            let (t, n) = (self.t, self.n);
+            let d = ((x[0] - t[0]) * n[0] + (x[1] - t[1]) * n[1] + (x[2] - t[2]) * n[2]) / self.len - self.off;
+            if self.nan { f64::NAN } else { d.powi(2) - self.off * self.off }
+        }
+    }
+
     /// The pruned search (candidates costing more than a point within the tolerance are not
     /// evaluated) chooses what evaluating every candidate chose: on random truths, predictions,
     /// planes and grids, grid-aligned truths (ties) among them, and NaN excesses.
@@ -300,18 +334,9 @@ mod tests {
         };
         let (mut evaluated, mut whole, mut moved) = (0usize, 0usize, 0usize);
         for i in 0..20_000 {
-            let t = [0; 3].map(|_| (next() % 4000) as f64 / 7.0 - 280.0);
-            let t = if i % 5 == 0 { t.map(|x| (x * 2.0).round() / 2.0) } else { t };
-            let p = t.map(|x| x.round() as i32 + (next() % 9) as i32 - 4);
-            let shift = (next() % 3) as u32;
-            // A plane through a point near t, of a random normal (a tolerance's worth off t
-            // now and then, so that no candidate is within it).
-            let n = [0; 3].map(|_| (next() % 200) as f64 / 100.0 - 1.0);
-            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt().max(1e-3);
-            let off = (next() % 5) as f64 * 0.4;
-            let d = |x: [f64; 3]| ((x[0] - t[0]) * n[0] + (x[1] - t[1]) * n[1] + (x[2] - t[2]) * n[2]) / len - off;
-            let nan = i % 97 == 0;
-            let excess = |x: [f64; 3]| if nan { f64::NAN } else { d(x).powi(2) - off * off };
+            let case = Case::new(&mut next, i);
+            let (t, p, shift) = (case.t, case.p, case.shift);
+            let excess = |x: [f64; 3]| case.excess(x);
             for radius2 in [0.25, SLACK2, 1.0, 3.0] {
                 let calls = std::cell::Cell::new(0);
                 let counted = |x: [f64; 3]| {
@@ -406,16 +431,9 @@ mod tests {
         };
         let (mut same_as_plain, mut moved) = (0, 0);
         for i in 0..20_000 {
-            let t = [0; 3].map(|_| (next() % 4000) as f64 / 7.0 - 280.0);
-            let t = if i % 5 == 0 { t.map(|x| (x * 2.0).round() / 2.0) } else { t };
-            let p = t.map(|x| x.round() as i32 + (next() % 9) as i32 - 4);
-            let shift = (next() % 3) as u32;
-            let n = [0; 3].map(|_| (next() % 200) as f64 / 100.0 - 1.0);
-            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt().max(1e-3);
-            let off = (next() % 5) as f64 * 0.4;
-            let d = |x: [f64; 3]| ((x[0] - t[0]) * n[0] + (x[1] - t[1]) * n[1] + (x[2] - t[2]) * n[2]) / len - off;
-            let nan = i % 97 == 0;
-            let excess = |x: [f64; 3]| if nan { f64::NAN } else { d(x).powi(2) - off * off };
+            let case = Case::new(&mut next, i);
+            let (t, p, shift) = (case.t, case.p, case.shift);
+            let excess = |x: [f64; 3]| case.excess(x);
             // Bits of a skewed code: zero nearly free, each axis's steps dearer on x.
             let skew = |r: [i32; 3]| {
                 if r == [0; 3] { 0.05 } else { 3.0 + 2.5 * r[0].unsigned_abs() as f64 + (r[1].unsigned_abs() + r[2].unsigned_abs()) as f64 }

@@ -15,47 +15,14 @@
 //! numbers are too short for a table of their own, and varints spend a byte where a few bits do.
 
 use crate::ContainerError;
-use crate::bits::{BitReader, Bits};
+// A context: the running sum an Exp-Golomb order is chosen from (at most 32, every number
+// being below 2^32).
+use crate::bits::{BitReader, Bits, Running as Context};
 use crate::payload::{unzigzag, zigzag};
 
 /// The varint a coded payload starts with after its leading 0 (a varint payload that starts
 /// with a count of 0 ends there, so a 0 followed by more bytes is never a varint payload).
 pub const CODING_BITS: u32 = 1;
-
-/// When a context has seen this many numbers, its sums are halved, so its order follows the
-/// recent ones.
-const HALVE_AT: u64 = 16;
-
-/// The running sum and count an Exp-Golomb order is chosen from.
-#[derive(Clone, Copy)]
-struct Context {
-    sum: u64,
-    count: u64,
-}
-
-impl Context {
-    fn new() -> Self {
-        Context { sum: 1, count: 1 }
-    }
-
-    /// The smallest k with `count * 2^k >= sum` (at most 32, since every number is below 2^32).
-    fn order(&self) -> u32 {
-        let mut k = 0;
-        while k < 32 && (self.count << k) < self.sum {
-            k += 1;
-        }
-        k
-    }
-
-    fn update(&mut self, u: u32) {
-        self.sum += u as u64;
-        self.count += 1;
-        if self.count >= HALVE_AT {
-            self.sum >>= 1;
-            self.count >>= 1;
-        }
-    }
-}
 
 /// Writes numbers of a [`Context`] into the shared bit stream ([`crate::bits`]).
 struct BitWriter {
@@ -73,7 +40,7 @@ impl BitWriter {
 
     /// `u` as an Exp-Golomb code of the context's order, then the context learns it.
     fn number(&mut self, ctx: &mut Context, u: u32) {
-        self.bits.golomb(u as u64, ctx.order());
+        self.bits.golomb(u as u64, ctx.order(32));
         ctx.update(u);
     }
 
@@ -96,7 +63,7 @@ impl Numbers for BitReader<'_> {
     /// An Exp-Golomb code of the context's order (at most 32 bits after its leading zeros, and
     /// a value below 2^32), then the context learns it.
     fn number(&mut self, ctx: &mut Context) -> Result<u32, ContainerError> {
-        let v = self.golomb_within(ctx.order(), 32)?;
+        let v = self.golomb_within(ctx.order(32), 32)?;
         let u = u32::try_from(v).map_err(|_| self.corrupt("number beyond 32 bits"))?;
         ctx.update(u);
         Ok(u)

@@ -11,8 +11,11 @@ import { Cursor } from "./payload.js";
  * turn, the other triangles with that edge, either direction, in increasing index.
  */
 function neighbours(tris: Uint32Array): { start: Uint32Array; list: Uint32Array } {
-  const n = tris.length / 3, byEdge = new Map<string, number[]>();
-  const key = (a: number, b: number): string => (a < b ? `${a},${b}` : `${b},${a}`);
+  const n = tris.length / 3, byEdge = new Map<number, number[]>();
+  // Numeric keys, as neighbourCharts' (appearance.ts): a string a key would allocate per edge.
+  let nv = 1;
+  for (let i = 0; i < tris.length; i++) nv = Math.max(nv, tris[i] + 1);
+  const key = (a: number, b: number): number => Math.min(a, b) * nv + Math.max(a, b);
   for (let t = 0; t < n; t++) {
     for (let i = 0; i < 3; i++) {
       const k = key(tris[3 * t + i], tris[3 * t + ((i + 1) % 3)]);

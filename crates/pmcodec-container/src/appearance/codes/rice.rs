@@ -7,66 +7,23 @@
 //! no table at all; large bands keep rANS where it is shorter.
 
 use crate::ContainerError;
+use crate::bits::{BitReader, Bits, Running};
 use crate::payload::{Cursor, put};
 
 /// A quotient this large or larger is escaped: `LIMIT` one bits, the code's bit length minus
 /// one in 5 bits, then its bits below the highest.
 const LIMIT: u32 = 24;
-/// The running sums are halved when this many codes have been counted (with the one a
-/// channel starts from), so the parameter follows the band's local magnitude.
-const RESET: u64 = 16;
 /// The starting parameters the encoder tries per channel (the first code's Rice parameter).
 const LARGEST_START: u32 = 16;
 
-/// A channel's adaptive state: the sum of the codes seen (from `2^start`) and their count
-/// (from 1), halved together at [`RESET`].
-struct State {
-    sum: u64,
-    count: u64,
+/// A channel's adaptive state: the sum of its codes seen from `2^start` (the first code's
+/// parameter is `start`), over their count from 1, halved together at 16 codes.
+fn state(start: u32) -> Running {
+    Running::starting(1u64 << start)
 }
 
-impl State {
-    fn new(start: u32) -> State {
-        State { sum: 1u64 << start, count: 1 }
-    }
-
-    /// The Rice parameter: the smallest k (at most 31) with `count * 2^k >= sum`.
-    fn k(&self) -> u32 {
-        let mut k = 0;
-        while k < 31 && (self.count << k) < self.sum {
-            k += 1;
-        }
-        k
-    }
-
-    fn update(&mut self, z: u32) {
-        self.sum += z as u64;
-        self.count += 1;
-        if self.count == RESET {
-            self.sum >>= 1;
-            self.count >>= 1;
-        }
-    }
-}
-
-/// Bits packed least significant first from bit 0 of byte 0.
-#[derive(Default)]
-struct Bits {
-    bytes: Vec<u8>,
-    len: usize,
-}
-
-impl Bits {
-    fn push(&mut self, value: u32, n: u32) {
-        for x in 0..n {
-            if self.len.is_multiple_of(8) {
-                self.bytes.push(0);
-            }
-            self.bytes[self.len / 8] |= (((value >> x) & 1) as u8) << (self.len % 8);
-            self.len += 1;
-        }
-    }
-}
+/// The largest Rice parameter (codes are below 2^32).
+const MOST: u32 = 31;
 
 fn bit_length(z: u32) -> u32 {
     32 - z.leading_zeros()
@@ -81,23 +38,23 @@ fn cost(z: u32, k: u32) -> u64 {
 fn put_code(bits: &mut Bits, z: u32, k: u32) {
     let q = z >> k;
     if q < LIMIT {
-        bits.push(u32::MAX, q);
-        bits.push(0, 1);
-        bits.push(z, k);
+        bits.put(u64::MAX, q);
+        bits.put(0, 1);
+        bits.put(z as u64, k);
     } else {
         let b = bit_length(z);
-        bits.push(u32::MAX, LIMIT);
-        bits.push(b - 1, 5);
-        bits.push(z, b - 1);
+        bits.put(u64::MAX, LIMIT);
+        bits.put((b - 1) as u64, 5);
+        bits.put(z as u64, b - 1);
     }
 }
 
 /// The bits a channel's codes take from starting parameter `start`.
 fn channel_bits(codes: &[u32], start: u32) -> u64 {
-    let mut s = State::new(start);
+    let mut s = state(start);
     let mut bits = 0;
     for &z in codes {
-        bits += cost(z, s.k());
+        bits += cost(z, s.order(MOST));
         s.update(z);
     }
     bits
@@ -121,14 +78,14 @@ pub(super) fn section(codes: &[u32], m: usize, channels: usize) -> Vec<u8> {
         starts.push(start);
     }
     for (q, &start) in starts.iter().enumerate() {
-        let mut s = State::new(start);
+        let mut s = state(start);
         for &z in &codes[(q * m).min(codes.len())..((q + 1) * m).min(codes.len())] {
-            put_code(&mut bits, z, s.k());
+            put_code(&mut bits, z, s.order(MOST));
             s.update(z);
         }
     }
-    put(&mut out, bits.bytes.len() as u32);
-    out.extend_from_slice(&bits.bytes);
+    put(&mut out, bits.out.len() as u32);
+    out.extend_from_slice(&bits.out);
     out
 }
 
@@ -147,37 +104,23 @@ pub(super) fn read_section(c: &mut Cursor<'_>, m: usize, channels: usize) -> Res
     if m.saturating_mul(channels) > 8 * len {
         return Err(corrupt(format!("{} codes in {len} bytes", m.saturating_mul(channels))));
     }
-    let mut at = 0usize;
-    let mut bit = || -> Result<u32, ContainerError> {
-        let b = bytes.get(at / 8).ok_or_else(|| corrupt("Rice bits end early".into()))?;
-        let v = ((b >> (at % 8)) & 1) as u32;
-        at += 1;
-        Ok(v)
-    };
+    let mut r = BitReader { bytes, bit: 0, what: "attribute residuals" };
     let mut codes = Vec::with_capacity(m * channels);
     for &start in &starts {
-        let mut s = State::new(start);
+        let mut s = state(start);
         for _ in 0..m {
-            let k = s.k();
+            let k = s.order(MOST);
             let mut q = 0;
-            while q < LIMIT && bit()? == 1 {
+            while q < LIMIT && r.bit()? == 1 {
                 q += 1;
             }
             let z = if q < LIMIT {
-                let mut low = 0u64;
-                for x in 0..k {
-                    low |= (bit()? as u64) << x;
-                }
+                let low = r.get(k)?;
                 u32::try_from(((q as u64) << k) | low).map_err(|_| corrupt(format!("a residual of {} bits", k + 5)))?
             } else {
-                let mut b = 0;
-                for x in 0..5 {
-                    b |= bit()? << x;
-                }
-                let mut z = 1u32 << b;
-                for x in 0..b {
-                    z |= bit()? << x;
-                }
+                let b = r.get(5)? as u32;
+                let z = (1u64 << b) | r.get(b)?;
+                let z = u32::try_from(z).map_err(|_| corrupt(format!("a residual of {} bits", b + 1)))?;
                 if z >> k < LIMIT {
                     return Err(corrupt("an escaped residual that a quotient codes".into()));
                 }
@@ -187,8 +130,8 @@ pub(super) fn read_section(c: &mut Cursor<'_>, m: usize, channels: usize) -> Res
             s.update(z);
         }
     }
-    if at.div_ceil(8) != bytes.len() {
-        return Err(corrupt(format!("{} Rice bytes where the codes take {}", bytes.len(), at.div_ceil(8))));
+    if r.bit.div_ceil(8) != bytes.len() {
+        return Err(corrupt(format!("{} Rice bytes where the codes take {}", bytes.len(), r.bit.div_ceil(8))));
     }
     Ok(codes)
 }
@@ -288,22 +231,22 @@ mod tests {
     fn escapes_that_a_quotient_codes_and_codes_beyond_32_bits_are_refused() {
         let framed = |bits: Bits| {
             let mut out = vec![0, 0];
-            put(&mut out, bits.bytes.len() as u32);
-            out.extend_from_slice(&bits.bytes);
+            put(&mut out, bits.out.len() as u32);
+            out.extend_from_slice(&bits.out);
             out
         };
         // Start 0 (k = 0): 5 escaped, where its quotient 5 is below the limit.
         let mut bits = Bits::default();
-        bits.push(u32::MAX, LIMIT);
-        bits.push(2, 5);
-        bits.push(1, 2);
+        bits.put(u64::MAX, LIMIT);
+        bits.put(2, 5);
+        bits.put(1, 2);
         let err = read_section(&mut Cursor::new(&framed(bits), "t"), 1, 1).unwrap_err();
         assert!(err.to_string().contains("quotient"), "{err}");
         // The largest code raises k to 31; then a quotient of 2 would be 2^32.
         let mut bits = Bits::default();
         put_code(&mut bits, u32::MAX, 0);
-        bits.push(0b011, 3);
-        bits.push(0, 31);
+        bits.put(0b011, 3);
+        bits.put(0, 31);
         let err = read_section(&mut Cursor::new(&framed(bits), "t"), 2, 1).unwrap_err();
         assert!(err.to_string().contains("bits"), "{err}");
     }
