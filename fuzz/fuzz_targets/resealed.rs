@@ -18,12 +18,15 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::AtomicUsize;
 use std::sync::atomic::Ordering::Relaxed;
 
-static SEEDS: [&[u8]; 5] = [
+static SEEDS: [&[u8]; 8] = [
     include_bytes!("../../crates/pmcodec-container/tests/corpus/valid-cloth-k0.pmc"),
     include_bytes!("../../crates/pmcodec-container/tests/corpus/valid-cloth-k1.pmc"),
     include_bytes!("../../crates/pmcodec-container/tests/corpus/valid-tube-k2.pmc"),
     include_bytes!("../../crates/pmcodec-container/tests/corpus/valid-tube-affine.pmc"),
     include_bytes!("../../crates/pmcodec-container/tests/corpus/valid-tube-mean-input.pmc"),
+    include_bytes!("../../crates/pmcodec-container/tests/corpus/valid-skinned-character.pmc"),
+    include_bytes!("../../crates/pmcodec-container/tests/corpus/valid-textured-cloth.pmc"),
+    include_bytes!("../../crates/pmcodec-container/tests/corpus/valid-fitted-tube.pmc"),
 ];
 
 /// Counts the bytes Rust code holds (zstd's own buffers are C allocations, bounded by the

@@ -43,5 +43,25 @@ fn main() {
             n += 1;
         }
     }
-    println!("wrote {n} damaged files and {} valid ones to {}", valid.len(), dir.display());
+    // Seeds of the file kinds the cloth and tube are not: a skinned glTF character (Bind and
+    // Joints chunks), a textured cloth (grown charts, attributes, materials, an image) and a
+    // fitted skin (skinning competing band by band). Valid only: the resealed test and the
+    // fuzz target damage them.
+    let character =
+        pmcodec_mesh::samples::CharacterOptions { parts: 2, limbs: 2, chain: 2, segments: 5, rings: 3, seconds: 0.3, ..Default::default() };
+    let glb = pmcodec_mesh::samples::skinned_character(&character).expect("character");
+    let skinned = pmcodec_mesh::gltf_input::load_gltf_bytes(&glb, &Default::default()).expect("load");
+    let mut tube = pmcodec_mesh::samples::twisting_tube(6, 6, 5);
+    let fit = pmcodec_mesh::skin_fit::FitOptions { bones: Some(3), ..Default::default() };
+    tube.skin = Some(pmcodec_mesh::skin_fit::fit_skin(&tube, &fit).expect("fit").0);
+    let more = [
+        ("valid-skinned-character", skinned),
+        ("valid-textured-cloth", pmcodec_mesh::samples::textured_cloth(6, 5, 4, 4)),
+        ("valid-fitted-tube", tube),
+    ];
+    for (name, seq) in &more {
+        let opts = EncodeOptions { keyframe_interval: 2, quantization: QuantizationChoice::Bits(10), ..Default::default() };
+        std::fs::write(dir.join(format!("{name}.pmc")), encode(seq, &opts, |_| {}).expect("encode")).expect("write");
+    }
+    println!("wrote {n} damaged files and {} valid ones to {}", valid.len() + more.len(), dir.display());
 }

@@ -734,17 +734,18 @@ impl Index {
     /// The index as a file of format `version` stores it, for a header of `frames` frames.
     /// Version 7 groups entries by frame and implies offsets from the order, so it writes what
     /// it can of entries that break that layout (a frame out of order joins the frame before;
-    /// offsets are dropped): the encoder never makes such entries, and the test support's
-    /// damage does on purpose.
+    /// offsets are dropped; a frame at or beyond `frames` joins the last frame, so that the
+    /// index takes bytes for the entries and frames there are, not for a frame number up to
+    /// 2^32): the encoder never makes such entries, and the test support's damage does on purpose.
     pub fn to_bytes(&self, version: u16, frames: u32) -> Result<Vec<u8>, postcard::Error> {
         if version < 7 {
             return postcard::to_stdvec(&IndexV6 { chunks: self.chunks.clone() });
         }
-        let last = self.chunks.iter().map(|e| e.frame.saturating_add(1)).max().unwrap_or(0);
-        let mut out = Vec::with_capacity(8 * self.chunks.len() + frames as usize);
+        let span = if frames == 0 { u32::from(!self.chunks.is_empty()) } else { frames };
+        let mut out = Vec::with_capacity(8 * self.chunks.len() + span as usize);
         let mut rest = self.chunks.as_slice();
-        for frame in 0..frames.max(last) {
-            let n = rest.iter().take_while(|e| e.frame <= frame).count();
+        for frame in 0..span {
+            let n = if frame + 1 == span { rest.len() } else { rest.iter().take_while(|e| e.frame <= frame).count() };
             let (group, after) = rest.split_at(n);
             rest = after;
             crate::payload::put(&mut out, n as u32);

@@ -86,3 +86,20 @@ fn version_7_index_round_trips_and_refuses_damage() {
     let e = Index::from_bytes(&[1, 31, 1, 0, 0, 0, 0], 7, 1).unwrap_err().to_string();
     assert!(e.contains("unknown chunk kind 31"), "{e}");
 }
+
+/// An entry's frame beyond the header's count (damage the test support makes on purpose) joins
+/// the last frame: the index stays the size of its entries, where a count per frame up to the
+/// entry's frame took gigabytes for a frame near 2^32.
+#[test]
+fn version_7_index_of_entries_beyond_the_frames_stays_small() {
+    let chunks = vec![entry(ChunkKind::Positions, 0, 0, 0, 5, 5), entry(ChunkKind::Positions, u32::MAX - 1, 0, 5, 5, 5)];
+    let index = Index { chunks };
+    for frames in [0, 1, 3] {
+        let v7 = index.to_bytes(7, frames).unwrap();
+        assert!(v7.len() <= 3 + 2 * (1 + 1 + 4), "{frames} frames: {} bytes", v7.len());
+        // Both entries are written, the second in the last frame.
+        let back = Index::from_bytes(&v7, 7, frames.max(1)).unwrap();
+        assert_eq!(back.chunks.len(), 2, "{frames} frames");
+        assert_eq!(back.chunks[1].frame, frames.max(1) - 1, "{frames} frames");
+    }
+}

@@ -470,7 +470,7 @@ fn check_appearance_entry(h: &Header, e: &ChunkEntry, seen: &mut std::collection
 const POSITIONS_SLACK: u64 = 1024;
 
 /// Checks the header's own consistency before anything is sized from it.
-fn check_header(h: &Header) -> Result<(), ContainerError> {
+pub(crate) fn check_header(h: &Header) -> Result<(), ContainerError> {
     let bad = |d: String| Err(ContainerError::Corrupt { what: "header".into(), detail: d });
     if let Some(detail) = crate::skin::check_header(h) {
         return bad(detail);

@@ -123,7 +123,10 @@ impl Unsealed {
         }
         // A version 7 index cannot state an offset (chunks follow one another): an offset lie
         // is lost there, while a stored length lie moves every chunk after it.
-        let frames = self.parsed_header().map_or(0, |h| h.frame_count);
+        // A version 7 index has a count for every frame the header declares: a damaged count
+        // (up to 2^32) would make it gigabytes, for a header the reader refuses before it
+        // reads the index anyway.
+        let frames = self.parsed_header().map_or(0, |h| h.frame_count.min(crate::format::MAX_FRAMES));
         let (index, table_len) = if self.version >= 7 && self.flags & crate::format::FLAG_BANDS != 0 {
             crate::format::banded_index(&entries, levels).unwrap_or_default()
         } else {
@@ -390,6 +393,12 @@ fn interesting_sizes(u: &Unsealed) -> Vec<u64> {
 pub fn mutate_semantic(u: &mut Unsealed, rng: &mut Rng) -> bool {
     use crate::payload;
     let (Some(h), false) = (u.parsed_header(), u.chunks.is_empty()) else { return false };
+    // A header the reader refuses stops it before any chunk, and its sizes (damaged by an
+    // earlier step, up to 2^32) would have the payload writers below write gigabytes: a Key
+    // chunk in coding 3 reads back as a parent for each of the level's declared nodes.
+    if crate::read::check_header(&h).is_err() {
+        return false;
+    }
     let sizes = &h.level_sizes;
     let i = rng.below(u.chunks.len());
     let (e, raw) = (u.chunks[i].entry, &u.chunks[i].raw);
