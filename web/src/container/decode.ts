@@ -121,7 +121,16 @@ export class Decoder {
     const c = this.reader, h = c.header;
     const bands: KeyBand[] = h.levelSizes.map(() => ({ parent: new Uint32Array(0), faces: [] }));
     for (let j = h.levelSizes.length - 1; j >= this.minLevel; j--) {
-      bands[j].parent = await this.readParents(k, j);
+      const parent = bands[j].parent = await this.readParents(k, j);
+      // Clusters are never empty (proto/container.md, "The model the file encodes"): a parent
+      // map that leaves one empty is not a hierarchy an encoder wrote (as the Rust decoder).
+      const above = h.levelSizes[j + 1];
+      if (above !== undefined) {
+        const used = new Uint8Array(above);
+        for (const p of parent) used[p] = 1;
+        const empty = used.indexOf(0);
+        if (empty >= 0) throw new DecodeError(`frame ${k} band ${j} keyframe: level ${j + 1} node ${empty} has no children`);
+      }
     }
     const L = this.minLevel;
     let below: Below | null = null;

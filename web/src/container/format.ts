@@ -290,6 +290,11 @@ export function frameOrder(entries: ChunkEntry[]): ChunkEntry[] {
 export function checkTables(h: Header, index: ChunkEntry[], dataLen: number, banded = false): void {
   if (h.levelSizes.length === 0 || h.levelSizes[0] !== h.vertexCount || h.frameCount === 0 || !(h.step > 0)) throw new DecodeError("header: inconsistent counts");
   if (h.levelSizes.some((s, i) => i > 0 && (s === 0 || s > h.levelSizes[i - 1]))) throw new DecodeError(`header: level sizes ${h.levelSizes} do not shrink`);
+  // As the Rust reader's check_header: a frame rate, step or box that is not a finite number
+  // would reach the player's clock and every dequantized position.
+  if (!(Number.isFinite(h.step) && h.step > 0)) throw new DecodeError(`header: quantization step ${h.step}`);
+  if (!(Number.isFinite(h.frameRate) && h.frameRate > 0)) throw new DecodeError(`header: frame rate ${h.frameRate}`);
+  if (![...h.bboxMin, ...h.bboxMax].every(Number.isFinite)) throw new DecodeError("header: bounding box is not finite");
   // Declared sizes are capped, so what a player allocates from them is bounded (proto/container.md, "Limits").
   const nodes = h.levelSizes.reduce((a, b) => a + b, 0);
   if (h.vertexCount > MAX_VERTICES || h.triangleCount > MAX_TRIANGLES || nodes > MAX_NODES || h.frameCount > MAX_FRAMES) {
@@ -303,7 +308,7 @@ export function checkTables(h: Header, index: ChunkEntry[], dataLen: number, ban
   if (h.skin && !(h.skin.paletteLen >= 1 && h.skin.paletteLen <= MAX_PALETTE && h.skin.bindStep > 0 && Number.isFinite(h.skin.bindStep))) {
     throw new DecodeError(`header: skin palette of ${h.skin.paletteLen} entries, bind quantum ${h.skin.bindStep}`);
   }
-  let end = 0;
+  let end = 0, trianglesSeen = false;
   const seen = new Set<string>();
   for (const e of index) {
     if ((e.kind === ChunkKind.Bind || e.kind === ChunkKind.Pose || e.kind === ChunkKind.Palette || e.kind === ChunkKind.Joints) && !h.skin) throw new DecodeError(`${describe(e)}: a skin chunk in a file without a skin`);
@@ -312,6 +317,11 @@ export function checkTables(h: Header, index: ChunkEntry[], dataLen: number, ban
     if (e.offset + e.storedLen > dataLen) throw new DecodeError(`${describe(e)}: the file ends before it does`);
     end = Math.max(end, e.offset + e.storedLen);
     if (e.kind !== ChunkKind.Triangles && e.kind !== ChunkKind.Image && (e.frame >= h.frameCount || e.band >= h.levelSizes.length)) throw new DecodeError(`${describe(e)}: frame or band beyond the header's counts`);
+    if (e.kind === ChunkKind.Triangles) {
+      if (e.frame !== 0 || e.band !== 0) throw new DecodeError(`${describe(e)}: frame ${e.frame} band ${e.band}, where the triangles chunk is frame 0 band 0`);
+      if (trianglesSeen) throw new DecodeError(`${describe(e)}: a second triangles chunk`);
+      trianglesSeen = true;
+    }
     if (e.kind >= ChunkKind.Charts && e.kind <= ChunkKind.Image) {
       // Appearance chunks: frame 0, once per kind and band, in a file with an appearance.
       const bandOk = e.kind === ChunkKind.Image ? a !== null && e.band < a.images : e.kind === ChunkKind.Attributes || e.band === 0;
