@@ -6,14 +6,13 @@
 import { test } from "node:test";
 import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
-import { existsSync, mkdtempSync, readFileSync } from "node:fs";
-import { tmpdir } from "node:os";
+import { existsSync, readFileSync } from "node:fs";
 import { join } from "node:path";
 import { FLAG_BANDS } from "../src/container/format.js";
 import type { FetchRanges } from "../src/player/ranges.js";
 import { Session } from "../src/player/session.js";
 import type { FramePayload } from "../src/player/protocol.js";
-import { pmcodecBin, repoRoot } from "./paths.js";
+import { pmcodecBin, repoRoot, scratchDir } from "./paths.js";
 
 const root = repoRoot();
 const bin = pmcodecBin(root);
@@ -37,7 +36,7 @@ const whole = (bytes: Uint8Array): FetchRanges => async () => ({ parts: [{ start
 
 function encode(args: string[], name: string): Uint8Array {
   if (!existsSync(bin)) throw new Error(`${bin} is missing: build it with cargo build -p pmcodec (or set PMCODEC_BIN)`);
-  const out = join(mkdtempSync(join(tmpdir(), "pmc-banded-player-")), name);
+  const out = join(scratchDir("pmc-banded-player-"), name);
   execFileSync(bin, ["encode", "-q", ...args, "-o", out, "--banded-index"]);
   const bytes = new Uint8Array(readFileSync(out));
   assert.ok((bytes[10] | (bytes[11] << 8)) & FLAG_BANDS, `${name} came out without the banded index`);
@@ -75,7 +74,7 @@ function same(a: Awaited<ReturnType<typeof play>>["frames"], b: Awaited<ReturnTy
 }
 
 test("banded file: a coarse budget fetches fewer bytes than a full one, in fewer requests than runs, no byte twice, and decodes the frames a whole-file read decodes", async () => {
-  const dir = mkdtempSync(join(tmpdir(), "pmc-banded-tube-"));
+  const dir = scratchDir("pmc-banded-tube-");
   execFileSync(bin, ["sample", "twisting-tube", "-o", join(dir, "frames"), "--frames", "48"]);
   const bytes = encode([join(dir, "frames"), "--keyframe-interval", "8"], "tube.pmc");
   const coarseBudget = (s: Session) => s.trianglesPerLevel[s.trianglesPerLevel.length - 2];
@@ -106,7 +105,7 @@ test("banded file: a coarse budget fetches fewer bytes than a full one, in fewer
 });
 
 test("banded file, one frame at a time (no read-ahead): one request a frame, however many groups it spans", async () => {
-  const dir = mkdtempSync(join(tmpdir(), "pmc-banded-tube1-"));
+  const dir = scratchDir("pmc-banded-tube1-");
   execFileSync(bin, ["sample", "twisting-tube", "-o", join(dir, "frames"), "--frames", "32"]);
   const bytes = encode([join(dir, "frames"), "--keyframe-interval", "8"], "tube.pmc");
   const src = source(bytes);

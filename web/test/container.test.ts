@@ -1,11 +1,10 @@
 // The TypeScript container decoder against files the Rust encoder writes: same hierarchy-driven
 // cut, same triangles, positions equal to the Rust decoder's (and so within the stated bound).
 import { test } from "node:test";
-import { pmcodecBin, repoRoot } from "./paths.js";
+import { pmcodecBin, repoRoot, scratchDir } from "./paths.js";
 import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
-import { existsSync, mkdirSync, mkdtempSync, readdirSync, readFileSync, writeFileSync } from "node:fs";
-import { tmpdir } from "node:os";
+import { existsSync, mkdirSync, readdirSync, readFileSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
 import { FLAG_BANDS, FLAG_NAMES, frontDecode, parseTable } from "../src/container/format.js";
 import { BELOW, ChunkKind, DecodeError, Decoder, Motion, NONE, Reader, type RevealFrom, VertexOrder, attributeEntry, bandFaces, chartsNeedTriangles, dequantizeUv, needsBind, needsFaces, readBand0Table, readCharts, readPositions, readTable, texturedMesh } from "../src/container/index.js";
@@ -18,7 +17,7 @@ const bin = pmcodecBin(root);
 
 function fixtures(): { dir: string; pmc: string } {
   if (!existsSync(bin)) throw new Error(`${bin} is missing: build it with cargo build -p pmcodec (or set PMCODEC_BIN)`);
-  const dir = mkdtempSync(join(tmpdir(), "pmc-ts-"));
+  const dir = scratchDir("pmc-ts-");
   execFileSync(bin, ["sample", "twisting-tube", "-o", join(dir, "frames"), "--frames", "20"]);
   const pmc = join(dir, "tube.pmc");
   // Coarse nodes on a grid, so residual shifts are exercised too; every band's faces and

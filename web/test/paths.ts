@@ -1,5 +1,6 @@
 // Where the tests find the repository and the Rust CLI, shared by every test file.
-import { existsSync } from "node:fs";
+import { existsSync, mkdtempSync, rmSync } from "node:fs";
+import { tmpdir } from "node:os";
 import { dirname, join } from "node:path";
 
 /** The repository root: the nearest folder above this file (compiled into build-test/ or not)
@@ -17,4 +18,12 @@ export function repoRoot(): string {
 /** The `pmcodec` binary the bit-for-bit tests compare with (PMCODEC_BIN, or the debug build). */
 export function pmcodecBin(root: string = repoRoot()): string {
   return process.env.PMCODEC_BIN ?? join(root, "target/debug/pmcodec");
+}
+
+/** A fresh directory under the system's temporary one, removed when the test process exits
+ *  (the encoded files a test writes there are not left behind run after run). */
+export function scratchDir(prefix: string): string {
+  const dir = mkdtempSync(join(tmpdir(), prefix));
+  process.on("exit", () => rmSync(dir, { recursive: true, force: true }));
+  return dir;
 }

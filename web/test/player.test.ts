@@ -3,11 +3,10 @@
 // (one request per frame, loops fetch nothing again, a lowered budget stops fetching finer
 // bands at the next keyframe, one normal per vertex); and the built package's entry point.
 import { test } from "node:test";
-import { pmcodecBin, repoRoot } from "./paths.js";
+import { pmcodecBin, repoRoot, scratchDir } from "./paths.js";
 import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
-import { existsSync, mkdtempSync, readFileSync } from "node:fs";
-import { tmpdir } from "node:os";
+import { existsSync, readFileSync } from "node:fs";
 import { join } from "node:path";
 import { ChunkKind, Decoder, NONE, Reader, VERSION } from "../src/container/index.js";
 import { morphAttributeStarts } from "../src/geomorph.js";
@@ -98,7 +97,7 @@ test("range cache: holds at most its limit, forgetting the least recently used",
 
 function sample(): string {
   if (!existsSync(bin)) throw new Error(`${bin} is missing: build it with cargo build -p pmcodec (or set PMCODEC_BIN)`);
-  const dir = mkdtempSync(join(tmpdir(), "pmc-player-"));
+  const dir = scratchDir("pmc-player-");
   execFileSync(bin, ["sample", "twisting-tube", "-o", join(dir, "frames"), "--frames", "20"]);
   const pmc = join(dir, "tube.pmc");
   execFileSync(bin, ["encode", "-q", join(dir, "frames"), "-o", pmc, "--keyframe-interval", "8"]);
@@ -409,7 +408,7 @@ test("pmcodec-three's materials: glTF's metallic-roughness materials as GLTFLoad
 });
 
 test("GPU skinning (gpuSkin): frames carry the cut's skin with each new cut, the palette, and offsets (whole or changed) that, rebuilt as the page does and skinned in floats, pose each vertex within a quantum of its exact position", async () => {
-  const file = join(mkdtempSync(join(tmpdir(), "pmc-gpuskin-")), "fox.pmc");
+  const file = join(scratchDir("pmc-gpuskin-"), "fox.pmc");
   const fox = join(root, "../shared/data/gltf/Fox.glb");
   if (!existsSync(fox)) throw new Error(`${fox} is absent: this test reads the real models in ../shared/data beside the repository`);
   execFileSync(bin, ["encode", "-q", fox, "-o", file, "--keyframe-interval", "8", "--quant-bits", "12"]);

@@ -3,17 +3,16 @@
 // linear blend skinning of the bind positions plus those offsets (what the player's vertex
 // shader draws) must land within one position quantum of them, at every frame and level.
 import { test } from "node:test";
-import { pmcodecBin, repoRoot } from "./paths.js";
+import { pmcodecBin, repoRoot, scratchDir } from "./paths.js";
 import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
-import { existsSync, mkdtempSync, readFileSync } from "node:fs";
-import { tmpdir } from "node:os";
+import { existsSync, readFileSync } from "node:fs";
 import { join } from "node:path";
 import { Decoder, Reader } from "../src/container/index.js";
 
 const root = repoRoot();
 const bin = pmcodecBin(root);
-const dir = mkdtempSync(join(tmpdir(), "pmc-skin-"));
+const dir = scratchDir("pmc-skin-");
 
 async function open(pmc: string): Promise<Reader> {
   const bytes = new Uint8Array(readFileSync(pmc));
