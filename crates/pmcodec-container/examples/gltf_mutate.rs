@@ -159,7 +159,7 @@ fn main() {
         }
         println!("{name}: {n} damaged inputs: {ok} encoded and played, {errors} errors ({decode_errors} after encoding), {panics} panics");
         let mut common: Vec<_> = seen.into_iter().collect();
-        common.sort_by(|a, b| b.1.cmp(&a.1));
+        common.sort_by_key(|c| std::cmp::Reverse(c.1));
         for (e, c) in common.iter().take(8) {
             println!("    {c:5}  {e}");
         }
