@@ -2,6 +2,12 @@
 //! play an asset as a [`Session`] that streams the container with range requests, reading only
 //! the bands its triangle budget needs and prefetching frames ahead of the playhead, and hands
 //! out ready-to-draw vertex and index buffers per frame.
+//!
+//! A server's answers are bounded: a range answer may hold the ranges asked and their
+//! multipart framing, any other at most [`DEFAULT_ANSWER_LIMIT`] bytes
+//! ([`Client::with_answer_limit`]), an error answer's first 64 KiB are kept as its detail; a
+//! server that sends more gets an error, checked against its declared length before reading
+//! and against the bytes as they arrive.
 #![warn(missing_docs)]
 
 mod multirange;
@@ -42,6 +48,19 @@ pub enum ClientError {
 
 pub use pmcodec_api::{AssetInfo, AssetSummary};
 
+/// Most bytes one answer may hold (a whole file, a `/stream` answer, a mesh, a JSON document)
+/// unless [`Client::with_answer_limit`] says otherwise; a range answer may hold only the
+/// ranges asked and their multipart framing. A server that sends more (a wrong length, an
+/// endless body) gets an error before the client holds it.
+pub const DEFAULT_ANSWER_LIMIT: u64 = 1 << 30;
+
+/// Most bytes of an error answer kept as [`ClientError::Status`]'s detail.
+const ERROR_DETAIL_LIMIT: u64 = 64 << 10;
+
+/// Bytes a `multipart/byteranges` answer may spend per part on its boundary and headers, and
+/// once on its preamble and closing boundary, beyond the ranges' own bytes.
+const MULTIPART_FRAMING: u64 = 512;
+
 /// A connection to one server.
 #[derive(Clone, Debug)]
 pub struct Client {
@@ -49,13 +68,59 @@ pub struct Client {
     base: String,
     /// Bearer token for servers that guard reads.
     token: Option<String>,
+    /// Most bytes one answer may hold ([`DEFAULT_ANSWER_LIMIT`]).
+    answer_limit: u64,
+}
+
+/// Reads an answer's body, refusing one of more than `limit` bytes: by its declared length
+/// before reading anything, and as its bytes arrive (a chunked answer declares none).
+async fn read_body(mut resp: reqwest::Response, limit: u64) -> Result<Vec<u8>, ClientError> {
+    let url = resp.url().to_string();
+    let over = |n: u64| ClientError::Protocol(format!("{url}: an answer of {n} bytes or more, over the {limit} this request allows"));
+    if let Some(n) = resp.content_length().filter(|&n| n > limit) {
+        return Err(over(n));
+    }
+    let mut out = Vec::new();
+    while let Some(chunk) = resp.chunk().await? {
+        let n = out.len() as u64 + chunk.len() as u64;
+        if n > limit {
+            return Err(over(n));
+        }
+        out.extend_from_slice(&chunk);
+    }
+    Ok(out)
+}
+
+/// The first `limit` bytes of an error answer, as text (the rest is not read).
+async fn error_detail(mut resp: reqwest::Response) -> String {
+    let mut out = Vec::new();
+    while let Ok(Some(chunk)) = resp.chunk().await {
+        let room = (ERROR_DETAIL_LIMIT as usize).saturating_sub(out.len());
+        out.extend_from_slice(&chunk[..chunk.len().min(room)]);
+        if room <= chunk.len() {
+            break;
+        }
+    }
+    String::from_utf8_lossy(&out).into_owned()
 }
 
 impl Client {
     /// `base` is the server's root, e.g. `http://127.0.0.1:8080`.
     pub fn new(base: &str) -> Result<Self, ClientError> {
         let http = reqwest::Client::builder().timeout(Duration::from_secs(60)).build()?;
-        Ok(Client { http, base: base.trim_end_matches('/').to_string(), token: None })
+        Ok(Client { http, base: base.trim_end_matches('/').to_string(), token: None, answer_limit: DEFAULT_ANSWER_LIMIT })
+    }
+
+    /// Sets the most bytes one answer may hold ([`DEFAULT_ANSWER_LIMIT`] unless set).
+    pub fn with_answer_limit(mut self, bytes: u64) -> Self {
+        self.answer_limit = bytes;
+        self
+    }
+
+    /// `path`'s answer as a JSON document of at most the answer limit.
+    async fn json<T: serde::de::DeserializeOwned>(&self, path: &str) -> Result<T, ClientError> {
+        let body = read_body(self.get(path, None).await?, self.answer_limit).await?;
+        serde_json::from_slice(&body).map_err(|e| ClientError::Protocol(format!("{}{path}: {e}", self.base)))
     }
 
     /// Sends `Authorization: Bearer <token>` with every request (servers with a read token).
@@ -76,7 +141,7 @@ impl Client {
         let resp = req.send().await?;
         if !resp.status().is_success() {
             let status = resp.status().as_u16();
-            let detail = resp.text().await.unwrap_or_default();
+            let detail = error_detail(resp).await;
             return Err(ClientError::Status { url, status, detail });
         }
         Ok(resp)
@@ -88,18 +153,19 @@ impl Client {
         struct List {
             assets: Vec<AssetSummary>,
         }
-        Ok(self.get("/v1/assets", None).await?.json::<List>().await?.assets)
+        Ok(self.json::<List>("/v1/assets").await?.assets)
     }
 
     /// One asset's description (`GET /v1/assets/{id}`).
     pub async fn asset(&self, id: &str) -> Result<AssetInfo, ClientError> {
-        Ok(self.get(&format!("/v1/assets/{id}"), None).await?.json().await?)
+        self.json(&format!("/v1/assets/{id}")).await
     }
 
     /// LOD on demand: frame `frame` cut by the server (compact binary format).
     pub async fn mesh(&self, id: &str, frame: u32, target: CutTarget) -> Result<TriMesh, ClientError> {
         let q = Self::cut_query(target)?;
-        let bytes = self.get(&format!("/v1/assets/{id}/mesh?frame={frame}&{q}&format=bin"), None).await?.bytes().await?;
+        let bytes =
+            read_body(self.get(&format!("/v1/assets/{id}/mesh?frame={frame}&{q}&format=bin"), None).await?, self.answer_limit).await?;
         parse_bin_mesh(&bytes)
     }
 
@@ -109,7 +175,9 @@ impl Client {
     /// Triangles come grouped by material.
     pub async fn textured_mesh(&self, id: &str, frame: u32, target: CutTarget) -> Result<(TriMesh, Appearance), ClientError> {
         let q = Self::cut_query(target)?;
-        let bytes = self.get(&format!("/v1/assets/{id}/mesh?frame={frame}&{q}&format=bin&layout=3"), None).await?.bytes().await?;
+        let bytes =
+            read_body(self.get(&format!("/v1/assets/{id}/mesh?frame={frame}&{q}&format=bin&layout=3"), None).await?, self.answer_limit)
+                .await?;
         parse_bin_textured(&bytes)
     }
 
@@ -129,7 +197,7 @@ impl Client {
     /// /v1/assets/{id}/v/{version}/index?level=L`): whether its index is banded, its head
     /// ranges and per frame the ranges of its chunks.
     pub async fn index(&self, id: &str, version: &str, level: usize) -> Result<IndexAnswer, ClientError> {
-        Ok(self.get(&format!("/v1/assets/{id}/v/{version}/index?level={level}"), None).await?.json().await?)
+        self.json(&format!("/v1/assets/{id}/v/{version}/index?level={level}")).await
     }
 
     /// The bytes of each of `ranges` of the file at `path` (end exclusive), up to
@@ -157,12 +225,15 @@ impl Client {
             let resp = req.send().await?;
             let status = resp.status().as_u16();
             if !resp.status().is_success() {
-                let detail = resp.text().await.unwrap_or_default();
+                let detail = error_detail(resp).await;
                 return Err(ClientError::Status { url, status, detail });
             }
             let header = |n: reqwest::header::HeaderName| resp.headers().get(n).and_then(|v| v.to_str().ok()).map(str::to_string);
             let (ct, cr) = (header(reqwest::header::CONTENT_TYPE), header(reqwest::header::CONTENT_RANGE));
-            let body = resp.bytes().await?;
+            // A range answer holds the ranges and their framing; a whole-file one (200) the file.
+            let asked: u64 = batch.iter().map(|r| r.end - r.start).sum();
+            let limit = if status == 200 { self.answer_limit } else { asked + MULTIPART_FRAMING * (batch.len() as u64 + 1) };
+            let body = read_body(resp, limit).await?;
             // Data bytes, as a single range counts them: a multipart answer's part headers
             // are framing like the response's own headers (a whole-file answer counts whole).
             downloaded += if status == 200 { body.len() as u64 } else { batch.iter().map(|r| r.end - r.start).sum() };
@@ -192,7 +263,7 @@ impl Client {
             .and_then(|v| v.to_str().ok())
             .and_then(|v| v.parse().ok())
             .ok_or_else(|| ClientError::Protocol("a stream without x-pmc-from".into()))?;
-        let body = resp.bytes().await?;
+        let body = read_body(resp, self.answer_limit).await?;
         Ok((stream_source(&body, level, start)?, body.len() as u64))
     }
 
@@ -373,7 +444,9 @@ impl Session {
         let source = SharedBytes(Arc::new(Prefetched { len: info.summary.bytes, ..Default::default() }));
         let mut downloaded = 0;
         // Preamble, then header and index (their lengths are in the preamble).
-        let pre = client.get(&info.summary.file, Some((0, PREAMBLE_LEN as u64 - 1))).await?.bytes().await?.to_vec();
+        // At most the file (a server may answer a range with the whole of it).
+        let limit = info.summary.bytes.min(client.answer_limit);
+        let pre = read_body(client.get(&info.summary.file, Some((0, PREAMBLE_LEN as u64 - 1))).await?, limit).await?;
         // Magic and version are checked before the lengths are trusted.
         let p = Preamble::parse(&pre)?;
         let tables = PREAMBLE_LEN as u64 + p.header_len as u64 + p.index_len as u64;
@@ -384,7 +457,7 @@ impl Session {
         // first, then only the groups of entries this session's level reads.
         let banded = p.version >= 7 && p.flags & FLAG_BANDS != 0;
         let head_end = if banded { PREAMBLE_LEN as u64 + p.header_len as u64 + p.table_len as u64 } else { tables };
-        let head = client.get(&info.summary.file, Some((0, head_end - 1))).await?.bytes().await?.to_vec();
+        let head = read_body(client.get(&info.summary.file, Some((0, head_end - 1))).await?, limit).await?;
         if head.len() as u64 != head_end {
             return Err(ClientError::Protocol(format!("range 0-{} returned {} bytes", head_end - 1, head.len())));
         }

@@ -21,7 +21,8 @@ fn content_range(v: &str) -> Option<Range<u64>> {
     let (span, _) = spec.split_once('/')?;
     let (a, b) = span.split_once('-')?;
     let (a, b): (u64, u64) = (a.trim().parse().ok()?, b.trim().parse().ok()?);
-    (b >= a).then(|| a..b + 1)
+    // A server's numbers: `b = u64::MAX` must not overflow the exclusive end.
+    (b >= a).then_some(a..b.checked_add(1)?)
 }
 
 /// A range of the file and its bytes.
@@ -50,8 +51,10 @@ fn parts(body: &[u8], boundary: &str) -> Result<Vec<Part>, ClientError> {
             .and_then(|(_, v)| content_range(v))
             .ok_or_else(|| bad("a part without a Content-Range"))?;
         let start = head_end + 4;
-        let end = start + (range.end - range.start) as usize;
-        let bytes = body.get(start..end).ok_or_else(|| bad("a part cut short"))?;
+        // The part's length as the server states it, at most what the body holds after it.
+        let end = usize::try_from(range.end - range.start).ok().and_then(|n| start.checked_add(n));
+        let bytes = end.and_then(|end| body.get(start..end)).ok_or_else(|| bad("a part cut short"))?;
+        let end = start + bytes.len();
         out.push((range, bytes.to_vec()));
         at = find(end, delimiter.as_bytes()).ok_or_else(|| bad("no closing boundary"))?;
     }
@@ -118,5 +121,43 @@ mod tests {
         assert!(split_answer(&[3..5], 206, Some("x"), Some("bytes 3-5/9"), b"ab").is_err());
         assert_eq!(split_answer(&[1..3, 0..1], 200, None, None, b"abc").unwrap(), vec![b"bc".to_vec(), b"a".to_vec()]);
         assert_eq!(range_header(&[0..10, 12..13]), "bytes=0-9,12-12");
+    }
+
+    /// A server's numbers at their limits are errors, not overflows: a range ending at
+    /// u64::MAX, a part longer than the body, a 206 whose single range is that long.
+    #[test]
+    fn ranges_at_the_limits_are_refused() {
+        let max = u64::MAX;
+        assert!(split_answer(&[0..1], 206, Some("x"), Some(&format!("bytes 0-{max}/{max}")), b"a").is_err());
+        for head in [format!("bytes 0-{max}/*"), format!("bytes {}-{max}/*", max - 1), format!("bytes 1-{}/*", max - 1)] {
+            let body = format!("--b\r\nContent-Range: {head}\r\n\r\nabc\r\n--b--\r\n");
+            let e = split_answer(&[0..1], 206, Some("multipart/byteranges; boundary=b"), None, body.as_bytes()).unwrap_err();
+            assert!(e.to_string().contains("multipart/byteranges"), "{head}: {e}");
+        }
+    }
+
+    /// Damaged multipart answers (every cut and every byte changed of a good one, and random
+    /// bytes) give an answer or an error, never a panic.
+    #[test]
+    fn damaged_multipart_answers_never_panic() {
+        let good = b"\r\n--xyz\r\nContent-Range: bytes 2-4/10\r\n\r\n--x\r\n--xyz\r\nContent-Range: bytes 7-7/10\r\n\r\nq\r\n--xyz--\r\n";
+        let ct = Some("multipart/byteranges; boundary=xyz");
+        for cut in 0..good.len() {
+            let _ = split_answer(&[2..5, 7..8], 206, ct, None, &good[..cut]);
+        }
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        for at in 0..good.len() {
+            for b in [0u8, b'-', b'9', b'\r', 0xff] {
+                let mut d = good.to_vec();
+                d[at] = b;
+                let _ = split_answer(&[2..5, 7..8], 206, ct, None, &d);
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                let noise: Vec<u8> = (0..(state % 64) as usize).map(|i| (state >> (i % 8 * 8)) as u8).collect();
+                d.splice(at..at, noise);
+                let _ = split_answer(&[2..5, 7..8], 206, ct, None, &d);
+            }
+        }
     }
 }

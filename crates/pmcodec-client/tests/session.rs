@@ -173,3 +173,70 @@ async fn a_coarse_client_reads_less_and_decodes_the_same_cut() {
     server.stop().await.unwrap();
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// A server on loopback that answers every request with `head` and then `body_chunks` chunks
+/// of 64 KiB (as many as it can write before the client hangs up); returns its URL.
+async fn hostile_server(head: &'static str, body_chunks: usize) -> String {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let url = format!("http://{}", listener.local_addr().unwrap());
+    tokio::spawn(async move {
+        while let Ok((mut sock, _)) = listener.accept().await {
+            tokio::spawn(async move {
+                let mut req = [0u8; 4096];
+                let _ = sock.read(&mut req).await;
+                if sock.write_all(head.as_bytes()).await.is_err() {
+                    return;
+                }
+                let chunk = vec![b'x'; 1 << 16];
+                for _ in 0..body_chunks {
+                    // Chunked transfer coding when the head says so, else raw bytes.
+                    let framed = if head.contains("chunked") {
+                        [format!("{:x}\r\n", chunk.len()).into_bytes(), chunk.clone(), b"\r\n".to_vec()].concat()
+                    } else {
+                        chunk.clone()
+                    };
+                    if sock.write_all(&framed).await.is_err() {
+                        return;
+                    }
+                }
+            });
+        }
+    });
+    url
+}
+
+/// Answers larger than the client allows are refused, whether the server declares their
+/// length (refused before reading) or streams without one (refused once past the limit), and
+/// a range answer may not exceed what was asked.
+#[tokio::test]
+async fn answers_over_the_limit_are_refused() {
+    let limit = 1 << 20;
+    // An endless chunked body: refused after the limit, long before the 64 MiB it would send.
+    let url = hostile_server("HTTP/1.1 200 OK\r\nContent-Type: application/octet-stream\r\nTransfer-Encoding: chunked\r\n\r\n", 1024).await;
+    let client = Client::new(&url).unwrap().with_answer_limit(limit);
+    let t = std::time::Instant::now();
+    let e = client.mesh("a", 0, CutTarget::Triangles(10)).await.unwrap_err().to_string();
+    assert!(e.contains("over the 1048576 this request allows"), "{e}");
+    assert!(t.elapsed().as_secs() < 20, "{:?}", t.elapsed());
+    let e = client.assets().await.unwrap_err().to_string();
+    assert!(e.contains("over the 1048576"), "{e}");
+    // A declared length over the limit: refused from the head.
+    let url = hostile_server("HTTP/1.1 200 OK\r\nContent-Length: 1000000000000\r\n\r\n", 1).await;
+    let client = Client::new(&url).unwrap().with_answer_limit(limit);
+    let e = client.mesh("a", 0, CutTarget::Level(0)).await.unwrap_err().to_string();
+    assert!(e.contains("1000000000000 bytes"), "{e}");
+    // A 206 to ten bytes that goes on: refused past the ranges and their framing.
+    let url = hostile_server("HTTP/1.1 206 Partial Content\r\nContent-Range: bytes 0-9/100\r\nTransfer-Encoding: chunked\r\n\r\n", 4).await;
+    let client = Client::new(&url).unwrap();
+    let e = client.range("/f", &[0..10]).await.unwrap_err().to_string();
+    assert!(e.contains("over the"), "{e}");
+    // An error answer's endless body: its first bytes kept as the detail, the rest not read.
+    let url = hostile_server("HTTP/1.1 500 Internal Server Error\r\nTransfer-Encoding: chunked\r\n\r\n", 1024).await;
+    match Client::new(&url).unwrap().asset("a").await.unwrap_err() {
+        pmcodec_client::ClientError::Status { status, detail, .. } => {
+            assert!(status == 500 && detail.len() <= 64 << 10 && detail.starts_with("xxx"))
+        }
+        e => panic!("{e}"),
+    }
+}
