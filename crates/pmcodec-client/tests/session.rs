@@ -229,7 +229,7 @@ async fn answers_over_the_limit_are_refused() {
     // A 206 to ten bytes that goes on: refused past the ranges and their framing.
     let url = hostile_server("HTTP/1.1 206 Partial Content\r\nContent-Range: bytes 0-9/100\r\nTransfer-Encoding: chunked\r\n\r\n", 4).await;
     let client = Client::new(&url).unwrap();
-    let e = client.range("/f", &[0..10]).await.unwrap_err().to_string();
+    let e = client.range("/f", std::slice::from_ref(&(0..10))).await.unwrap_err().to_string();
     assert!(e.contains("over the"), "{e}");
     // An error answer's endless body: its first bytes kept as the detail, the rest not read.
     let url = hostile_server("HTTP/1.1 500 Internal Server Error\r\nTransfer-Encoding: chunked\r\n\r\n", 1024).await;
