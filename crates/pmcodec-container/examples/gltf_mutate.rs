@@ -8,7 +8,7 @@
 //! the command line's other paths, such as `pmcodec lod`).
 //! `cargo run --release -p pmcodec-container --features test-support --example gltf_mutate -- N OUT_DIR [X.glb ...]`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
-use pmcodec_container::testing::{Rng, exercise};
+use pmcodec_container::testing::{Rng, exercise, keep_failure, panic_message};
 use pmcodec_container::{EncodeOptions, QuantizationChoice, encode};
 use pmcodec_mesh::gltf_input::{GltfOptions, load_gltf_bytes};
 use pmcodec_mesh::samples::{self, CharacterOptions};
@@ -136,25 +136,18 @@ fn main() {
                     errors += 1;
                     decode_errors += e.starts_with("decoding what was encoded") as usize;
                     if e.starts_with("decoding what was encoded") {
-                        let path = out.join(format!("decode-{k}-{i}.glb"));
-                        std::fs::write(&path, &file).expect("write");
-                        eprintln!("ENCODED BUT NOT DECODED {name} #{i}: {e} -> {}", path.display());
+                        keep_failure(&out, "decode", &format!("{k}-{i}.glb"), &file, &e);
                     }
                     let key: String = e.chars().take(50).collect();
                     *seen.entry(key).or_insert(0) += 1;
                 }
                 Err(p) => {
                     panics += 1;
-                    let msg = p.downcast_ref::<String>().cloned().or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()));
-                    let path = out.join(format!("panic-{k}-{i}.glb"));
-                    std::fs::write(&path, &file).expect("write");
-                    eprintln!("PANIC {name} #{i}: {} -> {}", msg.unwrap_or_default(), path.display());
+                    keep_failure(&out, "panic", &format!("{k}-{i}.glb"), &file, &panic_message(p.as_ref()));
                 }
             }
             if took > 20.0 {
-                let path = out.join(format!("slow-{k}-{i}.glb"));
-                std::fs::write(&path, &file).expect("write");
-                eprintln!("SLOW {name} #{i}: {took:.1} s -> {}", path.display());
+                keep_failure(&out, "slow", &format!("{k}-{i}.glb"), &file, &format!("{took:.1} s"));
             }
         }
         println!("{name}: {n} damaged inputs: {ok} encoded and played, {errors} errors ({decode_errors} after encoding), {panics} panics");

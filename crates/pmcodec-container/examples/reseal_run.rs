@@ -7,7 +7,7 @@
 //! tests/resealed has them, for the TypeScript decoder (`PMC_RESEALED_DIR=OUT_DIR`, web/test/resealed.test.ts).
 //! `cargo run --release -p pmcodec-container --features test-support --example reseal_run -- N OUT_DIR [X.pmc ...]`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
-use pmcodec_container::testing::{Rng, Unsealed, exercise, mutate, variant};
+use pmcodec_container::testing::{Rng, Unsealed, exercise, keep_failure, mutate, panic_message, variant};
 use pmcodec_container::{EncodeOptions, encode};
 use pmcodec_mesh::samples::{self, CharacterOptions};
 use pmcodec_mesh::skin_fit::{FitOptions, fit_skin};
@@ -84,17 +84,12 @@ fn main() {
                 Ok(Err(e)) => record(variant(&e)),
                 Err(p) => {
                     panics += 1;
-                    let msg = p.downcast_ref::<String>().cloned().or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()));
-                    let path = out.join(format!("panic-{k}-{i}.pmc"));
-                    std::fs::write(&path, &file).expect("write");
-                    eprintln!("PANIC {name} #{i}: {} -> {}", msg.unwrap_or_default(), path.display());
+                    keep_failure(&out, "panic", &format!("{k}-{i}.pmc"), &file, &panic_message(p.as_ref()));
                 }
             }
             if took > 1.0 {
                 slow += 1;
-                let path = out.join(format!("slow-{k}-{i}.pmc"));
-                std::fs::write(&path, &file).expect("write");
-                eprintln!("SLOW {name} #{i}: {took:.1} s -> {}", path.display());
+                keep_failure(&out, "slow", &format!("{k}-{i}.pmc"), &file, &format!("{took:.1} s"));
             }
         }
         println!("{name} ({} B): {n} mutations, {panics} panics, {slow} slow; {refused:?}", bytes.len());

@@ -612,6 +612,22 @@ pub fn exercise(bytes: &[u8]) -> Result<(), ContainerError> {
     Ok(())
 }
 
+/// Keeps an input that failed a fuzzing run as `OUT/KIND-NAME` and says so on stderr, with
+/// what it did (a panic's message, or how long it took): the stable-Rust fuzzing examples'
+/// record of what to add to the regression corpus.
+pub fn keep_failure(out: &std::path::Path, kind: &str, name: &str, bytes: &[u8], what: &str) {
+    let path = out.join(format!("{kind}-{name}"));
+    match std::fs::write(&path, bytes) {
+        Ok(()) => eprintln!("{} {name}: {what} -> {}", kind.to_uppercase(), path.display()),
+        Err(e) => eprintln!("{} {name}: {what} (not kept: {}: {e})", kind.to_uppercase(), path.display()),
+    }
+}
+
+/// The message a panic carried (`catch_unwind`'s payload), or "" when it is not text.
+pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload.downcast_ref::<String>().cloned().or_else(|| payload.downcast_ref::<&str>().map(|s| s.to_string())).unwrap_or_default()
+}
+
 /// Whether an error is one that stops at the outer checks (magic, version, checksums): what
 /// resealed damage is meant to get past.
 pub fn stopped_at_the_door(e: &ContainerError) -> bool {
