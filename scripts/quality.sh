@@ -20,7 +20,7 @@ data=${3:-$root/../shared/data}
 frames=${FRAMES:-12}
 large_frames=${LARGE_FRAMES:-4}
 budgets=${BUDGETS:-40 25 15 10 5 1.5}
-seqs=${SEQS:-horse-gallop samba-60 cat-poses horse-sub4 samba-open cat-open waving-cloth}
+seqs=${SEQS:-horse-gallop samba-60 cat-poses horse-sub4 samba-open cat-open horse-half samba-half waving-cloth}
 mkdir -p "$out"
 # PMCODEC / QEM_REFERENCE: binaries to use instead of building this checkout's (a "before").
 if [ -z "${PMCODEC:-}" ]; then

@@ -4,12 +4,15 @@
 //!   from that frame's positions;
 //! - `samba-open`, `cat-open`: faces within 3% of the bounding-box diagonal of the frame-0
 //!   extreme vertices (+Y, -X, +X, -Z, +Z: head, hands, feet or paws) deleted;
+//! - `horse-half`, `samba-half`: the faces whose frame-0 centroid lies below the median x
+//!   (horse) or z (samba: its back) deleted: one long boundary across the surface, as on a
+//!   face mask or a garment;
 //! - `waving-cloth`: the built-in sample (pmcodec_mesh::samples), open on four sides.
 //!
 //! `cargo run --release -p pmcodec-eval --example make_meshes -- OUT_DIR [DATA_DIR]`
 //! (DATA_DIR defaults to ../shared/data).
 
-use pmcodec_eval::made::{boundary_loops, extreme_vertices, loop_subdivide, open_regions};
+use pmcodec_eval::made::{boundary_loops, extreme_vertices, loop_subdivide, open_half, open_regions};
 use pmcodec_mesh::{Sequence, TriMesh};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -46,7 +49,10 @@ fn opened(seq: &Sequence) -> Sequence {
 fn run(out: &Path, data: &Path) -> Result<(), String> {
     let horse = load(data, "horse-gallop")?;
     write(out, "horse-sub4", &loop_subdivide(&loop_subdivide(&horse)))?;
-    write(out, "samba-open", &opened(&load(data, "samba-60")?))?;
+    write(out, "horse-half", &open_half(&horse, 0))?;
+    let samba = load(data, "samba-60")?;
+    write(out, "samba-open", &opened(&samba))?;
+    write(out, "samba-half", &open_half(&samba, 2))?;
     write(out, "cat-open", &opened(&load(data, "cat-poses")?))?;
     let cloth = pmcodec_mesh::samples::by_name("waving-cloth").ok_or("no built-in waving-cloth sample")?;
     write(out, "waving-cloth", &cloth)

@@ -150,8 +150,27 @@ pub fn open_regions(seq: &Sequence, seeds: &[u32], radius: f32) -> Sequence {
     let centres: Vec<Vec3> = seeds.iter().filter_map(|&s| first.get(s as usize).copied()).collect();
     let r2 = radius * radius;
     let inside: Vec<bool> = first.iter().map(|p| centres.iter().any(|c| p.distance_squared(*c) <= r2)).collect();
-    let kept: Vec<[u32; 3]> = seq.triangles.iter().copied().filter(|t| !t.iter().any(|&v| inside[v as usize])).collect();
-    let mut new_index = vec![u32::MAX; first.len()];
+    keep_triangles(seq, |t| !t.iter().any(|&v| inside[v as usize]))
+}
+
+/// The sequence cut in half: the triangles whose frame-0 centroid lies below the median along
+/// `axis` (0 x, 1 y, 2 z) deleted, so one long boundary (or several, where the cut crosses
+/// limbs) runs across the surface, as on a face mask or a garment; unused vertices dropped.
+pub fn open_half(seq: &Sequence, axis: usize) -> Sequence {
+    let first = seq.frames.first().map(Vec::as_slice).unwrap_or(&[]);
+    let at = |t: &[u32; 3]| t.iter().filter_map(|&v| first.get(v as usize)).map(|p| p[axis.min(2)]).sum::<f32>() / 3.0;
+    let mut centroids: Vec<f32> = seq.triangles.iter().map(at).collect();
+    centroids.sort_by(f32::total_cmp);
+    let median = centroids.get(centroids.len() / 2).copied().unwrap_or(0.0);
+    keep_triangles(seq, |t| at(t) >= median)
+}
+
+/// The sequence with the triangles `keep` says yes to, and the vertices none of them uses
+/// dropped (the others keep their order and their motion).
+fn keep_triangles(seq: &Sequence, keep: impl Fn(&[u32; 3]) -> bool) -> Sequence {
+    let n = seq.vertex_count();
+    let kept: Vec<[u32; 3]> = seq.triangles.iter().copied().filter(|t| keep(t)).collect();
+    let mut new_index = vec![u32::MAX; n];
     for t in &kept {
         for &v in t {
             new_index[v as usize] = 0;
@@ -262,5 +281,18 @@ mod tests {
         assert!(open.validate().is_ok());
         // Every kept vertex keeps its motion.
         assert_eq!(open.frames.len(), 2);
+    }
+
+    #[test]
+    fn a_half_has_one_long_boundary() {
+        let s = loop_subdivide(&loop_subdivide(&octahedron()));
+        let half = open_half(&s, 1);
+        let (edges, loops) = boundary_loops(half.vertex_count(), &half.triangles);
+        assert_eq!(loops, 1, "a sphere cut in half");
+        assert!(edges >= 16, "{edges}");
+        // About half the triangles stay, every one of them on the kept side in every frame's order.
+        assert!(half.triangles.len() * 2 >= s.triangles.len() && half.triangles.len() * 3 <= 2 * s.triangles.len());
+        assert!(half.validate().is_ok());
+        assert_eq!(half.frames.len(), s.frames.len());
     }
 }
