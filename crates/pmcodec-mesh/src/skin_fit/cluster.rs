@@ -37,22 +37,34 @@ pub fn centroids(rest: &[DVec3], labels: &[u32], bones: usize) -> Vec<(u32, DVec
 /// For every point, the (at most [`NEAR_BONES`]) bones whose `centroids` are nearest it,
 /// nearest first (ties by bone number).
 pub fn near_bones(points: &[DVec3], centroids: &[(u32, DVec3)]) -> Vec<Vec<u32>> {
+    let m = NEAR_BONES.min(centroids.len());
+    let before = |a: &(f64, u32), b: &(f64, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).is_lt();
     points
         .par_iter()
-        .map_init(
-            || Vec::with_capacity(centroids.len()),
-            |scored: &mut Vec<(f64, u32)>, p| {
-                scored.clear();
-                scored.extend(centroids.iter().map(|&(b, c)| (c.distance_squared(*p), b)));
-                let m = NEAR_BONES.min(scored.len());
-                if m < scored.len() {
-                    scored.select_nth_unstable_by(m, |a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        .map(|p| {
+            // The m nearest so far, in order: each centroid goes in by insertion where it
+            // comes before the last kept (the same m, in the same order, as sorting them all).
+            let mut near = [(0.0f64, 0u32); NEAR_BONES];
+            let mut len = 0;
+            for &(b, c) in centroids {
+                let entry = (c.distance_squared(*p), b);
+                if len == m && !before(&entry, &near[m - 1]) {
+                    continue;
                 }
-                let near = &mut scored[..m];
-                near.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-                near.iter().map(|s| s.1).collect()
-            },
-        )
+                let mut j = if len < m {
+                    len += 1;
+                    len - 1
+                } else {
+                    m - 1
+                };
+                while j > 0 && before(&entry, &near[j - 1]) {
+                    near[j] = near[j - 1];
+                    j -= 1;
+                }
+                near[j] = entry;
+            }
+            near[..len].iter().map(|s| s.1).collect()
+        })
         .collect()
 }
 
@@ -224,4 +236,26 @@ pub fn split(data: &Data, labels: &[u32], error: &[f64], from: usize, to: usize)
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn near_bones_are_the_nearest_in_order_ties_by_number() {
+        // Centroids on a coarse grid (many equal distances) and points between them.
+        let grid = |i: u32| DVec3::new((i % 5) as f64, (i / 5 % 5) as f64, (i / 25) as f64);
+        for count in [1, 7, NEAR_BONES, NEAR_BONES + 1, 60] {
+            let centroids: Vec<(u32, DVec3)> = (0..count as u32).rev().map(|b| (b * 3, grid(b * 7 % 125))).collect();
+            let points: Vec<DVec3> = (0..50).map(|i| grid(i * 11 % 125) * 0.5 + DVec3::splat(0.25 * (i % 3) as f64)).collect();
+            let got = near_bones(&points, &centroids);
+            for (p, near) in points.iter().zip(&got) {
+                let mut all: Vec<(f64, u32)> = centroids.iter().map(|&(b, c)| (c.distance_squared(*p), b)).collect();
+                all.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                let want: Vec<u32> = all.iter().take(NEAR_BONES).map(|s| s.1).collect();
+                assert_eq!(near, &want, "{count} centroids, point {p}");
+            }
+        }
+    }
 }
