@@ -130,20 +130,6 @@ fn header(seq: &Sequence, frame_count: usize, opts: &EncodeOptions, (lo, hi): (V
 struct Chunks(Vec<(ChunkEntry, Vec<u8>)>, u16);
 
 impl Chunks {
-    /// Where the next chunk goes.
-    fn len(&self) -> usize {
-        self.0.len()
-    }
-
-    /// Puts a chunk before the one at `at` (a frame's pose, known once its bands are coded).
-    fn insert(&mut self, at: usize, kind: ChunkKind, frame: u32, band: u32, raw: Vec<u8>) -> Result<(), ContainerError> {
-        self.push(kind, frame, band, raw)?;
-        if let Some(c) = self.0.pop() {
-            self.0.insert(at, c);
-        }
-        Ok(())
-    }
-
     fn push(&mut self, kind: ChunkKind, frame: u32, band: u32, raw: Vec<u8>) -> Result<(), ContainerError> {
         // Nothing to say: left out (FLAG_SPARSE), and read as empty.
         if crate::format::sparse_kind(kind, self.1) && crate::format::leaves_out(kind, &raw) {
@@ -594,11 +580,92 @@ fn band_shift(header: &Header, j: usize, grid: Option<u32>, level_error: Option<
     s
 }
 
+/// A chunk the coding side of [`code_frames`] hands to its chunk-writing thread: its place,
+/// and its payload or what makes it.
+struct Piece<'a> {
+    kind: ChunkKind,
+    frame: u32,
+    band: u32,
+    payload: Payload<'a>,
+}
+
+/// A [`Piece`]'s payload: made already, a band's residuals (in units of `2^shift` quanta) to
+/// write in their shortest coding, or a payload to make. What the writing thread makes is
+/// what no later coding depends on: the payload codings compared (each sized by compressing
+/// it at the file's zstd level) and the compression of what is stored.
+enum Payload<'a> {
+    Raw(Vec<u8>),
+    Positions(u32, Vec<[i32; 3]>),
+    Make(Box<dyn FnOnce() -> Vec<u8> + Send + 'a>),
+}
+
+impl<'a> Piece<'a> {
+    fn raw(kind: ChunkKind, frame: usize, band: usize, raw: Vec<u8>) -> Self {
+        Piece { kind, frame: frame as u32, band: band as u32, payload: Payload::Raw(raw) }
+    }
+
+    fn make(kind: ChunkKind, frame: usize, band: usize, make: impl FnOnce() -> Vec<u8> + Send + 'a) -> Self {
+        Piece { kind, frame: frame as u32, band: band as u32, payload: Payload::Make(Box::new(make)) }
+    }
+}
+
+/// The chunk-writing thread of [`code_frames`]: every frame's pieces, in order, made and
+/// compressed into chunks.
+fn write_pieces(frames: std::sync::mpsc::Receiver<Vec<Piece>>, flags: u16) -> Result<Chunks, ContainerError> {
+    let mut chunks = Chunks(Vec::new(), flags);
+    for frame in frames {
+        for p in frame {
+            let raw = match p.payload {
+                Payload::Raw(raw) => raw,
+                Payload::Positions(shift, residuals) => payload::write_positions(shift, &residuals),
+                Payload::Make(make) => make(),
+            };
+            chunks.push(p.kind, p.frame, p.band, raw)?;
+        }
+    }
+    Ok(chunks)
+}
+
 /// The coding side of [`encode_until`]: every reclustered frame, in order, into chunks (the
 /// appearance chunks, observed on the reclustering side, are put in after). Returns early
 /// (dropping `frames`, which stops the reclustering) on an error.
+///
+/// Two threads: this one codes the frames (the predictions and residuals, each frame's from
+/// the one before), and a second one makes the payloads nothing later depends on and
+/// compresses the chunks ([`write_pieces`]), a few frames behind; the chunks are the same,
+/// in the same order. On the 34,102-vertex character of scripts/benchmarks.py the coding
+/// thread was the longest of the encoder's two, and these were two fifths of its work.
 fn code_frames(
     seq: &Sequence,
+    opts: &EncodeOptions,
+    header: Header,
+    held_corners: Vec<Vec<[u32; 3]>>,
+    grid: (Vec3, f32, &[f64], bool),
+    frames: std::sync::mpsc::Receiver<Reclustered>,
+    recycle: std::sync::mpsc::Sender<Reclustered>,
+) -> Result<(Header, Chunks, EncodeReport), ContainerError> {
+    let flags = opts.chunk_flags & crate::format::KNOWN_FLAGS;
+    let (to_writer, pieces) = std::sync::mpsc::sync_channel::<Vec<Piece>>(AHEAD);
+    let (coded, written) = std::thread::scope(|scope| {
+        let writer = scope.spawn(move || write_pieces(pieces, flags));
+        let coded = code_pieces(seq, opts, header, held_corners, grid, frames, recycle, to_writer);
+        let written = match writer.join() {
+            Ok(r) => r,
+            Err(panic) => std::panic::resume_unwind(panic),
+        };
+        (coded, written)
+    });
+    // The writer's error first: the coding side stops with `Cancelled` once it cannot send.
+    let mut chunks = written?;
+    let (header, report) = coded?;
+    derive_bands(&mut chunks, header.keyframe_interval, opts.derived_topology)?;
+    Ok((header, chunks, report))
+}
+
+/// [`code_frames`]' coding thread: sends each frame's pieces to `to_writer`.
+#[allow(clippy::too_many_arguments)]
+fn code_pieces<'a>(
+    seq: &'a Sequence,
     opts: &EncodeOptions,
     mut header: Header,
     mut held_corners: Vec<Vec<[u32; 3]>>,
@@ -607,11 +674,13 @@ fn code_frames(
     (lo, step, level_error, exact): (Vec3, f32, &[f64], bool),
     frames: std::sync::mpsc::Receiver<Reclustered>,
     recycle: std::sync::mpsc::Sender<Reclustered>,
-) -> Result<(Header, Chunks, EncodeReport), ContainerError> {
+    to_writer: std::sync::mpsc::SyncSender<Vec<Piece<'a>>>,
+) -> Result<(Header, EncodeReport), ContainerError> {
     let levels = header.levels();
-
-    let mut chunks = Chunks(Vec::new(), opts.chunk_flags & crate::format::KNOWN_FLAGS);
-    chunks.push(ChunkKind::Triangles, 0, 0, payload::write_triangles_best(&seq.triangles, seq.vertex_count() as u32))?;
+    let n = seq.vertex_count() as u32;
+    let triangles = &seq.triangles;
+    let send = |pieces: Vec<Piece<'a>>| to_writer.send(pieces).map_err(|_| ContainerError::Cancelled);
+    send(vec![Piece::make(ChunkKind::Triangles, 0, 0, move || payload::write_triangles_best(triangles, n))])?;
     let total = header.level_sizes.iter().map(|&n| n as usize).sum();
     let mut coder = PositionCoder::new(
         opts.motion,
@@ -629,8 +698,11 @@ fn code_frames(
     let inv = 1.0 / step as f64;
     let mut corners: Vec<(u32, [u32; 3])> = Vec::new();
     // Frame 0's parent maps, which later keyframes' Key chunks may code their changes from.
-    let mut first_keys: Vec<Vec<u32>> = vec![Vec::new(); levels];
-    for r in frames {
+    let mut first_keys: Vec<std::sync::Arc<Vec<u32>>> = vec![std::sync::Arc::default(); levels];
+    let sizes = header.level_sizes.clone();
+    for mut r in frames {
+        let mut out = Vec::new();
+        let key = r.key.take();
         let (f, delta, h, positions) = (r.frame, &r.delta, &r.h, &r.positions);
         if let (0, Some((input, placement))) = (f, skin_input) {
             // The skeleton once, before the first frame, top band first.
@@ -640,7 +712,7 @@ fn code_frames(
             let fit = fit_skin(input, h, positions, (lo, step), (placement, keep))?;
             let offsets = &h.offsets;
             for j in (0..levels).rev() {
-                chunks.push(ChunkKind::Bind, 0, j as u32, write_binds(&fit.nodes[offsets[j] as usize..offsets[j + 1] as usize]))?;
+                out.push(Piece::raw(ChunkKind::Bind, 0, j, write_binds(&fit.nodes[offsets[j] as usize..offsets[j + 1] as usize])));
             }
             header.skin = Some(fit.header.clone());
             bands = band_entries(&fit.nodes, offsets, 0, fit.header.palette_len);
@@ -660,21 +732,24 @@ fn code_frames(
         // level-j client's span holds only the (smaller) faces and corners of coarser bands.
         // Bands every one of which `derive_bands` will derive need not be coded first.
         let all_derived = opts.derived_topology == DerivedTopology::Always;
+        let mut key_bands = key.map(|k| k.bands);
         for (j, held) in held_corners.iter_mut().enumerate().skip(1) {
-            if let Some(k) = &r.key {
-                let raw = if all_derived { vec![0] } else { topology::faces_chunk(h, j, &k.bands[j].faces, held.len()) };
-                chunks.push(ChunkKind::Faces, f as u32, j as u32, raw)?;
+            if let Some(k) = key_bands.as_mut() {
+                if all_derived {
+                    out.push(Piece::raw(ChunkKind::Faces, f, j, vec![0]));
+                } else {
+                    let (faces, size, triangles) = (std::mem::take(&mut k[j].faces), sizes[j], held.len() as u32);
+                    out.push(Piece::make(ChunkKind::Faces, f, j, move || payload::write_faces_best(&faces, size, triangles)));
+                }
             }
             corners.clear();
             corners.extend(delta.corners.iter().filter(|c| c.level as usize == j).map(|c| (c.t, c.corners)));
             let raw = if all_derived { vec![0] } else { topology::corners_chunk(h, j, &corners, held) };
-            chunks.push(ChunkKind::Corners, f as u32, j as u32, raw)?;
+            out.push(Piece::raw(ChunkKind::Corners, f, j, raw));
             for &(t, c) in &corners {
                 held[t as usize] = c;
             }
         }
-        // The frame's pose goes before its bands, once they say which bands skinning predicts.
-        let pose_at = chunks.len();
         let n0 = h.level_sizes[0] as usize;
         let coarse = opts.skinned_coarse.map(|t| CoarseQuadrics::new(&r.quadrics, n0, (lo, step), t));
         let skinning = skin.as_ref().map(|s| Skinning {
@@ -683,36 +758,44 @@ fn code_frames(
             previous: &held.palette,
             coarse: coarse.as_ref(),
         });
+        // The frame's pose goes before its bands, once they say which bands skinning predicts.
+        let mut band_pieces = Vec::new();
         let mut mask = 0u64;
         for j in (0..levels).rev() {
-            if let Some(k) = &r.key {
-                let first = if f == 0 { None } else { first_keys.get(j).map(Vec::as_slice) };
-                chunks.push(ChunkKind::Key, f as u32, j as u32, topology::key_chunk(h, j, &k.bands[j].parent, first))?;
+            if let Some(k) = key_bands.as_mut() {
+                let parent = std::mem::take(&mut k[j].parent);
+                let limit = sizes.get(j + 1).copied().unwrap_or(0);
+                let first = (f != 0).then(|| first_keys[j].clone());
                 if f == 0 {
-                    first_keys[j] = k.bands[j].parent.clone();
+                    first_keys[j] = std::sync::Arc::new(parent.clone());
                 }
+                band_pieces.push(Piece::make(ChunkKind::Key, f, j, move || {
+                    payload::write_key_best(&parent, limit, first.as_deref().map(Vec::as_slice))
+                }));
             }
-            chunks.push(ChunkKind::Delta, f as u32, j as u32, topology::delta_chunk(h, j, &net_moves(delta, j)))?;
+            let (moves, nodes, parents) = (net_moves(delta, j), sizes[j], sizes.get(j + 1).copied().unwrap_or(0));
+            band_pieces.push(Piece::make(ChunkKind::Delta, f, j, move || payload::write_delta_best(&moves, nodes, parents)));
             let surface = opts.surface_grid.then_some(Surface { quadrics: &r.quadrics, first: n0, lo: lo.as_dvec3(), step: step as f64 });
-            let (positions, skinned) = coder.band(j, intra, h, truth, (skinning, surface));
+            let (shift, residuals, skinned) = coder.band_residuals(j, intra, h, truth, (skinning, surface));
             mask |= (skinned as u64) << j;
-            chunks.push(ChunkKind::Positions, f as u32, j as u32, positions)?;
+            band_pieces.push(Piece { kind: ChunkKind::Positions, frame: f as u32, band: j as u32, payload: Payload::Positions(shift, residuals) });
         }
         if skin.is_some() {
             // Top band first, as the bands themselves.
-            for (at, j) in (pose_at..).zip((0..levels).rev().filter(|&j| has_palette_chunk(&bands, j))) {
+            for j in (0..levels).rev().filter(|&j| has_palette_chunk(&bands, j)) {
                 let (kind, raw) = pose_chunk(opts.palette_coding, mask, (&bands, j), &palette, (&held, intra));
-                chunks.insert(at, kind, f as u32, j as u32, raw)?;
+                out.push(Piece::raw(kind, f, j, raw));
             }
             let JointsFrame { palette, rig, links, .. } = std::mem::take(&mut palette);
             held.advance_rig(palette, (rig, links), intra, mask);
         }
+        out.append(&mut band_pieces);
+        send(out)?;
         coder.next_frame();
         // The reclustering side may have finished: then there is nothing to refill.
         let _ = recycle.send(r);
     }
-    derive_bands(&mut chunks, header.keyframe_interval, opts.derived_topology)?;
-    Ok((header, chunks, std::mem::take(&mut coder.report)))
+    Ok((header, std::mem::take(&mut coder.report)))
 }
 
 /// Frame `f`'s joints of skin `fit` against the palettes the decoder holds (`held`; `intra`

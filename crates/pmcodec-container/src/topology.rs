@@ -70,22 +70,6 @@ impl Numbers for BitReader<'_> {
     }
 }
 
-/// Band j's Key payload in its shorter coding (proto/container.md, "Key").
-/// `first`: on keyframes after frame 0, frame 0's parents of band j (Key coding 3).
-pub(crate) fn key_chunk(h: &pmcodec_hierarchy::Hierarchy, j: usize, parent: &[u32], first: Option<&[u32]>) -> Vec<u8> {
-    crate::payload::write_key_best(parent, h.level_sizes.get(j + 1).copied().unwrap_or(0), first)
-}
-
-/// Band j's Delta payload in its shorter coding (proto/container.md, "Delta").
-pub(crate) fn delta_chunk(h: &pmcodec_hierarchy::Hierarchy, j: usize, moves: &[(u32, u32)]) -> Vec<u8> {
-    crate::payload::write_delta_best(moves, h.level_sizes[j], h.level_sizes.get(j + 1).copied().unwrap_or(0))
-}
-
-/// Band j's Faces payload (of `triangles` input triangles) in its shorter coding.
-pub(crate) fn faces_chunk(h: &pmcodec_hierarchy::Hierarchy, j: usize, faces: &[(u32, [u32; 3])], triangles: usize) -> Vec<u8> {
-    crate::payload::write_faces_best(faces, h.level_sizes[j], triangles as u32)
-}
-
 /// Band j's Corners payload, against the corners a level-j reader holds, in its shorter coding.
 pub(crate) fn corners_chunk(h: &pmcodec_hierarchy::Hierarchy, j: usize, updates: &[(u32, [u32; 3])], held: &[[u32; 3]]) -> Vec<u8> {
     crate::payload::write_corner_updates_best(updates, held, h.level_sizes[j])

@@ -458,8 +458,13 @@ pub fn load_obj_files(paths: &[PathBuf], frame_rate: f32) -> Result<Sequence, Me
 /// [`load_obj_files`] under the given limits: the frame count is checked before any file is
 /// read, and each file's vertices and triangles while it is read.
 pub fn load_obj_files_with(paths: &[PathBuf], frame_rate: f32, limits: &InputLimits) -> Result<Sequence, MeshError> {
+    use rayon::prelude::*;
     let (mut seq, rest) = open_obj_files(paths, frame_rate, limits)?;
-    for frame in rest {
+    // The files after the first are read in parallel (each on its own), then taken in order:
+    // the first bad one's error is the one a reading in order would give.
+    let frames: Vec<Result<Vec<Vec3>, MeshError>> = rest.paths.par_iter().rev().map(|p| rest.read(p)).collect();
+    seq.frames.reserve(frames.len());
+    for frame in frames {
         seq.frames.push(frame?);
     }
     seq.validate()?;

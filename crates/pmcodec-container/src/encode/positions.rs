@@ -149,6 +149,35 @@ impl PositionCoder {
         truth: impl Fn(usize) -> [f64; 3],
         (skin, surface): (Option<Skinning>, Option<Surface>),
     ) -> (Vec<u8>, bool) {
+        let skinned = self.code_band(j, intra, h, truth, (skin, surface));
+        (payload::write_positions(self.shifts[j], &self.residuals), skinned)
+    }
+
+    /// [`Self::band`] without its payload: returns the band's residual shift and residuals
+    /// (what [`payload::write_positions`] makes the payload of; nothing of the coder's state
+    /// depends on it, so the encoder writes it on another thread) and whether skinning
+    /// predicted the band.
+    pub(super) fn band_residuals(
+        &mut self,
+        j: usize,
+        intra: bool,
+        h: &Hierarchy,
+        truth: impl Fn(usize) -> [f64; 3],
+        (skin, surface): (Option<Skinning>, Option<Surface>),
+    ) -> (u32, Vec<[i32; 3]>, bool) {
+        let skinned = self.code_band(j, intra, h, truth, (skin, surface));
+        (self.shifts[j], self.residuals.clone(), skinned)
+    }
+
+    /// Codes band `j` into `current` and `residuals`; returns whether skinning predicted it.
+    fn code_band(
+        &mut self,
+        j: usize,
+        intra: bool,
+        h: &Hierarchy,
+        truth: impl Fn(usize) -> [f64; 3],
+        (skin, surface): (Option<Skinning>, Option<Surface>),
+    ) -> bool {
         self.report.bands += 1;
         let (chosen, skinned) = match skin {
             None => {
@@ -173,7 +202,7 @@ impl PositionCoder {
         if j == 0 && intra && self.motion == Motion::KeyframeAffine {
             self.weights.compute(&self.lower, &self.current, h.level_sizes[0] as usize);
         }
-        (payload::write_positions(self.shifts[j], &self.residuals), skinned)
+        skinned
     }
 
     /// Codes band `j` under both predictions and keeps skinning's where its residuals cost

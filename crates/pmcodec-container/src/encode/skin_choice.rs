@@ -92,33 +92,53 @@ pub fn skin_trial(seq: &Sequence, opts: &EncodeOptions) -> Result<SkinTrial, Con
     let bind = stored(&write_binds(&fit.nodes))?;
     let frames = trial_frames(seq.frame_count(), opts.keyframe_interval as usize);
     let lower = || LowerNeighbours::new(n, &seq.triangles, opts.order);
-    // Band 0 is never on a coarser grid than the quantum (`predict::coarse_shift`).
-    let mut plain = PositionCoder::new(opts.motion, lower(), vec![0], n);
-    let mut skinned = PositionCoder::new(opts.motion, lower(), vec![0], n);
-    let mut held = SkinState::default();
     let inv = 1.0 / step as f64;
-    let mut out = SkinTrial { frames: seq.frame_count() as u32, ..Default::default() };
-    let (mut pose, mut plain_bytes, mut skinned_bytes) = (0u64, 0u64, 0u64);
-    for f in frames {
-        let intra = is_keyframe(opts, f);
+    let truth_of = |f: usize| {
         let positions = &seq.frames[f];
-        let truth = |g: usize| {
+        move |g: usize| {
             let p = positions[g] - lo;
             [p.x as f64 * inv, p.y as f64 * inv, p.z as f64 * inv]
+        }
+    };
+    let mut out = SkinTrial { frames: seq.frame_count() as u32, frames_coded: frames.len() as u32, ..Default::default() };
+    // The two codings are independent: the default prediction's on a thread of its own.
+    // Band 0 is never on a coarser grid than the quantum (`predict::coarse_shift`).
+    let (plain_bytes, skinned_side) = std::thread::scope(|scope| {
+        let plain_side = scope.spawn(|| -> Result<u64, ContainerError> {
+            let mut plain = PositionCoder::new(opts.motion, lower(), vec![0], n);
+            let mut bytes = 0u64;
+            for &f in &frames {
+                bytes += stored(&plain.band(0, is_keyframe(opts, f), &h, truth_of(f), (None, None)).0)?;
+                plain.next_frame();
+            }
+            Ok(bytes)
+        });
+        let skinned_side = (|| -> Result<(u64, u64), ContainerError> {
+            let mut skinned = PositionCoder::new(opts.motion, lower(), vec![0], n);
+            let mut held = SkinState::default();
+            let (mut pose, mut skinned_bytes) = (0u64, 0u64);
+            for &f in &frames {
+                let intra = is_keyframe(opts, f);
+                let palette = fit.joints(f, &held, intra)?;
+                let skinning = Skinning { nodes: &fit.nodes, palette: &palette.palette, previous: &held.palette, coarse: None };
+                let (payload, used) = skinned.band(0, intra, &h, truth_of(f), (Some(skinning), None));
+                skinned_bytes += stored(&payload)?;
+                let raw = write_joints(used as u64, &entries, &palette, &held.joint_prediction(intra));
+                pose += stored(&raw)?;
+                let crate::skin::JointsFrame { palette, rig, links, .. } = palette;
+                held.advance_rig(palette, (rig, links), intra, used as u64);
+                skinned.next_frame();
+            }
+            Ok((pose, skinned_bytes))
+        })();
+        let plain = match plain_side.join() {
+            Ok(r) => r,
+            Err(panic) => std::panic::resume_unwind(panic),
         };
-        let palette = fit.joints(f, &held, intra)?;
-        plain_bytes += stored(&plain.band(0, intra, &h, truth, (None, None)).0)?;
-        let skinning = Skinning { nodes: &fit.nodes, palette: &palette.palette, previous: &held.palette, coarse: None };
-        let (payload, used) = skinned.band(0, intra, &h, truth, (Some(skinning), None));
-        skinned_bytes += stored(&payload)?;
-        let raw = write_joints(used as u64, &entries, &palette, &held.joint_prediction(intra));
-        pose += stored(&raw)?;
-        let crate::skin::JointsFrame { palette, rig, links, .. } = palette;
-        held.advance_rig(palette, (rig, links), intra, used as u64);
-        plain.next_frame();
-        skinned.next_frame();
-        out.frames_coded += 1;
-    }
+        (plain, skinned_side)
+    });
+    let (pose, skinned_bytes) = skinned_side?;
+    let plain_bytes = plain_bytes?;
     let scale = |b: u64| (b as f64 * out.frames as f64 / out.frames_coded.max(1) as f64).round() as u64;
     out.plain_bytes = scale(plain_bytes);
     out.skinned_bytes = scale(skinned_bytes);

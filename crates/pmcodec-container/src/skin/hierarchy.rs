@@ -219,6 +219,20 @@ pub fn choose_links(
         DMat4::from_cols(col(0), col(1), col(2), DVec4::new(m[3] / 4.0, m[7] / 4.0, m[11] / 4.0, 1.0))
     };
     let maps: Vec<Vec<DMat4>> = frames.iter().map(|f| f.chunks_exact(ENTRY).take(n).map(affine).collect()).collect();
+    // Each entry's inverse per frame, and the cube root of its determinant's size (the scale
+    // of its position quanta), where it is invertible: what every entry linked to it reads,
+    // made once (the 168 fitted bones of the horse inverted each of them 167 times a frame).
+    let inverses: Vec<Vec<Option<(DMat4, f64)>>> = maps
+        .iter()
+        .map(|f| {
+            f.iter()
+                .map(|a| {
+                    let det = a.determinant();
+                    (det.is_finite() && det.abs() > 1e-12).then(|| (a.inverse(), det.abs().cbrt()))
+                })
+                .collect()
+        })
+        .collect();
     // Estimated bits of a number whose prediction misses by `err` position quanta (under a
     // quarter quantum the entry is sent as predicted).
     let bits = |err: f64| (1.0 + err * 4.0).log2();
@@ -269,13 +283,12 @@ pub fn choose_links(
             let mut cost = 0.0;
             for (k, f) in maps.iter().enumerate() {
                 let a = f[p];
-                let det = a.determinant();
-                if !(det.is_finite() && det.abs() > 1e-12) {
+                let Some((inverse, scale)) = inverses[k][p] else {
                     break;
-                }
-                rel.push(a.inverse() * f[e]);
+                };
+                rel.push(inverse * f[e]);
                 if k > 0 {
-                    let (lin, _) = turn(&rel, k, radius, det.abs().cbrt());
+                    let (lin, _) = turn(&rel, k, radius, scale);
                     let t = ((f[e] - a) * c.extend(1.0)).truncate().abs().max_element();
                     cost += if lin <= 0.25 && t <= 0.25 { 1.0 } else { 2.0 + 4.0 * bits(lin) + 3.0 * bits(t) };
                 }

@@ -37,23 +37,131 @@ pub fn centroids(rest: &[DVec3], labels: &[u32], bones: usize) -> Vec<(u32, DVec
 /// For every point, the (at most [`NEAR_BONES`]) bones whose `centroids` are nearest it,
 /// nearest first (ties by bone number).
 pub fn near_bones(points: &[DVec3], centroids: &[(u32, DVec3)]) -> Vec<Vec<u32>> {
-    points
-        .par_iter()
-        .map_init(
-            || Vec::with_capacity(centroids.len()),
-            |scored: &mut Vec<(f64, u32)>, p| {
-                scored.clear();
-                scored.extend(centroids.iter().map(|&(b, c)| (c.distance_squared(*p), b)));
-                let m = NEAR_BONES.min(scored.len());
-                if m < scored.len() {
-                    scored.select_nth_unstable_by(m, |a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-                }
-                let near = &mut scored[..m];
-                near.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-                near.iter().map(|s| s.1).collect()
-            },
-        )
-        .collect()
+    let tree = Centroids::new(centroids);
+    points.par_iter().map(|p| tree.nearest(*p)).collect()
+}
+
+/// Centroids in a k-d tree (Bentley, "Multidimensional binary search trees used for
+/// associative searching", 1975), for [`near_bones`]: a point compares itself with the
+/// centroids of the cells that may hold one of its nearest, not with every bone's (a fit
+/// compares every sampled vertex with up to 256 bones at every alternation).
+struct Centroids {
+    /// Finite centroids, each cell's together.
+    items: Vec<(u32, DVec3)>,
+    /// Centroids with a coordinate that is not finite: compared with every point.
+    odd: Vec<(u32, DVec3)>,
+    cells: Vec<Cell>,
+}
+
+/// A k-d tree cell: `items[start..end]`, split (when `split` is Some) at `value` on `axis` into
+/// the cells `split.0` (coordinates at most `value`) and `split.1` (at least `value`).
+struct Cell {
+    start: usize,
+    end: usize,
+    axis: usize,
+    value: f64,
+    split: Option<(usize, usize)>,
+}
+
+/// Centroids per leaf cell at most.
+const LEAF: usize = 8;
+
+impl Centroids {
+    fn new(centroids: &[(u32, DVec3)]) -> Self {
+        let (items, odd): (Vec<_>, Vec<_>) = centroids.iter().partition(|c| c.1.is_finite());
+        let mut tree = Centroids { items, odd, cells: Vec::new() };
+        let n = tree.items.len();
+        tree.build(0, n);
+        tree
+    }
+
+    /// Makes the cell of `items[start..end]` and those below it; returns its index.
+    fn build(&mut self, start: usize, end: usize) -> usize {
+        let at = self.cells.len();
+        self.cells.push(Cell { start, end, axis: 0, value: 0.0, split: None });
+        if end - start <= LEAF {
+            return at;
+        }
+        let part = &mut self.items[start..end];
+        let (lo, hi) = part.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), c| (lo.min(c.1), hi.max(c.1)));
+        let axis = (hi - lo).max_position();
+        part.sort_unstable_by(|a, b| a.1[axis].total_cmp(&b.1[axis]).then(a.0.cmp(&b.0)));
+        let mid = start + (end - start) / 2;
+        let value = self.items[mid].1[axis];
+        let left = self.build(start, mid);
+        let right = self.build(mid, end);
+        self.cells[at] = Cell { start, end, axis, value, split: Some((left, right)) };
+        at
+    }
+
+    /// The (at most [`NEAR_BONES`]) bones nearest `p`, nearest first, ties by bone number.
+    ///
+    /// Exactly those of comparing `p` with every centroid: a cell is passed over only where
+    /// no centroid in it can come before the last of a full list. Its centroids lie beyond
+    /// the splitting plane, so each one's squared distance (as computed: rounding is monotone,
+    /// and the squares it sums are not negative) is at least the rounded square of `p`'s
+    /// distance to the plane.
+    fn nearest(&self, p: DVec3) -> Vec<u32> {
+        let m = NEAR_BONES.min(self.items.len() + self.odd.len());
+        let mut near = Nearest { list: [(0.0, 0); NEAR_BONES], len: 0, m };
+        for &(b, c) in &self.odd {
+            near.offer(c.distance_squared(p), b);
+        }
+        if !self.items.is_empty() {
+            self.visit(0, p, p.is_finite(), &mut near);
+        }
+        near.list[..near.len].iter().map(|s| s.1).collect()
+    }
+
+    fn visit(&self, cell: usize, p: DVec3, prune: bool, near: &mut Nearest) {
+        let c = &self.cells[cell];
+        let Some((left, right)) = c.split else {
+            for &(b, x) in &self.items[c.start..c.end] {
+                near.offer(x.distance_squared(p), b);
+            }
+            return;
+        };
+        let (first, second) = if p[c.axis] <= c.value { (left, right) } else { (right, left) };
+        self.visit(first, p, prune, near);
+        let gap = (c.value - p[c.axis]).abs();
+        if !(prune && near.full() && gap * gap > near.list[near.m - 1].0) {
+            self.visit(second, p, prune, near);
+        }
+    }
+}
+
+/// The `m` entries (squared distance, bone) first in the order of distance then bone number
+/// among those offered, in that order.
+struct Nearest {
+    list: [(f64, u32); NEAR_BONES],
+    len: usize,
+    m: usize,
+}
+
+impl Nearest {
+    fn full(&self) -> bool {
+        self.len == self.m
+    }
+
+    #[inline]
+    fn offer(&mut self, d: f64, b: u32) {
+        let before = |a: (f64, u32), b: (f64, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).is_lt();
+        let entry = (d, b);
+        if self.m == 0 || (self.full() && !before(entry, self.list[self.m - 1])) {
+            return;
+        }
+        let mut j = if self.full() {
+            self.m - 1
+        } else {
+            self.len += 1;
+            self.len - 1
+        };
+        while j > 0 && before(entry, self.list[j - 1]) {
+            self.list[j] = self.list[j - 1];
+            j -= 1;
+        }
+        self.list[j] = entry;
+    }
 }
 
 /// One bone label per vertex and the bones' transforms per frame of the data
@@ -224,4 +332,37 @@ pub fn split(data: &Data, labels: &[u32], error: &[f64], from: usize, to: usize)
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn near_bones_are_the_nearest_in_order_ties_by_number() {
+        // Centroids on a coarse grid (many equal distances) and points between them.
+        let grid = |i: u32| DVec3::new((i % 5) as f64, (i / 5 % 5) as f64, (i / 25) as f64);
+        for count in [0, 1, 7, NEAR_BONES, NEAR_BONES + 1, 60, 125, 256] {
+            let mut centroids: Vec<(u32, DVec3)> = (0..count as u32).rev().map(|b| (b * 3, grid(b * 7 % 125))).collect();
+            if count == 60 {
+                // Centroids that are not finite rank last (NaN after infinity), as in a sort.
+                centroids.extend([(1000, DVec3::new(f64::NAN, 0.0, 0.0)), (1001, DVec3::splat(f64::INFINITY))]);
+            }
+            let mut points: Vec<DVec3> = (0..50).map(|i| grid(i * 11 % 125) * 0.5 + DVec3::splat(0.25 * (i % 3) as f64)).collect();
+            // And points anywhere (a fixed linear congruential sequence), far ones too.
+            let mut x = 12345u64;
+            let mut next = || {
+                x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                (x >> 11) as f64 / (1u64 << 53) as f64 * 12.0 - 4.0
+            };
+            points.extend((0..200).map(|_| DVec3::new(next(), next(), next())));
+            let got = near_bones(&points, &centroids);
+            for (p, near) in points.iter().zip(&got) {
+                let mut all: Vec<(f64, u32)> = centroids.iter().map(|&(b, c)| (c.distance_squared(*p), b)).collect();
+                all.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                let want: Vec<u32> = all.iter().take(NEAR_BONES).map(|s| s.1).collect();
+                assert_eq!(near, &want, "{count} centroids, point {p}");
+            }
+        }
+    }
 }
