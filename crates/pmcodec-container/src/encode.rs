@@ -31,6 +31,7 @@ use positions::{PositionCoder, Skinning, Surface};
 use std::collections::HashMap;
 use std::ops::ControlFlow;
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Net parent changes of one level from a frame's swaps: (node, new parent) where the last
 /// swap of a node leaves it elsewhere than before the frame, ascending by node.
@@ -444,6 +445,10 @@ fn encode_frames<F: AsRef<[Vec3]>>(
     // character), and they are written once all frames are seen, after the triangles.
     let mut looks = head.appearance.as_ref().map(|a| crate::appearance::builder(head, a, level_sizes.len()));
     let looks_info = looks.as_ref().map(|l| l.info().clone());
+    // Set once the work is cancelled: the coding side stops at its next frame rather than
+    // coding what was reclustered ahead of it.
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    let stop = &stop;
     std::thread::scope(|scope| {
         let (to_coder, reclustered) = std::sync::mpsc::sync_channel::<Reclustered>(AHEAD);
         let (recycle, recycled) = std::sync::mpsc::channel::<Reclustered>();
@@ -452,7 +457,7 @@ fn encode_frames<F: AsRef<[Vec3]>>(
             let step = quantization_step(opts, lo, hi)?;
             let mut header = header(head, frame_count, opts, (lo, hi), step, level_sizes);
             header.appearance = looks_info;
-            code_frames(head, opts, header, held_corners, (lo, step, &level_error, exact), reclustered, recycle)
+            code_frames(head, opts, header, held_corners, (lo, step, &level_error, exact), (reclustered, recycle, stop))
         });
         let mut spare = Some(first);
         let mut cancelled = false;
@@ -492,6 +497,7 @@ fn encode_frames<F: AsRef<[Vec3]>>(
             }
             if progress(f).is_break() {
                 cancelled = true;
+                stop.store(true, std::sync::atomic::Ordering::Relaxed);
                 break;
             }
         }
@@ -592,7 +598,8 @@ struct Piece<'a> {
 /// A [`Piece`]'s payload: made already, a band's residuals (in units of `2^shift` quanta) to
 /// write in their shortest coding, or a payload to make. What the writing thread makes is
 /// what no later coding depends on: the payload codings compared (each sized by compressing
-/// it at the file's zstd level) and the compression of what is stored.
+/// it at the file's zstd level, or by its length for the pose chunks, from a copy of the
+/// palettes the decoder holds before the frame) and the compression of what is stored.
 enum Payload<'a> {
     Raw(Vec<u8>),
     Positions(u32, Vec<[i32; 3]>),
@@ -610,10 +617,13 @@ impl<'a> Piece<'a> {
 }
 
 /// The chunk-writing thread of [`code_frames`]: every frame's pieces, in order, made and
-/// compressed into chunks.
-fn write_pieces(frames: std::sync::mpsc::Receiver<Vec<Piece>>, flags: u16) -> Result<Chunks, ContainerError> {
+/// compressed into chunks, until `stop` is set.
+fn write_pieces(frames: std::sync::mpsc::Receiver<Vec<Piece>>, flags: u16, stop: &AtomicBool) -> Result<Chunks, ContainerError> {
     let mut chunks = Chunks(Vec::new(), flags);
     for frame in frames {
+        if stop.load(Ordering::Relaxed) {
+            return Err(ContainerError::Cancelled);
+        }
         for p in frame {
             let raw = match p.payload {
                 Payload::Raw(raw) => raw,
@@ -641,14 +651,14 @@ fn code_frames(
     header: Header,
     held_corners: Vec<Vec<[u32; 3]>>,
     grid: (Vec3, f32, &[f64], bool),
-    frames: std::sync::mpsc::Receiver<Reclustered>,
-    recycle: std::sync::mpsc::Sender<Reclustered>,
+    // The reclustered frames, where to send them back, and whether the work was cancelled.
+    (frames, recycle, stop): (std::sync::mpsc::Receiver<Reclustered>, std::sync::mpsc::Sender<Reclustered>, &AtomicBool),
 ) -> Result<(Header, Chunks, EncodeReport), ContainerError> {
     let flags = opts.chunk_flags & crate::format::KNOWN_FLAGS;
     let (to_writer, pieces) = std::sync::mpsc::sync_channel::<Vec<Piece>>(AHEAD);
     let (coded, written) = std::thread::scope(|scope| {
-        let writer = scope.spawn(move || write_pieces(pieces, flags));
-        let coded = code_pieces(seq, opts, header, held_corners, grid, frames, recycle, to_writer);
+        let writer = scope.spawn(move || write_pieces(pieces, flags, stop));
+        let coded = code_pieces(seq, opts, header, held_corners, grid, (frames, recycle, stop), to_writer);
         let written = match writer.join() {
             Ok(r) => r,
             Err(panic) => std::panic::resume_unwind(panic),
@@ -663,7 +673,6 @@ fn code_frames(
 }
 
 /// [`code_frames`]' coding thread: sends each frame's pieces to `to_writer`.
-#[allow(clippy::too_many_arguments)]
 fn code_pieces<'a>(
     seq: &'a Sequence,
     opts: &EncodeOptions,
@@ -672,8 +681,7 @@ fn code_pieces<'a>(
     // The grid's origin and step, each level's frame-0 error (see [`band_shift`]), and
     // whether the report's `plain_bits` must be exact.
     (lo, step, level_error, exact): (Vec3, f32, &[f64], bool),
-    frames: std::sync::mpsc::Receiver<Reclustered>,
-    recycle: std::sync::mpsc::Sender<Reclustered>,
+    (frames, recycle, stop): (std::sync::mpsc::Receiver<Reclustered>, std::sync::mpsc::Sender<Reclustered>, &AtomicBool),
     to_writer: std::sync::mpsc::SyncSender<Vec<Piece<'a>>>,
 ) -> Result<(Header, EncodeReport), ContainerError> {
     let levels = header.levels();
@@ -692,7 +700,7 @@ fn code_pieces<'a>(
     let skin_input = seq.skin.as_ref().zip(opts.skin);
     let mut skin: Option<SkinFit> = None;
     // The palette entries each band's Joints chunk carries.
-    let mut bands: Vec<Vec<u32>> = Vec::new();
+    let mut bands: std::sync::Arc<Vec<Vec<u32>>> = std::sync::Arc::default();
     // The palettes the decoder holds (the previous frame's and the one before), and this frame's.
     let (mut held, mut palette) = (SkinState::default(), JointsFrame::default());
     let inv = 1.0 / step as f64;
@@ -701,6 +709,9 @@ fn code_pieces<'a>(
     let mut first_keys: Vec<std::sync::Arc<Vec<u32>>> = vec![std::sync::Arc::default(); levels];
     let sizes = header.level_sizes.clone();
     for mut r in frames {
+        if stop.load(Ordering::Relaxed) {
+            return Err(ContainerError::Cancelled);
+        }
         let mut out = Vec::new();
         let key = r.key.take();
         let (f, delta, h, positions) = (r.frame, &r.delta, &r.h, &r.positions);
@@ -715,7 +726,7 @@ fn code_pieces<'a>(
                 out.push(Piece::raw(ChunkKind::Bind, 0, j, write_binds(&fit.nodes[offsets[j] as usize..offsets[j + 1] as usize])));
             }
             header.skin = Some(fit.header.clone());
-            bands = band_entries(&fit.nodes, offsets, 0, fit.header.palette_len);
+            bands = std::sync::Arc::new(band_entries(&fit.nodes, offsets, 0, fit.header.palette_len));
             skin = Some(fit);
         }
         let intra = header.is_keyframe(f as u32);
@@ -781,10 +792,24 @@ fn code_pieces<'a>(
             band_pieces.push(Piece { kind: ChunkKind::Positions, frame: f as u32, band: j as u32, payload: Payload::Positions(shift, residuals) });
         }
         if skin.is_some() {
-            // Top band first, as the bands themselves.
+            // Top band first, as the bands themselves, written on the other thread from what
+            // the decoder holds before this frame (its palettes, rigid parameters and links).
+            let before = SkinState {
+                palette: held.palette.clone(),
+                previous: held.previous.clone(),
+                rig: held.rig.clone(),
+                rig_before: held.rig_before.clone(),
+                links: held.links.clone(),
+                ..Default::default()
+            };
+            let pose = std::sync::Arc::new((before, palette.clone(), std::sync::Arc::clone(&bands)));
+            let (coding, kind) = (opts.palette_coding, pose_kind(opts.palette_coding));
             for j in (0..levels).rev().filter(|&j| has_palette_chunk(&bands, j)) {
-                let (kind, raw) = pose_chunk(opts.palette_coding, mask, (&bands, j), &palette, (&held, intra));
-                out.push(Piece::raw(kind, f, j, raw));
+                let pose = std::sync::Arc::clone(&pose);
+                out.push(Piece::make(kind, f, j, move || {
+                    let (held, palette, bands) = &*pose;
+                    pose_chunk(coding, mask, (bands, j), palette, (held, intra))
+                }));
             }
             let JointsFrame { palette, rig, links, .. } = std::mem::take(&mut palette);
             held.advance_rig(palette, (rig, links), intra, mask);
@@ -830,20 +855,28 @@ fn derive_bands(chunks: &mut Chunks, interval: u32, policy: DerivedTopology) -> 
     crate::derive::choose(&mut chunks.0, policy, keyframe_before, crate::format::sparse_kind(ChunkKind::Corners, flags), store)
 }
 
-/// Band j's pose chunk (carrying palette `entries`) in the coding the options ask for, against
-/// the palettes the decoder holds.
+/// The kind of the pose chunks of the palette coding `coding`.
+fn pose_kind(coding: PaletteCoding) -> ChunkKind {
+    match coding {
+        PaletteCoding::Joints | PaletteCoding::JointsPlain => ChunkKind::Joints,
+        PaletteCoding::Palette => ChunkKind::Palette,
+    }
+}
+
+/// Band j's pose chunk (carrying palette `entries`) in the coding the options ask for (its kind
+/// [`pose_kind`]), against the palettes the decoder holds.
 fn pose_chunk(
     coding: PaletteCoding,
     mask: u64,
     (bands, j): (&[Vec<u32>], usize),
     palette: &JointsFrame,
     (held, intra): (&SkinState, bool),
-) -> (ChunkKind, Vec<u8>) {
+) -> Vec<u8> {
     let entries: &[u32] = bands.get(j).map(Vec::as_slice).unwrap_or_default();
     match coding {
-        PaletteCoding::Joints => (ChunkKind::Joints, write_joints_best(mask, (bands, j), palette, &held.joint_prediction(intra))),
-        PaletteCoding::JointsPlain => (ChunkKind::Joints, write_joints(mask, entries, palette, &held.joint_prediction(intra))),
-        PaletteCoding::Palette => (ChunkKind::Palette, write_palette(mask, entries, &palette.palette, held.prediction(intra))),
+        PaletteCoding::Joints => write_joints_best(mask, (bands, j), palette, &held.joint_prediction(intra)),
+        PaletteCoding::JointsPlain => write_joints(mask, entries, palette, &held.joint_prediction(intra)),
+        PaletteCoding::Palette => write_palette(mask, entries, &palette.palette, held.prediction(intra)),
     }
 }
 
