@@ -789,7 +789,12 @@ fn code_pieces<'a>(
             let surface = opts.surface_grid.then_some(Surface { quadrics: &r.quadrics, first: n0, lo: lo.as_dvec3(), step: step as f64 });
             let (shift, residuals, skinned) = coder.band_residuals(j, intra, h, truth, (skinning, surface));
             mask |= (skinned as u64) << j;
-            band_pieces.push(Piece { kind: ChunkKind::Positions, frame: f as u32, band: j as u32, payload: Payload::Positions(shift, residuals) });
+            band_pieces.push(Piece {
+                kind: ChunkKind::Positions,
+                frame: f as u32,
+                band: j as u32,
+                payload: Payload::Positions(shift, residuals),
+            });
         }
         if skin.is_some() {
             // Top band first, as the bands themselves, written on the other thread from what

@@ -37,20 +37,26 @@ struct Compression {
     memo: Memo,
 }
 
+/// An input's zstd level, length and CRC-32.
+type MemoKey = (i32, usize, u32);
+
+/// A remembered input: the number of its last use, the input and its frame.
+type Remembered = (u64, Vec<u8>, Vec<u8>);
+
 /// Inputs with their frames by (level, length, CRC-32 of the input); `order` their uses,
 /// oldest first, each with the use's number (an input used again is found further on with a
 /// later number, and its earlier place is passed over when forgetting).
 #[derive(Default)]
 struct Memo {
-    entries: std::collections::HashMap<(i32, usize, u32), (u64, Vec<u8>, Vec<u8>)>,
-    order: std::collections::VecDeque<((i32, usize, u32), u64)>,
+    entries: std::collections::HashMap<MemoKey, Remembered>,
+    order: std::collections::VecDeque<(MemoKey, u64)>,
     bytes: usize,
     uses: u64,
 }
 
 impl Memo {
     /// The frame of `raw` at `level` (its CRC-32 `crc`), if remembered.
-    fn get(&mut self, key: (i32, usize, u32), raw: &[u8]) -> Option<Vec<u8>> {
+    fn get(&mut self, key: MemoKey, raw: &[u8]) -> Option<Vec<u8>> {
         let entry = self.entries.get_mut(&key).filter(|e| e.1 == raw)?;
         self.uses += 1;
         entry.0 = self.uses;
@@ -63,7 +69,7 @@ impl Memo {
         Some(z)
     }
 
-    fn put(&mut self, key: (i32, usize, u32), raw: &[u8], z: &[u8]) {
+    fn put(&mut self, key: MemoKey, raw: &[u8], z: &[u8]) {
         if raw.len() + z.len() > REMEMBERED_BYTES / 4 {
             return;
         }
@@ -75,10 +81,10 @@ impl Memo {
         self.order.push_back((key, self.uses));
         while self.bytes > REMEMBERED_BYTES {
             let Some((k, n)) = self.order.pop_front() else { break };
-            if self.entries.get(&k).is_some_and(|e| e.0 == n) {
-                if let Some(old) = self.entries.remove(&k) {
-                    self.bytes -= old.1.len() + old.2.len();
-                }
+            if self.entries.get(&k).is_some_and(|e| e.0 == n)
+                && let Some(old) = self.entries.remove(&k)
+            {
+                self.bytes -= old.1.len() + old.2.len();
             }
         }
     }
